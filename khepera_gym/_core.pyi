@@ -1,0 +1,95 @@
+"""Type stub of the Rust extension module ``khepera_gym._core`` (built by maturin from src/python/).
+
+Threading and copy semantics: every method validates its inputs while holding the GIL, copies them
+into Rust-owned buffers, releases the GIL for the simulation work, and returns freshly allocated
+NumPy arrays (never views of internal buffers), so callers may keep or mutate what they get.
+Errors are raised as the classes of ``khepera_gym.errors`` (ConfigError, ActionError, KheperaError).
+"""
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+class Batch:
+    """N independent seeded Khepera IV worlds of one task, stepped in parallel by a rayon pool.
+
+    Args:
+        task: "nav" (later "avoid", "formation").
+        num_worlds: number of worlds N (>= 1).
+        config_text: TOML text of a scenario file overlaid on the task's built-in defaults, or None.
+        config_name: where config_text came from (a file path or built-in name), used in messages.
+        overrides: keyword overrides, either leaf names (``goal_radius=0.1``), dotted names
+            (``{"task.goal_radius": 0.1}``) or section dicts (``task={"goal_radius": 0.1}``).
+        action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, w).
+        num_threads: size of the batch's own rayon pool; None = all cores.
+        autoreset: True for NEXT_STEP autoreset (vector env); False for a single env, where
+            stepping a finished episode raises KheperaError until reset() is called.
+    """
+
+    num_worlds: int
+    obs_dim: int
+    act_dim: int
+    n_robots: int
+    num_threads: int
+    max_episode_steps: int
+    def __init__(
+        self,
+        task: str,
+        num_worlds: int,
+        config_text: str | None = None,
+        config_name: str = "<built-in>",
+        overrides: dict[str, Any] | None = None,
+        action_type: str = "wheels",
+        num_threads: int | None = None,
+        autoreset: bool = True,
+    ) -> None: ...
+    def obs_bounds(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """(low, high), each of shape (obs_dim,)."""
+    def reset(self, seed: int | None = None) -> npt.NDArray[np.float32]:
+        """Reset every world; world i is seeded with seed + i; None continues each world's stream.
+
+        Returns observations of shape (N, obs_dim)."""
+    def reset_world(self, index: int, seed: int | None = None) -> npt.NDArray[np.float32]:
+        """Reset one world (seeded with ``seed`` itself when given); returns its (obs_dim,) obs."""
+    def step(
+        self, actions: npt.NDArray[np.float32]
+    ) -> tuple[
+        npt.NDArray[np.float32],
+        npt.NDArray[np.float32],
+        npt.NDArray[np.bool_],
+        npt.NDArray[np.bool_],
+    ]:
+        """Step all worlds with actions of shape (N, act_dim), float32, C-contiguous.
+
+        NaN/inf or a wrong shape raise ActionError; finite values outside [-1, 1] are clipped.
+        With autoreset, a world that ended on the previous call is reset instead of stepped and
+        returns its first observation with reward 0 and both flags False (Gymnasium NEXT_STEP).
+        Returns (obs (N, obs_dim), reward (N,), terminated (N,), truncated (N,))."""
+    def episode_stats(self) -> dict[str, npt.NDArray[Any]]:
+        """Statistics of the episodes that ended on the last step() (valid where
+        terminated | truncated): "return" f32, "length" i64, "success" bool, "path_length" f32 (m),
+        "collisions" i64 (steps in contact), each of shape (N,)."""
+    def poses(self) -> npt.NDArray[np.float64]:
+        """Ground-truth robot poses, shape (N, n_robots, 3): x, y (m), theta (rad, (-pi, pi])."""
+    def goals(self) -> npt.NDArray[np.float64]:
+        """Goal positions, shape (N, n_goals, 2) in metres."""
+    def sensor_readings(self) -> dict[str, npt.NDArray[Any]]:
+        """Raw sensor values of the last observation, in the real robot's units:
+        "ir_raw" (N, n_robots, 8) int32 0..1023 in K-Team order; "us_cm" (N, n_robots, 5) int32
+        with codes 0 (closer than 25 cm), 1000 (nothing in range), 2000 (disabled);
+        "wheel_speeds" (N, n_robots, 2) float32 m/s; "encoders" (N, n_robots, 2) int64 pulses;
+        "gyro_z" (N, n_robots) float32 rad/s."""
+    def scene(self, index: int = 0) -> dict[str, Any]:
+        """Geometry of world ``index`` for plots: {"arena": (w, h), "robot_radius": r,
+        "obstacles": [{"kind": "circle"|"box"|"segment", ...}], "goal_radius": r}."""
+    def config_toml(self) -> str:
+        """The fully resolved scenario (defaults + file + overrides) as TOML text."""
+
+def obs_layout(task: str) -> list[tuple[str, int, int]]:
+    """Observation layout of a task: (name, start, stop) slices, in order."""
+
+def default_config(task: str) -> str:
+    """The task's built-in scenario file (TOML text, every key documented)."""

@@ -1,0 +1,263 @@
+//! A batch of N independent worlds of one task, stepped in parallel.
+//!
+//! Layout: the worlds in a `Vec`, outputs in flat preallocated buffers (observations
+//! `N × obs_dim`, one outcome per world); a step allocates nothing. Threading: the batch owns a
+//! rayon pool of `num_threads` threads (none when 1); each world is stepped by exactly one thread
+//! and draws only from its own ChaCha8 stream, so results are bit-for-bit the same for any
+//! thread count. Seeding: `reset(Some(s))` seeds world i with `s + i` (Gymnasium's convention),
+//! `reset(None)` continues every stream. Autoreset (Gymnasium NEXT_STEP): a world whose episode
+//! ended on the previous step is reset instead of stepped, with reward 0 and both flags false.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::robot::ActionType;
+use crate::scenario::Scenario;
+use crate::tasks::{Env, EpisodeStats, StepOutcome, TaskKind};
+
+/// Smallest number of worlds a rayon task takes (amortises scheduling).
+const MIN_WORLDS_PER_TASK: usize = 8;
+
+/// N worlds, their output buffers and their thread pool.
+pub struct Batch {
+    envs: Vec<Env>,
+    pool: Option<rayon::ThreadPool>,
+    num_threads: usize,
+    autoreset: bool,
+    obs_dim: usize,
+    act_dim: usize,
+    obs: Vec<f32>,
+    outcomes: Vec<StepOutcome>,
+}
+
+impl Batch {
+    /// Builds `num_worlds` worlds of `kind` from `cfg`. `num_threads` None uses every core.
+    pub fn new(
+        kind: TaskKind,
+        cfg: Scenario,
+        num_worlds: usize,
+        action_type: ActionType,
+        num_threads: Option<usize>,
+        autoreset: bool,
+    ) -> Result<Self> {
+        if num_worlds == 0 {
+            return Err(Error::config("<batch>", "num_envs", "must be >= 1, got 0"));
+        }
+        if num_worlds > 1 << 20 {
+            return Err(Error::config(
+                "<batch>",
+                "num_envs",
+                format!("must be <= 1048576, got {num_worlds}"),
+            ));
+        }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let num_threads = match num_threads {
+            Some(0) => {
+                return Err(Error::config(
+                    "<batch>",
+                    "num_threads",
+                    "must be >= 1, got 0",
+                ));
+            }
+            Some(n) if n > 1024 => {
+                return Err(Error::config(
+                    "<batch>",
+                    "num_threads",
+                    format!("must be <= 1024, got {n}"),
+                ));
+            }
+            Some(n) => n,
+            None => cores,
+        };
+        let pool = if num_threads > 1 && num_worlds > 1 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(num_threads)
+                .thread_name(|i| format!("khepera-gym-{i}"))
+                .build()
+                .map_err(|e| Error::State(format!("cannot start {num_threads} threads: {e}")))?;
+            Some(pool)
+        } else {
+            None
+        };
+        let cfg = Arc::new(cfg);
+        let envs: Vec<Env> = (0..num_worlds)
+            .map(|i| {
+                let mut env = Env::new(kind, cfg.clone(), action_type);
+                env.seed(i as u64);
+                env
+            })
+            .collect();
+        let obs_dim = kind.obs_dim();
+        let act_dim = kind.act_dim(&cfg);
+        Ok(Self {
+            envs,
+            pool,
+            num_threads,
+            autoreset,
+            obs_dim,
+            act_dim,
+            obs: vec![0.0; num_worlds * obs_dim],
+            outcomes: vec![StepOutcome::default(); num_worlds],
+        })
+    }
+
+    /// Number of worlds.
+    pub fn len(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Whether the batch has no worlds (never: construction requires one).
+    pub fn is_empty(&self) -> bool {
+        self.envs.is_empty()
+    }
+
+    /// Observation length per world.
+    pub fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    /// Action length per world.
+    pub fn act_dim(&self) -> usize {
+        self.act_dim
+    }
+
+    /// Threads stepping the batch.
+    pub fn num_threads(&self) -> usize {
+        self.num_threads
+    }
+
+    /// The worlds, read-only.
+    pub fn envs(&self) -> &[Env] {
+        &self.envs
+    }
+
+    /// The scenario shared by every world.
+    pub fn scenario(&self) -> &Scenario {
+        &self.envs[0].cfg
+    }
+
+    /// Observations written by the last reset or step, `N × obs_dim`.
+    pub fn obs(&self) -> &[f32] {
+        &self.obs
+    }
+
+    /// Outcomes of the last step, one per world.
+    pub fn outcomes(&self) -> &[StepOutcome] {
+        &self.outcomes
+    }
+
+    /// Statistics of each world's last finished episode (valid where the last step ended one).
+    pub fn episode_stats(&self) -> impl Iterator<Item = &EpisodeStats> {
+        self.envs.iter().map(|e| &e.last_episode)
+    }
+
+    /// Resets every world; with `Some(seed)` world i is seeded with `seed + i` first.
+    pub fn reset(&mut self, seed: Option<u64>) {
+        if let Some(seed) = seed {
+            for (i, env) in self.envs.iter_mut().enumerate() {
+                env.seed(seed.wrapping_add(i as u64));
+            }
+        }
+        self.outcomes.fill(StepOutcome::default());
+        let obs_dim = self.obs_dim;
+        let work = |envs: &mut [Env], obs: &mut [f32]| {
+            envs.par_iter_mut()
+                .zip(obs.par_chunks_mut(obs_dim))
+                .with_min_len(MIN_WORLDS_PER_TASK)
+                .for_each(|(env, o)| env.reset(o));
+        };
+        match &self.pool {
+            Some(pool) => pool.install(|| work(&mut self.envs, &mut self.obs)),
+            None => {
+                for (env, o) in self.envs.iter_mut().zip(self.obs.chunks_mut(obs_dim)) {
+                    env.reset(o);
+                }
+            }
+        }
+    }
+
+    /// Resets world `index` alone (seeded with `seed` itself when given).
+    pub fn reset_world(&mut self, index: usize, seed: Option<u64>) -> Result<&[f32]> {
+        let n = self.envs.len();
+        let env = self
+            .envs
+            .get_mut(index)
+            .ok_or_else(|| Error::State(format!("world index {index} out of range 0..{n}")))?;
+        if let Some(seed) = seed {
+            env.seed(seed);
+        }
+        let o = &mut self.obs[index * self.obs_dim..(index + 1) * self.obs_dim];
+        env.reset(o);
+        self.outcomes[index] = StepOutcome::default();
+        Ok(o)
+    }
+
+    /// Checks an action buffer: length `N × act_dim`, every value finite.
+    pub fn check_actions(&self, actions: &[f32]) -> Result<()> {
+        let expected = self.envs.len() * self.act_dim;
+        if actions.len() != expected {
+            return Err(Error::Action(format!(
+                "expected {} actions of {} values ({expected} in all), got {}",
+                self.envs.len(),
+                self.act_dim,
+                actions.len()
+            )));
+        }
+        if let Some(i) = actions.iter().position(|a| !a.is_finite()) {
+            return Err(Error::Action(format!(
+                "action of world {} element {} is {} (actions must be finite; finite values \
+                 outside [-1, 1] are clipped)",
+                i / self.act_dim,
+                i % self.act_dim,
+                actions[i]
+            )));
+        }
+        Ok(())
+    }
+
+    /// Steps every world with `actions` (`N × act_dim`, row-major). Nothing is changed when the
+    /// actions are invalid.
+    pub fn step(&mut self, actions: &[f32]) -> Result<()> {
+        self.check_actions(actions)?;
+        if !self.autoreset {
+            if let Some(i) = self.envs.iter().position(|e| e.done) {
+                return Err(Error::State(format!(
+                    "world {i}: the episode has ended (or was never started); call reset() first"
+                )));
+            }
+        }
+        let (obs_dim, act_dim) = (self.obs_dim, self.act_dim);
+        let step_one =
+            |((env, o), (a, out)): ((&mut Env, &mut [f32]), (&[f32], &mut StepOutcome))| {
+                if env.done {
+                    env.reset(o);
+                    *out = StepOutcome::default();
+                } else {
+                    *out = env.step(a, o);
+                }
+            };
+        match &self.pool {
+            Some(pool) => pool.install(|| {
+                self.envs
+                    .par_iter_mut()
+                    .zip(self.obs.par_chunks_mut(obs_dim))
+                    .zip(
+                        actions
+                            .par_chunks(act_dim)
+                            .zip(self.outcomes.par_iter_mut()),
+                    )
+                    .with_min_len(MIN_WORLDS_PER_TASK)
+                    .for_each(step_one)
+            }),
+            None => self
+                .envs
+                .iter_mut()
+                .zip(self.obs.chunks_mut(obs_dim))
+                .zip(actions.chunks(act_dim).zip(self.outcomes.iter_mut()))
+                .for_each(step_one),
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,36 @@
+//! The core's error type. Every fallible public function returns [`Result`]; the Python binding
+//! maps each variant to one class of `khepera_gym.errors` (see src/python/mod.rs), so no user
+//! input can end in a panic.
+
+/// An error the simulator reports to its caller.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// A scenario file or override is malformed or impossible. `origin` names the file
+    /// (or `<built-in>`, `<override>`), `key` the dotted key (`robot.radius`).
+    #[error("{origin}: {key}: {message}")]
+    Config {
+        origin: String,
+        key: String,
+        message: String,
+    },
+    /// An action buffer has the wrong length or holds NaN/inf.
+    #[error("{0}")]
+    Action(String),
+    /// A call in the wrong state (e.g. stepping a finished episode without reset).
+    #[error("{0}")]
+    State(String),
+}
+
+impl Error {
+    /// A configuration error about `key` from `origin`.
+    pub fn config(origin: &str, key: &str, message: impl Into<String>) -> Self {
+        Error::Config {
+            origin: origin.to_string(),
+            key: key.to_string(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Result with the core's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,556 @@
+//! The `khepera_gym._core` Python module: the `Batch` class and layout/config helpers.
+//!
+//! Threading and copies: every method checks its inputs while holding the GIL, copies them into
+//! Rust-owned buffers, releases the GIL (`py.detach`) for the simulation, then copies results
+//! into freshly allocated NumPy arrays (never views of internal buffers). No Python object
+//! crosses into the released section.
+//!
+//! Errors: core errors become `khepera_gym.errors` classes (ConfigError, ActionError,
+//! KheperaError); a Rust panic is caught at this boundary and raised as KheperaError, never as
+//! pyo3's PanicException.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple, PyType};
+
+use crate::batch::Batch as CoreBatch;
+use crate::error::Error;
+use crate::robot::{ActionType, PULSES_PER_WHEEL_TURN};
+use crate::scenario::{self, Scenario, Source};
+use crate::tasks::TaskKind;
+use crate::world::scene::Geometry;
+
+/// Raises `err` as the matching class of `khepera_gym.errors`.
+fn to_py(py: Python<'_>, err: Error) -> PyErr {
+    let class = match err {
+        Error::Config { .. } => "ConfigError",
+        Error::Action(_) => "ActionError",
+        Error::State(_) => "KheperaError",
+    };
+    raise(py, class, err.to_string())
+}
+
+fn raise(py: Python<'_>, class: &str, message: String) -> PyErr {
+    let found = py
+        .import("khepera_gym.errors")
+        .and_then(|m| m.getattr(class))
+        .and_then(|c| c.cast_into::<PyType>().map_err(PyErr::from));
+    match found {
+        Ok(cls) => PyErr::from_type(cls, message),
+        Err(e) => e,
+    }
+}
+
+/// Runs `f`, turning a panic into KheperaError.
+fn guard<T>(py: Python<'_>, f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(result) => result,
+        Err(payload) => {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".to_string());
+            Err(raise(
+                py,
+                "KheperaError",
+                format!("internal error in the simulator core (please report): {what}"),
+            ))
+        }
+    }
+}
+
+fn task_kind(py: Python<'_>, name: &str) -> PyResult<TaskKind> {
+    TaskKind::parse(name).ok_or_else(|| {
+        let known: Vec<&str> = TaskKind::ALL.iter().map(|k| k.name()).collect();
+        to_py(
+            py,
+            Error::config(
+                "<batch>",
+                "task",
+                format!("unknown task {name:?}; known: {known:?}"),
+            ),
+        )
+    })
+}
+
+/// Converts a Python override value into TOML.
+fn to_toml(py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
+    let bad = |what: String| to_py(py, Error::config(scenario::OVERRIDE_ORIGIN, key, what));
+    if value.is_instance_of::<PyBool>() {
+        return Ok(toml::Value::Boolean(value.extract()?));
+    }
+    if value.is_instance_of::<PyString>() {
+        return Ok(toml::Value::String(value.extract()?));
+    }
+    // Python ints and NumPy integers (which have __index__ but are not floats).
+    let integral = value.is_instance_of::<PyInt>()
+        || (value.hasattr("__index__")? && !value.is_instance_of::<PyFloat>());
+    if integral {
+        return value
+            .extract::<i64>()
+            .map(toml::Value::Integer)
+            .map_err(|_| bad("integer out of range".into()));
+    }
+    if let Ok(f) = value.extract::<f64>() {
+        return Ok(toml::Value::Float(f));
+    }
+    if let Ok(d) = value.cast::<PyDict>() {
+        return Ok(toml::Value::Table(dict_to_table(py, d, key)?));
+    }
+    if value.is_instance_of::<PyList>() || value.is_instance_of::<PyTuple>() {
+        let mut items = Vec::new();
+        for (i, item) in value.try_iter()?.enumerate() {
+            items.push(to_toml(py, &format!("{key}[{i}]"), &item?)?);
+        }
+        return Ok(toml::Value::Array(items));
+    }
+    Err(bad(format!(
+        "unsupported value type {} (use bool, int, float, str, list or dict)",
+        value.get_type().name()?
+    )))
+}
+
+fn dict_to_table(py: Python<'_>, dict: &Bound<'_, PyDict>, prefix: &str) -> PyResult<toml::Table> {
+    let mut table = toml::Table::new();
+    for (k, v) in dict.iter() {
+        let key: String = k
+            .extract()
+            .map_err(|_| PyTypeError::new_err(format!("config keys must be str, got {k}")))?;
+        let path = if prefix.is_empty() {
+            key.clone()
+        } else {
+            format!("{prefix}.{key}")
+        };
+        table.insert(key, to_toml(py, &path, &v)?);
+    }
+    Ok(table)
+}
+
+/// N independent seeded Khepera IV worlds of one task, stepped in parallel.
+#[pyclass(module = "khepera_gym._core")]
+pub struct Batch {
+    inner: CoreBatch,
+    actions: Vec<f32>,
+}
+
+#[pymethods]
+impl Batch {
+    #[new]
+    #[pyo3(signature = (task, num_worlds, config_text=None, config_name="<built-in>", overrides=None, action_type="wheels", num_threads=None, autoreset=true))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        task: &str,
+        num_worlds: i64,
+        config_text: Option<String>,
+        config_name: &str,
+        overrides: Option<&Bound<'_, PyDict>>,
+        action_type: &str,
+        num_threads: Option<i64>,
+        autoreset: bool,
+    ) -> PyResult<Self> {
+        guard(py, || {
+            let kind = task_kind(py, task)?;
+            let overrides = match overrides {
+                Some(d) => dict_to_table(py, d, "")?,
+                None => toml::Table::new(),
+            };
+            let source = Source {
+                file: config_text.as_deref().map(|t| (t, config_name)),
+                overrides,
+            };
+            let cfg = Scenario::load(kind.name(), &source).map_err(|e| to_py(py, e))?;
+            let action_type = ActionType::parse(action_type).ok_or_else(|| {
+                to_py(
+                    py,
+                    Error::config(
+                        "<batch>",
+                        "action_type",
+                        format!("must be \"wheels\" or \"unicycle\", got {action_type:?}"),
+                    ),
+                )
+            })?;
+            if num_worlds < 1 {
+                return Err(to_py(
+                    py,
+                    Error::config(
+                        "<batch>",
+                        "num_envs",
+                        format!("must be >= 1, got {num_worlds}"),
+                    ),
+                ));
+            }
+            let num_threads = match num_threads {
+                None => None,
+                Some(n) if n < 1 => {
+                    return Err(to_py(
+                        py,
+                        Error::config("<batch>", "num_threads", format!("must be >= 1, got {n}")),
+                    ))
+                }
+                Some(n) => Some(n as usize),
+            };
+            let inner = py
+                .detach(|| {
+                    CoreBatch::new(
+                        kind,
+                        cfg,
+                        num_worlds as usize,
+                        action_type,
+                        num_threads,
+                        autoreset,
+                    )
+                })
+                .map_err(|e| to_py(py, e))?;
+            let actions = vec![0.0; inner.len() * inner.act_dim()];
+            Ok(Self { inner, actions })
+        })
+    }
+
+    /// Number of worlds.
+    #[getter]
+    fn num_worlds(&self) -> usize {
+        self.inner.len()
+    }
+
+    /// Observation length per world.
+    #[getter]
+    fn obs_dim(&self) -> usize {
+        self.inner.obs_dim()
+    }
+
+    /// Action length per world.
+    #[getter]
+    fn act_dim(&self) -> usize {
+        self.inner.act_dim()
+    }
+
+    /// Robots per world.
+    #[getter]
+    fn n_robots(&self) -> usize {
+        self.inner.envs()[0].world.robots.len()
+    }
+
+    /// Threads stepping the batch.
+    #[getter]
+    fn num_threads(&self) -> usize {
+        self.inner.num_threads()
+    }
+
+    /// Steps before truncation.
+    #[getter]
+    fn max_episode_steps(&self) -> u32 {
+        self.inner.scenario().task.max_steps
+    }
+
+    /// (low, high) observation bounds.
+    fn obs_bounds<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>) {
+        let env = &self.inner.envs()[0];
+        let (low, high) = env.kind().obs_bounds(&env.cfg);
+        (PyArray1::from_vec(py, low), PyArray1::from_vec(py, high))
+    }
+
+    /// Resets every world (world i seeded with seed + i); returns observations (N, obs_dim).
+    #[pyo3(signature = (seed=None))]
+    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyAny>> {
+        guard(py, || {
+            let inner = &mut self.inner;
+            py.detach(|| inner.reset(seed));
+            self.obs_array(py)
+        })
+    }
+
+    /// Resets world `index` (seeded with `seed` when given); returns its observation.
+    #[pyo3(signature = (index, seed=None))]
+    fn reset_world<'py>(
+        &mut self,
+        py: Python<'py>,
+        index: usize,
+        seed: Option<u64>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        guard(py, || {
+            let obs = self
+                .inner
+                .reset_world(index, seed)
+                .map_err(|e| to_py(py, e))?;
+            Ok(PyArray1::from_slice(py, obs))
+        })
+    }
+
+    /// Steps all worlds with actions (N, act_dim) float32.
+    #[allow(clippy::type_complexity)]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: &Bound<'py, PyAny>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        Bound<'py, PyArray1<f32>>,
+        Bound<'py, PyArray1<bool>>,
+        Bound<'py, PyArray1<bool>>,
+    )> {
+        guard(py, || {
+            let (n, d) = (self.inner.len(), self.inner.act_dim());
+            let array: PyReadonlyArray2<f32> = actions.extract().map_err(|_| {
+                to_py(
+                    py,
+                    Error::Action(format!(
+                        "actions must be a float32 array of shape ({n}, {d}), got {}",
+                        describe(actions)
+                    )),
+                )
+            })?;
+            if array.shape() != [n, d] {
+                return Err(to_py(
+                    py,
+                    Error::Action(format!(
+                        "actions must have shape ({n}, {d}), got {:?}",
+                        array.shape()
+                    )),
+                ));
+            }
+            match array.as_slice() {
+                Ok(s) => self.actions.copy_from_slice(s),
+                Err(_) => {
+                    for (dst, src) in self.actions.iter_mut().zip(array.as_array().iter()) {
+                        *dst = *src;
+                    }
+                }
+            }
+            let (inner, acts) = (&mut self.inner, &self.actions);
+            py.detach(|| inner.step(acts)).map_err(|e| to_py(py, e))?;
+            let outcomes = self.inner.outcomes();
+            let rewards: Vec<f32> = outcomes.iter().map(|o| o.reward).collect();
+            let terminated: Vec<bool> = outcomes.iter().map(|o| o.terminated).collect();
+            let truncated: Vec<bool> = outcomes.iter().map(|o| o.truncated).collect();
+            Ok((
+                self.obs_array(py)?,
+                PyArray1::from_vec(py, rewards),
+                PyArray1::from_vec(py, terminated),
+                PyArray1::from_vec(py, truncated),
+            ))
+        })
+    }
+
+    /// Statistics of the episodes that ended on the last step (valid where they ended).
+    fn episode_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let stats: Vec<_> = self.inner.episode_stats().copied().collect();
+        let d = PyDict::new(py);
+        d.set_item(
+            "return",
+            PyArray1::from_iter(py, stats.iter().map(|s| s.ret)),
+        )?;
+        d.set_item(
+            "length",
+            PyArray1::from_iter(py, stats.iter().map(|s| s.length as i64)),
+        )?;
+        d.set_item(
+            "success",
+            PyArray1::from_iter(py, stats.iter().map(|s| s.success)),
+        )?;
+        d.set_item(
+            "path_length",
+            PyArray1::from_iter(py, stats.iter().map(|s| s.path_length)),
+        )?;
+        d.set_item(
+            "collisions",
+            PyArray1::from_iter(py, stats.iter().map(|s| s.collisions as i64)),
+        )?;
+        Ok(d)
+    }
+
+    /// Robot poses (N, n_robots, 3): x, y, theta.
+    fn poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let r = self.n_robots();
+        let data: Vec<f64> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| e.world.robots.iter())
+            .flat_map(|r| [r.position.x as f64, r.position.y as f64, r.heading as f64])
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), r, 3])?
+            .into_any())
+    }
+
+    /// Goal positions (N, n_goals, 2).
+    fn goals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let g = self.inner.envs()[0].n_goals();
+        let data: Vec<f64> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| e.goals())
+            .flat_map(|p| [p.x as f64, p.y as f64])
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), g, 2])?
+            .into_any())
+    }
+
+    /// Raw sensor readings of the last observation, in the real robot's units.
+    fn sensor_readings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (n, r) = (self.inner.len(), self.n_robots());
+        let robots = || self.inner.envs().iter().flat_map(|e| e.world.robots.iter());
+        let wheel_circumference =
+            2.0 * std::f64::consts::PI * self.inner.scenario().robot.wheel_radius as f64;
+        let d = PyDict::new(py);
+        let ir: Vec<i32> = robots().flat_map(|r| r.ir_raw.map(i32::from)).collect();
+        d.set_item("ir_raw", PyArray1::from_vec(py, ir).reshape([n, r, 8])?)?;
+        let us: Vec<i32> = robots().flat_map(|r| r.us_code).collect();
+        d.set_item("us_cm", PyArray1::from_vec(py, us).reshape([n, r, 5])?)?;
+        let wheels: Vec<f32> = robots().flat_map(|r| r.wheel_speeds).collect();
+        d.set_item(
+            "wheel_speeds",
+            PyArray1::from_vec(py, wheels).reshape([n, r, 2])?,
+        )?;
+        let encoders: Vec<i64> = robots()
+            .flat_map(|r| {
+                r.wheel_travel
+                    .map(|t| (t / wheel_circumference * PULSES_PER_WHEEL_TURN).round() as i64)
+            })
+            .collect();
+        d.set_item(
+            "encoders",
+            PyArray1::from_vec(py, encoders).reshape([n, r, 2])?,
+        )?;
+        let gyro: Vec<f32> = robots().map(|r| r.yaw_rate).collect();
+        d.set_item("gyro_z", PyArray1::from_vec(py, gyro).reshape([n, r])?)?;
+        Ok(d)
+    }
+
+    /// Geometry of world `index` for plots.
+    #[pyo3(signature = (index=0))]
+    fn scene<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
+        let env = self.inner.envs().get(index).ok_or_else(|| {
+            to_py(
+                py,
+                Error::State(format!(
+                    "world index {index} out of range 0..{}",
+                    self.inner.len()
+                )),
+            )
+        })?;
+        let scene = &env.world.scene;
+        let d = PyDict::new(py);
+        d.set_item("arena", scene.arena)?;
+        d.set_item("robot_radius", env.cfg.robot.radius)?;
+        d.set_item("goal_radius", env.cfg.task.goal_radius)?;
+        let obstacles = PyList::empty(py);
+        for shape in &scene.shapes[scene.n_walls..] {
+            let o = PyDict::new(py);
+            let c = (shape.center.x, shape.center.y);
+            match shape.geometry {
+                Geometry::Circle(b) => {
+                    o.set_item("kind", "circle")?;
+                    o.set_item("center", c)?;
+                    o.set_item("radius", b.radius)?;
+                }
+                Geometry::Box(b) => {
+                    o.set_item("kind", "box")?;
+                    o.set_item("center", c)?;
+                    o.set_item("half_extents", (b.half_extents.x, b.half_extents.y))?;
+                    o.set_item("angle", shape.angle)?;
+                }
+                Geometry::Segment(s) => {
+                    o.set_item("kind", "segment")?;
+                    o.set_item("a", (s.a.x + c.0, s.a.y + c.1))?;
+                    o.set_item("b", (s.b.x + c.0, s.b.y + c.1))?;
+                }
+            }
+            obstacles.append(o)?;
+        }
+        d.set_item("obstacles", obstacles)?;
+        Ok(d)
+    }
+
+    /// The resolved scenario as TOML text.
+    fn config_toml(&self) -> String {
+        self.inner.scenario().to_toml()
+    }
+}
+
+impl Batch {
+    fn obs_array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(PyArray1::from_slice(py, self.inner.obs())
+            .reshape([self.inner.len(), self.inner.obs_dim()])?
+            .into_any())
+    }
+}
+
+fn describe(value: &Bound<'_, PyAny>) -> String {
+    let shape = value
+        .getattr("shape")
+        .map(|s| s.to_string())
+        .unwrap_or_default();
+    let dtype = value
+        .getattr("dtype")
+        .map(|s| s.to_string())
+        .unwrap_or_default();
+    let ty = value
+        .get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_default();
+    if shape.is_empty() {
+        ty
+    } else {
+        format!("{ty} of shape {shape} and dtype {dtype}")
+    }
+}
+
+/// Observation layout of a task: (name, start, stop) in order.
+#[pyfunction]
+fn obs_layout(py: Python<'_>, task: &str) -> PyResult<Vec<(String, usize, usize)>> {
+    let kind = task_kind(py, task)?;
+    let mut start = 0;
+    Ok(kind
+        .obs_layout()
+        .iter()
+        .map(|(name, len)| {
+            let item = (name.to_string(), start, start + len);
+            start += len;
+            item
+        })
+        .collect())
+}
+
+/// The built-in scenario file of `name` (TOML text).
+#[pyfunction]
+fn default_config(py: Python<'_>, name: &str) -> PyResult<String> {
+    scenario::builtin(name).map(str::to_string).ok_or_else(|| {
+        let known: Vec<&str> = scenario::BUILTIN.iter().map(|(n, _)| *n).collect();
+        to_py(
+            py,
+            Error::config(
+                "<built-in>",
+                "config",
+                format!("no built-in scenario {name:?}; known: {known:?}"),
+            ),
+        )
+    })
+}
+
+/// Names of the built-in scenarios.
+#[pyfunction]
+fn builtin_configs() -> Vec<&'static str> {
+    scenario::BUILTIN.iter().map(|(n, _)| *n).collect()
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<Batch>()?;
+    m.add_function(wrap_pyfunction!(obs_layout, m)?)?;
+    m.add_function(wrap_pyfunction!(default_config, m)?)?;
+    m.add_function(wrap_pyfunction!(builtin_configs, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,219 @@
+//! The Khepera IV's body, differential drive and speed units.
+//!
+//! Numbers come from `shared/khepera4_spec.md` §1 (K-Team user manual 3.0). Units are SI: metres,
+//! seconds, radians. Robot frame: x forward, y left, angles counter-clockwise. World state is f32.
+
+use crate::scenario::RobotConfig;
+
+/// Body radius (m): 140.8 mm diameter in the mechanical drawing.
+pub const BODY_RADIUS: f32 = 0.0704;
+/// Wheel radius (m): 42 mm diameter.
+pub const WHEEL_RADIUS: f32 = 0.021;
+/// Distance between the wheels (m), `KH4_WHEELS_DISTANCE`.
+pub const AXLE_LENGTH: f32 = 0.1054;
+/// Largest closed-loop wheel speed (m/s): about 1200 speed units.
+pub const MAX_WHEEL_SPEED: f32 = 0.813;
+/// Smallest controlled wheel speed (m/s); the real PID cannot hold less, so smaller commands give 0.
+pub const MIN_WHEEL_SPEED: f32 = 0.003;
+/// One `kh4_set_speed` unit in mm/s (pulses per 10 ms).
+pub const MM_S_PER_SPEED_UNIT: f32 = 0.678181;
+/// Encoder pulses per wheel revolution: 128 × 4 (quadrature) × 38:1 gearbox.
+pub const PULSES_PER_WHEEL_TURN: f64 = 19456.0;
+
+/// How an action's two numbers are read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ActionType {
+    /// Normalised (left, right) wheel speeds in [-1, 1], scaled by the maximum wheel speed.
+    Wheels,
+    /// Normalised (v, ω) in [-1, 1]: v scaled by the maximum wheel speed, ω by the in-place
+    /// yaw rate limit 2·v_max/axle; wheels that would exceed the limit are scaled down together.
+    Unicycle,
+}
+
+impl ActionType {
+    /// Parses `"wheels"` or `"unicycle"`.
+    pub fn parse(name: &str) -> Option<Self> {
+        match name {
+            "wheels" => Some(Self::Wheels),
+            "unicycle" => Some(Self::Unicycle),
+            _ => None,
+        }
+    }
+}
+
+/// Drive parameters of one robot, taken from the scenario's `[robot]` table.
+#[derive(Debug, Clone, Copy)]
+pub struct Drive {
+    /// Body radius (m).
+    pub radius: f32,
+    /// Wheel radius (m).
+    pub wheel_radius: f32,
+    /// Wheel separation (m).
+    pub axle_length: f32,
+    /// Wheel speed limit (m/s).
+    pub max_wheel_speed: f32,
+    /// Commands below this magnitude give 0 (m/s).
+    pub min_wheel_speed: f32,
+    /// Wheel acceleration limit (m/s²); infinite for none.
+    pub wheel_accel_limit: f32,
+}
+
+impl Drive {
+    /// Drive parameters from a validated `[robot]` table.
+    pub fn from_config(cfg: &RobotConfig) -> Self {
+        Self {
+            radius: cfg.radius,
+            wheel_radius: cfg.wheel_radius,
+            axle_length: cfg.axle_length,
+            max_wheel_speed: cfg.max_wheel_speed,
+            min_wheel_speed: cfg.min_wheel_speed,
+            wheel_accel_limit: cfg.wheel_accel_limit,
+        }
+    }
+
+    /// Largest yaw rate (rad/s), turning in place at full wheel speed.
+    pub fn max_yaw_rate(&self) -> f32 {
+        2.0 * self.max_wheel_speed / self.axle_length
+    }
+
+    /// Wheel speed commands (m/s) for a normalised action. Finite values outside [-1, 1] are
+    /// clipped; commands under the controller's floor become 0.
+    pub fn wheel_command(&self, action: [f32; 2], kind: ActionType) -> [f32; 2] {
+        let a0 = action[0].clamp(-1.0, 1.0);
+        let a1 = action[1].clamp(-1.0, 1.0);
+        let [left, right] = match kind {
+            ActionType::Wheels => [a0 * self.max_wheel_speed, a1 * self.max_wheel_speed],
+            ActionType::Unicycle => {
+                let v = a0 * self.max_wheel_speed;
+                let w = a1 * self.max_yaw_rate();
+                let half = 0.5 * w * self.axle_length;
+                let (l, r) = (v - half, v + half);
+                let peak = l.abs().max(r.abs());
+                let scale = if peak > self.max_wheel_speed {
+                    self.max_wheel_speed / peak
+                } else {
+                    1.0
+                };
+                [l * scale, r * scale]
+            }
+        };
+        [self.floor(left), self.floor(right)]
+    }
+
+    fn floor(&self, speed: f32) -> f32 {
+        if speed.abs() < self.min_wheel_speed {
+            0.0
+        } else {
+            speed
+        }
+    }
+
+    /// Moves the actual wheel speeds toward the commands within the acceleration limit over `dt`.
+    pub fn ramp(&self, actual: [f32; 2], command: [f32; 2], dt: f32) -> [f32; 2] {
+        if !self.wheel_accel_limit.is_finite() {
+            return command;
+        }
+        let step = self.wheel_accel_limit * dt;
+        [
+            actual[0] + (command[0] - actual[0]).clamp(-step, step),
+            actual[1] + (command[1] - actual[1]).clamp(-step, step),
+        ]
+    }
+
+    /// Body twist (v forward m/s, ω rad/s CCW) of wheel speeds (left, right).
+    pub fn twist(&self, wheels: [f32; 2]) -> (f32, f32) {
+        (
+            0.5 * (wheels[0] + wheels[1]),
+            (wheels[1] - wheels[0]) / self.axle_length,
+        )
+    }
+}
+
+/// Converts a wheel speed in m/s to the real robot's `kh4_set_speed` units (rounded).
+pub fn speed_to_units(speed: f32) -> i32 {
+    (speed * 1000.0 / MM_S_PER_SPEED_UNIT).round() as i32
+}
+
+/// Converts `kh4_set_speed` units to m/s.
+pub fn units_to_speed(units: i32) -> f32 {
+    units as f32 * MM_S_PER_SPEED_UNIT / 1000.0
+}
+
+/// Wraps an angle to (-π, π].
+pub fn wrap_angle(angle: f32) -> f32 {
+    use std::f32::consts::PI;
+    let mut a = angle % (2.0 * PI);
+    if a > PI {
+        a -= 2.0 * PI;
+    } else if a <= -PI {
+        a += 2.0 * PI;
+    }
+    a
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn drive() -> Drive {
+        Drive {
+            radius: BODY_RADIUS,
+            wheel_radius: WHEEL_RADIUS,
+            axle_length: AXLE_LENGTH,
+            max_wheel_speed: MAX_WHEEL_SPEED,
+            min_wheel_speed: MIN_WHEEL_SPEED,
+            wheel_accel_limit: f32::INFINITY,
+        }
+    }
+
+    #[test]
+    fn wheel_actions_scale_clip_and_floor() {
+        let d = drive();
+        assert_eq!(
+            d.wheel_command([1.0, -1.0], ActionType::Wheels),
+            [0.813, -0.813]
+        );
+        assert_eq!(
+            d.wheel_command([7.0, -3.0], ActionType::Wheels),
+            [0.813, -0.813]
+        );
+        // 0.003 / 0.813 of full scale is the floor: just under gives 0, just over passes.
+        assert_eq!(
+            d.wheel_command([0.0036, -0.0036], ActionType::Wheels),
+            [0.0, 0.0]
+        );
+        let over = d.wheel_command([0.0038, 0.0], ActionType::Wheels);
+        assert!(over[0] > 0.003);
+    }
+
+    #[test]
+    fn unicycle_keeps_turn_radius_when_saturated() {
+        let d = drive();
+        let [l, r] = d.wheel_command([1.0, 0.5], ActionType::Unicycle);
+        assert!((r - 0.813).abs() < 1e-6);
+        let (v, w) = d.twist([l, r]);
+        // requested curvature w/v = 0.5·max_yaw / max_speed
+        assert!(((w / v) - 0.5 * d.max_yaw_rate() / 0.813).abs() < 1e-3);
+    }
+
+    #[test]
+    fn acceleration_limit_ramps() {
+        let mut d = drive();
+        d.wheel_accel_limit = 2.0;
+        assert_eq!(d.ramp([0.0, 0.0], [0.8, -0.8], 0.1), [0.2, -0.2]);
+    }
+
+    #[test]
+    fn speed_units_round_trip() {
+        assert_eq!(speed_to_units(0.813), 1199);
+        assert!((units_to_speed(1200) - 0.8138).abs() < 1e-4);
+    }
+
+    #[test]
+    fn wrap_angle_range() {
+        use std::f32::consts::PI;
+        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-5);
+        assert!((wrap_angle(-PI) - PI).abs() < 1e-6);
+        assert!((wrap_angle(0.5) - 0.5).abs() < 1e-7);
+    }
+}

@@ -1,0 +1,272 @@
+//! One simulated world: the scene, its rapier physics, the robots and their sensors, and the
+//! world's own random stream. A control step is: wheel commands → substeps of motion → sensors.
+//!
+//! Motion: a substep in which no robot can touch anything (its clearance exceeds the distance it
+//! can travel) integrates the differential drive exactly (circular arc) without calling rapier;
+//! otherwise rapier2d steps the world and resolves the contacts. The choice depends only on this
+//! world's state, so worlds stay independent and bit-for-bit reproducible.
+//!
+//! Units: metres, seconds, radians; world frame with the arena centred at the origin.
+
+pub mod physics;
+pub mod scene;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rapier2d::math::Vector;
+
+use crate::robot::{wrap_angle, Drive};
+use crate::scenario::Scenario;
+use crate::sensors::{IrModel, UsModel, IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
+use physics::{BodyState, Physics};
+pub use scene::{Scene, SceneShape};
+
+/// Extra clearance (m) kept before deciding a robot cannot touch anything this substep.
+const CONTACT_MARGIN: f32 = 0.002;
+/// A robot whose clearance falls below this (m) after a substep is in contact.
+const CONTACT_TOLERANCE: f32 = 0.001;
+
+/// State of one robot.
+#[derive(Debug, Clone, Default)]
+pub struct Robot {
+    /// Centre (m).
+    pub position: Vector,
+    /// Heading (rad, (-π, π]).
+    pub heading: f32,
+    /// Actual wheel speeds (left, right), m/s.
+    pub wheel_speeds: [f32; 2],
+    /// Commanded wheel speeds (left, right), m/s.
+    pub wheel_command: [f32; 2],
+    /// Distance rolled by each wheel since reset (m), for the encoders.
+    pub wheel_travel: [f64; 2],
+    /// Yaw rate over the last step (rad/s), as the gyro reads it.
+    pub yaw_rate: f32,
+    /// Distance the centre moved during the last step (m).
+    pub step_travel: f32,
+    /// Whether the robot touched a wall, obstacle or robot during the last step.
+    pub in_contact: bool,
+    /// Raw IR ring readings (0..1023), K-Team order.
+    pub ir_raw: [u16; IR_COUNT],
+    /// Ultrasonic readings (cm or code).
+    pub us_code: [i32; US_COUNT],
+    step_start_heading: f32,
+}
+
+/// A world: scene, physics, robots, sensors and random stream.
+pub struct World {
+    /// Drive parameters shared by the robots.
+    pub drive: Drive,
+    /// IR ring model.
+    pub ir: IrModel,
+    /// Ultrasonic model.
+    pub us: UsModel,
+    /// Static geometry.
+    pub scene: Scene,
+    /// The robots.
+    pub robots: Vec<Robot>,
+    /// The world's random stream (ChaCha8), the only randomness it uses.
+    pub rng: ChaCha8Rng,
+    physics: Physics,
+    dt: f32,
+    substeps: u32,
+    bodies: Vec<BodyState>,
+    others: Vec<Vector>,
+    ir_dirs: [Vector; IR_COUNT],
+    us_dirs: [Vector; US_COUNT],
+}
+
+impl World {
+    /// A world of `n_robots` robots in `scene`, configured by `cfg`.
+    pub fn new(cfg: &Scenario, scene: Scene, n_robots: usize) -> Self {
+        let drive = Drive::from_config(&cfg.robot);
+        let substep_dt = cfg.physics.dt / cfg.physics.substeps as f32;
+        let physics = Physics::new(
+            &scene,
+            n_robots,
+            drive.radius,
+            cfg.robot.mass,
+            cfg.physics.friction,
+            substep_dt,
+            cfg.physics.solver_iterations as usize,
+        );
+        Self {
+            drive,
+            ir: IrModel {
+                range: cfg.sensors.ir_range,
+                floor_value: cfg.sensors.ir_floor_value,
+                noise_sigma: cfg.sensors.ir_noise_sigma,
+            },
+            us: UsModel {
+                min_range: cfg.sensors.us_min_range,
+                max_range: cfg.sensors.us_max_range,
+                noise_sigma: cfg.sensors.us_noise_sigma,
+                enabled: cfg.sensors.us_enabled,
+            },
+            scene,
+            robots: vec![Robot::default(); n_robots],
+            rng: ChaCha8Rng::seed_from_u64(0),
+            physics,
+            dt: cfg.physics.dt,
+            substeps: cfg.physics.substeps,
+            bodies: Vec::with_capacity(n_robots),
+            others: Vec::with_capacity(n_robots),
+            ir_dirs: IR_BEARINGS.map(unit),
+            us_dirs: US_BEARINGS.map(unit),
+        }
+    }
+
+    /// Replaces the static geometry (rebuilds the fixed colliders).
+    pub fn set_scene(&mut self, scene: Scene) {
+        self.physics.set_scene(&scene);
+        self.scene = scene;
+    }
+
+    /// Puts robot `i` at rest at `position` with `heading`, clearing its odometry.
+    pub fn place_robot(&mut self, i: usize, position: Vector, heading: f32) {
+        self.robots[i] = Robot {
+            position,
+            heading: wrap_angle(heading),
+            ..Robot::default()
+        };
+    }
+
+    /// Control step length (s).
+    pub fn dt(&self) -> f32 {
+        self.dt
+    }
+
+    /// Smallest gap (m) between robot `i`'s body and the scene or another robot.
+    pub fn clearance(&self, i: usize) -> f32 {
+        let p = self.robots[i].position;
+        let mut gap = self.scene.clearance(p) - self.drive.radius;
+        for (j, other) in self.robots.iter().enumerate() {
+            if j != i {
+                gap = gap.min((other.position - p).length() - 2.0 * self.drive.radius);
+            }
+        }
+        gap
+    }
+
+    /// Advances every robot by one control step toward its `wheel_command`.
+    pub fn advance(&mut self) {
+        let h = self.dt / self.substeps as f32;
+        for r in &mut self.robots {
+            r.step_travel = 0.0;
+            r.in_contact = false;
+            r.step_start_heading = r.heading;
+        }
+        // How far two robot centres can close in on each other in one substep (m).
+        let substep_reach = 2.0 * self.drive.max_wheel_speed * h;
+        let far = self.min_clearance() > substep_reach * self.substeps as f32 + CONTACT_MARGIN;
+        for _ in 0..self.substeps {
+            for r in &mut self.robots {
+                r.wheel_speeds = self.drive.ramp(r.wheel_speeds, r.wheel_command, h);
+                r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
+                r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
+            }
+            if !far && self.min_clearance() <= substep_reach + CONTACT_MARGIN {
+                self.physics_substep();
+            } else {
+                for r in &mut self.robots {
+                    let before = r.position;
+                    let (v, w) = self.drive.twist(r.wheel_speeds);
+                    integrate_arc(&mut r.position, &mut r.heading, v, w, h);
+                    r.step_travel += (r.position - before).length();
+                }
+            }
+        }
+        for r in &mut self.robots {
+            r.heading = wrap_angle(r.heading);
+            r.yaw_rate = wrap_angle(r.heading - r.step_start_heading) / self.dt;
+        }
+    }
+
+    /// Smallest clearance over all robots (m).
+    fn min_clearance(&self) -> f32 {
+        (0..self.robots.len())
+            .map(|i| self.clearance(i))
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    fn physics_substep(&mut self) {
+        self.bodies.clear();
+        for r in &self.robots {
+            self.bodies.push(BodyState {
+                position: r.position,
+                heading: r.heading,
+                twist: self.drive.twist(r.wheel_speeds),
+            });
+        }
+        self.physics.step(&mut self.bodies);
+        for i in 0..self.robots.len() {
+            let state = self.bodies[i];
+            let r = &mut self.robots[i];
+            r.step_travel += (state.position - r.position).length();
+            r.position = state.position;
+            r.heading = wrap_angle(state.heading);
+        }
+        for i in 0..self.robots.len() {
+            if self.clearance(i) < CONTACT_TOLERANCE {
+                self.robots[i].in_contact = true;
+            }
+        }
+    }
+
+    /// Reads every robot's IR ring and ultrasonic sensors (with noise from the world's stream).
+    pub fn sense(&mut self) {
+        let radius = self.drive.radius;
+        let us_cast = self.us.max_range + 0.01;
+        for i in 0..self.robots.len() {
+            self.others.clear();
+            for (j, other) in self.robots.iter().enumerate() {
+                if j != i {
+                    self.others.push(other.position);
+                }
+            }
+            let (pos, heading) = (self.robots[i].position, self.robots[i].heading);
+            let (s, c) = heading.sin_cos();
+            for k in 0..IR_COUNT {
+                let dir = rotate(self.ir_dirs[k], c, s);
+                let origin = pos + radius * dir;
+                let hit = self
+                    .scene
+                    .cast(origin, dir, self.ir.range, &self.others, radius);
+                self.robots[i].ir_raw[k] = self.ir.read(hit, &mut self.rng);
+            }
+            for k in 0..US_COUNT {
+                let dir = rotate(self.us_dirs[k], c, s);
+                let origin = pos + radius * dir;
+                let hit = self.scene.cast(origin, dir, us_cast, &self.others, radius);
+                self.robots[i].us_code[k] = self.us.read(k, hit, &mut self.rng);
+            }
+        }
+    }
+}
+
+fn unit(angle: f32) -> Vector {
+    let (s, c) = angle.sin_cos();
+    Vector::new(c, s)
+}
+
+#[inline]
+fn rotate(v: Vector, c: f32, s: f32) -> Vector {
+    Vector::new(c * v.x - s * v.y, s * v.x + c * v.y)
+}
+
+/// Exact differential-drive motion over `h` seconds at constant forward speed `v` and yaw rate
+/// `w` (a circular arc; a straight line when `w` is ~0).
+#[inline]
+pub fn integrate_arc(position: &mut Vector, heading: &mut f32, v: f32, w: f32, h: f32) {
+    let theta = *heading;
+    if (w * h).abs() < 1e-6 {
+        let (s, c) = theta.sin_cos();
+        *position += Vector::new(v * h * c, v * h * s);
+    } else {
+        let next = theta + w * h;
+        let r = v / w;
+        let (s0, c0) = theta.sin_cos();
+        let (s1, c1) = next.sin_cos();
+        *position += Vector::new(r * (s1 - s0), -r * (c1 - c0));
+        *heading = next;
+    }
+}

@@ -1,0 +1,105 @@
+//! Physics specification: a robot never leaves the arena, turns in place about its centre, and
+//! drives straight at the commanded speed. Uses the core directly (no Python).
+
+use std::sync::Arc;
+
+use _core::robot::ActionType;
+use _core::scenario::{Scenario, Source};
+use _core::tasks::{Env, TaskKind};
+use rapier2d::math::Vector;
+
+fn nav_env(overrides: &str) -> Env {
+    let source = Source {
+        file: None,
+        overrides: overrides.parse().expect("overrides"),
+    };
+    let cfg = Scenario::load("nav", &source).expect("scenario");
+    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), ActionType::Wheels);
+    env.seed(7);
+    let mut obs = vec![0.0; TaskKind::Nav.obs_dim()];
+    env.reset(&mut obs);
+    env
+}
+
+/// Steps `env` with a constant action for `steps` control steps, ignoring episode ends.
+fn drive(env: &mut Env, action: [f32; 2], steps: usize, mut each: impl FnMut(&Env)) {
+    let mut obs = vec![0.0; TaskKind::Nav.obs_dim()];
+    for _ in 0..steps {
+        env.step(&action, &mut obs);
+        env.done = false;
+        each(env);
+    }
+}
+
+#[test]
+fn test_full_speed_into_walls_never_leaves_arena() {
+    // 10 s at full speed against walls, from several headings, including shallow angles
+    // (sliding) and corners.
+    for heading_deg in [0.0f32, 30.0, 45.0, 89.0, 135.0, -60.0] {
+        let mut env = nav_env("max_steps = 100000");
+        env.world
+            .place_robot(0, Vector::new(0.3, -0.2), heading_deg.to_radians());
+        let radius = env.world.drive.radius;
+        let mut touched = false;
+        drive(&mut env, [1.0, 1.0], 200, |env| {
+            let p = env.world.robots[0].position;
+            // The body may sink into a wall by at most rapier's allowed error (1 mm).
+            assert!(
+                p.x.abs() <= 1.0 - radius + 0.002 && p.y.abs() <= 1.0 - radius + 0.002,
+                "heading {heading_deg}: robot at {p:?} is through a wall"
+            );
+            touched |= env.world.robots[0].in_contact;
+        });
+        assert!(touched, "heading {heading_deg}: never reported contact");
+    }
+}
+
+#[test]
+fn test_robot_slides_along_wall_at_shallow_angle() {
+    let mut env = nav_env("max_steps = 100000");
+    env.world.place_robot(0, Vector::new(-0.5, 0.85), 10f32.to_radians());
+    drive(&mut env, [0.5, 0.5], 30, |_| {});
+    let p = env.world.robots[0].position;
+    // It kept moving along +x while held at the wall (y = 1 - radius).
+    assert!(p.x > 0.0, "did not slide: {p:?}");
+    assert!((p.y - (1.0 - env.world.drive.radius)).abs() < 0.01, "{p:?}");
+}
+
+#[test]
+fn test_turning_in_place_keeps_centre_fixed() {
+    let mut env = nav_env("max_steps = 100000");
+    let start = Vector::new(0.1, -0.3);
+    env.world.place_robot(0, start, 0.4);
+    let mut turned = 0.0f32;
+    drive(&mut env, [-1.0, 1.0], 100, |env| {
+        let p = env.world.robots[0].position;
+        assert!((p - start).length() < 1e-3, "centre drifted to {p:?}");
+        turned += env.world.robots[0].yaw_rate * env.world.dt();
+    });
+    // 2·0.813/0.1054 rad/s for 5 s
+    let expected = 2.0 * 0.813 / 0.1054 * 5.0;
+    assert!((turned - expected).abs() / expected < 1e-3, "{turned} vs {expected}");
+}
+
+#[test]
+fn test_straight_driving_covers_v_times_t() {
+    for v in [0.05f32, 0.2, 0.5, 0.813] {
+        let mut env = nav_env("max_steps = 100000");
+        env.world.place_robot(0, Vector::new(-0.9, 0.0), 0.0);
+        let a = v / 0.813;
+        drive(&mut env, [a, a], 20, |_| {});
+        let dx = env.world.robots[0].position.x + 0.9;
+        assert!((dx - v).abs() <= 0.01 * v, "v = {v}: travelled {dx} in 1 s");
+    }
+}
+
+#[test]
+fn test_acceleration_limit_ramps_speed() {
+    let mut env = nav_env("max_steps = 100000\nwheel_accel_limit = 1.0");
+    env.world.place_robot(0, Vector::new(-0.9, 0.0), 0.0);
+    drive(&mut env, [1.0, 1.0], 4, |_| {});
+    // 0.2 s at 1 m/s² → 0.2 m/s, 0.02 m travelled
+    let r = &env.world.robots[0];
+    assert!((r.wheel_speeds[0] - 0.2).abs() < 1e-5, "{:?}", r.wheel_speeds);
+    assert!((r.position.x + 0.9 - 0.0225).abs() < 2e-3, "{:?}", r.position);
+}

@@ -1,0 +1,116 @@
+//! Sensor specification: each IR sensor reads the K-Team response curve for an obstacle at a
+//! known distance, the floor value with nothing in range, and the ultrasonic sensors give
+//! whole centimetres and the real codes.
+
+use std::sync::Arc;
+
+use _core::robot::ActionType;
+use _core::scenario::{Scenario, Source};
+use _core::sensors::{IR_BEARINGS, US_BEARINGS, US_DISABLED, US_NOTHING, US_TOO_CLOSE};
+use _core::tasks::{Env, TaskKind};
+use _core::world::SceneShape;
+use rapier2d::math::Vector;
+
+fn env_with(overrides: &str) -> Env {
+    let source = Source {
+        file: None,
+        overrides: overrides.parse().expect("overrides"),
+    };
+    let cfg = Scenario::load("nav", &source).expect("scenario");
+    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), ActionType::Wheels);
+    env.seed(3);
+    env
+}
+
+/// Puts the robot at the origin facing +x and a wide wall slab `gap` metres from the rim of
+/// sensor direction `bearing` (robot frame), then reads the sensors.
+fn sense_wall(env: &mut Env, bearing: f32, gap: f32) {
+    let radius = env.world.drive.radius;
+    let dir = Vector::new(bearing.cos(), bearing.sin());
+    let centre = dir * (radius + gap + 0.05);
+    let mut scene = _core::world::Scene::arena(5.0, 5.0, 0.05);
+    scene
+        .shapes
+        .push(SceneShape::rect(centre, Vector::new(0.05, 0.3), bearing));
+    env.world.set_scene(scene);
+    env.world.place_robot(0, Vector::ZERO, 0.0);
+    env.world.sense();
+}
+
+/// Response curve points (m, raw) from the spec's table.
+const CURVE: [(f32, f32); 6] = [
+    (0.010, 1012.0),
+    (0.030, 979.0),
+    (0.050, 492.0),
+    (0.080, 254.0),
+    (0.120, 163.0),
+    (0.200, 111.0),
+];
+
+#[test]
+fn test_each_ir_reads_response_curve_without_noise() {
+    let mut env = env_with("ir_noise_sigma = 0.0");
+    for (k, bearing) in IR_BEARINGS.iter().enumerate() {
+        for (gap, raw) in CURVE {
+            sense_wall(&mut env, *bearing, gap);
+            let got = env.world.robots[0].ir_raw[k] as f32;
+            assert!((got - raw).abs() <= 1.0, "sensor {k} at {gap} m: {got} != {raw}");
+            // The other sensors see less (the slab is narrow) or the floor.
+            for (j, other) in env.world.robots[0].ir_raw.iter().enumerate() {
+                if j != k {
+                    assert!((*other as f32) < raw, "sensor {j} sees {other} >= {raw}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn test_ir_noise_is_gaussian_around_curve() {
+    let mut env = env_with("ir_noise_sigma = 10.0");
+    let (mut sum, mut sum2, n) = (0.0f64, 0.0f64, 2000);
+    for _ in 0..n {
+        sense_wall(&mut env, 0.0, 0.06);
+        let v = env.world.robots[0].ir_raw[3] as f64;
+        sum += v;
+        sum2 += v * v;
+    }
+    let mean = sum / n as f64;
+    let sd = (sum2 / n as f64 - mean * mean).sqrt();
+    assert!((mean - 380.0).abs() < 1.5, "mean {mean}");
+    assert!((sd - 10.0).abs() < 1.0, "sd {sd}");
+}
+
+#[test]
+fn test_nothing_in_range_reads_floor_value() {
+    let mut env = env_with("ir_noise_sigma = 0.0\nir_floor_value = 100.0");
+    env.world.place_robot(0, Vector::ZERO, 0.3);
+    env.world.sense();
+    assert_eq!(env.world.robots[0].ir_raw, [100; 8]);
+}
+
+#[test]
+fn test_ultrasonic_centimetres_and_codes() {
+    let mut env = env_with("us_noise_sigma = 0.0");
+    // Front sensor (index 2): a slab at 1.234 m from the rim.
+    sense_wall(&mut env, US_BEARINGS[2], 1.234);
+    assert_eq!(env.world.robots[0].us_code[2], 123);
+    // Too close.
+    sense_wall(&mut env, US_BEARINGS[2], 0.10);
+    assert_eq!(env.world.robots[0].us_code[2], US_TOO_CLOSE);
+    // Arena is 2 m: from the centre, the side walls are ~0.93 m away, so move the robot into a
+    // 5 m arena to have nothing in range.
+    let mut big = env_with("us_noise_sigma = 0.0\nwidth = 5.0\nheight = 5.0");
+    big.world
+        .set_scene(_core::world::Scene::arena(5.0, 5.0, 0.05));
+    big.world.place_robot(0, Vector::ZERO, 0.0);
+    big.world.sense();
+    assert_eq!(big.world.robots[0].us_code, [US_NOTHING; 5]);
+    // Disabled sensors.
+    let mut off = env_with("us_enabled = [true, false, true, true, false]");
+    off.world.place_robot(0, Vector::ZERO, 0.0);
+    off.world.sense();
+    assert_eq!(off.world.robots[0].us_code[1], US_DISABLED);
+    assert_eq!(off.world.robots[0].us_code[4], US_DISABLED);
+    assert!(off.world.robots[0].us_code[2] > 80 && off.world.robots[0].us_code[2] < 100);
+}
