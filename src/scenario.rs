@@ -132,7 +132,11 @@ impl Scenario {
         let text = toml::to_string(table)
             .map_err(|e| Error::config(origin, "<table>", format!("cannot serialise: {e}")))?;
         let scenario: Scenario = toml::from_str(&text).map_err(|e: toml::de::Error| {
-            Error::config(origin, &error_key(&e, &text), e.message().trim().to_string())
+            Error::config(
+                origin,
+                &error_key(&e, &text),
+                e.message().trim().to_string(),
+            )
         })?;
         scenario.validate(origin)?;
         Ok(scenario)

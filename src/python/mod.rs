@@ -445,7 +445,7 @@ impl Batch {
         d.set_item("robot_radius", env.cfg.robot.radius)?;
         d.set_item("goal_radius", env.cfg.task.goal_radius)?;
         let obstacles = PyList::empty(py);
-        for shape in &scene.shapes[scene.n_walls..] {
+        for shape in &scene.shapes {
             let o = PyDict::new(py);
             let c = (shape.center.x, shape.center.y);
             match shape.geometry {

@@ -74,7 +74,8 @@ impl IrModel {
     pub fn read<R: Rng>(&self, distance: Option<f32>, rng: &mut R) -> u16 {
         let noise: f32 = rng.sample(StandardNormal);
         let raw = self.mean_raw(distance) + self.noise_sigma * noise;
-        raw.round().clamp(0.0, IR_MAX_RAW) as u16
+        // Round half up; the value is clamped non-negative first (avoids a libm call).
+        (raw.clamp(0.0, IR_MAX_RAW) + 0.5) as u16
     }
 
     /// Normalised proximity in [0, 1]: 0 at the floor value (nothing seen), 1 at 1023.

@@ -50,8 +50,9 @@ impl UsModel {
             Some(d) if d > self.max_range => US_NOTHING,
             Some(d) if d < self.min_range => US_TOO_CLOSE,
             Some(d) => {
-                let cm = ((d + self.noise_sigma * noise) * 100.0).round();
-                cm.clamp(self.min_range * 100.0, self.max_range * 100.0) as i32
+                let cm = (d + self.noise_sigma * noise) * 100.0;
+                // Round half up after clamping to the positive measurable range.
+                (cm.clamp(self.min_range * 100.0, self.max_range * 100.0) + 0.5) as i32
             }
         }
     }

@@ -158,6 +158,25 @@ impl World {
         // How far two robot centres can close in on each other in one substep (m).
         let substep_reach = 2.0 * self.drive.max_wheel_speed * h;
         let far = self.min_clearance() > substep_reach * self.substeps as f32 + CONTACT_MARGIN;
+        let steady = !self.drive.wheel_accel_limit.is_finite()
+            || self
+                .robots
+                .iter()
+                .all(|r| r.wheel_speeds == r.wheel_command);
+        if far && steady {
+            // Nothing can be touched and the wheels keep their speed: the substeps compose into
+            // one exact arc over the whole step.
+            for r in &mut self.robots {
+                r.wheel_speeds = r.wheel_command;
+                r.wheel_travel[0] += (r.wheel_speeds[0] * self.dt) as f64;
+                r.wheel_travel[1] += (r.wheel_speeds[1] * self.dt) as f64;
+                let (v, w) = self.drive.twist(r.wheel_speeds);
+                integrate_arc(&mut r.position, &mut r.heading, v, w, self.dt);
+                r.step_travel = v.abs() * self.dt;
+            }
+            self.finish_step();
+            return;
+        }
         for _ in 0..self.substeps {
             for r in &mut self.robots {
                 r.wheel_speeds = self.drive.ramp(r.wheel_speeds, r.wheel_command, h);
@@ -168,13 +187,16 @@ impl World {
                 self.physics_substep();
             } else {
                 for r in &mut self.robots {
-                    let before = r.position;
                     let (v, w) = self.drive.twist(r.wheel_speeds);
                     integrate_arc(&mut r.position, &mut r.heading, v, w, h);
-                    r.step_travel += (r.position - before).length();
+                    r.step_travel += v.abs() * h;
                 }
             }
         }
+        self.finish_step();
+    }
+
+    fn finish_step(&mut self) {
         for r in &mut self.robots {
             r.heading = wrap_angle(r.heading);
             r.yaw_rate = wrap_angle(r.heading - r.step_start_heading) / self.dt;

@@ -75,7 +75,7 @@ impl Physics {
         for handle in self.statics.drain(..) {
             self.world.remove_collider(handle);
         }
-        for shape in &scene.shapes {
+        for shape in scene.walls().iter().chain(&scene.shapes) {
             let builder = match shape.geometry {
                 Geometry::Circle(b) => ColliderBuilder::ball(b.radius),
                 Geometry::Box(c) => ColliderBuilder::cuboid(c.half_extents.x, c.half_extents.y),

@@ -110,37 +110,47 @@ impl SceneShape {
     }
 }
 
-/// The static geometry of one world.
+/// The static geometry of one world: a walled rectangular arena centred at the origin and the
+/// obstacles inside it. The walls are slabs lying outside the inner rectangle; queries against
+/// them are answered in closed form (the inside of an axis-aligned rectangle), which gives the
+/// same distances as casting on the slabs.
 #[derive(Debug, Clone, Default)]
 pub struct Scene {
     /// Arena inner width and height (m).
     pub arena: (f32, f32),
-    /// Walls first, then obstacles.
+    /// Thickness of the wall slabs (m).
+    pub wall_thickness: f32,
+    /// Obstacles (not the walls).
     pub shapes: Vec<SceneShape>,
-    /// How many of `shapes` are arena walls.
-    pub n_walls: usize,
 }
 
 impl Scene {
-    /// An empty arena of inner size `width` × `height`, walled by slabs `thickness` thick
-    /// lying outside the inner rectangle.
+    /// An empty arena of inner size `width` × `height`, walled by slabs `thickness` thick.
     pub fn arena(width: f32, height: f32, thickness: f32) -> Self {
-        let (hw, hh, t) = (0.5 * width, 0.5 * height, 0.5 * thickness);
-        let shapes = vec![
+        Self {
+            arena: (width, height),
+            wall_thickness: thickness,
+            shapes: Vec::new(),
+        }
+    }
+
+    /// The four wall slabs as shapes (for the physics world).
+    pub fn walls(&self) -> [SceneShape; 4] {
+        let (hw, hh, t) = (
+            0.5 * self.arena.0,
+            0.5 * self.arena.1,
+            0.5 * self.wall_thickness,
+        );
+        [
             SceneShape::rect(Vector::new(hw + t, 0.0), Vector::new(t, hh + 2.0 * t), 0.0),
             SceneShape::rect(Vector::new(-hw - t, 0.0), Vector::new(t, hh + 2.0 * t), 0.0),
             SceneShape::rect(Vector::new(0.0, hh + t), Vector::new(hw + 2.0 * t, t), 0.0),
             SceneShape::rect(Vector::new(0.0, -hh - t), Vector::new(hw + 2.0 * t, t), 0.0),
-        ];
-        Self {
-            arena: (width, height),
-            shapes,
-            n_walls: 4,
-        }
+        ]
     }
 
-    /// Nearest hit along the unit ray (`origin`, `dir`) within `max` metres, against the scene's
-    /// shapes and the discs of radius `disc_radius` at `discs` (other robots).
+    /// Nearest hit along the unit ray (`origin`, `dir`) within `max` metres, against the walls,
+    /// the obstacles and the discs of radius `disc_radius` at `discs` (other robots).
     pub fn cast(
         &self,
         origin: Vector,
@@ -151,6 +161,11 @@ impl Scene {
     ) -> Option<f32> {
         let mut best = max;
         let mut hit = false;
+        let wall = self.cast_walls(origin, dir);
+        if wall <= best {
+            best = wall;
+            hit = true;
+        }
         for shape in &self.shapes {
             if !may_hit(origin, dir, shape.center, shape.bound_radius, best) {
                 continue;
@@ -171,9 +186,35 @@ impl Scene {
         hit.then_some(best)
     }
 
-    /// Smallest distance from `point` to any shape (infinite for an empty scene).
+    /// Distance along a unit ray to the walls: where it leaves the inner rectangle (0 when it
+    /// starts outside it, i.e. inside a wall).
+    #[inline]
+    fn cast_walls(&self, o: Vector, d: Vector) -> f32 {
+        let (hw, hh) = (0.5 * self.arena.0, 0.5 * self.arena.1);
+        if o.x.abs() >= hw || o.y.abs() >= hh {
+            return 0.0;
+        }
+        let tx = if d.x > 0.0 {
+            (hw - o.x) / d.x
+        } else if d.x < 0.0 {
+            (-hw - o.x) / d.x
+        } else {
+            f32::INFINITY
+        };
+        let ty = if d.y > 0.0 {
+            (hh - o.y) / d.y
+        } else if d.y < 0.0 {
+            (-hh - o.y) / d.y
+        } else {
+            f32::INFINITY
+        };
+        tx.min(ty)
+    }
+
+    /// Smallest distance from `point` to the walls or any obstacle (0 inside one).
     pub fn clearance(&self, point: Vector) -> f32 {
-        let mut best = f32::INFINITY;
+        let (hw, hh) = (0.5 * self.arena.0, 0.5 * self.arena.1);
+        let mut best = (hw - point.x.abs()).min(hh - point.y.abs()).max(0.0);
         for shape in &self.shapes {
             // The bounding circle gives a lower bound: skip shapes that cannot be closer.
             if (point - shape.center).length() - shape.bound_radius >= best {
@@ -229,6 +270,25 @@ mod tests {
     fn rays_hit_each_shape_kind_exactly() {
         let mut scene = Scene::arena(2.0, 2.0, 0.05);
         let x = Vector::new(1.0, 0.0);
+        // The closed-form walls agree with casting on the wall slabs.
+        for k in 0..64 {
+            let a = k as f32 * 0.1;
+            let (dir, o) = (Vector::new(a.cos(), a.sin()), Vector::new(0.3, -0.6));
+            let slabs = scene
+                .walls()
+                .iter()
+                .filter_map(|w| w.cast(o, dir, 9.0))
+                .fold(9.0, f32::min);
+            let t = scene.cast(o, dir, 9.0, &[], 0.0).expect("wall");
+            assert!((t - slabs).abs() < 1e-5, "{a}: {t} vs {slabs}");
+            let p = o + 0.37 * dir;
+            let slab_gap = scene
+                .walls()
+                .iter()
+                .map(|w| w.distance(p))
+                .fold(9.0, f32::min);
+            assert!((scene.clearance(p) - slab_gap).abs() < 1e-5);
+        }
         // arena wall at x = 1
         let t = scene.cast(Vector::ZERO, x, 5.0, &[], 0.0).expect("wall");
         assert!((t - 1.0).abs() < 1e-6);
