@@ -20,6 +20,12 @@ use crate::tasks::{Env, EpisodeStats, StepOutcome, TaskKind};
 /// Smallest number of worlds a rayon task takes (amortises scheduling).
 const MIN_WORLDS_PER_TASK: usize = 8;
 
+/// One world with its observation slot, its action and its outcome slot.
+type WorldSlot<'a> = (
+    (&'a mut Env, &'a mut [f32]),
+    (&'a [f32], &'a mut StepOutcome),
+);
+
 /// N worlds, their output buffers and their thread pool.
 pub struct Batch {
     envs: Vec<Env>,
@@ -229,15 +235,14 @@ impl Batch {
             }
         }
         let (obs_dim, act_dim) = (self.obs_dim, self.act_dim);
-        let step_one =
-            |((env, o), (a, out)): ((&mut Env, &mut [f32]), (&[f32], &mut StepOutcome))| {
-                if env.done {
-                    env.reset(o);
-                    *out = StepOutcome::default();
-                } else {
-                    *out = env.step(a, o);
-                }
-            };
+        let step_one = |((env, o), (a, out)): WorldSlot| {
+            if env.done {
+                env.reset(o);
+                *out = StepOutcome::default();
+            } else {
+                *out = env.step(a, o);
+            }
+        };
         match &self.pool {
             Some(pool) => pool.install(|| {
                 self.envs

@@ -168,7 +168,8 @@ impl Scenario {
         ];
         for (key, v) in positive {
             // NaN fails `v > 0`; wheel_accel_limit alone may be infinite.
-            if !(v > 0.0) || (v.is_infinite() && key != "robot.wheel_accel_limit") {
+            let finite_or_allowed = v.is_finite() || key == "robot.wheel_accel_limit";
+            if v.is_nan() || v <= 0.0 || !finite_or_allowed {
                 return bad(key, format!("must be a finite number > 0, got {v}"));
             }
         }
@@ -185,7 +186,7 @@ impl Scenario {
             ("physics.friction", self.physics.friction),
         ];
         for (key, v) in non_negative {
-            if !(v >= 0.0) || v.is_infinite() {
+            if !v.is_finite() || v < 0.0 {
                 return bad(key, format!("must be a finite number >= 0, got {v}"));
             }
         }

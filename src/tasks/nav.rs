@@ -88,11 +88,14 @@ impl Nav {
     /// Writes the observation (clipped to its bounds) into `obs`.
     pub fn observe(&self, world: &World, cfg: &Scenario, obs: &mut [f32]) {
         let robot = &world.robots[0];
-        for k in 0..IR_COUNT {
-            obs[k] = world.ir.normalise(robot.ir_raw[k]);
+        for (o, raw) in obs[..IR_COUNT].iter_mut().zip(robot.ir_raw) {
+            *o = world.ir.normalise(raw);
         }
-        for k in 0..US_COUNT {
-            obs[IR_COUNT + k] = world.us.normalise(robot.us_code[k]);
+        for (o, code) in obs[IR_COUNT..IR_COUNT + US_COUNT]
+            .iter_mut()
+            .zip(robot.us_code)
+        {
+            *o = world.us.normalise(code);
         }
         let base = IR_COUNT + US_COUNT;
         let to_goal = self.goal - robot.position;

@@ -43,8 +43,10 @@ impl Physics {
         substep_dt: f32,
         solver_iterations: usize,
     ) -> Self {
-        let mut world = PhysicsWorld::default();
-        world.gravity = Vector::ZERO;
+        let mut world = PhysicsWorld {
+            gravity: Vector::ZERO,
+            ..PhysicsWorld::default()
+        };
         world.integration_parameters.dt = substep_dt;
         world.integration_parameters.num_solver_iterations = solver_iterations;
         let robots = (0..n_robots)

@@ -70,7 +70,7 @@ impl SceneShape {
     }
 
     #[inline]
-    fn to_local(&self, p: Vector) -> Vector {
+    fn point_to_local(&self, p: Vector) -> Vector {
         let d = p - self.center;
         Vector::new(
             self.cos * d.x + self.sin * d.y,
@@ -90,7 +90,7 @@ impl SceneShape {
     /// A ray starting inside a solid shape hits at 0.
     #[inline]
     pub fn cast(&self, origin: Vector, dir: Vector, max: f32) -> Option<f32> {
-        let ray = Ray::new(self.to_local(origin), self.dir_to_local(dir));
+        let ray = Ray::new(self.point_to_local(origin), self.dir_to_local(dir));
         match &self.geometry {
             Geometry::Circle(s) => s.cast_local_ray(&ray, max, true),
             Geometry::Box(s) => s.cast_local_ray(&ray, max, true),
@@ -101,7 +101,7 @@ impl SceneShape {
     /// Distance from `point` to the shape (0 inside it).
     #[inline]
     pub fn distance(&self, point: Vector) -> f32 {
-        let p = self.to_local(point);
+        let p = self.point_to_local(point);
         match &self.geometry {
             Geometry::Circle(s) => (p.length() - s.radius).max(0.0),
             Geometry::Box(s) => s.distance_to_local_point(p, true),
