@@ -1,0 +1,58 @@
+# Developer entry points. On a fresh machine (Python >= 3.10 and a Rust toolchain):
+#   make demo    build the extension into .venv and run the Nav demo
+#   make test    build, then run the Rust tests and the Python tests
+# Everything Python lives in the virtual environment .venv (created here when missing).
+
+VENV      := .venv
+VENV_ABS  := $(abspath $(VENV))
+PYTHON    := $(VENV)/bin/python
+# Runs a command as if the virtual environment were activated (maturin installs into $VIRTUAL_ENV).
+IN_VENV   := VIRTUAL_ENV=$(VENV_ABS) PATH=$(VENV_ABS)/bin:$$PATH
+# The extension is rebuilt only when one of these changed since the last `make develop`.
+RUST_SRC  := Cargo.toml $(wildcard Cargo.lock) pyproject.toml \
+             $(shell find src configs -type f 2>/dev/null)
+TOOLS     := $(VENV)/.tools-installed
+BUILT     := $(VENV)/.khepera-gym-built
+
+.PHONY: develop test demo bench lint format clean
+
+develop: $(BUILT)
+
+$(PYTHON):
+	python3 -m venv $(VENV)
+
+$(TOOLS): $(PYTHON)
+	$(PYTHON) -m pip install --quiet "maturin>=1.5,<2"
+	touch $@
+
+# `maturin develop` installs the package's dependencies and its `test` extra (pytest, ruff), puts
+# the compiled `_core` into khepera_gym/ and links the source folder into .venv (editable), so
+# changes to Python files need no rebuild.
+$(BUILT): $(TOOLS) $(RUST_SRC)
+	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test
+	touch $@
+
+test: develop
+	cargo test --release
+	$(PYTHON) -m pytest -q
+
+demo: develop
+	$(VENV)/bin/khepera-gym demo
+
+bench: develop
+	$(PYTHON) examples/benchmark.py
+
+lint: develop
+	cargo fmt --check
+	cargo clippy --release -- -D warnings
+	$(VENV)/bin/ruff check khepera_gym tests examples
+	$(VENV)/bin/ruff format --check khepera_gym tests examples
+
+format: develop
+	cargo fmt
+	$(VENV)/bin/ruff format khepera_gym tests examples
+	$(VENV)/bin/ruff check --fix khepera_gym tests examples
+
+clean:
+	rm -rf $(BUILT) demo_out
+	rm -f khepera_gym/_core*.so khepera_gym/_core*.pyd

@@ -1,0 +1,51 @@
+"""khepera_gym: a fast, reproducible simulator of the K-Team Khepera IV robot as Gymnasium envs.
+
+Importing the package registers the environments with Gymnasium::
+
+    import gymnasium as gym
+    import khepera_gym
+
+    env = gym.make("KheperaIV-Nav-v0")                      # one world
+    envs = gym.make_vec("KheperaIV-Nav-v0", num_envs=1024)  # native Rust batch
+
+Registered ids (``gym.make("KheperaIV-Nav")`` picks the latest version, with Gymnasium's warning
+that it did so):
+
+* ``KheperaIV-Nav-v0``: :class:`khepera_gym.envs.NavEnv`, vector env
+  :class:`khepera_gym.vector.NavVectorEnv`.
+
+No ``max_episode_steps`` is registered: the Rust core truncates episodes itself at the scenario's
+``max_steps``. ``gym.make(id, max_episode_steps=k)`` still adds Gymnasium's ``TimeLimit`` wrapper
+on top; to change the episode length of the simulator itself pass ``max_steps=k``.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+from khepera_gym import _core, errors
+from khepera_gym.layout import obs_layout
+
+__version__: str = _core.__version__
+
+#: (id, single-env entry point, vector entry point) of every registered environment.
+_REGISTRATIONS = (
+    ("KheperaIV-Nav-v0", "khepera_gym.envs:NavEnv", "khepera_gym.vector:NavVectorEnv"),
+)
+
+
+def _register_envs() -> None:
+    """Registers the environments with Gymnasium; a re-import registers nothing twice."""
+    for env_id, entry_point, vector_entry_point in _REGISTRATIONS:
+        if env_id in gymnasium.registry:
+            continue
+        gymnasium.register(
+            id=env_id,
+            entry_point=entry_point,
+            vector_entry_point=vector_entry_point,
+        )
+
+
+_register_envs()
+
+__all__ = ["__version__", "errors", "obs_layout"]

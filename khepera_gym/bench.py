@@ -1,0 +1,224 @@
+"""Throughput and memory benchmark of the Nav task (``khepera-gym bench``, examples/benchmark.py).
+
+Measures env-steps per second of
+
+* the native vector env, ``gym.make_vec("KheperaIV-Nav-v0", num_envs=n, num_threads=t)``, for
+  n in 1, 64, 1024, 4096 and t in 1, 2;
+* the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
+
+with uniform random actions generated beforehand, a warm-up, then a fixed wall time per
+configuration; and the resident memory per world of a 4096-world batch (Linux ``/proc``).
+Timing is wall-clock (``time.perf_counter``) and includes the Python layer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import gymnasium as gym
+import numpy as np
+
+import khepera_gym
+from khepera_gym import _core
+
+NAV_ID = "KheperaIV-Nav-v0"
+#: Distinct pregenerated action arrays cycled through while timing.
+_ACTION_SETS = 8
+#: Worlds of the batch whose memory is measured.
+_MEMORY_WORLDS = 4096
+
+
+@dataclass
+class Measurement:
+    """One benchmark configuration and its throughput."""
+
+    label: str
+    num_envs: int
+    num_threads: int | None
+    steps: int
+    seconds: float
+
+    @property
+    def env_steps_per_second(self) -> float:
+        return self.num_envs * self.steps / self.seconds
+
+    @property
+    def microseconds_per_step(self) -> float:
+        """Wall time of one call to ``step`` (all worlds), in µs."""
+        return 1e6 * self.seconds / self.steps
+
+
+def _random_actions(rng: np.random.Generator, shape: tuple[int, ...]) -> list[np.ndarray]:
+    return [rng.uniform(-1.0, 1.0, size=shape).astype(np.float32) for _ in range(_ACTION_SETS)]
+
+
+def bench_vector(num_envs: int, num_threads: int, duration: float, warmup: int = 20) -> Measurement:
+    """Times ``step`` of the native vector env for about ``duration`` seconds."""
+    envs = gym.make_vec(NAV_ID, num_envs=num_envs, num_threads=num_threads)
+    actions = _random_actions(np.random.default_rng(0), (num_envs, 2))
+    envs.reset(seed=0)
+    for step in range(warmup):
+        envs.step(actions[step % _ACTION_SETS])
+    steps = 0
+    start = time.perf_counter()
+    deadline = start + duration
+    now = start
+    while now < deadline:
+        for action in actions:
+            envs.step(action)
+        steps += _ACTION_SETS
+        now = time.perf_counter()
+    envs.close()
+    return Measurement(f"make_vec n={num_envs}", num_envs, num_threads, steps, now - start)
+
+
+def bench_single(duration: float, warmup: int = 200) -> Measurement:
+    """Times ``step`` of one env made by ``gym.make`` (with its wrappers); resets on episode end."""
+    env = gym.make(NAV_ID)
+    actions = _random_actions(np.random.default_rng(0), (2,))
+    env.reset(seed=0)
+    steps = 0
+
+    def run(count: int) -> None:
+        for index in range(count):
+            _, _, terminated, truncated, _ = env.step(actions[index % _ACTION_SETS])
+            if terminated or truncated:
+                env.reset()
+
+    run(warmup)
+    start = time.perf_counter()
+    deadline = start + duration
+    now = start
+    chunk = 256
+    while now < deadline:
+        run(chunk)
+        steps += chunk
+        now = time.perf_counter()
+    env.close()
+    return Measurement("gym.make (single)", 1, None, steps, now - start)
+
+
+def _resident_bytes() -> int | None:
+    """Resident set size of this process from /proc/self/statm, or None where unavailable."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as statm:
+            resident_pages = int(statm.read().split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    return resident_pages * os.sysconf("SC_PAGE_SIZE")
+
+
+def memory_per_world(num_worlds: int = _MEMORY_WORLDS) -> float | None:
+    """Resident bytes per world added by creating, resetting and stepping a batch of Nav worlds."""
+    gc.collect()
+    before = _resident_bytes()
+    if before is None:
+        return None
+    batch = _core.Batch("nav", num_worlds, num_threads=1)
+    batch.reset(0)
+    batch.step(np.zeros((num_worlds, batch.act_dim), dtype=np.float32))
+    after = _resident_bytes()
+    del batch
+    assert after is not None
+    return (after - before) / num_worlds
+
+
+def run(
+    num_envs: Sequence[int] = (1, 64, 1024, 4096),
+    num_threads: Sequence[int] = (1, 2),
+    duration: float = 1.5,
+    single: bool = True,
+    memory: bool = True,
+) -> list[Measurement]:
+    """Runs the benchmark and prints a table; returns the measurements."""
+    print(f"khepera_gym {khepera_gym.__version__} benchmark: {NAV_ID}, uniform random actions,")
+    print(f"{duration:.1f} s per configuration after warm-up; {os.cpu_count()} CPU(s) visible\n")
+    header = (
+        f"{'configuration':<22} {'threads':>7} {'env-steps/s':>13} {'µs/step':>10} {'×1 thread':>9}"
+    )
+    print(header)
+    print("-" * len(header))
+    measurements: list[Measurement] = []
+    for count in num_envs:
+        single_thread_rate: float | None = None
+        for threads in num_threads:
+            result = bench_vector(count, threads, duration)
+            measurements.append(result)
+            rate = result.env_steps_per_second
+            if threads == 1:
+                single_thread_rate = rate
+            speedup = f"{rate / single_thread_rate:.2f}" if single_thread_rate else ""
+            print(
+                f"{result.label:<22} {threads:>7} {rate:>13,.0f} "
+                f"{result.microseconds_per_step:>10.1f} {speedup:>9}",
+                flush=True,
+            )
+    if single:
+        result = bench_single(duration)
+        measurements.append(result)
+        print(
+            f"{result.label:<22} {'-':>7} {result.env_steps_per_second:>13,.0f} "
+            f"{result.microseconds_per_step:>10.1f} {'':>9}",
+            flush=True,
+        )
+    if memory:
+        per_world = memory_per_world()
+        print()
+        if per_world is None:
+            print("memory per world: n/a (needs /proc/self/statm)")
+        else:
+            print(
+                f"memory per world: {per_world / 1024:.1f} KiB "
+                f"(resident-set growth of a {_MEMORY_WORLDS}-world Nav batch)"
+            )
+    return measurements
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command-line entry point; ``--quick`` runs smaller batches for a shorter time."""
+    parser = argparse.ArgumentParser(
+        prog="khepera-gym bench", description="Throughput and memory of KheperaIV-Nav."
+    )
+    add_arguments(parser)
+    return run_from_args(parser.parse_args(argv))
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the benchmark's options to ``parser`` (shared with the ``khepera-gym`` CLI)."""
+    parser.add_argument(
+        "--quick", action="store_true", help="n in 1, 64, 1024 for 0.3 s each (a smoke run)"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=None, help="seconds per configuration (default 1.5)"
+    )
+    parser.add_argument(
+        "--num-envs", type=int, nargs="+", default=None, help="batch sizes (default 1 64 1024 4096)"
+    )
+    parser.add_argument(
+        "--threads", type=int, nargs="+", default=[1, 2], help="thread counts (default 1 2)"
+    )
+    parser.add_argument("--no-single", action="store_true", help="skip the gym.make single env")
+    parser.add_argument("--no-memory", action="store_true", help="skip the memory measurement")
+
+
+def run_from_args(args: argparse.Namespace) -> int:
+    """Runs the benchmark as configured by :func:`add_arguments`'s options."""
+    quick = args.quick
+    num_envs = args.num_envs or ([1, 64, 1024] if quick else [1, 64, 1024, 4096])
+    duration = args.duration if args.duration is not None else (0.3 if quick else 1.5)
+    run(
+        num_envs=num_envs,
+        num_threads=args.threads,
+        duration=duration,
+        single=not args.no_single,
+        memory=not args.no_memory,
+    )
+    return 0
+
+
+__all__ = ["Measurement", "bench_single", "bench_vector", "main", "memory_per_world", "run"]

@@ -1,0 +1,107 @@
+"""Resolution of the ``config=`` argument of the environments into scenario text for the Rust core.
+
+A scenario is a TOML file overlaid by the Rust core on the task's built-in defaults (see
+``configs/*.toml``, embedded in the extension, so installed wheels have them). ``config`` may be:
+
+* ``None``: the task's built-in defaults;
+* a built-in scenario name, e.g. ``"nav"`` or (later) ``"paper_fig6"``;
+* a path (``str`` or ``os.PathLike``) to a ``.toml`` file.
+
+Keys are validated by the Rust core: unknown keys and impossible values raise
+:class:`~khepera_gym.errors.ConfigError` naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+
+from khepera_gym import _core
+from khepera_gym.errors import ConfigError, KheperaError
+
+#: Source name the Rust core uses in messages when no scenario file is given.
+BUILT_IN_SOURCE = "<built-in>"
+
+#: Names that may denote a built-in scenario, used only if the extension cannot list its own.
+_CANDIDATE_BUILTIN_NAMES = ("nav", "avoid", "formation", "paper_fig6", "paper_fig7")
+
+ConfigArg = str | os.PathLike[str] | None
+
+
+@functools.cache
+def _builtin_config_text(name: str) -> str | None:
+    try:
+        return _core.default_config(name)
+    except (KheperaError, ValueError, KeyError):
+        return None
+
+
+def builtin_config_names() -> list[str]:
+    """Names of the built-in scenarios embedded in the extension, e.g. ``["nav"]``."""
+    list_builtins = getattr(_core, "builtin_configs", None)
+    if list_builtins is not None:
+        return list(list_builtins())
+    return [name for name in _CANDIDATE_BUILTIN_NAMES if _builtin_config_text(name) is not None]
+
+
+def builtin_config_text(name: str) -> str:
+    """The TOML text of a built-in scenario.
+
+    Raises:
+        ConfigError: ``name`` is not a built-in scenario (the message lists the known names).
+    """
+    text = _builtin_config_text(name)
+    if text is None:
+        known = ", ".join(builtin_config_names())
+        raise ConfigError(f"unknown built-in scenario {name!r}; known names: {known}")
+    return text
+
+
+def _looks_like_path(config: str) -> bool:
+    return config.endswith(".toml") or os.sep in config or "/" in config or os.path.exists(config)
+
+
+def resolve_config(config: ConfigArg, task: str) -> tuple[str | None, str]:
+    """Turn a ``config=`` argument into ``(config_text, config_name)`` for ``_core.Batch``.
+
+    Args:
+        config: ``None``, a built-in scenario name, or a path to a TOML file.
+        task: The environment's task ("nav", ...); its own built-in name needs no text, as the
+            Rust core starts from the task's defaults anyway.
+
+    Returns:
+        ``(None, "<built-in>")`` for the task's defaults, else the TOML text and where it came from
+        (the file path, or ``"<built-in:NAME>"``), used by the Rust core in error messages.
+
+    Raises:
+        ConfigError: Unknown built-in name, a missing or unreadable file, or a wrong argument type.
+    """
+    if config is None:
+        return None, BUILT_IN_SOURCE
+    if isinstance(config, str) and not _looks_like_path(config):
+        if config == task:
+            return None, BUILT_IN_SOURCE
+        if _builtin_config_text(config) is None:
+            known = ", ".join(builtin_config_names())
+            raise ConfigError(
+                f"config={config!r} is neither a built-in scenario nor a file; built-in names: "
+                f"{known}; or give the path of a .toml file"
+            )
+        return builtin_config_text(config), f"<built-in:{config}>"
+    if isinstance(config, (str, os.PathLike)):
+        path = Path(config)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ConfigError(f"{os.fspath(path)}: scenario file not found") from None
+        except (OSError, UnicodeDecodeError) as error:
+            raise ConfigError(f"{os.fspath(path)}: cannot read scenario file: {error}") from None
+        return text, os.fspath(path)
+    raise ConfigError(
+        f"config must be None, a built-in scenario name or a path to a .toml file, "
+        f"got {type(config).__name__}"
+    )
+
+
+__all__ = ["BUILT_IN_SOURCE", "builtin_config_names", "builtin_config_text", "resolve_config"]

@@ -1,0 +1,78 @@
+"""The plot helper, the ``khepera-gym`` command and the benchmark, end to end (no timing checks)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from conftest import NAV_ID
+from matplotlib.figure import Figure
+
+from khepera_gym import bench, cli
+from khepera_gym.plot import plot_trajectories
+
+
+def test_plot_trajectories_draws_paths_and_saves_png(tmp_path: Path) -> None:
+    env = gym.make(NAV_ID)
+    env.reset(seed=0)
+    path = [env.unwrapped.poses()[0]]
+    for _ in range(20):
+        env.step(np.array([0.5, 0.3], np.float32))
+        path.append(env.unwrapped.poses()[0])
+    scene = env.unwrapped.scene()
+    goal = env.unwrapped.goals()[0]
+    env.close()
+
+    figure = plot_trajectories([np.array(path)], scene, goals=[goal], title="one episode")
+    assert isinstance(figure, Figure)
+    ax = figure.axes[0]
+    assert ax.get_title() == "one episode"
+    drawn = ax.lines[0].get_xydata()
+    np.testing.assert_allclose(drawn, np.array(path)[:, :2])
+    output = tmp_path / "paths.png"
+    figure.savefig(output)
+    assert output.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_trajectories_draws_obstacles_of_every_kind() -> None:
+    scene = {
+        "arena": (2.0, 2.0),
+        "robot_radius": 0.07,
+        "goal_radius": 0.05,
+        "obstacles": [
+            {"kind": "circle", "center": (0.3, 0.2), "radius": 0.1},
+            {"kind": "box", "center": (-0.4, 0.1), "half_extents": (0.1, 0.2), "angle": 0.3},
+            {"kind": "segment", "start": (0.0, -0.5), "end": (0.5, -0.5)},
+        ],
+    }
+    trajectory = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+    figure = plot_trajectories([trajectory, trajectory[:, :2]], scene)
+    assert len(figure.axes) == 1
+    with pytest.raises(ValueError, match="trajectory 0"):
+        plot_trajectories([np.zeros((3, 4))], scene)
+
+
+def test_cli_demo_prints_a_table_and_saves_the_plot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cli.main(["demo", "--episodes", "2", "--out-dir", str(tmp_path)]) == 0
+    output = capsys.readouterr().out
+    assert "success rate" in output
+    assert (tmp_path / "nav_trajectories.png").is_file()
+    assert str(tmp_path / "nav_trajectories.png") in output
+
+
+def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:
+    measurements = bench.run(num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False)
+    assert [m.num_envs for m in measurements] == [2, 2, 1]
+    assert all(m.steps > 0 and m.env_steps_per_second > 0 for m in measurements)
+    assert "env-steps/s" in capsys.readouterr().out
+
+
+def test_memory_per_world_is_measured_on_linux() -> None:
+    per_world = bench.memory_per_world(num_worlds=256)
+    if per_world is None:
+        pytest.skip("no /proc/self/statm on this platform")
+    assert isinstance(per_world, float)
