@@ -307,9 +307,10 @@ class NavEnv(KheperaEnv):
 
     `gym.make_vec("KheperaIV-Nav-v0", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.NavVectorEnv`: N worlds stepped in one Rust call on a thread pool
-    (None = all cores), autoreset mode NEXT_STEP, episode statistics in `infos["episode_stats"]` with
-    `_`-prefixed masks at steps where some world ended. World i reset with seed s behaves bit for
-    bit like this env reset with seed s + i, whatever the thread count.
+    (None = all cores), autoreset mode NEXT_STEP, episode statistics in
+    `infos["episode_stats"]` with `_`-prefixed masks at steps where some world ended. World i
+    reset with seed s behaves bit for bit like this env reset with seed s + i, whatever the
+    thread count.
 
     ```python
     >>> envs = gym.make_vec("KheperaIV-Nav-v0", num_envs=1024, num_threads=2)

@@ -11,8 +11,8 @@ Semantics follow Gymnasium's ``VectorEnv``:
   returns its first observation with reward 0 and both flags False (its action is ignored);
 * ``reset(seed=s)`` seeds world i with ``s + i``, so world i behaves bit for bit like a single env
   reset with seed ``s + i`` given the same actions;
-* ``info`` is ``{}`` except at steps where some world ended: ``info["episode_stats"]`` then holds arrays
-  "return", "length", "success", "path_length", "collisions" of shape (N,) with boolean masks
+* ``info`` is ``{}`` except at steps where some world ended: ``info["episode_stats"]`` then holds
+  arrays "return", "length", "success", "path_length", "collisions" of shape (N,) with boolean masks
   ``"_return"``, ... (and ``info["_episode_stats"]``) true for the worlds that ended;
 * every returned array is freshly allocated (copy semantics).
 """
