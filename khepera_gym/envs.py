@@ -345,6 +345,10 @@ class NavEnv(KheperaEnv):
 
     `config="path.toml"` overlays a TOML file on the built-in defaults below
     (`khepera_gym._core.default_config("nav")`); a file may change any key and add none.
+    `robot.axle_length`, `robot.max_wheel_speed`, `robot.wheel_accel_limit`, `robot.mass`,
+    `sensors.ir_floor_value`, `sensors.ir_noise_sigma` and `sensors.us_noise_sigma` may be given
+    as `[low, high]` ranges, drawn anew at every reset (domain randomisation). Built-in scenes
+    such as `config="paper_fig6"` overlay their keys the same way.
     `env.unwrapped.config_toml()` returns the resolved scenario.
 
     | Key                           | Default | Meaning                                      |
@@ -358,6 +362,25 @@ class NavEnv(KheperaEnv):
     | `robot.mass`                  | 0.54    | kg                                           |
     | `arena.width`, `arena.height` | 2.0     | inner arena size (m), centred at the origin  |
     | `arena.wall_thickness`        | 0.05    | m, outside the inner rectangle               |
+    | `arena.walls`                 | true    | false: open floor (size bounds spawning only) |
+    | `obstacles.fixed`             | []      | fixed obstacles: inline tables `{kind =      |
+    |                               |         | "circle", center, radius}`, `{kind = "box",  |
+    |                               |         | center, half_extents, angle}`, `{kind =      |
+    |                               |         | "segment", a, b}`                            |
+    | `obstacles.count`             | 0       | random obstacles drawn at every reset        |
+    | `obstacles.kinds`             | all 3   | shapes of the random obstacles               |
+    | `obstacles.circle_radius`     | [0.04, 0.10] | range of random circle radii (m)        |
+    | `obstacles.box_half_extent`   | [0.03, 0.10] | range of random box half sides (m)      |
+    | `obstacles.segment_length`    | [0.20, 0.45] | range of random segment lengths (m)     |
+    | `obstacles.placement`         | between | "between" start and goal, or "anywhere"      |
+    | `obstacles.corridor_width`    | 0.8     | band around start→goal for "between" (m)     |
+    | `obstacles.min_gap`           | 0.16    | free gap around random obstacles (m); ≥ the  |
+    |                               |         | robot's diameter + 1 cm keeps goals reachable |
+    | `obstacles.spawn_clearance`   | 0.05    | gap between obstacles and start/goal (m)     |
+    | `spawn.wall_margin`           | 0.05    | clearance from the walls at reset (m)        |
+    | `spawn.min_goal_distance`     | 0.5     | least start-goal distance at reset (m)       |
+    | `spawn.start`                 | []      | [] random, or fixed [x, y, heading]          |
+    | `spawn.goal`                  | []      | [] random, or fixed [x, y]                   |
     | `sensors.ir_range`            | 0.25    | m; beyond it the IR reads the floor value    |
     | `sensors.ir_floor_value`      | 100.0   | raw IR count with nothing in range           |
     | `sensors.ir_noise_sigma`      | 10.0    | raw counts, Gaussian                         |
@@ -366,8 +389,6 @@ class NavEnv(KheperaEnv):
     | `sensors.us_noise_sigma`      | 0.01    | m, Gaussian                                  |
     | `sensors.us_enabled`          | 5×true  | per sensor; a disabled one reads code 2000   |
     | `task.goal_radius`            | 0.05    | success distance (m)                         |
-    | `task.min_goal_distance`      | 0.5     | least start-goal distance at reset (m)       |
-    | `task.spawn_margin`           | 0.05    | clearance from the walls at reset (m)        |
     | `task.max_steps`              | 400     | steps before truncation                      |
     | `task.progress_weight`        | 10.0    | reward per metre of progress                 |
     | `task.time_cost`              | 0.01    | reward subtracted per step                   |

@@ -87,15 +87,16 @@ impl Batch {
         } else {
             None
         };
+        let spawner = Arc::new(Env::spawner(kind, &cfg)?);
         let cfg = Arc::new(cfg);
         let envs: Vec<Env> = (0..num_worlds)
             .map(|i| {
-                let mut env = Env::new(kind, cfg.clone(), action_type);
+                let mut env = Env::new(kind, cfg.clone(), spawner.clone(), action_type)?;
                 env.seed(i as u64);
-                env
+                Ok(env)
             })
-            .collect();
-        let obs_dim = kind.obs_dim();
+            .collect::<Result<_>>()?;
+        let obs_dim = kind.obs_dim(&cfg);
         let act_dim = kind.act_dim(&cfg);
         Ok(Self {
             envs,

@@ -7,6 +7,7 @@
 //! `batch` (N worlds, rayon, autoreset). Units are SI; angles are radians, CCW, in (-π, π].
 
 pub mod batch;
+pub mod controllers;
 pub mod error;
 pub mod robot;
 pub mod scenario;

@@ -60,14 +60,15 @@ pub struct Drive {
 
 impl Drive {
     /// Drive parameters from a validated `[robot]` table.
+    /// Ranges (domain randomisation) start at their low end until `World::randomise`.
     pub fn from_config(cfg: &RobotConfig) -> Self {
         Self {
             radius: cfg.radius,
             wheel_radius: cfg.wheel_radius,
-            axle_length: cfg.axle_length,
-            max_wheel_speed: cfg.max_wheel_speed,
+            axle_length: cfg.axle_length.bounds().0,
+            max_wheel_speed: cfg.max_wheel_speed.bounds().0,
             min_wheel_speed: cfg.min_wheel_speed,
-            wheel_accel_limit: cfg.wheel_accel_limit,
+            wheel_accel_limit: cfg.wheel_accel_limit.bounds().0,
         }
     }
 

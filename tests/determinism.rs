@@ -42,27 +42,47 @@ fn run(batch: &mut Batch, actions: &[Vec<f32>]) -> Vec<(Vec<f32>, Vec<f32>, Vec<
 fn test_batch_world_equals_single_env_with_seed_plus_index() {
     let (n, steps, seed) = (8, 200, 1234u64);
     let acts = actions(n, steps);
-    let mut batch = Batch::new(TaskKind::Nav, scenario(), n, ActionType::Wheels, Some(2), true)
-        .expect("batch");
+    let mut batch = Batch::new(
+        TaskKind::Nav,
+        scenario(),
+        n,
+        ActionType::Wheels,
+        Some(2),
+        true,
+    )
+    .expect("batch");
     batch.reset(Some(seed));
     let first = batch.obs().to_vec();
     let trace = run(&mut batch, &acts);
     let mut ended = 0;
     for i in 0..n {
-        let mut single =
-            Batch::new(TaskKind::Nav, scenario(), 1, ActionType::Wheels, Some(1), true)
-                .expect("single");
+        let mut single = Batch::new(
+            TaskKind::Nav,
+            scenario(),
+            1,
+            ActionType::Wheels,
+            Some(1),
+            true,
+        )
+        .expect("single");
         single.reset(Some(seed + i as u64));
         assert_eq!(single.obs(), &first[i * 18..(i + 1) * 18]);
         for (t, a) in acts.iter().enumerate() {
             single.step(&a[2 * i..2 * i + 2]).expect("step");
             let (obs, rew, done) = &trace[t];
-            assert_eq!(single.obs(), &obs[i * 18..(i + 1) * 18], "world {i} step {t}");
+            assert_eq!(
+                single.obs(),
+                &obs[i * 18..(i + 1) * 18],
+                "world {i} step {t}"
+            );
             assert_eq!(single.outcomes()[0].reward.to_bits(), rew[i].to_bits());
             ended += done[i] as usize;
         }
     }
-    assert!(ended >= n * 2, "too few episode ends ({ended}) to cover autoreset");
+    assert!(
+        ended >= n * 2,
+        "too few episode ends ({ended}) to cover autoreset"
+    );
 }
 
 #[test]
@@ -71,9 +91,15 @@ fn test_batch_is_identical_at_one_and_two_threads() {
     let acts = actions(n, steps);
     let mut results = Vec::new();
     for threads in [1, 2] {
-        let mut batch =
-            Batch::new(TaskKind::Nav, scenario(), n, ActionType::Wheels, Some(threads), true)
-                .expect("batch");
+        let mut batch = Batch::new(
+            TaskKind::Nav,
+            scenario(),
+            n,
+            ActionType::Wheels,
+            Some(threads),
+            true,
+        )
+        .expect("batch");
         batch.reset(Some(5));
         results.push(run(&mut batch, &acts));
     }
@@ -82,8 +108,15 @@ fn test_batch_is_identical_at_one_and_two_threads() {
 
 #[test]
 fn test_reset_none_continues_streams_and_seed_repeats() {
-    let mut batch =
-        Batch::new(TaskKind::Nav, scenario(), 4, ActionType::Wheels, Some(1), true).expect("b");
+    let mut batch = Batch::new(
+        TaskKind::Nav,
+        scenario(),
+        4,
+        ActionType::Wheels,
+        Some(1),
+        true,
+    )
+    .expect("b");
     batch.reset(Some(1));
     let a = batch.obs().to_vec();
     batch.reset(None);
@@ -96,8 +129,15 @@ fn test_reset_none_continues_streams_and_seed_repeats() {
 
 #[test]
 fn test_bad_actions_change_nothing() {
-    let mut batch =
-        Batch::new(TaskKind::Nav, scenario(), 2, ActionType::Wheels, Some(1), true).expect("b");
+    let mut batch = Batch::new(
+        TaskKind::Nav,
+        scenario(),
+        2,
+        ActionType::Wheels,
+        Some(1),
+        true,
+    )
+    .expect("b");
     batch.reset(Some(0));
     let before = batch.obs().to_vec();
     assert!(batch.step(&[0.0, 0.0, f32::NAN, 0.0]).is_err());

@@ -14,16 +14,17 @@ fn nav_env(overrides: &str) -> Env {
         overrides: overrides.parse().expect("overrides"),
     };
     let cfg = Scenario::load("nav", &source).expect("scenario");
-    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), ActionType::Wheels);
+    let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
+    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
     env.seed(7);
-    let mut obs = vec![0.0; TaskKind::Nav.obs_dim()];
+    let mut obs = vec![0.0; _core::tasks::nav::OBS_DIM];
     env.reset(&mut obs);
     env
 }
 
 /// Steps `env` with a constant action for `steps` control steps, ignoring episode ends.
 fn drive(env: &mut Env, action: [f32; 2], steps: usize, mut each: impl FnMut(&Env)) {
-    let mut obs = vec![0.0; TaskKind::Nav.obs_dim()];
+    let mut obs = vec![0.0; _core::tasks::nav::OBS_DIM];
     for _ in 0..steps {
         env.step(&action, &mut obs);
         env.done = false;
@@ -57,7 +58,8 @@ fn test_full_speed_into_walls_never_leaves_arena() {
 #[test]
 fn test_robot_slides_along_wall_at_shallow_angle() {
     let mut env = nav_env("max_steps = 100000");
-    env.world.place_robot(0, Vector::new(-0.5, 0.85), 10f32.to_radians());
+    env.world
+        .place_robot(0, Vector::new(-0.5, 0.85), 10f32.to_radians());
     drive(&mut env, [0.5, 0.5], 30, |_| {});
     let p = env.world.robots[0].position;
     // It kept moving along +x while held at the wall (y = 1 - radius).
@@ -78,7 +80,10 @@ fn test_turning_in_place_keeps_centre_fixed() {
     });
     // 2·0.813/0.1054 rad/s for 5 s
     let expected = 2.0 * 0.813 / 0.1054 * 5.0;
-    assert!((turned - expected).abs() / expected < 1e-3, "{turned} vs {expected}");
+    assert!(
+        (turned - expected).abs() / expected < 1e-3,
+        "{turned} vs {expected}"
+    );
 }
 
 #[test]
@@ -100,6 +105,14 @@ fn test_acceleration_limit_ramps_speed() {
     drive(&mut env, [1.0, 1.0], 4, |_| {});
     // 0.2 s at 1 m/s² → 0.2 m/s, 0.02 m travelled
     let r = &env.world.robots[0];
-    assert!((r.wheel_speeds[0] - 0.2).abs() < 1e-5, "{:?}", r.wheel_speeds);
-    assert!((r.position.x + 0.9 - 0.0225).abs() < 2e-3, "{:?}", r.position);
+    assert!(
+        (r.wheel_speeds[0] - 0.2).abs() < 1e-5,
+        "{:?}",
+        r.wheel_speeds
+    );
+    assert!(
+        (r.position.x + 0.9 - 0.0225).abs() < 2e-3,
+        "{:?}",
+        r.position
+    );
 }

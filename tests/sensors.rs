@@ -17,7 +17,8 @@ fn env_with(overrides: &str) -> Env {
         overrides: overrides.parse().expect("overrides"),
     };
     let cfg = Scenario::load("nav", &source).expect("scenario");
-    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), ActionType::Wheels);
+    let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
+    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
     env.seed(3);
     env
 }
@@ -54,7 +55,10 @@ fn test_each_ir_reads_response_curve_without_noise() {
         for (gap, raw) in CURVE {
             sense_wall(&mut env, *bearing, gap);
             let got = env.world.robots[0].ir_raw[k] as f32;
-            assert!((got - raw).abs() <= 1.0, "sensor {k} at {gap} m: {got} != {raw}");
+            assert!(
+                (got - raw).abs() <= 1.0,
+                "sensor {k} at {gap} m: {got} != {raw}"
+            );
             // The other sensors see less (the slab is narrow) or the floor.
             for (j, other) in env.world.robots[0].ir_raw.iter().enumerate() {
                 if j != k {

@@ -20,7 +20,7 @@ use crate::batch::Batch as CoreBatch;
 use crate::error::Error;
 use crate::robot::{ActionType, PULSES_PER_WHEEL_TURN};
 use crate::scenario::{self, Scenario, Source};
-use crate::tasks::TaskKind;
+use crate::tasks::{EpisodeStats, TaskKind};
 use crate::world::scene::Geometry;
 
 /// Raises `err` as the matching class of `khepera_gym.errors`.
@@ -247,6 +247,85 @@ impl Batch {
         self.inner.scenario().task.max_steps
     }
 
+    /// Joint observation layout of this batch's scenario: (name, start, stop) in order.
+    fn obs_layout(&self) -> Vec<(String, usize, usize)> {
+        let env = &self.inner.envs()[0];
+        layout_slices(env.kind().obs_layout(&env.cfg))
+    }
+
+    /// The agents: (name, robot index, obs start, obs stop, [(name, start, stop) of its own
+    /// block]) in joint order; agent i's action is columns 2i, 2i+1.
+    #[allow(clippy::type_complexity)]
+    fn agents(&self) -> Vec<(String, usize, usize, usize, Vec<(String, usize, usize)>)> {
+        let env = &self.inner.envs()[0];
+        let mut start = 0;
+        env.kind()
+            .agents(&env.cfg)
+            .into_iter()
+            .map(|a| {
+                let n = a.obs_dim();
+                let own =
+                    layout_slices(a.layout.iter().map(|(k, n)| (k.to_string(), *n)).collect());
+                let item = (a.name, a.robot, start, start + n, own);
+                start += n;
+                item
+            })
+            .collect()
+    }
+
+    /// Each agent's reward on the last step, shape (N, n_agents).
+    fn agent_rewards<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let n_agents = self.inner.envs()[0].agent_rewards.len();
+        let data: Vec<f32> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| e.agent_rewards.iter().copied())
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), n_agents])?
+            .into_any())
+    }
+
+    /// Each agent's termination on the last step, shape (N, n_agents).
+    fn agent_terminated<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let n_agents = self.inner.envs()[0].agent_terminated.len();
+        let data: Vec<bool> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| e.agent_terminated.iter().copied())
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), n_agents])?
+            .into_any())
+    }
+
+    /// Formation targets of the followers, shape (N, K, 2) (K = 0 for other tasks).
+    fn formation_targets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let targets: Vec<Vec<_>> = self
+            .inner
+            .envs()
+            .iter()
+            .map(|e| e.formation_targets())
+            .collect();
+        let k = targets.first().map_or(0, Vec::len);
+        let data: Vec<f64> = targets
+            .iter()
+            .flatten()
+            .flat_map(|p| [p.x as f64, p.y as f64])
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), k, 2])?
+            .into_any())
+    }
+
+    /// Name of the task.
+    #[getter]
+    fn task(&self) -> &'static str {
+        self.inner.envs()[0].kind().name()
+    }
+
     /// (low, high) observation bounds.
     fn obs_bounds<'py>(
         &self,
@@ -343,26 +422,20 @@ impl Batch {
     fn episode_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let stats: Vec<_> = self.inner.episode_stats().copied().collect();
         let d = PyDict::new(py);
-        d.set_item(
-            "return",
-            PyArray1::from_iter(py, stats.iter().map(|s| s.ret)),
-        )?;
-        d.set_item(
-            "length",
-            PyArray1::from_iter(py, stats.iter().map(|s| s.length as i64)),
-        )?;
+        let f32s = |f: fn(&EpisodeStats) -> f32| PyArray1::from_iter(py, stats.iter().map(f));
+        let i64s = |f: fn(&EpisodeStats) -> i64| PyArray1::from_iter(py, stats.iter().map(f));
+        d.set_item("return", f32s(|s| s.ret))?;
+        d.set_item("length", i64s(|s| s.length as i64))?;
         d.set_item(
             "success",
             PyArray1::from_iter(py, stats.iter().map(|s| s.success)),
         )?;
-        d.set_item(
-            "path_length",
-            PyArray1::from_iter(py, stats.iter().map(|s| s.path_length)),
-        )?;
-        d.set_item(
-            "collisions",
-            PyArray1::from_iter(py, stats.iter().map(|s| s.collisions as i64)),
-        )?;
+        d.set_item("path_length", f32s(|s| s.path_length))?;
+        d.set_item("collisions", i64s(|s| s.collisions as i64))?;
+        if self.inner.envs()[0].kind() == TaskKind::Formation {
+            d.set_item("formation_error_mean", f32s(|s| s.formation_error_mean))?;
+            d.set_item("formation_error_max", f32s(|s| s.formation_error_max))?;
+        }
         Ok(d)
     }
 
@@ -442,6 +515,8 @@ impl Batch {
         let scene = &env.world.scene;
         let d = PyDict::new(py);
         d.set_item("arena", scene.arena)?;
+        d.set_item("walls", scene.walled)?;
+        d.set_item("wall_thickness", scene.wall_thickness)?;
         d.set_item("robot_radius", env.cfg.robot.radius)?;
         d.set_item("goal_radius", env.cfg.task.goal_radius)?;
         let obstacles = PyList::empty(py);
@@ -507,20 +582,24 @@ fn describe(value: &Bound<'_, PyAny>) -> String {
     }
 }
 
-/// Observation layout of a task: (name, start, stop) in order.
+/// Observation layout of a task with its default scenario: (name, start, stop) in order.
 #[pyfunction]
 fn obs_layout(py: Python<'_>, task: &str) -> PyResult<Vec<(String, usize, usize)>> {
     let kind = task_kind(py, task)?;
+    let cfg = Scenario::load(kind.name(), &Source::default()).map_err(|e| to_py(py, e))?;
+    Ok(layout_slices(kind.obs_layout(&cfg)))
+}
+
+fn layout_slices(layout: Vec<(String, usize)>) -> Vec<(String, usize, usize)> {
     let mut start = 0;
-    Ok(kind
-        .obs_layout()
-        .iter()
+    layout
+        .into_iter()
         .map(|(name, len)| {
-            let item = (name.to_string(), start, start + len);
+            let item = (name, start, start + len);
             start += len;
             item
         })
-        .collect())
+        .collect()
 }
 
 /// The built-in scenario file of `name` (TOML text).

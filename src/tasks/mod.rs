@@ -1,7 +1,14 @@
-//! Tasks: what a world is for. Each task file (nav.rs, later avoid.rs, formation.rs) resets its
-//! world, judges a step (reward, success) and writes the observation. [`Env`] joins a task to a
-//! world and keeps the episode's bookkeeping (step counter, termination, statistics) in one place.
+//! Tasks: what a world is for. Each task file (nav.rs for Nav and Avoid, formation.rs,
+//! multinav.rs) starts its episodes, judges a step (rewards, success) and writes observations.
+//! [`Env`] joins a task to a world and keeps the episode's bookkeeping (layout at reset, step
+//! counter, termination, statistics) in one place.
+//!
+//! Agents: a task has one or more agents, each acting on one robot with two normalised numbers
+//! and observing one block of the joint observation. The joint action is the agents' actions
+//! in order; the joint reward is the mean of the agents' rewards.
 
+pub mod formation;
+pub mod multinav;
 pub mod nav;
 
 use std::sync::Arc;
@@ -10,22 +17,35 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
+use crate::error::{Error, Result};
 use crate::robot::ActionType;
-use crate::scenario::Scenario;
-use crate::world::{Scene, World};
+use crate::scenario::{LeaderMode, Scenario};
+use crate::world::layout::{Spawn, Spawner};
+use crate::world::World;
 
 /// The tasks the simulator knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TaskKind {
     /// Position control to a goal in an empty arena.
     Nav,
+    /// Position control to a goal among obstacles.
+    Avoid,
+    /// A leader and followers holding a formation.
+    Formation,
+    /// Several robots, each with its own goal.
+    MultiNav,
 }
 
 impl TaskKind {
     /// Every task, for listings.
-    pub const ALL: [TaskKind; 1] = [TaskKind::Nav];
+    pub const ALL: [TaskKind; 4] = [
+        TaskKind::Nav,
+        TaskKind::Avoid,
+        TaskKind::Formation,
+        TaskKind::MultiNav,
+    ];
 
-    /// Parses a task name ("nav").
+    /// Parses a task name ("nav", "avoid", "formation", "multinav").
     pub fn parse(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|k| k.name() == name)
     }
@@ -34,60 +54,141 @@ impl TaskKind {
     pub fn name(self) -> &'static str {
         match self {
             TaskKind::Nav => "nav",
+            TaskKind::Avoid => "avoid",
+            TaskKind::Formation => "formation",
+            TaskKind::MultiNav => "multinav",
         }
     }
 
-    /// Observation layout: (name, length) in order.
-    pub fn obs_layout(self) -> &'static [(&'static str, usize)] {
+    /// The agents of a world of this task: (name, robot index, observation layout).
+    pub fn agents(self, cfg: &Scenario) -> Vec<AgentSpec> {
+        let nav_agent = |name: String, robot| AgentSpec {
+            name,
+            robot,
+            layout: nav::OBS_LAYOUT,
+        };
         match self {
-            TaskKind::Nav => nav::OBS_LAYOUT,
+            TaskKind::Nav | TaskKind::Avoid => vec![nav_agent("robot".into(), 0)],
+            TaskKind::MultiNav => {
+                let n = cfg.multinav.as_ref().map_or(1, |m| m.n_robots as usize);
+                (0..n).map(|i| nav_agent(format!("robot_{i}"), i)).collect()
+            }
+            TaskKind::Formation => {
+                let Some(f) = &cfg.formation else {
+                    return Vec::new();
+                };
+                let mut agents = Vec::new();
+                if f.leader == LeaderMode::Agent {
+                    agents.push(nav_agent("leader".into(), 0));
+                }
+                for k in 0..f.offsets().len() {
+                    agents.push(AgentSpec {
+                        name: format!("follower_{k}"),
+                        robot: k + 1,
+                        layout: formation::FOLLOWER_LAYOUT,
+                    });
+                }
+                agents
+            }
         }
     }
 
-    /// Observation length.
-    pub fn obs_dim(self) -> usize {
-        self.obs_layout().iter().map(|(_, n)| n).sum()
+    /// The joint observation layout: (name, length) blocks in order; with several agents each
+    /// name is prefixed by the agent's (`follower_0/ir`).
+    pub fn obs_layout(self, cfg: &Scenario) -> Vec<(String, usize)> {
+        let agents = self.agents(cfg);
+        let single = agents.len() == 1;
+        agents
+            .iter()
+            .flat_map(|a| {
+                a.layout.iter().map(move |(name, n)| {
+                    let full = if single {
+                        name.to_string()
+                    } else {
+                        format!("{}/{name}", a.name)
+                    };
+                    (full, *n)
+                })
+            })
+            .collect()
     }
 
-    /// Robots in a world of this task.
-    pub fn n_robots(self, _cfg: &Scenario) -> usize {
-        match self {
-            TaskKind::Nav => 1,
-        }
+    /// Joint observation length.
+    pub fn obs_dim(self, cfg: &Scenario) -> usize {
+        self.agents(cfg).iter().map(AgentSpec::obs_dim).sum()
     }
 
-    /// Action length: two wheel numbers per controlled robot.
+    /// Joint action length: two wheel numbers per agent.
     pub fn act_dim(self, cfg: &Scenario) -> usize {
-        2 * self.n_robots(cfg)
+        2 * self.agents(cfg).len()
     }
 
-    /// Observation bounds (low, high).
-    pub fn obs_bounds(self, cfg: &Scenario) -> (Vec<f32>, Vec<f32>) {
+    /// Robots in a world.
+    pub fn n_robots(self, cfg: &Scenario) -> usize {
         match self {
-            TaskKind::Nav => nav::Nav::bounds(cfg),
+            TaskKind::Nav | TaskKind::Avoid => 1,
+            TaskKind::MultiNav => cfg.multinav.as_ref().map_or(1, |m| m.n_robots as usize),
+            TaskKind::Formation => 1 + cfg.formation.as_ref().map_or(0, |f| f.offsets().len()),
         }
+    }
+
+    /// Joint observation bounds (low, high).
+    pub fn obs_bounds(self, cfg: &Scenario) -> (Vec<f32>, Vec<f32>) {
+        let (mut low, mut high) = (Vec::new(), Vec::new());
+        for agent in self.agents(cfg) {
+            let (l, h) = if agent.layout == formation::FOLLOWER_LAYOUT {
+                formation::Formation::follower_bounds(cfg)
+            } else {
+                nav::Nav::bounds(cfg)
+            };
+            low.extend(l);
+            high.extend(h);
+        }
+        (low, high)
+    }
+}
+
+/// One agent of a task.
+#[derive(Debug, Clone)]
+pub struct AgentSpec {
+    /// Its name (PettingZoo agent id).
+    pub name: String,
+    /// The robot it drives.
+    pub robot: usize,
+    /// Its observation block's layout.
+    pub layout: &'static [(&'static str, usize)],
+}
+
+impl AgentSpec {
+    /// Length of its observation block.
+    pub fn obs_dim(&self) -> usize {
+        self.layout.iter().map(|(_, n)| n).sum()
     }
 }
 
 /// Statistics of one episode.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct EpisodeStats {
-    /// Sum of rewards.
+    /// Sum of (joint) rewards.
     pub ret: f32,
     /// Steps taken.
     pub length: u32,
-    /// Whether the task succeeded.
+    /// Whether the task succeeded (goal reached; formation: the leader's; multinav: every one).
     pub success: bool,
-    /// Distance travelled by the robot(s) (m, summed over robots).
+    /// Distance travelled by the robots (m, summed over robots).
     pub path_length: f32,
     /// Steps in which a robot was in contact with something.
     pub collisions: u32,
+    /// Formation only: mean follower distance to target over the episode (m).
+    pub formation_error_mean: f32,
+    /// Formation only: largest follower distance to target in the episode (m).
+    pub formation_error_max: f32,
 }
 
 /// What a step returns besides the observation.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StepOutcome {
-    /// Reward of the step.
+    /// Joint reward of the step (mean over agents).
     pub reward: f32,
     /// The episode ended by the task's rules (success, or collision when configured).
     pub terminated: bool,
@@ -98,6 +199,8 @@ pub struct StepOutcome {
 #[derive(Debug, Clone)]
 enum TaskState {
     Nav(nav::Nav),
+    Formation(formation::Formation),
+    MultiNav(multinav::MultiNav),
 }
 
 /// One environment: a world, its task and the episode's bookkeeping.
@@ -106,9 +209,15 @@ pub struct Env {
     pub world: World,
     /// The scenario it was built from.
     pub cfg: Arc<Scenario>,
+    spawner: Arc<Spawner>,
     kind: TaskKind,
     state: TaskState,
     action_type: ActionType,
+    agent_robots: Vec<usize>,
+    /// Each agent's reward on the last step.
+    pub agent_rewards: Vec<f32>,
+    /// Each agent's termination on the last step (multinav: its robot arrived).
+    pub agent_terminated: Vec<bool>,
     /// Statistics of the running episode.
     pub stats: EpisodeStats,
     /// Statistics of the episode that ended on the last step.
@@ -119,22 +228,52 @@ pub struct Env {
 
 impl Env {
     /// An environment of `kind` built from `cfg`, seeded with 0 until [`Env::seed`].
-    pub fn new(kind: TaskKind, cfg: Arc<Scenario>, action_type: ActionType) -> Self {
-        let scene = Scene::arena(cfg.arena.width, cfg.arena.height, cfg.arena.wall_thickness);
-        let world = World::new(&cfg, scene, kind.n_robots(&cfg));
+    pub fn new(
+        kind: TaskKind,
+        cfg: Arc<Scenario>,
+        spawner: Arc<Spawner>,
+        action_type: ActionType,
+    ) -> Result<Self> {
+        let world = World::new(&cfg, spawner.base.clone(), kind.n_robots(&cfg));
         let state = match kind {
-            TaskKind::Nav => TaskState::Nav(nav::Nav::default()),
+            TaskKind::Nav | TaskKind::Avoid => TaskState::Nav(nav::Nav::default()),
+            TaskKind::MultiNav => TaskState::MultiNav(multinav::MultiNav::default()),
+            TaskKind::Formation => {
+                let f = cfg.formation.as_ref().ok_or_else(|| {
+                    Error::config(
+                        "<batch>",
+                        "formation",
+                        "the formation task needs a [formation] table",
+                    )
+                })?;
+                TaskState::Formation(formation::Formation::new(&cfg, f))
+            }
         };
-        Self {
+        let agent_robots: Vec<usize> = kind.agents(&cfg).iter().map(|a| a.robot).collect();
+        let n_agents = agent_robots.len();
+        Ok(Self {
             world,
             cfg,
+            spawner,
             kind,
             state,
             action_type,
+            agent_robots,
+            agent_rewards: vec![0.0; n_agents],
+            agent_terminated: vec![false; n_agents],
             stats: EpisodeStats::default(),
             last_episode: EpisodeStats::default(),
             done: true,
-        }
+        })
+    }
+
+    /// The spawner of a scenario for `kind` (shared by every world of a batch).
+    pub fn spawner(kind: TaskKind, cfg: &Scenario) -> Result<Spawner> {
+        Spawner::new(
+            cfg,
+            Spawn::for_task(kind.name(), cfg, "<batch>")?,
+            "<batch>",
+        )
     }
 
     /// The task.
@@ -151,43 +290,89 @@ impl Env {
     pub fn reset(&mut self, obs: &mut [f32]) {
         self.stats = EpisodeStats::default();
         self.done = false;
+        self.agent_rewards.fill(0.0);
+        self.agent_terminated.fill(false);
+        self.world.randomise(&self.cfg);
+        let layout = self.spawner.generate(&self.cfg, &mut self.world.rng);
+        if self.cfg.obstacles.count > 0 {
+            // New random obstacles: the fixed scene plus this episode's.
+            let mut scene = self.spawner.base.clone();
+            scene.shapes.extend(layout.obstacles);
+            self.world.set_scene(scene);
+        }
+        for (i, (position, heading)) in layout.poses.iter().enumerate() {
+            self.world.place_robot(i, *position, *heading);
+        }
         match &mut self.state {
-            TaskState::Nav(nav) => nav.reset(&mut self.world, &self.cfg),
+            TaskState::Nav(nav) => nav.reset(&self.world, layout.goals[0]),
+            TaskState::MultiNav(m) => m.reset(&self.world, &layout.goals),
+            TaskState::Formation(f) => f.reset(&self.world, layout.goals[0]),
         }
         self.world.sense();
         self.observe(obs);
     }
 
-    /// Applies `action` (normalised, two numbers per robot, already checked finite), advances
+    /// Applies `action` (normalised, two numbers per agent, already checked finite), advances
     /// one control step and writes the next observation.
     pub fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
-        for (robot, pair) in self.world.robots.iter_mut().zip(action.chunks_exact(2)) {
-            robot.wheel_command = self
+        for (robot, pair) in self.agent_robots.iter().zip(action.chunks_exact(2)) {
+            let command = self
                 .world
                 .drive
                 .wheel_command([pair[0], pair[1]], self.action_type);
+            self.world.robots[*robot].wheel_command = command;
+        }
+        match &self.state {
+            TaskState::Formation(f) if !f.leader_agent => f.drive_leader(&mut self.world),
+            TaskState::MultiNav(m) => {
+                for (robot, arrived) in self.world.robots.iter_mut().zip(&m.arrived) {
+                    if *arrived {
+                        robot.wheel_command = [0.0, 0.0];
+                    }
+                }
+            }
+            _ => {}
         }
         self.world.advance();
         self.world.sense();
-        let judgement = match &mut self.state {
-            TaskState::Nav(nav) => nav.judge(&self.world, &self.cfg),
+        let success = match &mut self.state {
+            TaskState::Nav(nav) => {
+                let j = nav.judge(&self.world, &self.cfg);
+                self.agent_rewards[0] = j.reward;
+                self.agent_terminated[0] = j.success;
+                j.success
+            }
+            TaskState::MultiNav(m) => m.judge(
+                &self.world,
+                &self.cfg,
+                &mut self.agent_rewards,
+                &mut self.agent_terminated,
+            ),
+            TaskState::Formation(f) => f.judge(&self.world, &self.cfg, &mut self.agent_rewards),
         };
+        let reward = self.agent_rewards.iter().sum::<f32>() / self.agent_rewards.len() as f32;
         let collided = self.world.robots.iter().any(|r| r.in_contact);
         let stats = &mut self.stats;
-        stats.ret += judgement.reward;
+        stats.ret += reward;
         stats.length += 1;
-        stats.success |= judgement.success;
+        stats.success |= success;
         stats.path_length += self.world.robots.iter().map(|r| r.step_travel).sum::<f32>();
         stats.collisions += collided as u32;
-        let terminated = judgement.success || (collided && self.cfg.task.terminate_on_collision);
+        if let TaskState::Formation(f) = &self.state {
+            (stats.formation_error_mean, stats.formation_error_max) = f.error_stats();
+        }
+        let terminated = success || (collided && self.cfg.task.terminate_on_collision);
         let truncated = !terminated && stats.length >= self.cfg.task.max_steps;
+        if terminated {
+            self.agent_terminated.fill(true);
+        }
         if terminated || truncated {
             self.done = true;
             self.last_episode = *stats;
         }
         self.observe(obs);
         StepOutcome {
-            reward: judgement.reward,
+            reward,
             terminated,
             truncated,
         }
@@ -196,6 +381,8 @@ impl Env {
     fn observe(&self, obs: &mut [f32]) {
         match &self.state {
             TaskState::Nav(nav) => nav.observe(&self.world, &self.cfg, obs),
+            TaskState::MultiNav(m) => m.observe(&self.world, &self.cfg, obs),
+            TaskState::Formation(f) => f.observe(&self.world, &self.cfg, obs),
         }
     }
 
@@ -203,13 +390,26 @@ impl Env {
     pub fn goals(&self) -> Vec<Vector> {
         match &self.state {
             TaskState::Nav(nav) => vec![nav.goal],
+            TaskState::MultiNav(m) => m.goals.clone(),
+            TaskState::Formation(f) => vec![f.goal],
         }
     }
 
     /// How many goals [`Env::goals`] returns.
     pub fn n_goals(&self) -> usize {
-        match self.kind {
-            TaskKind::Nav => 1,
+        match &self.state {
+            TaskState::MultiNav(_) => self.world.robots.len(),
+            _ => 1,
+        }
+    }
+
+    /// Formation targets of the followers (empty for other tasks).
+    pub fn formation_targets(&self) -> Vec<Vector> {
+        match &self.state {
+            TaskState::Formation(f) => (0..f.n_followers())
+                .map(|k| f.target(&self.world, k))
+                .collect(),
+            _ => Vec::new(),
         }
     }
 }

@@ -8,6 +8,7 @@
 //!
 //! Units: metres, seconds, radians; world frame with the arena centred at the origin.
 
+pub mod layout;
 pub mod physics;
 pub mod scene;
 
@@ -84,7 +85,7 @@ impl World {
             &scene,
             n_robots,
             drive.radius,
-            cfg.robot.mass,
+            cfg.robot.mass.bounds().0,
             cfg.physics.friction,
             substep_dt,
             cfg.physics.solver_iterations as usize,
@@ -93,13 +94,13 @@ impl World {
             drive,
             ir: IrModel {
                 range: cfg.sensors.ir_range,
-                floor_value: cfg.sensors.ir_floor_value,
-                noise_sigma: cfg.sensors.ir_noise_sigma,
+                floor_value: cfg.sensors.ir_floor_value.bounds().0,
+                noise_sigma: cfg.sensors.ir_noise_sigma.bounds().0,
             },
             us: UsModel {
                 min_range: cfg.sensors.us_min_range,
                 max_range: cfg.sensors.us_max_range,
-                noise_sigma: cfg.sensors.us_noise_sigma,
+                noise_sigma: cfg.sensors.us_noise_sigma.bounds().0,
                 enabled: cfg.sensors.us_enabled,
             },
             scene,
@@ -112,6 +113,24 @@ impl World {
             others: Vec::with_capacity(n_robots),
             ir_dirs: IR_BEARINGS.map(unit),
             us_dirs: US_BEARINGS.map(unit),
+        }
+    }
+
+    /// Draws this episode's robot and sensor parameters: values given as `[low, high]` ranges in
+    /// the scenario (domain randomisation) are sampled from the world's stream; fixed values
+    /// draw nothing.
+    pub fn randomise(&mut self, cfg: &Scenario) {
+        let r = &cfg.robot;
+        let rng = &mut self.rng;
+        self.drive.axle_length = r.axle_length.sample(rng);
+        self.drive.max_wheel_speed = r.max_wheel_speed.sample(rng);
+        self.drive.wheel_accel_limit = r.wheel_accel_limit.sample(rng);
+        self.ir.floor_value = cfg.sensors.ir_floor_value.sample(rng);
+        self.ir.noise_sigma = cfg.sensors.ir_noise_sigma.sample(rng);
+        self.us.noise_sigma = cfg.sensors.us_noise_sigma.sample(rng);
+        if r.mass.is_random() {
+            let mass = r.mass.sample(rng);
+            self.physics.set_mass(mass);
         }
     }
 

@@ -72,6 +72,23 @@ impl Physics {
         physics
     }
 
+    /// Sets every robot's mass (kg).
+    pub fn set_mass(&mut self, mass: f32) {
+        for handle in &self.robots {
+            let colliders: Vec<ColliderHandle> = self
+                .world
+                .bodies
+                .get(*handle)
+                .map(|b| b.colliders().to_vec())
+                .unwrap_or_default();
+            for c in colliders {
+                if let Some(collider) = self.world.colliders.get_mut(c) {
+                    collider.set_mass(mass);
+                }
+            }
+        }
+    }
+
     /// Replaces the fixed colliders with `scene`'s shapes.
     pub fn set_scene(&mut self, scene: &Scene) {
         for handle in self.statics.drain(..) {

@@ -5,9 +5,11 @@
 //!
 //! Frame: world frame, metres, the arena's centre at the origin, angles CCW in radians.
 
-use rapier2d::math::Vector;
+use rapier2d::math::{Pose, Vector};
 use rapier2d::parry::query::{PointQuery, Ray, RayCast};
-use rapier2d::parry::shape::{Ball, Cuboid, Segment};
+use rapier2d::parry::shape::{Ball, Cuboid, Segment, Shape};
+
+use crate::scenario::ObstacleSpec;
 
 /// One of the scene's shapes, as parry2d knows it, in its local frame.
 #[derive(Debug, Clone, Copy)]
@@ -61,6 +63,67 @@ impl SceneShape {
     /// A rectangle with half extents `half`, centred at `center`, rotated by `angle`.
     pub fn rect(center: Vector, half: Vector, angle: f32) -> Self {
         Self::new(Geometry::Box(Cuboid::new(half)), center, angle)
+    }
+
+    /// The shape of a scenario file's obstacle entry.
+    pub fn from_spec(spec: &ObstacleSpec) -> Self {
+        let v = |p: [f32; 2]| Vector::new(p[0], p[1]);
+        match *spec {
+            ObstacleSpec::Circle { center, radius } => Self::circle(v(center), radius),
+            ObstacleSpec::Box {
+                center,
+                half_extents,
+                angle,
+            } => Self::rect(v(center), v(half_extents), angle),
+            ObstacleSpec::Segment { a, b } => Self::segment(v(a), v(b)),
+        }
+    }
+
+    /// Free distance between this shape and `other` (0 when they touch or overlap).
+    pub fn gap(&self, other: &SceneShape) -> f32 {
+        if (self.center - other.center).length() - self.bound_radius - other.bound_radius > 1.0 {
+            return (self.center - other.center).length() - self.bound_radius - other.bound_radius;
+        }
+        let d = rapier2d::parry::query::distance(
+            &Pose::new(self.center, self.angle),
+            self.parry_shape(),
+            &Pose::new(other.center, other.angle),
+            other.parry_shape(),
+        );
+        // Every pair of these convex primitives is supported; fall back to the bounding circles.
+        d.map(|d| d.distance).unwrap_or_else(|_| {
+            ((self.center - other.center).length() - self.bound_radius - other.bound_radius)
+                .max(0.0)
+        })
+    }
+
+    fn parry_shape(&self) -> &dyn Shape {
+        match &self.geometry {
+            Geometry::Circle(s) => s,
+            Geometry::Box(s) => s,
+            Geometry::Segment(s) => s,
+        }
+    }
+
+    /// Smallest gap between the shape and the walls of an arena `width` × `height` centred at
+    /// the origin (negative when it sticks out).
+    pub fn wall_gap(&self, width: f32, height: f32) -> f32 {
+        let (hw, hh) = (0.5 * width, 0.5 * height);
+        let (ex, ey) = self.extent();
+        (hw - (self.center.x.abs() + ex)).min(hh - (self.center.y.abs() + ey))
+    }
+
+    /// Half extents of the shape's axis-aligned bounding box.
+    pub fn extent(&self) -> (f32, f32) {
+        let (c, s) = (self.cos.abs(), self.sin.abs());
+        match self.geometry {
+            Geometry::Circle(b) => (b.radius, b.radius),
+            Geometry::Box(b) => (
+                c * b.half_extents.x + s * b.half_extents.y,
+                s * b.half_extents.x + c * b.half_extents.y,
+            ),
+            Geometry::Segment(g) => (g.a.x.abs().max(g.b.x.abs()), g.a.y.abs().max(g.b.y.abs())),
+        }
     }
 
     /// A segment from `a` to `b` (world coordinates).
@@ -120,6 +183,8 @@ pub struct Scene {
     pub arena: (f32, f32),
     /// Thickness of the wall slabs (m).
     pub wall_thickness: f32,
+    /// Whether the arena is walled (an open arena only bounds spawning).
+    pub walled: bool,
     /// Obstacles (not the walls).
     pub shapes: Vec<SceneShape>,
 }
@@ -130,7 +195,16 @@ impl Scene {
         Self {
             arena: (width, height),
             wall_thickness: thickness,
+            walled: true,
             shapes: Vec::new(),
+        }
+    }
+
+    /// The empty arena a scenario's `[arena]` table describes.
+    pub fn from_config(arena: &crate::scenario::ArenaConfig) -> Self {
+        Self {
+            walled: arena.walls,
+            ..Self::arena(arena.width, arena.height, arena.wall_thickness)
         }
     }
 
@@ -190,6 +264,9 @@ impl Scene {
     /// starts outside it, i.e. inside a wall).
     #[inline]
     fn cast_walls(&self, o: Vector, d: Vector) -> f32 {
+        if !self.walled {
+            return f32::INFINITY;
+        }
         let (hw, hh) = (0.5 * self.arena.0, 0.5 * self.arena.1);
         if o.x.abs() >= hw || o.y.abs() >= hh {
             return 0.0;
@@ -214,7 +291,11 @@ impl Scene {
     /// Smallest distance from `point` to the walls or any obstacle (0 inside one).
     pub fn clearance(&self, point: Vector) -> f32 {
         let (hw, hh) = (0.5 * self.arena.0, 0.5 * self.arena.1);
-        let mut best = (hw - point.x.abs()).min(hh - point.y.abs()).max(0.0);
+        let mut best = if self.walled {
+            (hw - point.x.abs()).min(hh - point.y.abs()).max(0.0)
+        } else {
+            f32::INFINITY
+        };
         for shape in &self.shapes {
             // The bounding circle gives a lower bound: skip shapes that cannot be closer.
             if (point - shape.center).length() - shape.bound_radius >= best {

@@ -1,0 +1,563 @@
+//! Spawning: the start poses, goals and random obstacles of an episode, drawn from the world's
+//! random stream, and always feasible.
+//!
+//! Feasibility by construction: fixed obstacles are rasterised once into a 2 cm grid of the
+//! positions a robot centre can take, labelled into connected components; a start and its goal
+//! are drawn in the same component. Random obstacles keep a free gap of at least `min_gap`
+//! (validated ≥ the robot's diameter + 1 cm) from the walls, the fixed obstacles and each
+//! other, and stay clear of every start and goal; a convex obstacle whose robot-inflated shape
+//! touches nothing else cannot disconnect the free space, so the goal stays reachable.
+//!
+//! Units: metres, radians; world frame, arena centred at the origin.
+
+use rand::Rng;
+use rapier2d::math::Vector;
+
+use super::scene::{Scene, SceneShape};
+use crate::error::{Error, Result};
+use crate::scenario::{ObstacleKind, Placement, Scenario};
+
+/// Grid cell size for the reachability map (m).
+const CELL: f32 = 0.02;
+/// Whole-layout attempts before keeping the best one.
+const LAYOUT_TRIES: usize = 16;
+/// Attempts at drawing one point (start, goal) before giving up on a layout attempt.
+const POINT_TRIES: usize = 256;
+/// Attempts at placing one random obstacle.
+const OBSTACLE_TRIES: usize = 40;
+/// Seeds tried when checking at load time that random layouts fit.
+const CHECK_SEEDS: u64 = 8;
+
+/// Where the robots of a world go relative to one another.
+#[derive(Debug, Clone)]
+pub enum Spawn {
+    /// One robot with its goal.
+    Single,
+    /// A leader with followers at (r, β) offsets from its pose (eq. 12); the leader has a goal.
+    Formation(Vec<[f32; 2]>),
+    /// `n` robots, each with its own goal.
+    Multi(usize),
+}
+
+impl Spawn {
+    /// How the robots of `task` are spawned; the formation task needs a `[formation]` table and
+    /// multinav a `[multinav]` table.
+    pub fn for_task(task: &str, cfg: &Scenario, origin: &str) -> Result<Self> {
+        match task {
+            "formation" => cfg
+                .formation
+                .as_ref()
+                .map(|f| Spawn::Formation(f.offsets()))
+                .ok_or_else(|| {
+                    Error::config(
+                        origin,
+                        "formation",
+                        "the formation task needs a [formation] table",
+                    )
+                }),
+            "multinav" => cfg
+                .multinav
+                .as_ref()
+                .map(|m| Spawn::Multi(m.n_robots as usize))
+                .ok_or_else(|| {
+                    Error::config(
+                        origin,
+                        "multinav",
+                        "the multinav task needs a [multinav] table",
+                    )
+                }),
+            _ => Ok(Spawn::Single),
+        }
+    }
+
+    fn n_robots(&self) -> usize {
+        match self {
+            Spawn::Single => 1,
+            Spawn::Formation(offsets) => 1 + offsets.len(),
+            Spawn::Multi(n) => *n,
+        }
+    }
+
+    fn n_goals(&self) -> usize {
+        match self {
+            Spawn::Multi(n) => *n,
+            _ => 1,
+        }
+    }
+}
+
+/// An episode's layout.
+#[derive(Debug, Clone, Default)]
+pub struct Layout {
+    /// Start pose (position, heading) of every robot.
+    pub poses: Vec<(Vector, f32)>,
+    /// Goals.
+    pub goals: Vec<Vector>,
+    /// The random obstacles (the fixed ones are in the spawner's base scene).
+    pub obstacles: Vec<SceneShape>,
+}
+
+/// Components of the free space left by the walls and fixed obstacles.
+#[derive(Debug, Clone)]
+struct Grid {
+    nx: usize,
+    ny: usize,
+    origin: Vector,
+    labels: Vec<u32>,
+}
+
+impl Grid {
+    fn new(scene: &Scene, radius: f32) -> Self {
+        let (w, h) = scene.arena;
+        let (nx, ny) = ((w / CELL).ceil() as usize, (h / CELL).ceil() as usize);
+        let origin = Vector::new(-0.5 * w, -0.5 * h);
+        let centre = |i: usize, j: usize| {
+            origin + Vector::new((i as f32 + 0.5) * CELL, (j as f32 + 0.5) * CELL)
+        };
+        let free: Vec<bool> = (0..nx * ny)
+            .map(|k| scene.clearance(centre(k % nx, k / nx)) > radius + 0.005)
+            .collect();
+        let mut labels = vec![0u32; nx * ny];
+        let mut next = 0;
+        let mut stack = Vec::new();
+        for seed in 0..nx * ny {
+            if !free[seed] || labels[seed] != 0 {
+                continue;
+            }
+            next += 1;
+            labels[seed] = next;
+            stack.push(seed);
+            while let Some(k) = stack.pop() {
+                let (i, j) = (k % nx, k / nx);
+                let mut visit = |n: usize| {
+                    if free[n] && labels[n] == 0 {
+                        labels[n] = next;
+                        stack.push(n);
+                    }
+                };
+                if i > 0 {
+                    visit(k - 1);
+                }
+                if i + 1 < nx {
+                    visit(k + 1);
+                }
+                if j > 0 {
+                    visit(k - nx);
+                }
+                if j + 1 < ny {
+                    visit(k + nx);
+                }
+            }
+        }
+        Self {
+            nx,
+            ny,
+            origin,
+            labels,
+        }
+    }
+
+    /// Component of the cell holding `p` (0: blocked or outside).
+    fn label(&self, p: Vector) -> u32 {
+        let q = (p - self.origin) / CELL;
+        if q.x < 0.0 || q.y < 0.0 {
+            return 0;
+        }
+        let (i, j) = (q.x as usize, q.y as usize);
+        if i >= self.nx || j >= self.ny {
+            return 0;
+        }
+        self.labels[j * self.nx + i]
+    }
+}
+
+/// Draws layouts for one scenario. Built once per batch and shared by its worlds.
+#[derive(Debug, Clone)]
+pub struct Spawner {
+    spawn: Spawn,
+    /// The arena with the fixed obstacles.
+    pub base: Scene,
+    grid: Option<Grid>,
+    radius: f32,
+    half: (f32, f32),
+}
+
+impl Spawner {
+    /// A spawner for `cfg`, checking that its fixed parts are feasible and that its random
+    /// obstacles fit; errors name `origin` and the key.
+    pub fn new(cfg: &Scenario, spawn: Spawn, origin: &str) -> Result<Self> {
+        let mut base = Scene::from_config(&cfg.arena);
+        for (i, spec) in cfg.obstacles.fixed.iter().enumerate() {
+            let shape = SceneShape::from_spec(spec);
+            if shape.wall_gap(cfg.arena.width, cfg.arena.height) < 0.0 {
+                return Err(Error::config(
+                    origin,
+                    &format!("obstacles.fixed[{i}]"),
+                    format!(
+                        "lies (partly) outside the {}x{} m arena",
+                        cfg.arena.width, cfg.arena.height
+                    ),
+                ));
+            }
+            base.shapes.push(shape);
+        }
+        let radius = cfg.robot.radius;
+        let margin = radius + cfg.spawn.wall_margin;
+        let half = (
+            0.5 * cfg.arena.width - margin,
+            0.5 * cfg.arena.height - margin,
+        );
+        let grid = (!base.shapes.is_empty()).then(|| Grid::new(&base, radius));
+        let spawner = Self {
+            spawn,
+            base,
+            grid,
+            radius,
+            half,
+        };
+        spawner.check(cfg, origin)?;
+        Ok(spawner)
+    }
+
+    fn check(&self, cfg: &Scenario, origin: &str) -> Result<()> {
+        let (n_robots, n_goals) = (self.spawn.n_robots(), self.spawn.n_goals());
+        if !cfg.spawn.start.is_empty() && cfg.spawn.start.len() != 3 * self.start_poses() {
+            return Err(Error::config(
+                origin,
+                "spawn.start",
+                format!(
+                    "give [] (random) or {} numbers (x, y, heading per started robot), got {}",
+                    3 * self.start_poses(),
+                    cfg.spawn.start.len()
+                ),
+            ));
+        }
+        if !cfg.spawn.goal.is_empty() && cfg.spawn.goal.len() != 2 * n_goals {
+            return Err(Error::config(
+                origin,
+                "spawn.goal",
+                format!(
+                    "give [] (random) or {} numbers (x, y per goal), got {}",
+                    2 * n_goals,
+                    cfg.spawn.goal.len()
+                ),
+            ));
+        }
+        let mut full = 0;
+        for seed in 0..CHECK_SEEDS {
+            let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed);
+            let Some(layout) = self.try_generate(cfg, &mut rng) else {
+                continue;
+            };
+            debug_assert_eq!(layout.poses.len(), n_robots);
+            if layout.obstacles.len() == cfg.obstacles.count as usize {
+                full += 1;
+            }
+        }
+        if full == 0 {
+            let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+            let key = if self.try_points(cfg, &mut rng).is_none() {
+                if cfg.spawn.start.is_empty() && cfg.spawn.goal.is_empty() {
+                    "spawn"
+                } else if cfg.spawn.goal.is_empty() {
+                    "spawn.start"
+                } else {
+                    "spawn.goal"
+                }
+            } else {
+                "obstacles.count"
+            };
+            let message = if key == "obstacles.count" {
+                format!(
+                    "{} random obstacles of these sizes do not fit with a gap of {} m \
+                     (tried {CHECK_SEEDS} layouts); use fewer or smaller ones",
+                    cfg.obstacles.count, cfg.obstacles.min_gap
+                )
+            } else {
+                "no feasible start/goal: a start must be free of obstacles, and its goal \
+                 reachable and at least spawn.min_goal_distance away"
+                    .to_string()
+            };
+            return Err(Error::config(origin, key, message));
+        }
+        Ok(())
+    }
+
+    /// Number of poses `spawn.start` fixes: every robot's for several robots, else the leader's.
+    fn start_poses(&self) -> usize {
+        match self.spawn {
+            Spawn::Multi(n) => n,
+            _ => 1,
+        }
+    }
+
+    /// A layout for a new episode. Never fails: the load-time check proved layouts exist; in
+    /// the unlikely case that every attempt falls short, the best attempt is used.
+    pub fn generate<R: Rng>(&self, cfg: &Scenario, rng: &mut R) -> Layout {
+        let mut best: Option<Layout> = None;
+        for _ in 0..LAYOUT_TRIES {
+            if let Some(layout) = self.try_generate(cfg, rng) {
+                if layout.obstacles.len() == cfg.obstacles.count as usize {
+                    return layout;
+                }
+                if best
+                    .as_ref()
+                    .is_none_or(|b| b.obstacles.len() < layout.obstacles.len())
+                {
+                    best = Some(layout);
+                }
+            }
+        }
+        best.unwrap_or_else(|| self.fallback(cfg))
+    }
+
+    /// A deterministic layout with no random parts (used only if sampling kept failing).
+    fn fallback(&self, cfg: &Scenario) -> Layout {
+        let offsets = self.offsets();
+        let (lx, ly) = self.half;
+        let start = Vector::new(-lx, -ly);
+        let poses = offsets.iter().map(|p| (start + *p, 0.0)).collect();
+        let goals = (0..self.spawn.n_goals())
+            .map(|i| Vector::new(lx, ly - i as f32 * 3.0 * cfg.robot.radius))
+            .collect();
+        Layout {
+            poses,
+            goals,
+            obstacles: Vec::new(),
+        }
+    }
+
+    /// Robot positions relative to the (leader's) start, heading 0.
+    fn offsets(&self) -> Vec<Vector> {
+        match &self.spawn {
+            Spawn::Formation(offsets) => std::iter::once(Vector::ZERO)
+                .chain(
+                    offsets
+                        .iter()
+                        .map(|[r, b]| Vector::new(r * b.cos(), r * b.sin())),
+                )
+                .collect(),
+            Spawn::Multi(n) => vec![Vector::ZERO; *n],
+            Spawn::Single => vec![Vector::ZERO],
+        }
+    }
+
+    fn try_generate<R: Rng>(&self, cfg: &Scenario, rng: &mut R) -> Option<Layout> {
+        let (poses, goals) = self.try_points(cfg, rng)?;
+        let obstacles = self.place_obstacles(cfg, &poses, &goals, rng);
+        Some(Layout {
+            poses,
+            goals,
+            obstacles,
+        })
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn try_points<R: Rng>(
+        &self,
+        cfg: &Scenario,
+        rng: &mut R,
+    ) -> Option<(Vec<(Vector, f32)>, Vec<Vector>)> {
+        let clear = self.radius + cfg.obstacles.spawn_clearance;
+        let apart = 2.0 * self.radius + cfg.obstacles.spawn_clearance;
+        let fixed_start = |k: usize| {
+            let s = &cfg.spawn.start;
+            (!s.is_empty()).then(|| (Vector::new(s[3 * k], s[3 * k + 1]), s[3 * k + 2]))
+        };
+        let fixed_goal = |k: usize| {
+            let g = &cfg.spawn.goal;
+            (!g.is_empty()).then(|| Vector::new(g[2 * k], g[2 * k + 1]))
+        };
+        let mut poses: Vec<(Vector, f32)> = Vec::new();
+        let offsets = self.offsets();
+        match &self.spawn {
+            Spawn::Single | Spawn::Formation(_) => {
+                let pose = match fixed_start(0) {
+                    Some(p) => p,
+                    None => {
+                        let mut found = None;
+                        for _ in 0..POINT_TRIES {
+                            let p = self.sample_point(rng);
+                            let heading =
+                                rng.random_range(-std::f32::consts::PI..std::f32::consts::PI);
+                            if self.formation_fits(p, heading, &offsets, clear) {
+                                found = Some((p, heading));
+                                break;
+                            }
+                        }
+                        found?
+                    }
+                };
+                let (p, heading) = pose;
+                if !self.formation_fits(p, heading, &offsets, clear) {
+                    return None;
+                }
+                let (s, c) = heading.sin_cos();
+                for o in &offsets {
+                    poses.push((
+                        p + Vector::new(c * o.x - s * o.y, s * o.x + c * o.y),
+                        heading,
+                    ));
+                }
+            }
+            Spawn::Multi(n) => {
+                for k in 0..*n {
+                    let pose = match fixed_start(k) {
+                        Some(p) => p,
+                        None => {
+                            let mut found = None;
+                            for _ in 0..POINT_TRIES {
+                                let p = self.sample_point(rng);
+                                let h =
+                                    rng.random_range(-std::f32::consts::PI..std::f32::consts::PI);
+                                if self.free(p, clear)
+                                    && poses.iter().all(|(q, _)| (*q - p).length() >= apart)
+                                {
+                                    found = Some((p, h));
+                                    break;
+                                }
+                            }
+                            found?
+                        }
+                    };
+                    if !self.free(pose.0, clear) {
+                        return None;
+                    }
+                    poses.push(pose);
+                }
+            }
+        }
+        let mut goals: Vec<Vector> = Vec::new();
+        for (k, (from, _)) in poses.iter().copied().enumerate().take(self.spawn.n_goals()) {
+            let ok = |g: Vector, goals: &[Vector]| {
+                self.free(g, clear)
+                    && (g - from).length() >= cfg.spawn.min_goal_distance
+                    && self.same_component(from, g)
+                    && goals.iter().all(|q| (*q - g).length() >= apart)
+            };
+            let goal = match fixed_goal(k) {
+                Some(g) => {
+                    if !self.inside(g)
+                        || !self.free(g, self.radius)
+                        || !self.same_component(from, g)
+                    {
+                        return None;
+                    }
+                    g
+                }
+                None => {
+                    let mut found = None;
+                    for _ in 0..POINT_TRIES {
+                        let g = self.sample_point(rng);
+                        if ok(g, &goals) {
+                            found = Some(g);
+                            break;
+                        }
+                    }
+                    found?
+                }
+            };
+            goals.push(goal);
+        }
+        Some((poses, goals))
+    }
+
+    fn sample_point<R: Rng>(&self, rng: &mut R) -> Vector {
+        let (hx, hy) = self.half;
+        Vector::new(rng.random_range(-hx..=hx), rng.random_range(-hy..=hy))
+    }
+
+    fn inside(&self, p: Vector) -> bool {
+        p.x.abs() <= self.half.0 + 1e-6 && p.y.abs() <= self.half.1 + 1e-6
+    }
+
+    /// `p` is inside the spawn region and at least `clear` from walls and fixed obstacles.
+    fn free(&self, p: Vector, clear: f32) -> bool {
+        self.inside(p) && self.base.clearance(p) >= clear
+    }
+
+    fn formation_fits(&self, p: Vector, heading: f32, offsets: &[Vector], clear: f32) -> bool {
+        let (s, c) = heading.sin_cos();
+        offsets
+            .iter()
+            .all(|o| self.free(p + Vector::new(c * o.x - s * o.y, s * o.x + c * o.y), clear))
+    }
+
+    fn same_component(&self, a: Vector, b: Vector) -> bool {
+        match &self.grid {
+            None => true,
+            Some(grid) => {
+                let la = grid.label(a);
+                la != 0 && la == grid.label(b)
+            }
+        }
+    }
+
+    fn place_obstacles<R: Rng>(
+        &self,
+        cfg: &Scenario,
+        poses: &[(Vector, f32)],
+        goals: &[Vector],
+        rng: &mut R,
+    ) -> Vec<SceneShape> {
+        let oc = &cfg.obstacles;
+        let mut placed: Vec<SceneShape> = Vec::new();
+        if oc.count == 0 || oc.kinds.is_empty() {
+            return placed;
+        }
+        let clear = self.radius + oc.spawn_clearance;
+        let (from, to) = (poses[0].0, goals[0]);
+        let (w, h) = (cfg.arena.width, cfg.arena.height);
+        for _ in 0..oc.count {
+            for _ in 0..OBSTACLE_TRIES {
+                let kind = oc.kinds[rng.random_range(0..oc.kinds.len())];
+                let angle = rng.random_range(0.0..std::f32::consts::PI);
+                let centre = match oc.placement {
+                    Placement::Between => {
+                        let along = to - from;
+                        let normal = Vector::new(-along.y, along.x).normalize_or_zero();
+                        let t = rng.random_range(0.15..=0.85);
+                        let lateral = 0.5 * oc.corridor_width * rng.random_range(-1.0..=1.0f32);
+                        from + t * along + lateral * normal
+                    }
+                    Placement::Anywhere => Vector::new(
+                        rng.random_range(-0.5 * w..=0.5 * w),
+                        rng.random_range(-0.5 * h..=0.5 * h),
+                    ),
+                };
+                let shape = match kind {
+                    ObstacleKind::Circle => {
+                        let [lo, hi] = oc.circle_radius;
+                        SceneShape::circle(centre, rng.random_range(lo..=hi))
+                    }
+                    ObstacleKind::Box => {
+                        let [lo, hi] = oc.box_half_extent;
+                        let half =
+                            Vector::new(rng.random_range(lo..=hi), rng.random_range(lo..=hi));
+                        SceneShape::rect(centre, half, angle)
+                    }
+                    ObstacleKind::Segment => {
+                        let [lo, hi] = oc.segment_length;
+                        let half = 0.5 * rng.random_range(lo..=hi);
+                        let d = Vector::new(angle.cos(), angle.sin()) * half;
+                        SceneShape::segment(centre - d, centre + d)
+                    }
+                };
+                let wall_gap = shape.wall_gap(w, h);
+                let ok = (if cfg.arena.walls {
+                    wall_gap >= oc.min_gap
+                } else {
+                    wall_gap >= 0.0
+                }) && self.base.shapes.iter().all(|f| shape.gap(f) >= oc.min_gap)
+                    && placed.iter().all(|f| shape.gap(f) >= oc.min_gap)
+                    && poses.iter().all(|(p, _)| shape.distance(*p) >= clear)
+                    && goals.iter().all(|g| shape.distance(*g) >= clear);
+                if ok {
+                    placed.push(shape);
+                    break;
+                }
+            }
+        }
+        placed
+    }
+}
