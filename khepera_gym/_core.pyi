@@ -17,7 +17,7 @@ class Batch:
     """N independent seeded Khepera IV worlds of one task, stepped in parallel by a rayon pool.
 
     Args:
-        task: "nav" (later "avoid", "formation").
+        task: "nav", "avoid", "formation" or "multinav".
         num_worlds: number of worlds N (>= 1).
         config_text: TOML text of a scenario file overlaid on the task's built-in defaults, or None.
         config_name: where config_text came from (a file path or built-in name), used in messages.
@@ -35,6 +35,7 @@ class Batch:
     n_robots: int
     num_threads: int
     max_episode_steps: int
+    task: str
     def __init__(
         self,
         task: str,
@@ -46,6 +47,22 @@ class Batch:
         num_threads: int | None = None,
         autoreset: bool = True,
     ) -> None: ...
+    def obs_layout(self) -> list[tuple[str, int, int]]:
+        """Joint observation layout of this batch's scenario: (name, start, stop) in order; with
+        several agents the names are prefixed by the agent ("follower_0/ir")."""
+    def agents(self) -> list[tuple[str, int, int, int, list[tuple[str, int, int]]]]:
+        """The agents in joint order: (name, robot index, obs start, obs stop, own layout as
+        (name, start, stop) within its block). Agent i's action is joint columns 2i, 2i+1.
+        nav/avoid: ["robot"]; formation: ["leader" if leader = "agent"] + "follower_0".."_K-1";
+        multinav: "robot_0".."robot_N-1"."""
+    def agent_rewards(self) -> npt.NDArray[np.float32]:
+        """Each agent's reward on the last step, shape (N, n_agents); the joint reward returned
+        by step() is their mean."""
+    def agent_terminated(self) -> npt.NDArray[np.bool_]:
+        """Each agent's termination on the last step, shape (N, n_agents) (multinav: its robot
+        reached its goal and parks; all True when the episode terminated)."""
+    def formation_targets(self) -> npt.NDArray[np.float64]:
+        """Followers' target points (eq. 12), shape (N, K, 2); K = 0 for other tasks."""
     def obs_bounds(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
         """(low, high), each of shape (obs_dim,)."""
     def reset(self, seed: int | None = None) -> npt.NDArray[np.float32]:
@@ -71,7 +88,8 @@ class Batch:
     def episode_stats(self) -> dict[str, npt.NDArray[Any]]:
         """Statistics of the episodes that ended on the last step() (valid where
         terminated | truncated): "return" f32, "length" i64, "success" bool, "path_length" f32 (m),
-        "collisions" i64 (steps in contact), each of shape (N,)."""
+        "collisions" i64 (steps in contact), each of shape (N,); formation adds
+        "formation_error_mean" and "formation_error_max" f32 (m)."""
     def poses(self) -> npt.NDArray[np.float64]:
         """Ground-truth robot poses, shape (N, n_robots, 3): x, y (m), theta (rad, (-pi, pi])."""
     def goals(self) -> npt.NDArray[np.float64]:
@@ -83,13 +101,19 @@ class Batch:
         "wheel_speeds" (N, n_robots, 2) float32 m/s; "encoders" (N, n_robots, 2) int64 pulses;
         "gyro_z" (N, n_robots) float32 rad/s."""
     def scene(self, index: int = 0) -> dict[str, Any]:
-        """Geometry of world ``index`` for plots: {"arena": (w, h), "robot_radius": r,
-        "obstacles": [{"kind": "circle"|"box"|"segment", ...}], "goal_radius": r}."""
+        """Geometry of world ``index`` for plots: {"arena": (w, h), "walls": bool,
+        "wall_thickness": t, "robot_radius": r, "goal_radius": r, "obstacles": [...]} with
+        obstacles {"kind": "circle", "center", "radius"}, {"kind": "box", "center",
+        "half_extents", "angle"} or {"kind": "segment", "a", "b"} (m, rad)."""
     def config_toml(self) -> str:
         """The fully resolved scenario (defaults + file + overrides) as TOML text."""
 
 def obs_layout(task: str) -> list[tuple[str, int, int]]:
     """Observation layout of a task: (name, start, stop) slices, in order."""
 
-def default_config(task: str) -> str:
-    """The task's built-in scenario file (TOML text, every key documented)."""
+def default_config(name: str) -> str:
+    """A built-in scenario file (TOML text): a task's defaults ("nav", "avoid", "formation",
+    "multinav", every key documented) or a scene ("paper_fig6", "paper_fig7")."""
+
+def builtin_configs() -> list[str]:
+    """Names of the built-in scenario files."""
