@@ -1,5 +1,6 @@
-//! Throughput of the Rust core alone (no Python): env-steps/s of a Nav batch with random
-//! actions, per thread count. `cargo bench --bench core_step` (prints figures, asserts nothing).
+//! Throughput of the Rust core alone (no Python): env-steps/s of each task's batch with random
+//! actions, per thread count. `cargo bench --bench core_step` prints figures and asserts nothing.
+//! `cargo bench --bench core_step -- nav` runs only the tasks whose name contains "nav".
 
 use std::time::Instant;
 
@@ -10,32 +11,66 @@ use _core::tasks::TaskKind;
 use rand::{Rng, SeedableRng};
 
 fn main() {
-    let cfg = Scenario::load("nav", &Source::default()).expect("nav scenario");
+    // `core_step avoid 256 1` runs only matching cases (task name, worlds, threads).
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let filter = args.first().cloned();
+    let only_n: Option<usize> = args.get(1).and_then(|a| a.parse().ok());
+    let only_t: Option<usize> = args.get(2).and_then(|a| a.parse().ok());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-    for (n, threads) in [(1024usize, 1usize), (1024, 2), (4096, 2)] {
-        let mut batch = Batch::new(
-            TaskKind::Nav,
-            cfg.clone(),
-            n,
-            ActionType::Wheels,
-            Some(threads),
-            true,
-        )
-        .expect("batch");
+    let cases = [
+        (TaskKind::Nav, 256usize, 1usize),
+        (TaskKind::Nav, 1024, 1),
+        (TaskKind::Nav, 1024, 2),
+        (TaskKind::Nav, 4096, 2),
+        (TaskKind::Avoid, 256, 1),
+        (TaskKind::Avoid, 1024, 1),
+        (TaskKind::Avoid, 1024, 2),
+        (TaskKind::Formation, 256, 1),
+        (TaskKind::Formation, 1024, 1),
+        (TaskKind::Formation, 1024, 2),
+        (TaskKind::MultiNav, 1024, 2),
+    ];
+    for (kind, n, threads) in cases {
+        if filter.as_deref().is_some_and(|f| !kind.name().contains(f))
+            || only_n.is_some_and(|x| x != n)
+            || only_t.is_some_and(|x| x != threads)
+        {
+            continue;
+        }
+        let cfg = Scenario::load(kind.name(), &Source::default()).expect("scenario");
+        let robots = kind.n_robots(&cfg);
+        let mut batch =
+            Batch::new(kind, cfg, n, ActionType::Wheels, Some(threads), true).expect("batch");
         batch.reset(Some(0));
         let actions: Vec<Vec<f32>> = (0..64)
-            .map(|_| (0..2 * n).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .map(|_| {
+                (0..n * batch.act_dim())
+                    .map(|_| rng.random_range(-1.0..1.0))
+                    .collect()
+            })
             .collect();
         for a in actions.iter().take(10) {
             batch.step(a).expect("step");
         }
+        // KG_BENCH_STEPS=k runs exactly k steps (for instruction counts under valgrind).
+        let fixed: Option<usize> = std::env::var("KG_BENCH_STEPS")
+            .ok()
+            .and_then(|v| v.parse().ok());
         let start = Instant::now();
         let mut steps = 0usize;
-        while start.elapsed().as_secs_f64() < 2.0 {
+        while fixed.map_or(start.elapsed().as_secs_f64() < 2.0, |k| steps < k) {
             batch.step(&actions[steps % actions.len()]).expect("step");
             steps += 1;
         }
         let rate = (steps * n) as f64 / start.elapsed().as_secs_f64();
-        println!("nav  worlds {n:5}  threads {threads}  {rate:12.0} env-steps/s");
+        println!(
+            "{:10} robots {robots}  worlds {n:5}  threads {threads}  {rate:12.0} env-steps/s  \
+             {:12.0} robot-steps/s",
+            kind.name(),
+            rate * robots as f64
+        );
     }
 }

@@ -72,6 +72,8 @@ pub struct World {
     substeps: u32,
     bodies: Vec<BodyState>,
     others: Vec<Vector>,
+    near_others: Vec<Vector>,
+    near_shapes: Vec<usize>,
     ir_dirs: [Vector; IR_COUNT],
     us_dirs: [Vector; US_COUNT],
 }
@@ -80,14 +82,13 @@ impl World {
     /// A world of `n_robots` robots in `scene`, configured by `cfg`.
     pub fn new(cfg: &Scenario, scene: Scene, n_robots: usize) -> Self {
         let drive = Drive::from_config(&cfg.robot);
-        let substep_dt = cfg.physics.dt / cfg.physics.substeps as f32;
         let physics = Physics::new(
             &scene,
             n_robots,
             drive.radius,
             cfg.robot.mass.bounds().0,
             cfg.physics.friction,
-            substep_dt,
+            cfg.physics.dt / cfg.physics.substeps as f32,
             cfg.physics.solver_iterations as usize,
         );
         Self {
@@ -111,6 +112,8 @@ impl World {
             substeps: cfg.physics.substeps,
             bodies: Vec::with_capacity(n_robots),
             others: Vec::with_capacity(n_robots),
+            near_others: Vec::with_capacity(n_robots),
+            near_shapes: Vec::new(),
             ir_dirs: IR_BEARINGS.map(unit),
             us_dirs: US_BEARINGS.map(unit),
         }
@@ -166,6 +169,32 @@ impl World {
         gap
     }
 
+    /// Whether some robot could touch the scene or another robot within `duration` seconds.
+    /// A robot's centre moves no faster than its fastest wheel, and a ramping wheel never
+    /// exceeds the larger of its current and commanded speeds.
+    fn contact_possible(&self, duration: f32) -> bool {
+        let speed = |r: &Robot| {
+            r.wheel_speeds
+                .iter()
+                .chain(&r.wheel_command)
+                .fold(0.0f32, |m, w| m.max(w.abs()))
+        };
+        let radius = self.drive.radius;
+        for (i, r) in self.robots.iter().enumerate() {
+            let reach = speed(r) * duration + CONTACT_MARGIN;
+            if self.scene.clearance(r.position) - radius <= reach {
+                return true;
+            }
+            for other in &self.robots[i + 1..] {
+                let gap = (other.position - r.position).length() - 2.0 * radius;
+                if gap <= reach + speed(other) * duration {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
     /// Advances every robot by one control step toward its `wheel_command`.
     pub fn advance(&mut self) {
         let h = self.dt / self.substeps as f32;
@@ -174,9 +203,7 @@ impl World {
             r.in_contact = false;
             r.step_start_heading = r.heading;
         }
-        // How far two robot centres can close in on each other in one substep (m).
-        let substep_reach = 2.0 * self.drive.max_wheel_speed * h;
-        let far = self.min_clearance() > substep_reach * self.substeps as f32 + CONTACT_MARGIN;
+        let far = !self.contact_possible(self.dt);
         let steady = !self.drive.wheel_accel_limit.is_finite()
             || self
                 .robots
@@ -202,7 +229,7 @@ impl World {
                 r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
                 r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
             }
-            if !far && self.min_clearance() <= substep_reach + CONTACT_MARGIN {
+            if !far && self.contact_possible(h) {
                 self.physics_substep();
             } else {
                 for r in &mut self.robots {
@@ -220,13 +247,6 @@ impl World {
             r.heading = wrap_angle(r.heading);
             r.yaw_rate = wrap_angle(r.heading - r.step_start_heading) / self.dt;
         }
-    }
-
-    /// Smallest clearance over all robots (m).
-    fn min_clearance(&self) -> f32 {
-        (0..self.robots.len())
-            .map(|i| self.clearance(i))
-            .fold(f32::INFINITY, f32::min)
     }
 
     fn physics_substep(&mut self) {
@@ -257,21 +277,39 @@ impl World {
     pub fn sense(&mut self) {
         let radius = self.drive.radius;
         let us_cast = self.us.max_range + 0.01;
+        // The IR rays are short: only obstacles and robots within reach of the rim can be hit.
+        let ir_reach = radius + self.ir.range;
         for i in 0..self.robots.len() {
+            let (pos, heading) = (self.robots[i].position, self.robots[i].heading);
             self.others.clear();
+            self.near_others.clear();
             for (j, other) in self.robots.iter().enumerate() {
                 if j != i {
                     self.others.push(other.position);
+                    if (other.position - pos).length() < ir_reach + radius {
+                        self.near_others.push(other.position);
+                    }
                 }
             }
-            let (pos, heading) = (self.robots[i].position, self.robots[i].heading);
+            self.near_shapes.clear();
+            for (k, shape) in self.scene.shapes.iter().enumerate() {
+                if (shape.center - pos).length() - shape.bound_radius < ir_reach {
+                    self.near_shapes.push(k);
+                }
+            }
             let (s, c) = heading.sin_cos();
             for k in 0..IR_COUNT {
                 let dir = rotate(self.ir_dirs[k], c, s);
                 let origin = pos + radius * dir;
-                let hit = self
-                    .scene
-                    .cast(origin, dir, self.ir.range, &self.others, radius);
+                let near = self.near_shapes.iter().map(|&n| &self.scene.shapes[n]);
+                let hit = self.scene.cast_among(
+                    origin,
+                    dir,
+                    self.ir.range,
+                    near,
+                    &self.near_others,
+                    radius,
+                );
                 self.robots[i].ir_raw[k] = self.ir.read(hit, &mut self.rng);
             }
             for k in 0..US_COUNT {

@@ -233,6 +233,19 @@ impl Scene {
         discs: &[Vector],
         disc_radius: f32,
     ) -> Option<f32> {
+        self.cast_among(origin, dir, max, self.shapes.iter(), discs, disc_radius)
+    }
+
+    /// Like [`Scene::cast`], against only the obstacles `shapes` (a pre-culled subset).
+    pub fn cast_among<'a>(
+        &self,
+        origin: Vector,
+        dir: Vector,
+        max: f32,
+        shapes: impl Iterator<Item = &'a SceneShape>,
+        discs: &[Vector],
+        disc_radius: f32,
+    ) -> Option<f32> {
         let mut best = max;
         let mut hit = false;
         let wall = self.cast_walls(origin, dir);
@@ -240,7 +253,7 @@ impl Scene {
             best = wall;
             hit = true;
         }
-        for shape in &self.shapes {
+        for shape in shapes {
             if !may_hit(origin, dir, shape.center, shape.bound_radius, best) {
                 continue;
             }
