@@ -12,7 +12,14 @@ Registered ids (``gym.make("KheperaIV-Nav")`` picks the latest version, with Gym
 that it did so):
 
 * ``KheperaIV-Nav-v0``: :class:`khepera_gym.envs.NavEnv`, vector env
-  :class:`khepera_gym.vector.NavVectorEnv`.
+  :class:`khepera_gym.vector.NavVectorEnv`;
+* ``KheperaIV-Avoid-v0``: :class:`khepera_gym.envs.AvoidEnv`, vector env
+  :class:`khepera_gym.vector.AvoidVectorEnv`;
+* ``KheperaIV-Formation-v0``: :class:`khepera_gym.envs.FormationEnv`, vector env
+  :class:`khepera_gym.vector.FormationVectorEnv`.
+
+Multi-agent versions (PettingZoo) live in :mod:`khepera_gym.pettingzoo`: ``formation_v0`` (one
+agent per follower) and ``multinav_v0`` (several robots, each with its own goal).
 
 No ``max_episode_steps`` is registered: the Rust core truncates episodes itself at the scenario's
 ``max_steps``. ``gym.make(id, max_episode_steps=k)`` still adds Gymnasium's ``TimeLimit`` wrapper
@@ -31,6 +38,12 @@ __version__: str = _core.__version__
 #: (id, single-env entry point, vector entry point) of every registered environment.
 _REGISTRATIONS = (
     ("KheperaIV-Nav-v0", "khepera_gym.envs:NavEnv", "khepera_gym.vector:NavVectorEnv"),
+    ("KheperaIV-Avoid-v0", "khepera_gym.envs:AvoidEnv", "khepera_gym.vector:AvoidVectorEnv"),
+    (
+        "KheperaIV-Formation-v0",
+        "khepera_gym.envs:FormationEnv",
+        "khepera_gym.vector:FormationVectorEnv",
+    ),
 )
 
 

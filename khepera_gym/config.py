@@ -4,7 +4,9 @@ A scenario is a TOML file overlaid by the Rust core on the task's built-in defau
 ``configs/*.toml``, embedded in the extension, so installed wheels have them). ``config`` may be:
 
 * ``None``: the task's built-in defaults;
-* a built-in scenario name, e.g. ``"nav"`` or (later) ``"paper_fig6"``;
+* a built-in scenario name: a task's defaults (``"nav"``, ``"avoid"``, ``"formation"``,
+  ``"multinav"``) or a scene (``"paper_fig6"``, ``"paper_fig7"``), overlaid on the task's
+  defaults like a file (``_core.builtin_configs()`` lists them);
 * a path (``str`` or ``os.PathLike``) to a ``.toml`` file.
 
 Keys are validated by the Rust core: unknown keys and impossible values raise
@@ -24,7 +26,7 @@ from khepera_gym.errors import ConfigError, KheperaError
 BUILT_IN_SOURCE = "<built-in>"
 
 #: Names that may denote a built-in scenario, used only if the extension cannot list its own.
-_CANDIDATE_BUILTIN_NAMES = ("nav", "avoid", "formation", "paper_fig6", "paper_fig7")
+_CANDIDATE_BUILTIN_NAMES = ("nav", "avoid", "formation", "multinav", "paper_fig6", "paper_fig7")
 
 ConfigArg = str | os.PathLike[str] | None
 

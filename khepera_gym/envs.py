@@ -1,5 +1,9 @@
 """Single-world Gymnasium environments over the Rust core, and heuristic policies that solve them.
 
+:class:`NavEnv` (drive to a goal), :class:`AvoidEnv` (the same among random obstacles) and
+:class:`FormationEnv` (followers holding a formation around a leader) share :class:`KheperaEnv`;
+their heuristics are :func:`nav_heuristic`, :func:`avoid_heuristic` and :func:`formation_heuristic`.
+
 Each env owns a ``_core.Batch`` of one world without autoreset: the Rust core simulates, observes,
 rewards and ends episodes; this layer only validates actions, converts outputs to Python scalars
 and builds ``info``. Units are SI (m, s, rad); the world frame has x right, y up, angles
@@ -20,7 +24,7 @@ import numpy.typing as npt
 from khepera_gym import _core
 from khepera_gym.config import ConfigArg, resolve_config
 from khepera_gym.errors import ActionError, ConfigError
-from khepera_gym.layout import obs_layout
+from khepera_gym.layout import layout_dict, obs_layout
 
 #: Action types understood by the Rust core: normalised (left, right) wheel speeds, or (v, ω).
 ACTION_TYPES = ("wheels", "unicycle")
@@ -156,18 +160,14 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
         return observations[0], float(rewards[0]), terminated, truncated, info
 
     def _episode_info(self) -> dict[str, Any]:
-        stats = self._batch.episode_stats()
-        success = bool(stats["success"][0])
-        return {
-            "episode_stats": {
-                "return": float(stats["return"][0]),
-                "length": int(stats["length"][0]),
-                "success": success,
-                "path_length": float(stats["path_length"][0]),
-                "collisions": int(stats["collisions"][0]),
-            },
-            "is_success": success,
-        }
+        # .item() gives Python float/int/bool of the same value for every statistic the task has.
+        stats = {name: values[0].item() for name, values in self._batch.episode_stats().items()}
+        return {"episode_stats": stats, "is_success": stats["success"]}
+
+    def obs_layout(self) -> dict[str, slice]:
+        """Observation layout of this env's scenario, name → slice (with agent prefixes such as
+        "follower_0/ir" when there are several robots)."""
+        return layout_dict(self._batch.obs_layout())
 
     def poses(self) -> npt.NDArray[np.float64]:
         """Ground-truth robot poses, shape (n_robots, 3): x, y (m), θ (rad, (-π, π])."""
@@ -262,14 +262,16 @@ class NavEnv(KheperaEnv):
     ## Starting State
 
     The start position and the goal are uniform in the arena shrunk by the robot radius and
-    `task.spawn_margin` (5 cm); the heading is uniform in [-π, π). The goal is redrawn until it is
-    at least `task.min_goal_distance` (0.5 m) from the start. Both come from the world's own
-    random stream: `reset(seed=s)` reproduces them exactly; `reset()` continues the stream.
+    `spawn.wall_margin` (5 cm); the heading is uniform in [-π, π). The goal is redrawn until it is
+    at least `spawn.min_goal_distance` (0.5 m) from the start. `spawn.start` and `spawn.goal` fix
+    them instead. Both come from the world's own random stream: `reset(seed=s)` reproduces them
+    exactly; `reset()` continues the stream.
 
     ## Episode End
 
     1. Termination: the robot centre is within `task.goal_radius` (0.05 m) of the goal (success).
-    2. Termination: contact with a wall, only if `task.terminate_on_collision = true`.
+    2. Termination: contact with a wall or obstacle, only if
+       `task.terminate_on_collision = true`.
     3. Truncation: `task.max_steps` (400) steps have passed, i.e. 20 s at dt = 0.05 s. The Rust core
        truncates by itself: no `TimeLimit` wrapper is registered, though
        `gym.make(..., max_episode_steps=k)` still adds one.
@@ -408,6 +410,339 @@ class NavEnv(KheperaEnv):
     TASK: ClassVar[str] = "nav"
 
 
+class AvoidEnv(KheperaEnv):
+    r"""Drive a Khepera IV robot to a goal among random obstacles (the Nav task plus obstacles).
+
+    ## Description
+
+    The obstacle-avoidance exercise of the KH4VREP paper (Farias et al., IFAC 2017, §3.4, Fig. 6):
+    the robot of :class:`NavEnv` must bring its centre within 5 cm of a goal at least 1 m away,
+    in the same 2 m × 2 m walled arena, now with 10 random obstacles (circles, boxes and thin wall
+    segments) drawn anew at every reset, some of them between the start and the goal. Only the
+    sensors show the obstacles: the 8 infrared sensors up to 25 cm, the 5 ultrasonic ones from
+    0.25 m to 2 m. The layout is always feasible: obstacles keep a free gap of
+    `obstacles.min_gap` (0.16 m, more than the robot's diameter) from the walls and from one
+    another, and stay clear of the start and the goal, so the goal can always be reached.
+    :func:`avoid_heuristic`, the paper's position controller followed by its Braitenberg block
+    (eqs. 1-7), solves most episodes. `config="paper_fig6"` loads the paper's Fig. 6 scene (a wall
+    and a box between fixed start and goal).
+
+    ## Action Space
+
+    As :class:`NavEnv`: `Box(-1, 1, (2,), float32)`, normalised (left, right) wheel speeds, or
+    normalised (v, ω) with `action_type="unicycle"`; out-of-range values are clipped, NaN/inf or a
+    wrong shape raise `khepera_gym.errors.ActionError`.
+
+    ## Observation Space
+
+    `Box(low, high, (18,), float32)`, the same layout as :class:`NavEnv` (whose manual has one row
+    per index); `khepera_gym.obs_layout("avoid")` gives the slices by name. Robot frame: x
+    forward, y left, angles counter-clockwise.
+
+    | Index | Name             | Observation                                       | Min | Max  |
+    |-------|------------------|---------------------------------------------------|-----|------|
+    | 0-7   | ir               | IR proximity, K-Team order back-left ... back     | 0   | 1    |
+    | 8-12  | us               | ultrasonic left, front-left, front, front-right,  | 0   | 1    |
+    |       |                  | right                                             |     |      |
+    | 13    | goal_distance    | distance from the robot centre to the goal (m)    | 0   | 2.83 |
+    | 14    | goal_bearing_sin | sine of the goal bearing in the robot frame       | -1  | 1    |
+    | 15    | goal_bearing_cos | cosine of the goal bearing in the robot frame     | -1  | 1    |
+    | 16-17 | wheel_speeds     | left, right wheel speed / 0.813 m/s               | -1  | 1    |
+
+    IR proximity is 0 with nothing within 25 cm and 1 touching; ultrasonic is distance / 2 m, 0
+    closer than 0.25 m, 1 with nothing within 2 m (see :class:`NavEnv` for the exact formulas).
+    Obstacles block the rays of both.
+
+    ## Rewards
+
+    As :class:`NavEnv`: `progress_weight · (d_prev - d) - time_cost` every step (10 per metre of
+    progress, 0.01 per step), `success_bonus` (10) on reaching the goal, minus
+    `collision_penalty` on every step that ends in contact with a wall or obstacle, 0.5 here
+    (0.1 in Nav): brushing an obstacle costs more than the time it saves.
+
+    ## Starting State
+
+    The start pose and the goal are drawn as in :class:`NavEnv` but at least
+    `spawn.min_goal_distance` (1 m) apart; then `obstacles.count` (10) obstacles are drawn, each
+    of a random kind from `obstacles.kinds`, size and orientation, placed uniformly in the arena
+    (`obstacles.placement = "anywhere"`; `"between"` confines them to a band of
+    `obstacles.corridor_width` around the start-goal line) where it keeps `obstacles.min_gap`
+    from walls, fixed obstacles and the other obstacles, and `obstacles.spawn_clearance` (5 cm)
+    from the robot and the goal. When an obstacle finds no place in 40 tries, the whole layout is
+    redrawn (up to 16 times, keeping the fullest); the scenario is checked at load time to fit.
+    `env.unwrapped.scene()` lists this episode's obstacles. All of it comes from the world's
+    random stream: `reset(seed=s)` reproduces the layout exactly; `reset()` continues the stream,
+    giving a new layout.
+
+    ## Episode End
+
+    1. Termination: the robot centre is within `task.goal_radius` (0.05 m) of the goal (success).
+    2. Termination: contact with a wall or obstacle, only if `task.terminate_on_collision = true`.
+    3. Truncation: `task.max_steps` (600) steps have passed, i.e. 30 s at dt = 0.05 s (detours
+       take longer than in Nav). The Rust core truncates by itself.
+
+    At the last step `info` holds `"episode_stats"` (`"return"`, `"length"`, `"success"`,
+    `"path_length"` (m), `"collisions"` (steps in contact)) and `"is_success"`, as in
+    :class:`NavEnv`.
+
+    ## Arguments
+
+    ```python
+    >>> env = gym.make("KheperaIV-Avoid-v0", config="paper_fig6", max_steps=300)
+    >>> obs, info = env.reset(seed=0)
+    >>> [obstacle["kind"] for obstacle in env.unwrapped.scene()["obstacles"]]
+    ['box', 'box']
+    >>> env.unwrapped.poses()[0].round(2).tolist(), env.unwrapped.goals()[0].round(2).tolist()
+    ([-0.75, 0.05, 0.0], [0.75, 0.05])
+
+    ```
+
+    The parameters are those of :class:`NavEnv` (`render_mode`, `config`, `action_type`,
+    `**overrides`); `config` is None (the Avoid defaults), a built-in scenario name such as
+    `"paper_fig6"`, or a path to a TOML file, and keyword overrides are merged on top, e.g.
+    `gym.make("KheperaIV-Avoid-v0", count=20, kinds=["circle"])`.
+
+    ## Vectorized environment
+
+    `gym.make_vec("KheperaIV-Avoid-v0", num_envs=N, num_threads=None)` returns the native
+    :class:`khepera_gym.vector.AvoidVectorEnv` (same semantics as Nav's: NEXT_STEP autoreset,
+    `infos["episode_stats"]` with masks, world i reset with seed s ≡ this env reset with seed
+    s + i, bit for bit). `envs.scene(i)` is the geometry of world i.
+
+    ```python
+    >>> envs = gym.make_vec("KheperaIV-Avoid-v0", num_envs=16, num_threads=2)
+    >>> obs, infos = envs.reset(seed=0)
+    >>> obs.shape
+    (16, 18)
+
+    ```
+
+    ## Robot model
+
+    As :class:`NavEnv`: a Khepera IV disc (radius 0.0704 m, wheels 0.1054 m apart, ±0.813 m/s),
+    a dynamic rapier2d body that obstacles stop or deflect. `physics.friction` (0) lets it slide
+    along walls and obstacles.
+
+    ## Sensors
+
+    As :class:`NavEnv`: 8 IR proximity sensors (2-250 mm) and 5 ultrasonic sensors (0.25-2 m),
+    exact ray casts against the walls and every obstacle, with noise;
+    `env.unwrapped.sensor_readings()` gives them in the real robot's units.
+
+    ## Scenario file
+
+    The keys are those of :class:`NavEnv` (its Scenario file section tables them all; the
+    resolved defaults are `khepera_gym._core.default_config("avoid")`). Defaults that differ from
+    Nav:
+
+    | Key                         | Default    | Meaning                                      |
+    |-----------------------------|------------|----------------------------------------------|
+    | `obstacles.count`           | 10         | random obstacles drawn at every reset        |
+    | `obstacles.placement`       | anywhere   | uniform in the arena ("between": start-goal) |
+    | `spawn.min_goal_distance`   | 1.0        | least start-goal distance (m)                |
+    | `task.max_steps`            | 600        | steps before truncation (30 s)               |
+    | `task.collision_penalty`    | 0.5        | reward subtracted per step in contact        |
+
+    Fixed obstacles go in `obstacles.fixed`, e.g.
+    `fixed = [{kind = "box", center = [0.0, 0.2], half_extents = [0.025, 0.4], angle = 0.0}]`.
+    A scenario that cannot work raises `khepera_gym.errors.ConfigError` naming the file and the
+    key: an obstacle with a size ≤ 0 or outside the arena (`obstacles.fixed[i]`), random
+    obstacles that cannot fit (`obstacles.count`), a gap too small to pass
+    (`obstacles.min_gap`, at least the robot's diameter + 1 cm).
+
+    ## Version History
+
+    * v0: Initial version.
+    """
+
+    TASK: ClassVar[str] = "avoid"
+
+
+class FormationEnv(KheperaEnv):
+    r"""Keep K Khepera IV followers in formation around a leader driving to a goal.
+
+    ## Description
+
+    The leader-follower exercise of the KH4VREP paper (Farias et al., IFAC 2017, §3.5, Fig. 7).
+    Robot 0, the leader, drives to a goal; by default it is scripted in Rust: the paper's position
+    controller (eqs. 1-4, on its true pose, at `formation.leader_vmax` = 0.15 m/s) followed by its
+    Braitenberg avoidance block (eqs. 5-7) on its own IR ring. The K followers (4 by default),
+    robots 1..K, are driven jointly by this env's action; follower k must hold the point at
+    offset (r_k, β_k) from the leader's pose (paper eq. 12):
+    `x_k = x_L + r_k cos(β_k + θ_L)`, `y_k = y_L + r_k sin(β_k + θ_L)`. Shapes: `"cross"`
+    (Fig. 7: ahead, left, behind, right at `formation.spacing` = 0.5 m), `"line"` (abreast),
+    `"wedge"` (a V behind), `"circle"` and `"custom"` (`formation.offsets`). The arena is
+    3 m × 3 m with walls and, by default, no obstacles; robots are obstacles to one another
+    (contacts and sensor rays). `config="paper_fig7"` loads the paper's scene (the cross past four
+    obstacles). With `leader="agent"` the leader is driven by the action too, with the Nav
+    observation and reward. :func:`formation_heuristic` (a proportional controller on each
+    follower's `target_offset`) keeps the default formation within a few centimetres.
+
+    ## Action Space
+
+    `Box(-1, 1, (2K,), float32)` (8 for the default K = 4): follower k's normalised (left, right)
+    wheel speeds, 1 = 0.813 m/s, at indices 2k and 2k + 1. With `leader="agent"` the leader's
+    pair comes first: shape (2 + 2K,). `action_type="unicycle"` makes every pair a normalised
+    (v, ω), as in :class:`NavEnv`. Out-of-range values are clipped; NaN/inf or a wrong shape raise
+    `khepera_gym.errors.ActionError`.
+
+    ## Observation Space
+
+    `Box(low, high, (19K,), float32)` (76 for K = 4): one block of 19 values per follower, in
+    follower order; with `leader="agent"` the leader's Nav block (18 values, the table of
+    :class:`NavEnv`) comes first, shape (18 + 19K,). `khepera_gym.obs_layout("formation")` names
+    the slices of the default scenario ("follower_0/ir", "follower_0/us", ...). Every follower's
+    block has the same bounds, so one policy can serve them all (parameter sharing). Block of
+    follower k, in its own robot frame (x forward, y left):
+
+    | Index | Name            | Observation                                        | Min   | Max  |
+    |-------|-----------------|----------------------------------------------------|-------|------|
+    | 0-7   | ir              | IR proximity, K-Team order back-left ... back      | 0     | 1    |
+    | 8-12  | us              | ultrasonic left, front-left, front, front-right,   | 0     | 1    |
+    |       |                 | right                                              |       |      |
+    | 13-14 | target_offset   | x, y of its target point (eq. 12) in its robot     | -4.24 | 4.24 |
+    |       |                 | frame (m)                                          |       |      |
+    | 15-16 | leader_velocity | the leader's v / 0.813 m/s and ω / 15.4 rad/s      | -1    | 1    |
+    | 17-18 | wheel_speeds    | its left, right wheel speed / 0.813 m/s            | -1    | 1    |
+
+    IR and ultrasonic as in :class:`NavEnv` (other robots are seen too). `target_offset` is
+    clipped to the arena diagonal (4.24 m by default); (0, 0) means the follower is on its target.
+    `leader_velocity` is the leader's forward speed and yaw rate, normalised by the largest wheel
+    speed and the largest yaw rate 2 · 0.813 / 0.1054 ≈ 15.4 rad/s. Follower k's block starts at
+    index 19k (18 + 19k with an agent leader).
+
+    ## Rewards
+
+    Each follower k earns `-error_weight · e_k - collision_penalty · [k in contact]
+    - team_weight · mean_j e_j` per step, with e_k its distance to its target after the step (m),
+    `formation.error_weight` = 1, `task.collision_penalty` = 0.1 and `formation.team_weight` = 0.
+    An agent leader earns the Nav reward. The reward returned by `step` is the mean over the
+    agents (followers, plus the leader when it is an agent); `env.unwrapped.agent_rewards()` gives
+    each agent's.
+
+    ## Starting State
+
+    The leader's start position is uniform in the arena shrunk by the robot radius and
+    `spawn.wall_margin`, its goal uniform at least `spawn.min_goal_distance` (1.5 m) away and
+    reachable, and the leader faces its goal (so the formation does not swing round at the
+    start); both are redrawn until the whole formation fits at the start and at the goal (every
+    follower on its target, clear of walls and obstacles). The robots start at rest, in
+    formation, with the leader's heading. `spawn.start` ([x, y, heading]) and `spawn.goal` fix the
+    leader's. `reset(seed=s)` reproduces all of it; `reset()` continues the stream.
+
+    ## Episode End
+
+    1. Termination: the leader's centre is within `task.goal_radius` (0.05 m) of its goal
+       (success; the scripted leader stops there).
+    2. Termination: any robot in contact with something, only if
+       `task.terminate_on_collision = true`.
+    3. Truncation: `task.max_steps` (800) steps have passed, i.e. 40 s at dt = 0.05 s.
+
+    At the last step `info["episode_stats"]` holds `"return"`, `"length"`, `"success"` (the
+    leader arrived), `"path_length"` (m, summed over the robots), `"collisions"` (steps in which
+    some robot was in contact), and `"formation_error_mean"` and `"formation_error_max"` (m: the
+    followers' distance to their targets, averaged over followers and steps, and its maximum);
+    `info["is_success"]` as in :class:`NavEnv`.
+
+    ## Arguments
+
+    ```python
+    >>> env = gym.make("KheperaIV-Formation-v0", config="paper_fig7")
+    >>> env.action_space.shape, env.observation_space.shape
+    ((8,), (76,))
+    >>> obs, info = env.reset(seed=0)
+    >>> env.unwrapped.poses().shape, env.unwrapped.formation_targets().shape
+    ((5, 3), (4, 2))
+    >>> gym.make("KheperaIV-Formation-v0", leader="agent", n_followers=2).action_space.shape
+    (6,)
+
+    ```
+
+    The parameters are those of :class:`NavEnv` (`render_mode`, `config`, `action_type`,
+    `**overrides`). The `[formation]` keys are overrides like any other, by leaf
+    (`shape="wedge"`, `n_followers=3`, `leader="agent"`) or by section
+    (`formation={"leader": "agent"}`). `env.unwrapped.formation_targets()` gives the followers'
+    target points, shape (K, 2); `poses()` is (K + 1, 3) with the leader first; `goals()` (1, 2)
+    is the leader's goal.
+
+    ## Vectorized environment
+
+    `gym.make_vec("KheperaIV-Formation-v0", num_envs=N, num_threads=None)` returns the native
+    :class:`khepera_gym.vector.FormationVectorEnv` (NEXT_STEP autoreset, episode statistics with
+    masks, world i reset with seed s ≡ this env reset with seed s + i); its
+    `formation_targets()` has shape (N, K, 2).
+
+    ```python
+    >>> envs = gym.make_vec("KheperaIV-Formation-v0", num_envs=8)
+    >>> obs, infos = envs.reset(seed=0)
+    >>> obs.shape, envs.formation_targets().shape
+    ((8, 76), (8, 4, 2))
+
+    ```
+
+    For one agent per follower use the PettingZoo environment
+    :mod:`khepera_gym.pettingzoo.formation_v0`.
+
+    ## Robot model
+
+    As :class:`NavEnv`, for each of the K + 1 robots: Khepera IV discs (radius 0.0704 m, wheels
+    0.1054 m apart, ±0.813 m/s) as dynamic rapier2d bodies; contacts between robots are resolved
+    like any other.
+
+    ## Sensors
+
+    As :class:`NavEnv`, per robot: 8 IR and 5 ultrasonic sensors; the other robots block their
+    rays. `env.unwrapped.sensor_readings()` gives raw values with a robot axis (K + 1, ...).
+
+    ## Scenario file
+
+    The keys of :class:`NavEnv` (its Scenario file section tables them) plus a `[formation]`
+    table; `khepera_gym._core.default_config("formation")` is the resolved default file.
+    `spawn.start` and `spawn.goal` are the leader's. Defaults that differ from Nav, and the
+    `[formation]` keys:
+
+    | Key                      | Default  | Meaning                                           |
+    |--------------------------|----------|---------------------------------------------------|
+    | `arena.width`            | 3.0      | m, room for a formation to travel                 |
+    | `arena.height`           | 3.0      | m                                                 |
+    | `spawn.min_goal_distance`| 1.5      | least leader start-goal distance (m)              |
+    | `task.max_steps`         | 800      | steps before truncation (40 s)                    |
+    | `formation.shape`        | cross    | cross, line, wedge, circle or custom              |
+    | `formation.n_followers`  | 4        | K followers, 1..16 (ignored by "custom")          |
+    | `formation.spacing`      | 0.5      | r (m) of the nearest followers; further ones at   |
+    |                          |          | 2r, 3r, ... along the same directions             |
+    | `formation.offsets`      | []       | custom shape: [[r, beta], ...] (m, rad CCW from   |
+    |                          |          | the leader's heading), 1 to 16 of them            |
+    | `formation.leader`       | scripted | "scripted" (position control + Braitenberg in     |
+    |                          |          | Rust) or "agent" (driven by the action)           |
+    | `formation.leader_vmax`  | 0.15     | m/s, scripted leader's speed (eq. 3)              |
+    | `formation.leader_wmax`  | 1.0      | rad/s, scripted leader's turn-rate limit (eq. 4)  |
+    | `formation.leader_kr`    | 0.15     | m, scripted leader's slow-down radius (eq. 3)     |
+    | `formation.error_weight` | 1.0      | reward per metre of a follower's own error        |
+    | `formation.team_weight`  | 0.0      | reward per metre of the followers' mean error     |
+
+    Shapes: "cross" puts follower i at β = i · 90° (ahead, left, behind, right); "line" at
+    ±90° (left, right alternately); "wedge" at ±135°; "circle" evenly at r. Robots in formation
+    closer than a diameter + 1 cm raise `khepera_gym.errors.ConfigError` (`formation.spacing`
+    or `formation.offsets`).
+
+    ## Version History
+
+    * v0: Initial version.
+    """
+
+    TASK: ClassVar[str] = "formation"
+
+    def formation_targets(self) -> npt.NDArray[np.float64]:
+        """The followers' target points (eq. 12) for the current leader pose, shape (K, 2), m."""
+        return self._batch.formation_targets()[0]
+
+    def agent_rewards(self) -> npt.NDArray[np.float32]:
+        """Each agent's reward on the last step, shape (n_agents,): followers in order, after
+        the leader when it is an agent; ``step`` returns their mean."""
+        return self._batch.agent_rewards()[0]
+
+
 # --- heuristic policy of the Nav task (paper eqs. 1-4) --------------------------------------------
 
 #: Cruise speed of the position controller (m/s).
@@ -453,4 +788,149 @@ def nav_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
     return np.clip(wheel_speeds / KHEPERA_MAX_WHEEL_SPEED, -1.0, 1.0).astype(np.float32)
 
 
-__all__ = ["ACTION_TYPES", "KheperaEnv", "NavEnv", "nav_heuristic"]
+# --- heuristic policy of the Avoid task (paper eqs. 1-7) ------------------------------------------
+
+#: Braitenberg weights (m/s per unit of IR proximity; paper eqs. 5-7), as the Rust scripted leader
+#: uses them: rows left, right wheel; columns the IR sensors in K-Team order. An obstacle on one
+#: side speeds up that side's wheel and slows the other; one straight ahead turns the robot right.
+BRAITENBERG_WEIGHTS = np.array(
+    [
+        [0.0, 0.6, 1.6, -0.4, -1.8, -0.8, 0.0, 0.0],
+        [0.0, -0.8, -1.8, -2.4, 1.6, 0.6, 0.0, 0.0],
+    ],
+    dtype=np.float32,
+)
+#: IR proximity under which a sensor counts as seeing nothing (the Braitenberg block is off).
+BRAITENBERG_THRESHOLD = 0.02
+
+
+def avoid_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
+    """Position control followed by Braitenberg avoidance (paper eqs. 1-7, Fig. 5).
+
+    The wheel speeds of :func:`nav_heuristic` (m/s) pass unchanged while every IR proximity is
+    below :data:`BRAITENBERG_THRESHOLD`; otherwise ``W · p`` is added to them, with ``p`` the 8 IR
+    proximities and ``W`` = :data:`BRAITENBERG_WEIGHTS`. Works on Nav and Avoid observations
+    (same layout); it reaches the goal in most Avoid episodes and in the paper's Fig. 6 scene, but
+    like any reactive controller it can be trapped in a dead end.
+
+    Args:
+        observation: One Avoid observation of shape (18,) or a batch (N, 18).
+
+    Returns:
+        Wheel actions of shape (2,) or (N, 2), float32, for ``action_type="wheels"``.
+    """
+    observation = np.asarray(observation, dtype=np.float32)
+    wheel_speeds = nav_heuristic(observation) * KHEPERA_MAX_WHEEL_SPEED
+    proximity = observation[..., obs_layout("avoid")["ir"]]
+    sees_obstacle = np.any(proximity > BRAITENBERG_THRESHOLD, axis=-1, keepdims=True)
+    avoidance = proximity @ BRAITENBERG_WEIGHTS.T
+    wheel_speeds = wheel_speeds + np.where(sees_obstacle, avoidance, 0.0)
+    return np.clip(wheel_speeds / KHEPERA_MAX_WHEEL_SPEED, -1.0, 1.0).astype(np.float32)
+
+
+# --- heuristic policy of the Formation task (LeaderFollower) --------------------------------------
+
+#: Forward speed per metre that the target lies ahead of the follower (1/s).
+FORMATION_HEURISTIC_K_V = 5.0
+#: Turn rate per unit sine of the target bearing (rad/s).
+FORMATION_HEURISTIC_K_W = 10.0
+#: Largest forward speed of a follower (m/s); above the leader's 0.15 m/s, to catch up.
+FORMATION_HEURISTIC_V_MAX = 0.6
+#: Distance to the target under which the bearing term fades out (m): on the target its bearing
+#: is meaningless.
+FORMATION_HEURISTIC_D_0 = 0.05
+#: Largest yaw rate of the Khepera IV (rad/s), 2 · 0.813 / 0.1054: the normalisation of ω.
+KHEPERA_MAX_YAW_RATE = 2.0 * KHEPERA_MAX_WHEEL_SPEED / KHEPERA_AXLE_LENGTH
+#: Length of a follower's observation block.
+FORMATION_FOLLOWER_OBS_DIM = 19
+#: Length of the Nav observation (an agent leader's block in the Formation observation).
+NAV_OBS_DIM = 18
+
+
+def _follower_layout() -> dict[str, slice]:
+    """Layout of one follower's block, from the Formation layout (names "follower_0/...")."""
+    prefix = "follower_0/"
+    return {
+        name.removeprefix(prefix): block
+        for name, block in obs_layout("formation").items()
+        if name.startswith(prefix)
+    }
+
+
+def formation_follower_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
+    """Proportional tracking of the formation target for one follower block (LeaderFollower).
+
+    With (x, y) = ``target_offset`` (the target in the follower's robot frame), d its length and
+    α its bearing, and (v_L, ω_L) the leader's velocity from ``leader_velocity``:
+    ``v = v_L + k_v · x`` clipped to ±v_max, ``ω = ω_L + k_ω · sin(α) · min(1, d / d_0)``,
+    converted to normalised wheel speeds. ``k_v`` = 5 /s, ``k_ω`` = 10 rad/s, ``v_max`` =
+    0.6 m/s, ``d_0`` = 0.05 m. It ignores obstacles and the other robots.
+
+    Args:
+        observation: One follower block of shape (19,), or any batch of them (..., 19).
+
+    Returns:
+        Wheel actions of shape (..., 2), float32, for ``action_type="wheels"``.
+    """
+    observation = np.asarray(observation, dtype=np.float32)
+    layout = _follower_layout()
+    target_offset = observation[..., layout["target_offset"]]
+    leader_velocity = observation[..., layout["leader_velocity"]]
+    ahead, left = target_offset[..., 0], target_offset[..., 1]
+    distance = np.hypot(ahead, left)
+    bearing = np.arctan2(left, ahead)
+    speed = np.clip(
+        leader_velocity[..., 0] * KHEPERA_MAX_WHEEL_SPEED + FORMATION_HEURISTIC_K_V * ahead,
+        -FORMATION_HEURISTIC_V_MAX,
+        FORMATION_HEURISTIC_V_MAX,
+    )
+    turn_rate = leader_velocity[..., 1] * KHEPERA_MAX_YAW_RATE + FORMATION_HEURISTIC_K_W * np.sin(
+        bearing
+    ) * np.minimum(1.0, distance / FORMATION_HEURISTIC_D_0)
+    half_axle = 0.5 * KHEPERA_AXLE_LENGTH
+    wheel_speeds = np.stack((speed - turn_rate * half_axle, speed + turn_rate * half_axle), axis=-1)
+    return np.clip(wheel_speeds / KHEPERA_MAX_WHEEL_SPEED, -1.0, 1.0).astype(np.float32)
+
+
+def formation_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
+    """Joint action of :class:`FormationEnv` from its joint observation.
+
+    Every follower block gets :func:`formation_follower_heuristic`; an agent leader's Nav block
+    (present when the observation length is 18 + 19K) gets :func:`avoid_heuristic`.
+
+    Args:
+        observation: One Formation observation of shape (obs_dim,) or a batch (N, obs_dim).
+
+    Returns:
+        Actions of shape (act_dim,) or (N, act_dim), float32, for ``action_type="wheels"``.
+
+    Raises:
+        ValueError: The length is neither 19K nor 18 + 19K.
+    """
+    observation = np.asarray(observation, dtype=np.float32)
+    obs_dim = observation.shape[-1]
+    leader_dim = obs_dim % FORMATION_FOLLOWER_OBS_DIM
+    if leader_dim not in (0, NAV_OBS_DIM) or obs_dim <= leader_dim:
+        raise ValueError(
+            f"a Formation observation has 19K values (18 + 19K with an agent leader), got {obs_dim}"
+        )
+    batch_shape = observation.shape[:-1]
+    followers = observation[..., leader_dim:].reshape(*batch_shape, -1, FORMATION_FOLLOWER_OBS_DIM)
+    actions = formation_follower_heuristic(followers).reshape(*batch_shape, -1)
+    if leader_dim:
+        actions = np.concatenate((avoid_heuristic(observation[..., :leader_dim]), actions), -1)
+    return actions
+
+
+__all__ = [
+    "ACTION_TYPES",
+    "BRAITENBERG_WEIGHTS",
+    "AvoidEnv",
+    "FormationEnv",
+    "KheperaEnv",
+    "NavEnv",
+    "avoid_heuristic",
+    "formation_follower_heuristic",
+    "formation_heuristic",
+    "nav_heuristic",
+]

@@ -1,5 +1,8 @@
 """Trajectory plots with matplotlib: arena walls, obstacles, goals, robot discs and paths.
 
+One or several robots per episode (a formation: the leader and its followers, each with its
+trace), optionally the formation's target points and snapshots of the robots along the way.
+
 Works headless: figures are built with matplotlib's object-oriented API (``Figure``), never through
 ``pyplot``'s global state, so no display or GUI backend is needed and saving uses Agg. World frame:
 x right, y up, metres, arena centred at the origin.
@@ -13,6 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from matplotlib.axes import Axes
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
 
@@ -20,6 +24,10 @@ from matplotlib.patches import Circle, Polygon, Rectangle
 _WALL_COLOUR = "0.25"
 #: Drawn thickness of the arena walls when the scene does not give one (m).
 _DEFAULT_WALL_THICKNESS = 0.05
+#: Colour of the leader of a formation (its followers take the colour cycle C0, C1, ...).
+_LEADER_COLOUR = "black"
+#: Line width of a thin wall segment in points.
+_SEGMENT_WIDTH = 3.0
 
 
 def _xy(value: Any) -> tuple[float, float]:
@@ -28,7 +36,10 @@ def _xy(value: Any) -> tuple[float, float]:
 
 
 def _draw_obstacle(ax: Axes, obstacle: Mapping[str, Any]) -> None:
-    """Draws one obstacle of ``_core.Batch.scene()``; kinds: circle, box, segment."""
+    """Draws one obstacle of ``_core.Batch.scene()``; kinds: circle, box, segment.
+
+    Everything is a patch or a collection, so ``ax.lines`` holds only the robots' paths.
+    """
     kind = obstacle.get("kind")
     centre = obstacle.get("center", obstacle.get("centre"))
     style = {"facecolor": "0.6", "edgecolor": _WALL_COLOUR, "zorder": 2}
@@ -47,27 +58,38 @@ def _draw_obstacle(ax: Axes, obstacle: Mapping[str, Any]) -> None:
         rotation = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
         ax.add_patch(Polygon(corners @ rotation.T + np.array(_xy(centre)), closed=True, **style))
     elif kind == "segment":
-        start = obstacle.get("start", obstacle.get("a"))
-        end = obstacle.get("end", obstacle.get("b"))
-        (x0, y0), (x1, y1) = _xy(start), _xy(end)
-        ax.plot([x0, x1], [y0, y1], color=_WALL_COLOUR, linewidth=3, zorder=2)
+        start = obstacle.get("a", obstacle.get("start"))
+        end = obstacle.get("b", obstacle.get("end"))
+        segment = LineCollection(
+            [[_xy(start), _xy(end)]],
+            colors=_WALL_COLOUR,
+            linewidths=_SEGMENT_WIDTH,
+            capstyle="round",
+            zorder=2,
+        )
+        ax.add_collection(segment)
     else:
         raise ValueError(f"cannot draw obstacle of kind {kind!r}: {dict(obstacle)}")
 
 
 def _draw_arena(ax: Axes, scene: Mapping[str, Any]) -> None:
+    """Draws the floor, the walls (or a dashed border for an open floor) and the obstacles."""
     width, height = _xy(scene["arena"])
     thickness = float(scene.get("wall_thickness", _DEFAULT_WALL_THICKNESS))
-    ax.add_patch(
-        Rectangle(
-            (-width / 2 - thickness, -height / 2 - thickness),
-            width + 2 * thickness,
-            height + 2 * thickness,
-            facecolor=_WALL_COLOUR,
-            zorder=0,
+    if bool(scene.get("walls", True)):
+        ax.add_patch(
+            Rectangle(
+                (-width / 2 - thickness, -height / 2 - thickness),
+                width + 2 * thickness,
+                height + 2 * thickness,
+                facecolor=_WALL_COLOUR,
+                zorder=0,
+            )
         )
-    )
-    ax.add_patch(Rectangle((-width / 2, -height / 2), width, height, facecolor="white", zorder=0.5))
+        floor_style: dict[str, Any] = {"facecolor": "white"}
+    else:
+        floor_style = {"facecolor": "white", "edgecolor": _WALL_COLOUR, "linestyle": "--"}
+    ax.add_patch(Rectangle((-width / 2, -height / 2), width, height, zorder=0.5, **floor_style))
     for obstacle in scene.get("obstacles", []):
         _draw_obstacle(ax, obstacle)
     margin = thickness + 0.05
@@ -75,18 +97,42 @@ def _draw_arena(ax: Axes, scene: Mapping[str, Any]) -> None:
     ax.set_ylim(-height / 2 - margin, height / 2 + margin)
 
 
-def _draw_robot(ax: Axes, pose: npt.NDArray[np.floating], radius: float, colour: Any) -> None:
+def _draw_robot(
+    ax: Axes, pose: npt.NDArray[np.floating], radius: float, colour: Any, alpha: float = 0.35
+) -> None:
     x, y = float(pose[0]), float(pose[1])
-    ax.add_patch(Circle((x, y), radius, facecolor=colour, edgecolor="black", alpha=0.35, zorder=3))
+    ax.add_patch(Circle((x, y), radius, facecolor=colour, edgecolor="black", alpha=alpha, zorder=3))
     if len(pose) >= 3:
         theta = float(pose[2])
-        ax.plot(
-            [x, x + radius * np.cos(theta)],
-            [y, y + radius * np.sin(theta)],
-            color="black",
-            linewidth=1,
-            zorder=4,
+        ax.add_collection(
+            LineCollection(
+                [[(x, y), (x + radius * np.cos(theta), y + radius * np.sin(theta))]],
+                colors="black",
+                linewidths=1,
+                zorder=4,
+            )
         )
+
+
+def _as_robot_paths(trajectory: npt.ArrayLike, index: int) -> npt.NDArray[np.float64]:
+    """One episode as an array (T, R, 2 or 3); a single-robot (T, 2 or 3) gets R = 1."""
+    path = np.asarray(trajectory, dtype=float)
+    if path.ndim == 2:
+        path = path[:, None, :]
+    if path.ndim != 3 or path.shape[2] not in (2, 3) or len(path) == 0 or path.shape[1] == 0:
+        raise ValueError(
+            f"trajectory {index} must have shape (T, 2), (T, 3), (T, R, 2) or (T, R, 3) with "
+            f"T, R >= 1, got {np.shape(trajectory)}"
+        )
+    return path
+
+
+def _snapshot_times(length: int, snapshots: int) -> list[int]:
+    """``snapshots`` evenly spaced step indices strictly inside 0..length-1 (no duplicates)."""
+    if snapshots <= 0 or length < 3:
+        return []
+    times = np.linspace(0, length - 1, snapshots + 2).round().astype(int)[1:-1]
+    return sorted({int(t) for t in times} - {0, length - 1})
 
 
 def plot_trajectories(
@@ -95,59 +141,144 @@ def plot_trajectories(
     goals: Sequence[npt.ArrayLike] | npt.ArrayLike | None = None,
     ax: Axes | None = None,
     title: str | None = None,
+    *,
+    targets: Sequence[npt.ArrayLike | None] | None = None,
+    leader: int | None = None,
+    robot_names: Sequence[str] | None = None,
+    snapshots: int = 0,
+    labels: Sequence[str] | None = None,
 ) -> Figure:
-    """Plots robot paths in the arena.
+    """Plots robot paths in the arena: one or several robots per episode.
+
+    With one robot per episode each episode has its own colour (legend "episode"). With several
+    robots (e.g. a formation: ``env.unwrapped.poses()`` of shape (R, 3) recorded every step)
+    each robot has its own colour, the same in every episode; robot ``leader`` is drawn thicker
+    in black. Robots are drawn as discs (with their heading) at the start and the end, and at
+    ``snapshots`` evenly spaced times in between, where a formation's leader is joined to its
+    followers by thin lines.
 
     Args:
-        trajectories: One array per episode of shape (T, 3) (x, y, θ) or (T, 2) (x, y), in metres.
-        scene: ``env.unwrapped.scene()``: "arena" (w, h), "robot_radius", "obstacles",
-            "goal_radius".
-        goals: One goal (x, y) per trajectory (or an array of shape (len(trajectories), 2)),
-            or None.
+        trajectories: One array per episode: (T, 3) (x, y, θ) or (T, 2) (x, y) for one robot,
+            (T, R, 3) or (T, R, 2) for R robots; metres, radians.
+        scene: ``env.unwrapped.scene()``: "arena" (w, h), "walls", "wall_thickness",
+            "robot_radius", "obstacles" (circle, box, segment), "goal_radius".
+        goals: Per episode None, one goal (x, y) or several (n_goals, 2) (one per robot, drawn in
+            its colour, for several robots with their own goals); or None for no goals at all.
         ax: Axes to draw into; None creates a new figure.
         title: Axes title.
+        targets: Per episode None or the formation's target points, (K, 2) at the end or
+            (T, K, 2) every step (``formation_targets()``); drawn as crosses in the colours of
+            robots 1..K (the followers) at the end and at the snapshots.
+        leader: Index of the leader among the R robots (0 in a formation), or None.
+        robot_names: Legend labels of the R robots (e.g. ``["leader", "follower_0", ...]``).
+        snapshots: Number of intermediate times at which the robots are drawn.
+        labels: Legend labels of the episodes (one robot per episode); default their index.
 
     Returns:
         The figure drawn into (save it with ``fig.savefig(path)``).
+
+    Raises:
+        ValueError: A trajectory, goal or target list of the wrong shape or length.
     """
+    paths = [_as_robot_paths(trajectory, index) for index, trajectory in enumerate(trajectories)]
+    multi_robot = any(path.shape[1] > 1 for path in paths)
     if ax is None:
-        figure = Figure(figsize=(6, 6), layout="constrained")
+        # Several robots: wider, for the legend right of the arena.
+        figure = Figure(figsize=(7.6 if multi_robot else 6, 6), layout="constrained")
         ax = figure.add_subplot()
     else:
         figure = ax.get_figure()
     _draw_arena(ax, scene)
     robot_radius = float(scene.get("robot_radius", 0.0704))
     goal_radius = float(scene.get("goal_radius", 0.05))
-    colours = [f"C{index % 10}" for index in range(len(trajectories))]
-    goal_list = [None] * len(trajectories) if goals is None else list(np.asarray(goals, float))
-    if len(goal_list) != len(trajectories):
-        raise ValueError(f"got {len(goal_list)} goals for {len(trajectories)} trajectories")
+    goal_list = [None] * len(paths) if goals is None else list(goals)
+    target_list = [None] * len(paths) if targets is None else list(targets)
+    label_list = [f"{index}" for index in range(len(paths))] if labels is None else list(labels)
+    for name, values in (("goals", goal_list), ("targets", target_list), ("labels", label_list)):
+        if len(values) != len(paths):
+            raise ValueError(f"got {len(values)} {name} for {len(trajectories)} trajectories")
 
-    for index, (trajectory, goal, colour) in enumerate(
-        zip(trajectories, goal_list, colours, strict=True)
+    def colour_of(episode: int, robot: int) -> Any:
+        if not multi_robot:
+            return f"C{episode % 10}"
+        if robot == leader:
+            return _LEADER_COLOUR
+        follower_rank = robot - (1 if leader is not None and robot > leader else 0)
+        return f"C{follower_rank % 10}"
+
+    for episode, (path, goal, episode_targets) in enumerate(
+        zip(paths, goal_list, target_list, strict=True)
     ):
-        path = np.asarray(trajectory, dtype=float)
-        if path.ndim != 2 or path.shape[1] not in (2, 3) or len(path) == 0:
-            raise ValueError(
-                f"trajectory {index} must have shape (T, 2) or (T, 3), got {path.shape}"
+        n_robots = path.shape[1]
+        times = _snapshot_times(len(path), snapshots)
+        for robot in range(n_robots):
+            colour = colour_of(episode, robot)
+            if not multi_robot:
+                label = label_list[episode]
+            elif episode == 0:
+                label = robot_names[robot] if robot_names is not None else f"robot {robot}"
+            else:
+                label = None
+            is_leader = robot == leader
+            ax.plot(
+                path[:, robot, 0],
+                path[:, robot, 1],
+                color=colour,
+                linewidth=2.2 if is_leader else 1.3,
+                zorder=5.5 if is_leader else 5,
+                label=label,
             )
-        ax.plot(path[:, 0], path[:, 1], color=colour, linewidth=1.5, zorder=5, label=f"{index}")
-        _draw_robot(ax, path[0], robot_radius, colour)
-        _draw_robot(ax, path[-1], robot_radius, colour)
-        ax.plot(path[0, 0], path[0, 1], "o", color=colour, markersize=4, zorder=6)
+            for time in (0, *times, len(path) - 1):
+                alpha = 0.35 if time in (0, len(path) - 1) else 0.2
+                _draw_robot(ax, path[time, robot], robot_radius, colour, alpha)
+            ax.scatter(*path[0, robot, :2], s=12, color=colour, zorder=6)
+        if leader is not None and n_robots > 1:
+            spokes = [
+                [tuple(path[time, leader, :2]), tuple(path[time, robot, :2])]
+                for time in (0, *times, len(path) - 1)
+                for robot in range(n_robots)
+                if robot != leader
+            ]
+            ax.add_collection(LineCollection(spokes, colors="0.5", linewidths=0.6, zorder=3.5))
         if goal is not None:
-            goal_x, goal_y = _xy(np.ravel(goal)[:2])
-            ax.add_patch(Circle((goal_x, goal_y), goal_radius, fill=False, color=colour, zorder=6))
-            ax.plot(goal_x, goal_y, "*", color=colour, markersize=10, zorder=6)
+            goal_points = np.asarray(goal, dtype=float).reshape(-1, 2)
+            for index, (goal_x, goal_y) in enumerate(goal_points):
+                robot = index if len(goal_points) == n_robots else (leader or 0)
+                colour = colour_of(episode, robot)
+                ax.add_patch(
+                    Circle((goal_x, goal_y), goal_radius, fill=False, color=colour, zorder=6)
+                )
+                ax.scatter(goal_x, goal_y, marker="*", s=110, color=colour, zorder=6)
+        if episode_targets is not None:
+            _draw_targets(ax, np.asarray(episode_targets, float), times, episode, colour_of)
 
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     if title is not None:
         ax.set_title(title)
-    if 1 < len(trajectories) <= 10:
+    if multi_robot and paths[0].shape[1] <= 16:
+        # Outside the arena, right of it: a formation's legend would hide part of the floor.
+        ax.legend(title="robot", loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    elif not multi_robot and labels is not None:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), fontsize="small")
+    elif not multi_robot and 1 < len(paths) <= 10:
         ax.legend(title="episode", loc="upper right", fontsize="small")
     return figure
+
+
+def _draw_targets(
+    ax: Axes, targets: npt.NDArray[np.float64], times: list[int], episode: int, colour_of: Any
+) -> None:
+    """Draws formation targets (K, 2) or (T, K, 2) as crosses in the followers' colours."""
+    if targets.ndim == 2:
+        targets = targets[None]
+        times = []
+    if targets.ndim != 3 or targets.shape[2] != 2:
+        raise ValueError(f"targets must have shape (K, 2) or (T, K, 2), got {targets.shape}")
+    for time in (*times, len(targets) - 1):
+        for follower, (x, y) in enumerate(targets[time]):
+            ax.scatter(x, y, marker="x", s=30, color=colour_of(episode, follower + 1), zorder=7)
 
 
 __all__ = ["plot_trajectories"]

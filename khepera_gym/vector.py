@@ -1,9 +1,10 @@
 """Native vector environments: N worlds of one task stepped by the Rust core in one call.
 
-``gym.make_vec("KheperaIV-Nav-v0", num_envs=N)`` returns a :class:`NavVectorEnv` over a
-``_core.Batch`` of N worlds: no Python loop over worlds and no subprocesses. Worlds are stepped in
-parallel by the batch's own rayon pool of ``num_threads`` threads (None = all cores) while the GIL
-is released; results do not depend on the thread count.
+``gym.make_vec("KheperaIV-Nav-v0", num_envs=N)`` returns a :class:`NavVectorEnv` (likewise
+:class:`AvoidVectorEnv` and :class:`FormationVectorEnv`) over a ``_core.Batch`` of N worlds: no
+Python loop over worlds and no subprocesses. Worlds are stepped in parallel by the batch's own
+rayon pool of ``num_threads`` threads (None = all cores) while the GIL is released; results do not
+depend on the thread count.
 
 Semantics follow Gymnasium's ``VectorEnv``:
 
@@ -12,8 +13,9 @@ Semantics follow Gymnasium's ``VectorEnv``:
 * ``reset(seed=s)`` seeds world i with ``s + i``, so world i behaves bit for bit like a single env
   reset with seed ``s + i`` given the same actions;
 * ``info`` is ``{}`` except at steps where some world ended: ``info["episode_stats"]`` then holds
-  arrays "return", "length", "success", "path_length", "collisions" of shape (N,) with boolean masks
-  ``"_return"``, ... (and ``info["_episode_stats"]``) true for the worlds that ended;
+  arrays "return", "length", "success", "path_length", "collisions" (Formation adds
+  "formation_error_mean", "formation_error_max") of shape (N,) with boolean masks ``"_return"``,
+  ... (and ``info["_episode_stats"]``) true for the worlds that ended;
 * every returned array is freshly allocated (copy semantics).
 """
 
@@ -32,6 +34,7 @@ from khepera_gym import _core
 from khepera_gym.config import ConfigArg, resolve_config
 from khepera_gym.envs import _SEED_BOUND, _check_action_type, _check_render_mode
 from khepera_gym.errors import ActionError, ConfigError
+from khepera_gym.layout import layout_dict
 
 #: Scenario key that ``max_episode_steps`` (Gymnasium's name) maps onto.
 _MAX_STEPS_KEY = "max_steps"
@@ -42,7 +45,7 @@ class KheperaVectorEnv(VectorEnv):
 
     Args:
         num_envs: Number of worlds N (>= 1).
-        task: Task name in the Rust core ("nav").
+        task: Task name in the Rust core: "nav", "avoid", "formation" (or "multinav").
         render_mode: Must be None for now (rendering comes in a later release).
         config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
@@ -216,6 +219,11 @@ class KheperaVectorEnv(VectorEnv):
             episode[f"_{name}"] = ended.copy()
         return {"episode_stats": episode, "_episode_stats": ended}
 
+    def obs_layout(self) -> dict[str, slice]:
+        """Observation layout of this env's scenario, name → slice (with agent prefixes such as
+        "follower_0/ir" when there are several robots)."""
+        return layout_dict(self._batch.obs_layout())
+
     def poses(self) -> npt.NDArray[np.float64]:
         """Ground-truth robot poses, shape (N, n_robots, 3): x, y (m), θ (rad, (-π, π])."""
         return self._batch.poses()
@@ -240,16 +248,58 @@ class KheperaVectorEnv(VectorEnv):
         """Nothing to release beyond the Rust batch, freed with the env."""
 
 
-class NavVectorEnv(KheperaVectorEnv):
+class _TaskVectorEnv(KheperaVectorEnv):
+    """A :class:`KheperaVectorEnv` whose task is fixed by the subclass (:attr:`TASK`)."""
+
+    #: Task name in the Rust core.
+    TASK: ClassVar[str] = ""
+
+    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
+        if "task" in kwargs:
+            raise ConfigError(
+                f"{type(self).__name__} runs the task {self.TASK!r}; "
+                "use KheperaVectorEnv(task=...) for another"
+            )
+        super().__init__(num_envs, task=self.TASK, **kwargs)
+
+
+class NavVectorEnv(_TaskVectorEnv):
     """``KheperaIV-Nav`` as a native vector env (the ``vector_entry_point`` of its registration).
 
     Takes the arguments of :class:`KheperaVectorEnv` except ``task``, fixed to "nav".
     """
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
-        if "task" in kwargs:
-            raise ConfigError("NavVectorEnv runs the task 'nav'; use KheperaVectorEnv(task=...)")
-        super().__init__(num_envs, task="nav", **kwargs)
+    TASK: ClassVar[str] = "nav"
 
 
-__all__ = ["KheperaVectorEnv", "NavVectorEnv"]
+class AvoidVectorEnv(_TaskVectorEnv):
+    """``KheperaIV-Avoid`` as a native vector env (the ``vector_entry_point`` of its registration).
+
+    Takes the arguments of :class:`KheperaVectorEnv` except ``task``, fixed to "avoid".
+    ``scene(i)`` lists world i's obstacles of the current episode.
+    """
+
+    TASK: ClassVar[str] = "avoid"
+
+
+class FormationVectorEnv(_TaskVectorEnv):
+    """``KheperaIV-Formation`` as a native vector env (its registration's ``vector_entry_point``).
+
+    Takes the arguments of :class:`KheperaVectorEnv` except ``task``, fixed to "formation".
+    ``poses()`` has the leader first, shape (N, K + 1, 3); episode statistics add
+    "formation_error_mean" and "formation_error_max" (m).
+    """
+
+    TASK: ClassVar[str] = "formation"
+
+    def formation_targets(self) -> npt.NDArray[np.float64]:
+        """The followers' target points (eq. 12), shape (N, K, 2), in metres."""
+        return self._batch.formation_targets()
+
+
+__all__ = [
+    "AvoidVectorEnv",
+    "FormationVectorEnv",
+    "KheperaVectorEnv",
+    "NavVectorEnv",
+]

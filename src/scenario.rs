@@ -299,6 +299,15 @@ impl Scenario {
     }
 
     fn from_table(table: &Table, origin: &str) -> Result<Self> {
+        // Entries of `obstacles.fixed` are checked one by one first: serde's errors inside a
+        // tagged list entry carry no position, and the message should say which entry.
+        if let Some(Value::Array(fixed)) = table.get("obstacles").and_then(|o| o.get("fixed")) {
+            for (i, entry) in fixed.iter().enumerate() {
+                entry.clone().try_into::<ObstacleSpec>().map_err(|e| {
+                    Error::config(origin, &format!("obstacles.fixed[{i}]"), e.message().trim())
+                })?;
+            }
+        }
         // Deserialise from text so that serde's errors carry a span we can map to a key.
         let text = toml::to_string(table)
             .map_err(|e| Error::config(origin, "<table>", format!("cannot serialise: {e}")))?;
@@ -690,17 +699,25 @@ fn error_key(e: &toml::de::Error, text: &str) -> String {
     }
 }
 
-/// The name of the last `[section]` header at or before `offset`.
+/// The name of the last `[section]` header at or before `offset`; for an array of tables
+/// (`[[obstacles.fixed]]`) the entry's index is appended (`obstacles.fixed[1]`).
 fn section_at(text: &str, offset: usize) -> Option<String> {
     let offset = offset.min(text.len());
     // A span on a header line itself belongs to that header.
     let line_end = text[offset..].find('\n').map_or(text.len(), |i| offset + i);
-    text[..line_end]
+    let before = &text[..line_end];
+    let header = before
         .lines()
         .rev()
         .map(str::trim)
-        .find(|l| l.starts_with('[') && l.ends_with(']'))
-        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string())
+        .find(|l| l.starts_with('[') && l.ends_with(']'))?;
+    let name = header.trim_matches(|c| c == '[' || c == ']').trim();
+    if header.starts_with("[[") {
+        let index = before.lines().filter(|l| l.trim() == header).count() - 1;
+        Some(format!("{name}[{index}]"))
+    } else {
+        Some(name.to_string())
+    }
 }
 
 /// Overlays `over` on `base`. Every key of `over` must exist in `base` (so a typo is an error
@@ -925,7 +942,12 @@ mod tests {
             ("[obstacles]\nfixed = [{kind = \"circle\", center = [0.0, 0.0], radius = -0.1}]\n", "obstacles.fixed[0]"),
             ("[obstacles]\ncount = 60\ncircle_radius = [0.3, 0.4]\nkinds = [\"circle\"]\n", "obstacles.count"),
             ("[obstacles]\ncount = 2\nmin_gap = 0.05\n", "obstacles.min_gap"),
-            ("[obstacles]\nfixed = [{kind = \"triangle\", center = [0.0, 0.0]}]\n", "obstacles.fixed"),
+            ("[obstacles]\nfixed = [{kind = \"triangle\", center = [0.0, 0.0]}]\n", "obstacles.fixed[0]"),
+            (
+                "[obstacles]\nfixed = [{kind = \"circle\", center = [0.5, 0.5], radius = 0.1}, \
+                 {kind = \"circle\", center = [0.0, 0.0], radius = 0.1, colour = 1}]\n",
+                "obstacles.fixed[1]",
+            ),
             // A wall across the whole arena leaves the fixed goal unreachable.
             ("[obstacles]\nfixed = [{kind = \"box\", center = [0.0, 0.0], half_extents = [0.05, 1.0]}]\n\
               [spawn]\nstart = [-0.5, 0.0, 0.0]\ngoal = [0.5, 0.0]\n", "spawn.goal"),

@@ -10,8 +10,10 @@ import pytest
 
 import khepera_gym  # noqa: F401  (registers the environments)
 
-#: The versioned id; the unversioned "KheperaIV-Nav" makes Gymnasium warn that it picked v0.
+#: The versioned ids; the unversioned "KheperaIV-Nav" makes Gymnasium warn that it picked v0.
 NAV_ID = "KheperaIV-Nav-v0"
+AVOID_ID = "KheperaIV-Avoid-v0"
+FORMATION_ID = "KheperaIV-Formation-v0"
 
 
 @pytest.fixture

@@ -5,20 +5,25 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID, random_actions
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, random_actions
 
-from khepera_gym.envs import NavEnv
+from khepera_gym.envs import AvoidEnv, FormationEnv, KheperaEnv, NavEnv
 from khepera_gym.vector import KheperaVectorEnv
 
 #: Short episodes so that several end (and autoreset) within the compared steps.
 SHORT_EPISODE = 60
+#: (registered id, single-env class) of every task.
+TASK_ENVS = [(NAV_ID, NavEnv), (AVOID_ID, AvoidEnv), (FORMATION_ID, FormationEnv)]
 
 
-def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset() -> None:
+@pytest.mark.parametrize(("env_id", "env_class"), TASK_ENVS)
+def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset(
+    env_id: str, env_class: type[KheperaEnv]
+) -> None:
     num_envs, seed, steps = 4, 1234, 200
-    envs = gym.make_vec(NAV_ID, num_envs=num_envs, num_threads=2, max_steps=SHORT_EPISODE)
-    singles = [NavEnv(max_steps=SHORT_EPISODE) for _ in range(num_envs)]
-    actions = random_actions(seed, steps, (num_envs, 2))
+    envs = gym.make_vec(env_id, num_envs=num_envs, num_threads=2, max_steps=SHORT_EPISODE)
+    singles = [env_class(max_steps=SHORT_EPISODE) for _ in range(num_envs)]
+    actions = random_actions(seed, steps, (num_envs, *envs.single_action_space.shape))
 
     batch_observations, _ = envs.reset(seed=seed)
     for index, env in enumerate(singles):
@@ -54,12 +59,15 @@ def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset() -
     envs.close()
 
 
-def test_batch_results_do_not_depend_on_thread_count() -> None:
+@pytest.mark.parametrize("task", ["nav", "avoid", "formation"])
+def test_batch_results_do_not_depend_on_thread_count(task: str) -> None:
     num_envs, seed, steps = 64, 99, 150
-    actions = random_actions(seed, steps, (num_envs, 2))
     runs = []
     for num_threads in (1, 2):
-        envs = KheperaVectorEnv(num_envs, num_threads=num_threads, max_steps=SHORT_EPISODE)
+        envs = KheperaVectorEnv(
+            num_envs, task=task, num_threads=num_threads, max_steps=SHORT_EPISODE
+        )
+        actions = random_actions(seed, steps, (num_envs, *envs.single_action_space.shape))
         assert envs.num_threads == num_threads
         trajectory = [envs.reset(seed=seed)[0]]
         episode_returns = []
@@ -67,7 +75,10 @@ def test_batch_results_do_not_depend_on_thread_count() -> None:
             observations, rewards, terminations, truncations, infos = envs.step(step_actions)
             trajectory += [observations, rewards, terminations, truncations]
             if infos:
-                episode_returns.append(infos["episode_stats"]["return"])
+                # Every statistic (formation: the formation errors too), in a fixed order.
+                episode_returns += [
+                    infos["episode_stats"][key] for key in sorted(infos["episode_stats"])
+                ]
         runs.append((trajectory, episode_returns, envs.poses()))
         envs.close()
     (trajectory_1, returns_1, poses_1), (trajectory_2, returns_2, poses_2) = runs

@@ -7,10 +7,12 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID
+from conftest import FORMATION_ID, NAV_ID
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
 from khepera_gym import bench, cli
+from khepera_gym.envs import formation_heuristic
 from khepera_gym.plot import plot_trajectories
 
 
@@ -50,8 +52,59 @@ def test_plot_trajectories_draws_obstacles_of_every_kind() -> None:
     trajectory = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
     figure = plot_trajectories([trajectory, trajectory[:, :2]], scene)
     assert len(figure.axes) == 1
+    ax = figure.axes[0]
+    assert len(ax.lines) == 2  # only the paths are lines; obstacles are patches and collections
+    segments = [c for c in ax.collections if isinstance(c, LineCollection)]
+    assert any(np.allclose(c.get_segments()[0], [(0.0, -0.5), (0.5, -0.5)]) for c in segments)
     with pytest.raises(ValueError, match="trajectory 0"):
         plot_trajectories([np.zeros((3, 4))], scene)
+
+
+def test_plot_trajectories_accepts_scene_segments_with_a_and_b_and_open_floors() -> None:
+    scene = {
+        "arena": (2.0, 2.0),
+        "walls": False,
+        "wall_thickness": 0.05,
+        "obstacles": [{"kind": "segment", "a": (0.0, -0.5), "b": (0.5, -0.5)}],
+    }
+    figure = plot_trajectories([np.zeros((2, 2))], scene, goals=[None])
+    assert figure.axes[0].patches[0].get_linestyle() == "--"  # open floor: dashed border
+
+
+def test_plot_trajectories_draws_a_formation_with_its_leader_and_targets(tmp_path: Path) -> None:
+    env = gym.make(FORMATION_ID, config="paper_fig7")
+    observation, _ = env.reset(seed=0)
+    poses, targets = [env.unwrapped.poses()], [env.unwrapped.formation_targets()]
+    for _ in range(60):
+        observation, *_ = env.step(formation_heuristic(observation))
+        poses.append(env.unwrapped.poses())
+        targets.append(env.unwrapped.formation_targets())
+    scene, goals = env.unwrapped.scene(), env.unwrapped.goals()
+    env.close()
+    names = ["leader", "follower_0", "follower_1", "follower_2", "follower_3"]
+    figure = plot_trajectories(
+        [np.array(poses)],
+        scene,
+        goals=[goals],
+        targets=[np.array(targets)],
+        leader=0,
+        robot_names=names,
+        snapshots=2,
+    )
+    ax = figure.axes[0]
+    assert len(ax.lines) == 5  # one trace per robot
+    np.testing.assert_allclose(ax.lines[0].get_xydata(), np.array(poses)[:, 0, :2])
+    assert ax.lines[0].get_color() == "black"
+    assert ax.lines[0].get_linewidth() > ax.lines[1].get_linewidth()  # the leader stands out
+    assert [text.get_text() for text in ax.get_legend().get_texts()] == names
+    assert len(scene["obstacles"]) == 4  # circle, box, circle, segment: all drawn
+    output = tmp_path / "formation.png"
+    figure.savefig(output)
+    assert output.stat().st_size > 0
+    with pytest.raises(ValueError, match="targets"):
+        plot_trajectories([np.array(poses)], scene, targets=[np.zeros((3,))])
+    with pytest.raises(ValueError, match="2 targets for 1 trajectories"):
+        plot_trajectories([np.array(poses)], scene, targets=[None, None])
 
 
 def test_cli_demo_prints_a_table_and_saves_the_plot(
@@ -59,9 +112,14 @@ def test_cli_demo_prints_a_table_and_saves_the_plot(
 ) -> None:
     assert cli.main(["demo", "--episodes", "2", "--out-dir", str(tmp_path)]) == 0
     output = capsys.readouterr().out
-    assert "success rate" in output
-    assert (tmp_path / "nav_trajectories.png").is_file()
-    assert str(tmp_path / "nav_trajectories.png") in output
+    assert output.count("success rate") == 3  # Nav, Avoid, Formation
+    for task in ("KheperaIV-Nav-v0", "KheperaIV-Avoid-v0", "KheperaIV-Formation-v0"):
+        assert task in output
+    assert "formation_error_mean" in output
+    for name in ("nav_trajectories", "avoid_trajectories", "paper_fig6", "paper_fig7"):
+        plot = tmp_path / f"{name}.png"
+        assert plot.is_file() and plot.stat().st_size > 0
+        assert str(plot) in output
 
 
 def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:

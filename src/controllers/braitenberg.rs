@@ -29,7 +29,9 @@ impl Default for Braitenberg {
     fn default() -> Self {
         Self {
             weights: DEFAULT_WEIGHTS,
-            threshold: 0.02,
+            // Above the IR noise (σ = 10 counts ≈ 0.011 in proximity) so that noise alone does
+            // not steer; an obstacle about 15 cm from a sensor crosses it.
+            threshold: 0.05,
         }
     }
 }

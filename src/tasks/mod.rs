@@ -237,7 +237,7 @@ impl Env {
         let world = World::new(&cfg, spawner.base.clone(), kind.n_robots(&cfg));
         let state = match kind {
             TaskKind::Nav | TaskKind::Avoid => TaskState::Nav(nav::Nav::default()),
-            TaskKind::MultiNav => TaskState::MultiNav(multinav::MultiNav::default()),
+            TaskKind::MultiNav => TaskState::MultiNav(multinav::MultiNav::new(kind.n_robots(&cfg))),
             TaskKind::Formation => {
                 let f = cfg.formation.as_ref().ok_or_else(|| {
                     Error::config(

@@ -21,6 +21,15 @@ pub struct MultiNav {
 }
 
 impl MultiNav {
+    /// The task for `n` robots (goals at the origin until the first reset).
+    pub fn new(n: usize) -> Self {
+        Self {
+            goals: vec![Vector::ZERO; n],
+            prev_distance: vec![0.0; n],
+            arrived: vec![false; n],
+        }
+    }
+
     /// Starts an episode toward `goals` (robots already placed).
     pub fn reset(&mut self, world: &World, goals: &[Vector]) {
         self.goals = goals.to_vec();

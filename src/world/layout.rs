@@ -370,16 +370,29 @@ impl Spawner {
         };
         let mut poses: Vec<(Vector, f32)> = Vec::new();
         let offsets = self.offsets();
+        let mut goal_hint: Option<Vector> = None;
         match &self.spawn {
             Spawn::Single | Spawn::Formation(_) => {
+                let formation = matches!(self.spawn, Spawn::Formation(_));
                 let pose = match fixed_start(0) {
                     Some(p) => p,
                     None => {
                         let mut found = None;
                         for _ in 0..POINT_TRIES {
                             let p = self.sample_point(rng);
-                            let heading =
+                            let mut heading =
                                 rng.random_range(-std::f32::consts::PI..std::f32::consts::PI);
+                            if formation {
+                                // A formation starts facing the leader's goal (the paper's
+                                // Fig. 7), so that the followers' targets do not swing round
+                                // at the start; the goal is drawn again below.
+                                let Some(g) = fixed_goal(0).or_else(|| self.goal_from(p, cfg, rng))
+                                else {
+                                    continue;
+                                };
+                                heading = (g - p).y.atan2((g - p).x);
+                                goal_hint = Some(g);
+                            }
                             if self.formation_fits(p, heading, &offsets, clear) {
                                 found = Some((p, heading));
                                 break;
@@ -435,7 +448,7 @@ impl Spawner {
                     && self.same_component(from, g)
                     && goals.iter().all(|q| (*q - g).length() >= apart)
             };
-            let goal = match fixed_goal(k) {
+            let goal = match fixed_goal(k).or(goal_hint.take()) {
                 Some(g) => {
                     if !self.inside(g)
                         || !self.free(g, self.radius)
@@ -460,6 +473,20 @@ impl Spawner {
             goals.push(goal);
         }
         Some((poses, goals))
+    }
+
+    /// A random goal for a robot starting at `from`, or None after many tries. A formation's
+    /// goal leaves room for the whole formation arriving from `from`.
+    fn goal_from<R: Rng>(&self, from: Vector, cfg: &Scenario, rng: &mut R) -> Option<Vector> {
+        let clear = self.radius + cfg.obstacles.spawn_clearance;
+        let offsets = self.offsets();
+        (0..POINT_TRIES).map(|_| self.sample_point(rng)).find(|g| {
+            let arrival = (*g - from).y.atan2((*g - from).x);
+            self.free(*g, clear)
+                && (*g - from).length() >= cfg.spawn.min_goal_distance
+                && self.same_component(from, *g)
+                && self.formation_fits(*g, arrival, &offsets, clear)
+        })
     }
 
     fn sample_point<R: Rng>(&self, rng: &mut R) -> Vector {

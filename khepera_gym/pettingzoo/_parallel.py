@@ -1,0 +1,292 @@
+"""The PettingZoo ``ParallelEnv`` shared by the multi-robot tasks: one agent per controlled robot.
+
+A :class:`KheperaParallelEnv` owns a ``_core.Batch`` of one world without autoreset. The Rust core
+defines the agents (``Batch.agents()``: name, robot, slice of the joint observation), their
+rewards (``agent_rewards()``) and terminations (``agent_terminated()``); this layer splits the
+joint observation into per-agent arrays, assembles per-agent actions into the joint action and
+keeps PettingZoo's bookkeeping (``agents`` shrinks as agents terminate or are truncated).
+
+Units are SI (m, s, rad); robot frame x forward, y left. Threading and copies: ``step`` and
+``reset`` release the GIL inside the Rust core; every returned observation is a fresh array (each
+agent's is a slice of that step's joint observation, never reused by a later step).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium
+import numpy as np
+import numpy.typing as npt
+from pettingzoo import ParallelEnv
+
+from khepera_gym import _core
+from khepera_gym.config import ConfigArg, resolve_config
+from khepera_gym.envs import _SEED_BOUND, _check_action_type, _check_render_mode
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
+from khepera_gym.layout import layout_dict
+
+#: Scenario key behind PettingZoo's ``max_cycles`` (and our ``max_steps``).
+_MAX_STEPS_KEY = "max_steps"
+#: Actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle".
+ACTION_DIM = 2
+
+AgentObs = npt.NDArray[np.float32]
+AgentAction = npt.NDArray[np.float32]
+
+
+class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
+    """Base of the multi-agent Khepera IV environments; subclasses set :attr:`TASK`.
+
+    Args:
+        config: None (the task's defaults), a built-in scenario name, or a path to a TOML file.
+        action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
+        max_cycles: Steps before every agent is truncated (the scenario's ``task.max_steps``);
+            None keeps the scenario's. ``max_steps`` is accepted as a synonym.
+        render_mode: Must be None for now (rendering comes in a later release).
+        **overrides: Scenario keys overriding the file, as for the Gymnasium envs.
+
+    Raises:
+        ConfigError: Unknown or impossible scenario keys, both ``max_cycles`` and ``max_steps``.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "khepera_v0",
+        "render_modes": [],
+        "render_fps": 20,
+        "is_parallelizable": True,
+    }
+    #: Task name in the Rust core.
+    TASK: ClassVar[str] = ""
+
+    def __init__(
+        self,
+        *,
+        config: ConfigArg = None,
+        action_type: str = "wheels",
+        max_cycles: int | None = None,
+        render_mode: str | None = None,
+        **overrides: Any,
+    ) -> None:
+        _check_render_mode(render_mode, self.metadata["render_modes"])
+        _check_action_type(action_type)
+        if max_cycles is not None:
+            if _MAX_STEPS_KEY in overrides:
+                raise ConfigError(
+                    f"give either max_cycles or {_MAX_STEPS_KEY}, not both "
+                    f"(got {max_cycles} and {overrides[_MAX_STEPS_KEY]})"
+                )
+            overrides[_MAX_STEPS_KEY] = max_cycles
+        config_text, config_name = resolve_config(config, self.TASK)
+        self.render_mode = render_mode
+        self.action_type = action_type
+        self._batch = _core.Batch(
+            self.TASK,
+            1,
+            config_text=config_text,
+            config_name=config_name,
+            overrides=overrides or None,
+            action_type=action_type,
+            num_threads=1,
+            autoreset=False,
+        )
+        low, high = self._batch.obs_bounds()
+        low, high = low.astype(np.float32), high.astype(np.float32)
+        agent_specs = self._batch.agents()
+        self.possible_agents: list[str] = [name for name, *_ in agent_specs]
+        #: Each agent's column in agent_rewards()/agent_terminated() (action columns 2i, 2i + 1).
+        self._agent_index = {name: index for index, (name, *_) in enumerate(agent_specs)}
+        self._obs_slices = {name: slice(start, stop) for name, _, start, stop, _ in agent_specs}
+        self._agent_layouts = {name: layout_dict(layout) for name, *_, layout in agent_specs}
+        self._agent_robots = {name: int(robot) for name, robot, *_ in agent_specs}
+        # Spaces are built once: PettingZoo requires the same object on every call.
+        self.observation_spaces: dict[str, gymnasium.spaces.Box] = {
+            name: gymnasium.spaces.Box(low[block], high[block], dtype=np.float32)
+            for name, block in self._obs_slices.items()
+        }
+        self.action_spaces: dict[str, gymnasium.spaces.Box] = {
+            name: gymnasium.spaces.Box(-1.0, 1.0, shape=(ACTION_DIM,), dtype=np.float32)
+            for name in self.possible_agents
+        }
+        #: The joint observation's space (``state()``), for centralised critics.
+        self.state_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
+        #: Steps after which every remaining agent is truncated. PettingZoo's tests assign it: a
+        #: value above the scenario's ``max_steps`` changes nothing (the core truncates first); a
+        #: lower one truncates earlier, but then the infos carry no "episode_stats" (the core's
+        #: episode has not ended; prefer ``max_cycles=`` at construction).
+        self.max_cycles: int = self._batch.max_episode_steps
+        self.agents: list[str] = []
+        self._joint_actions = np.zeros((1, self._batch.act_dim), dtype=np.float32)
+        self._observation = np.zeros(self._batch.obs_dim, dtype=np.float32)
+        self._steps = 0
+        self._has_reset = False
+
+    # --- spaces --------------------------------------------------------------------------------
+
+    def observation_space(self, agent: str) -> gymnasium.spaces.Box:
+        """The observation space of ``agent`` (the same object on every call)."""
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent: str) -> gymnasium.spaces.Box:
+        """The action space of ``agent``: ``Box(-1, 1, (2,), float32)`` (same object per call)."""
+        return self.action_spaces[agent]
+
+    def agent_obs_layout(self, agent: str) -> dict[str, slice]:
+        """Layout of ``agent``'s observation, name → slice (e.g. "target_offset")."""
+        return dict(self._agent_layouts[agent])
+
+    # --- episode -------------------------------------------------------------------------------
+
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, AgentObs], dict[str, dict[str, Any]]]:
+        """Start a new episode with every possible agent.
+
+        Args:
+            seed: Seeds the world's random stream; None continues it (the very first reset
+                without a seed draws one from the operating system's entropy).
+            options: Unused; accepted for API compatibility.
+
+        Returns:
+            Observations and (empty) infos, keyed by agent.
+        """
+        if seed is None and not self._has_reset:
+            seed = int(np.random.default_rng().integers(_SEED_BOUND))
+        self._observation = self._batch.reset(None if seed is None else int(seed))[0]
+        self._has_reset = True
+        self._steps = 0
+        self.agents = list(self.possible_agents)
+        observations = {agent: self._observation[self._obs_slices[agent]] for agent in self.agents}
+        return observations, {agent: {} for agent in self.agents}
+
+    def step(
+        self, actions: Mapping[str, npt.ArrayLike]
+    ) -> tuple[
+        dict[str, AgentObs],
+        dict[str, float],
+        dict[str, bool],
+        dict[str, bool],
+        dict[str, dict[str, Any]],
+    ]:
+        """Step every live agent at once.
+
+        Args:
+            actions: One action of shape (2,) per agent in ``self.agents`` (normalised, finite
+                values outside [-1, 1] are clipped). Agents that already finished get zero
+                wheel commands.
+
+        Returns:
+            ``(observations, rewards, terminations, truncations, infos)``, each keyed by the agents
+            that were live before the step. An agent that terminated or was truncated leaves
+            ``self.agents``; at the episode's end every remaining agent does, and each one's info
+            holds ``"episode_stats"`` (the Gymnasium env's statistics, Python scalars).
+
+        Raises:
+            ActionError: ``actions`` is not a mapping, misses a live agent, names one that is not
+                live, or holds a non-numeric, wrongly shaped or NaN/inf action.
+            KheperaError: ``step`` with no live agents (call ``reset()``).
+        """
+        if not self.agents:
+            raise KheperaError("step() with no live agents: the episode has ended, call reset()")
+        self._fill_joint_actions(actions)
+        observations, _, terminations, truncations = self._batch.step(self._joint_actions)
+        self._observation = observations[0]
+        self._steps += 1
+        episode_over = bool(terminations[0] or truncations[0])
+        cut_short = not episode_over and self._steps >= self.max_cycles
+        agent_rewards = self._batch.agent_rewards()[0]
+        agent_terminated = self._batch.agent_terminated()[0]
+
+        live = self.agents
+        observation_dict: dict[str, AgentObs] = {}
+        rewards: dict[str, float] = {}
+        terminated: dict[str, bool] = {}
+        truncated: dict[str, bool] = {}
+        infos: dict[str, dict[str, Any]] = {}
+        stats = self._episode_stats() if episode_over else None
+        for agent in live:
+            index = self._agent_index[agent]
+            observation_dict[agent] = self._observation[self._obs_slices[agent]]
+            rewards[agent] = float(agent_rewards[index])
+            terminated[agent] = bool(agent_terminated[index])
+            # When the episode ends every remaining agent leaves: terminated if the core says so
+            # (it terminates them all when the episode terminates), else truncated.
+            truncated[agent] = not terminated[agent] and (episode_over or cut_short)
+            infos[agent] = {} if stats is None else {"episode_stats": dict(stats)}
+        self.agents = [agent for agent in live if not (terminated[agent] or truncated[agent])]
+        return observation_dict, rewards, terminated, truncated, infos
+
+    def _fill_joint_actions(self, actions: Mapping[str, npt.ArrayLike]) -> None:
+        if not isinstance(actions, Mapping):
+            raise ActionError(
+                f"actions must be a dict agent -> action of shape ({ACTION_DIM},), "
+                f"got {type(actions).__name__}"
+            )
+        missing = [agent for agent in self.agents if agent not in actions]
+        if missing:
+            raise ActionError(f"no action for live agent(s) {missing}; live agents: {self.agents}")
+        live = set(self.agents)
+        for agent in actions:
+            if agent not in live:
+                why = "has finished" if agent in self._agent_index else "is not an agent"
+                raise ActionError(
+                    f"action for {agent!r}, which {why}; give actions for {self.agents} only"
+                )
+        joint = self._joint_actions
+        joint.fill(0.0)  # finished agents (multinav: parked robots) get zero wheel commands
+        for agent, action in actions.items():
+            try:
+                action_array = np.asarray(action, dtype=np.float32)
+            except (TypeError, ValueError) as error:
+                raise ActionError(
+                    f"action of {agent!r} must be numeric of shape ({ACTION_DIM},), got {action!r}"
+                ) from error
+            if action_array.shape != (ACTION_DIM,):
+                raise ActionError(
+                    f"action of {agent!r} must have shape ({ACTION_DIM},), "
+                    f"got shape {action_array.shape}"
+                )
+            if not np.all(np.isfinite(action_array)):
+                raise ActionError(f"action of {agent!r} is not finite: {action_array}")
+            column = ACTION_DIM * self._agent_index[agent]
+            joint[0, column : column + ACTION_DIM] = action_array
+
+    def _episode_stats(self) -> dict[str, Any]:
+        return {name: values[0].item() for name, values in self._batch.episode_stats().items()}
+
+    # --- ground truth and the rest of the API --------------------------------------------------
+
+    def state(self) -> npt.NDArray[np.float32]:
+        """The joint observation of every possible agent (a copy), in ``state_space``."""
+        return self._observation.copy()
+
+    def poses(self) -> npt.NDArray[np.float64]:
+        """Ground-truth robot poses, shape (n_robots, 3): x, y (m), θ (rad, (-π, π])."""
+        return self._batch.poses()[0]
+
+    def goals(self) -> npt.NDArray[np.float64]:
+        """Goal positions, shape (n_goals, 2), in metres."""
+        return self._batch.goals()[0]
+
+    def agent_robot(self, agent: str) -> int:
+        """The index of ``agent``'s robot in ``poses()``."""
+        return self._agent_robots[agent]
+
+    def scene(self) -> dict[str, Any]:
+        """Geometry of the world for plots: arena, walls, obstacles, robot and goal radius."""
+        return self._batch.scene(0)
+
+    def config_toml(self) -> str:
+        """The fully resolved scenario (defaults + file + overrides) as TOML text."""
+        return self._batch.config_toml()
+
+    def render(self) -> None:
+        """Nothing to render yet (``render_mode`` must be None); returns None."""
+        return None
+
+    def close(self) -> None:
+        """Release nothing (the Rust world is freed with the env); safe to call twice."""
+
+
+__all__ = ["ACTION_DIM", "KheperaParallelEnv"]

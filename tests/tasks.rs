@@ -1,0 +1,272 @@
+//! Task specification for Avoid, Formation and MultiNav: determinism (world i ≡ seed s + i,
+//! thread-count invariance), feasible random layouts, the cross formation at reset, and a
+//! scripted leader that reaches its goal while followers hold the formation.
+
+use std::sync::Arc;
+
+use _core::batch::Batch;
+use _core::controllers::position::twist_to_wheels;
+use _core::controllers::PositionControl;
+use _core::robot::ActionType;
+use _core::scenario::{builtin, Scenario, Source};
+use _core::tasks::{Env, TaskKind};
+use rand::{Rng, SeedableRng};
+use rapier2d::math::Vector;
+
+fn scenario(task: &str, scene: Option<&str>, overrides: &str) -> Scenario {
+    let source = Source {
+        file: scene.map(|s| (builtin(s).expect("built-in scene"), s)),
+        overrides: overrides.parse().expect("overrides"),
+    };
+    Scenario::load(task, &source).expect("scenario")
+}
+
+fn random_actions(len: usize, steps: usize, seed: u64) -> Vec<Vec<f32>> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (0..steps)
+        .map(|_| (0..len).map(|_| rng.random_range(-1.0..1.0)).collect())
+        .collect()
+}
+
+#[test]
+fn test_every_task_world_equals_single_env_with_seed_plus_index() {
+    for task in [TaskKind::Avoid, TaskKind::Formation, TaskKind::MultiNav] {
+        let cfg = scenario(task.name(), None, "max_steps = 40");
+        let (n, steps, seed) = (4, 120, 77u64);
+        let mut batch =
+            Batch::new(task, cfg.clone(), n, ActionType::Wheels, Some(2), true).expect("batch");
+        let (od, ad) = (batch.obs_dim(), batch.act_dim());
+        let acts = random_actions(n * ad, steps, 5);
+        batch.reset(Some(seed));
+        let mut trace = vec![batch.obs().to_vec()];
+        let mut rewards = Vec::new();
+        for a in &acts {
+            batch.step(a).expect("step");
+            trace.push(batch.obs().to_vec());
+            rewards.push(
+                batch
+                    .outcomes()
+                    .iter()
+                    .map(|o| o.reward.to_bits())
+                    .collect::<Vec<_>>(),
+            );
+        }
+        for i in 0..n {
+            let mut single = Batch::new(task, cfg.clone(), 1, ActionType::Wheels, Some(1), true)
+                .expect("single");
+            single.reset(Some(seed + i as u64));
+            assert_eq!(
+                single.obs(),
+                &trace[0][i * od..(i + 1) * od],
+                "{task:?} world {i} reset"
+            );
+            for (t, a) in acts.iter().enumerate() {
+                single.step(&a[i * ad..(i + 1) * ad]).expect("step");
+                let name = task.name();
+                assert_eq!(
+                    single.obs(),
+                    &trace[t + 1][i * od..(i + 1) * od],
+                    "{name} {i} {t}"
+                );
+                assert_eq!(single.outcomes()[0].reward.to_bits(), rewards[t][i]);
+            }
+        }
+    }
+}
+
+#[test]
+fn test_every_task_is_identical_at_one_and_two_threads() {
+    for task in [TaskKind::Avoid, TaskKind::Formation, TaskKind::MultiNav] {
+        let cfg = scenario(task.name(), None, "max_steps = 50");
+        let mut runs = Vec::new();
+        for threads in [1, 2] {
+            let mut batch = Batch::new(
+                task,
+                cfg.clone(),
+                32,
+                ActionType::Wheels,
+                Some(threads),
+                true,
+            )
+            .expect("batch");
+            let acts = random_actions(32 * batch.act_dim(), 100, 9);
+            batch.reset(Some(3));
+            let mut trace = Vec::new();
+            for a in &acts {
+                batch.step(a).expect("step");
+                trace.push((batch.obs().to_vec(), batch.outcomes().to_vec()));
+            }
+            runs.push(trace);
+        }
+        assert!(
+            runs[0] == runs[1],
+            "{task:?} differs between 1 and 2 threads"
+        );
+    }
+}
+
+/// Whether the robot can drive from `a` to `b` among `env`'s obstacles: a flood fill over a
+/// 1 cm grid of robot-centre positions that keep clear of everything.
+fn reachable(env: &Env, a: Vector, b: Vector) -> bool {
+    let scene = &env.world.scene;
+    let radius = env.world.drive.radius;
+    let cell = 0.01;
+    let (w, h) = scene.arena;
+    let (nx, ny) = ((w / cell) as i32, (h / cell) as i32);
+    let index = |p: Vector| {
+        (
+            ((p.x + 0.5 * w) / cell).floor() as i32,
+            ((p.y + 0.5 * h) / cell).floor() as i32,
+        )
+    };
+    let free = |i: i32, j: i32| {
+        let p = Vector::new(
+            (i as f32 + 0.5) * cell - 0.5 * w,
+            (j as f32 + 0.5) * cell - 0.5 * h,
+        );
+        scene.clearance(p) > radius
+    };
+    let (start, goal) = (index(a), index(b));
+    let mut seen = vec![false; (nx * ny) as usize];
+    let mut stack = vec![start];
+    seen[(start.1 * nx + start.0) as usize] = true;
+    while let Some((i, j)) = stack.pop() {
+        if (i, j) == goal {
+            return true;
+        }
+        for (di, dj) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+            let (u, v) = (i + di, j + dj);
+            if u < 0 || v < 0 || u >= nx || v >= ny || seen[(v * nx + u) as usize] {
+                continue;
+            }
+            seen[(v * nx + u) as usize] = true;
+            if free(u, v) {
+                stack.push((u, v));
+            }
+        }
+    }
+    false
+}
+
+#[test]
+fn test_random_obstacles_keep_start_and_goal_clear_and_reachable() {
+    let cfg = Arc::new(scenario("avoid", None, ""));
+    let spawner = Arc::new(Env::spawner(TaskKind::Avoid, &cfg).expect("spawner"));
+    let mut env = Env::new(TaskKind::Avoid, cfg.clone(), spawner, ActionType::Wheels).expect("env");
+    let mut obs = vec![0.0; env.kind().obs_dim(&cfg)];
+    let mut full = 0;
+    for seed in 0..100 {
+        env.seed(seed);
+        env.reset(&mut obs);
+        let shapes = &env.world.scene.shapes;
+        full += (shapes.len() == cfg.obstacles.count as usize) as usize;
+        let start = env.world.robots[0].position;
+        let goal = env.goals()[0];
+        let clear = env.world.drive.radius + cfg.obstacles.spawn_clearance;
+        for (k, shape) in shapes.iter().enumerate() {
+            assert!(
+                shape.distance(start) >= clear - 1e-4,
+                "seed {seed}: obstacle {k} on the start"
+            );
+            assert!(
+                shape.distance(goal) >= clear - 1e-4,
+                "seed {seed}: obstacle {k} on the goal"
+            );
+            for other in &shapes[k + 1..] {
+                assert!(
+                    shape.gap(other) >= cfg.obstacles.min_gap - 1e-4,
+                    "seed {seed}: too close"
+                );
+            }
+        }
+        assert!(reachable(&env, start, goal), "seed {seed}: goal walled off");
+    }
+    assert!(full >= 95, "only {full}/100 layouts placed every obstacle");
+}
+
+#[test]
+fn test_paper_fig7_places_five_robots_in_a_cross() {
+    let cfg = Arc::new(scenario("formation", Some("paper_fig7"), ""));
+    let spawner = Arc::new(Env::spawner(TaskKind::Formation, &cfg).expect("spawner"));
+    let mut env = Env::new(
+        TaskKind::Formation,
+        cfg.clone(),
+        spawner,
+        ActionType::Wheels,
+    )
+    .expect("env");
+    let mut obs = vec![0.0; env.kind().obs_dim(&cfg)];
+    env.reset(&mut obs);
+    let p: Vec<Vector> = env.world.robots.iter().map(|r| r.position).collect();
+    let leader = Vector::new(-0.85, 0.0);
+    let expected = [
+        leader,
+        leader + Vector::new(0.5, 0.0),
+        leader + Vector::new(0.0, 0.5),
+        leader + Vector::new(-0.5, 0.0),
+        leader + Vector::new(0.0, -0.5),
+    ];
+    for (got, want) in p.iter().zip(expected) {
+        assert!((*got - want).length() < 1e-5, "{got:?} != {want:?}");
+    }
+    for (k, target) in env.formation_targets().iter().enumerate() {
+        assert!((*target - p[k + 1]).length() < 1e-5);
+    }
+}
+
+/// Followers driven by position control toward the target offset in their observation.
+fn follower_actions(obs: &[f32], k: usize, max_wheel_speed: f32) -> Vec<f32> {
+    let pc = PositionControl {
+        vmax: 0.35,
+        wmax: 4.0,
+        kr: 0.08,
+        stop_radius: 0.005,
+    };
+    (0..k)
+        .flat_map(|i| {
+            let block = &obs[i * 19..(i + 1) * 19];
+            let (x, y) = (block[13], block[14]);
+            let (v, w) = pc.twist((x * x + y * y).sqrt(), y.atan2(x));
+            twist_to_wheels(v, w, 0.1054).map(|s| (s / max_wheel_speed).clamp(-1.0, 1.0))
+        })
+        .collect()
+}
+
+#[test]
+fn test_scripted_leader_reaches_goal_and_followers_hold_formation() {
+    for (scene, bound) in [(None, 0.1f32), (Some("paper_fig7"), 0.25)] {
+        let cfg = Arc::new(scenario("formation", scene, ""));
+        let spawner = Arc::new(Env::spawner(TaskKind::Formation, &cfg).expect("spawner"));
+        let mut env = Env::new(
+            TaskKind::Formation,
+            cfg.clone(),
+            spawner,
+            ActionType::Wheels,
+        )
+        .expect("env");
+        let mut obs = vec![0.0; env.kind().obs_dim(&cfg)];
+        let mut successes = 0;
+        for seed in 0..10 {
+            env.seed(seed);
+            env.reset(&mut obs);
+            loop {
+                let a = follower_actions(&obs, 4, 0.813);
+                let out = env.step(&a, &mut obs);
+                if out.terminated || out.truncated {
+                    break;
+                }
+            }
+            let stats = env.last_episode;
+            successes += stats.success as usize;
+            assert!(
+                stats.formation_error_mean < bound,
+                "{scene:?} seed {seed}: mean formation error {}",
+                stats.formation_error_mean
+            );
+        }
+        assert!(
+            successes >= 9,
+            "{scene:?}: leader reached its goal {successes}/10 times"
+        );
+    }
+}

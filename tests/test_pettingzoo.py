@@ -1,0 +1,265 @@
+"""PettingZoo: formation_v0 and multinav_v0 pass PettingZoo's own tests and keep the contract."""
+
+from __future__ import annotations
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from conftest import FORMATION_ID
+from pettingzoo import AECEnv, ParallelEnv
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, seed_test
+
+from khepera_gym.envs import formation_follower_heuristic, formation_heuristic, nav_heuristic
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
+from khepera_gym.pettingzoo import formation_v0, multinav_v0
+
+FOLLOWERS = ["follower_0", "follower_1", "follower_2", "follower_3"]
+ROBOTS = ["robot_0", "robot_1", "robot_2", "robot_3"]
+#: (module, constructor kwargs) of the environments PettingZoo's tests run on.
+ENVS = [
+    (formation_v0, {}),
+    (formation_v0, {"config": "paper_fig7"}),
+    (formation_v0, {"n_followers": 2, "shape": "line", "max_cycles": 150}),
+    (multinav_v0, {}),
+    (multinav_v0, {"n_robots": 2, "count": 4}),
+]
+ENV_IDS = ["formation", "formation-fig7", "formation-line", "multinav", "multinav-obstacles"]
+
+
+def _heuristic_actions(env: ParallelEnv, observations: dict) -> dict:
+    if env.metadata["name"] == "multinav_v0":
+        return {agent: nav_heuristic(observations[agent]) for agent in env.agents}
+    return {agent: formation_follower_heuristic(observations[agent]) for agent in env.agents}
+
+
+@pytest.mark.parametrize(("module", "kwargs"), ENVS, ids=ENV_IDS)
+def test_parallel_api_test_passes(module, kwargs: dict) -> None:
+    env = module.parallel_env(**kwargs)
+    assert isinstance(env, ParallelEnv)
+    parallel_api_test(env, num_cycles=1000)
+
+
+@pytest.mark.parametrize(("module", "kwargs"), ENVS, ids=ENV_IDS)
+def test_aec_api_test_passes(module, kwargs: dict) -> None:
+    env = module.env(**kwargs)
+    assert isinstance(env, AECEnv)
+    api_test(env, num_cycles=1000)
+
+
+@pytest.mark.parametrize(("module", "kwargs"), ENVS[::3], ids=ENV_IDS[::3])
+def test_seed_tests_pass(module, kwargs: dict) -> None:
+    parallel_seed_test(lambda: module.parallel_env(**kwargs))
+    seed_test(lambda: module.env(**kwargs))
+
+
+def test_agent_leader_passes_the_api_tests_with_only_naming_advice() -> None:
+    """ "leader" is not "<name>_<number>", and its Nav block is shorter than a follower's."""
+    expected_advice = (
+        "We recommend agents to be named",
+        "Agents have different observation space sizes",
+        "Observations are different shapes",
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        parallel_api_test(formation_v0.parallel_env(leader="agent"), num_cycles=1000)
+        api_test(formation_v0.env(leader="agent"), num_cycles=1000)
+    for warning in caught:
+        assert str(warning.message).startswith(expected_advice), warning
+
+
+def test_metadata_and_agents() -> None:
+    formation = formation_v0.parallel_env()
+    assert formation.metadata["name"] == "formation_v0"
+    assert formation.metadata["is_parallelizable"] is True
+    assert formation.metadata["render_modes"] == []
+    assert formation.possible_agents == FOLLOWERS
+    assert formation.agents == []
+    observations, infos = formation.reset(seed=0)
+    assert formation.agents == FOLLOWERS
+    assert list(observations) == list(infos) == FOLLOWERS
+    assert all(info == {} for info in infos.values())
+    assert formation_v0.parallel_env(leader="agent").possible_agents == ["leader", *FOLLOWERS]
+    assert formation_v0.parallel_env(n_followers=2).possible_agents == FOLLOWERS[:2]
+
+    multinav = multinav_v0.parallel_env()
+    assert multinav.metadata["name"] == "multinav_v0"
+    assert multinav.possible_agents == ROBOTS
+    assert multinav_v0.parallel_env(n_robots=6).max_num_agents == 6
+
+
+def test_spaces_are_cached_and_followers_share_one_space() -> None:
+    env = formation_v0.parallel_env(leader="agent")
+    for agent in env.possible_agents:
+        assert env.observation_space(agent) is env.observation_space(agent)
+        assert env.action_space(agent) is env.action_space(agent)
+        assert env.action_space(agent) == gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+    follower_spaces = [env.observation_space(agent) for agent in FOLLOWERS]
+    assert all(space == follower_spaces[0] for space in follower_spaces)
+    assert follower_spaces[0].shape == (19,)
+    assert env.observation_space("leader").shape == (18,)
+    assert list(env.agent_obs_layout("follower_2")) == [
+        "ir",
+        "us",
+        "target_offset",
+        "leader_velocity",
+        "wheel_speeds",
+    ]
+
+
+def test_observations_are_slices_of_the_state_and_match_the_gymnasium_env() -> None:
+    parallel = formation_v0.parallel_env(config="paper_fig7")
+    single = gym.make(FORMATION_ID, config="paper_fig7")
+    observations, _ = parallel.reset(seed=9)
+    joint, _ = single.reset(seed=9)
+    np.testing.assert_array_equal(parallel.state(), joint)
+    assert parallel.state() in parallel.state_space
+    for _ in range(60):
+        np.testing.assert_array_equal(np.concatenate([observations[a] for a in FOLLOWERS]), joint)
+        actions = _heuristic_actions(parallel, observations)
+        observations, rewards, _, _, _ = parallel.step(actions)
+        joint, reward, *_ = single.step(np.concatenate([actions[a] for a in FOLLOWERS]))
+        np.testing.assert_array_equal(list(rewards.values()), single.unwrapped.agent_rewards())
+        assert np.mean(list(rewards.values()), dtype=np.float32) == pytest.approx(reward, abs=1e-6)
+    np.testing.assert_array_equal(parallel.poses(), single.unwrapped.poses())
+    targets = single.unwrapped.formation_targets()
+    np.testing.assert_array_equal(parallel.formation_targets(), targets)
+    single.close()
+
+
+def test_formation_episode_ends_for_every_follower_with_stats() -> None:
+    env = formation_v0.parallel_env()
+    observations, _ = env.reset(seed=1)
+    while env.agents:
+        live = list(env.agents)
+        observations, rewards, terminations, truncations, infos = env.step(
+            _heuristic_actions(env, observations)
+        )
+        assert list(rewards) == live
+    assert all(terminations.values()) or all(truncations.values())
+    for agent in FOLLOWERS:
+        stats = infos[agent]["episode_stats"]
+        assert stats["formation_error_mean"] < 0.1
+        assert stats["formation_error_max"] >= stats["formation_error_mean"]
+    with pytest.raises(KheperaError, match="reset"):
+        env.step({})
+
+
+def test_max_cycles_truncates_every_agent() -> None:
+    env = formation_v0.parallel_env(max_cycles=7)
+    assert env.max_cycles == 7
+    env.reset(seed=0)
+    for step in range(7):
+        zero = {agent: np.zeros(2, np.float32) for agent in env.agents}
+        _, _, terminations, truncations, infos = env.step(zero)
+        assert not any(terminations.values())
+        assert all(truncations.values()) == (step == 6)
+    assert env.agents == []
+    assert all(infos[agent]["episode_stats"]["length"] == 7 for agent in FOLLOWERS)
+    # Lowering max_cycles after construction truncates earlier (the core keeps its limit).
+    env.max_cycles = 3
+    env.reset(seed=0)
+    for _ in range(3):
+        _, _, _, truncations, infos = env.step({a: np.zeros(2) for a in env.agents})
+    assert all(truncations.values()) and env.agents == []
+    with pytest.raises(ConfigError, match="max_cycles"):
+        formation_v0.parallel_env(max_cycles=5, max_steps=6)
+
+
+def test_multinav_robots_that_arrive_leave_and_park() -> None:
+    env = multinav_v0.parallel_env()
+    observations, _ = env.reset(seed=1)
+    arrived: dict[str, np.ndarray] = {}
+    while env.agents:
+        live = list(env.agents)
+        observations, rewards, terminations, truncations, infos = env.step(
+            _heuristic_actions(env, observations)
+        )
+        assert set(rewards) == set(terminations) == set(truncations) == set(live)
+        poses = env.poses()
+        for agent, pose in arrived.items():  # parked robots do not move
+            np.testing.assert_allclose(poses[env.agent_robot(agent)], pose, atol=1e-3)
+        for agent in live:
+            if terminations[agent]:
+                goal = env.goals()[env.agent_robot(agent)]
+                assert np.linalg.norm(poses[env.agent_robot(agent), :2] - goal) < 0.05
+                arrived[agent] = poses[env.agent_robot(agent)].copy()
+                assert agent not in env.agents
+    assert set(arrived) == set(ROBOTS)  # every robot reached its goal, one after another
+    assert all(info["episode_stats"]["success"] for info in infos.values())
+
+
+def test_actions_for_finished_or_unknown_agents_raise_action_error() -> None:
+    env = multinav_v0.parallel_env()
+    observations, _ = env.reset(seed=1)
+    while len(env.agents) == len(ROBOTS):
+        observations, *_ = env.step(_heuristic_actions(env, observations))
+    finished = next(agent for agent in ROBOTS if agent not in env.agents)
+    actions = _heuristic_actions(env, observations)
+    with pytest.raises(ActionError, match=f"{finished}.*finished"):
+        env.step({**actions, finished: np.zeros(2)})
+    with pytest.raises(ActionError, match="robot_9"):
+        env.step({**actions, "robot_9": np.zeros(2)})
+    env.step(actions)  # the env is still usable
+
+
+@pytest.mark.parametrize(
+    ("actions", "message"),
+    [
+        ({"follower_0": np.zeros(2)}, "follower_1"),
+        ({agent: np.zeros(3) for agent in FOLLOWERS}, r"follower_0.*\(2,\)"),
+        ({**dict.fromkeys(FOLLOWERS, np.zeros(2)), "follower_2": [0.0, np.nan]}, "follower_2"),
+        ({**dict.fromkeys(FOLLOWERS, np.zeros(2)), "follower_3": "fast"}, "follower_3"),
+        ([np.zeros(2)] * 4, "dict"),
+    ],
+)
+def test_bad_actions_raise_action_error_naming_the_agent(actions, message: str) -> None:
+    env = formation_v0.parallel_env()
+    env.reset(seed=0)
+    with pytest.raises(ActionError, match=message):
+        env.step(actions)
+
+
+def test_reset_without_seed_continues_and_seed_reproduces() -> None:
+    env = formation_v0.parallel_env()
+    first, _ = env.reset(seed=5)
+    continued, _ = env.reset()
+    again, _ = env.reset(seed=5)
+    assert not np.array_equal(first["follower_0"], continued["follower_0"])
+    for agent in FOLLOWERS:
+        np.testing.assert_array_equal(first[agent], again[agent])
+
+
+def test_kwargs_reach_the_scenario() -> None:
+    env = formation_v0.parallel_env(n_followers=3, shape="wedge", spacing=0.4)
+    env.reset(seed=0)
+    poses = env.poses()
+    assert poses.shape == (4, 3)
+    distances = np.linalg.norm(poses[1:, :2] - poses[0, :2], axis=1)
+    np.testing.assert_allclose(distances, [0.4, 0.4, 0.8], atol=1e-5)
+    assert env.formation_targets().shape == (3, 2)
+    assert 'shape = "wedge"' in env.config_toml()
+    with pytest.raises(ConfigError, match="n_followers"):
+        formation_v0.parallel_env(n_followers=0)
+    multinav = multinav_v0.parallel_env(n_robots=3, config="multinav", max_cycles=50)
+    multinav.reset(seed=0)
+    assert multinav.poses().shape == (3, 3) and multinav.goals().shape == (3, 2)
+    assert multinav.max_cycles == 50
+
+
+def test_aec_env_runs_the_heuristic_to_the_end() -> None:
+    env = formation_v0.env(config="paper_fig7")
+    env.reset(seed=0)
+    for _agent in env.agent_iter():
+        observation, _, terminated, truncated, info = env.last()
+        action = None if terminated or truncated else formation_follower_heuristic(observation)
+        env.step(action)
+    assert info["episode_stats"]["success"]
+    assert env.unwrapped.formation_targets().shape == (4, 2)
+    # The joint action the Gymnasium env takes for the same observation:
+    joint = env.unwrapped.state()
+    np.testing.assert_array_equal(
+        formation_heuristic(joint).reshape(4, 2),
+        formation_follower_heuristic(joint.reshape(4, 19)),
+    )
