@@ -588,9 +588,9 @@ class FormationEnv(KheperaEnv):
 
     ## Observation Space
 
-    `Box(low, high, (19K,), float32)` (76 for K = 4): one block of 19 values per follower, in
+    `Box(low, high, (23K,), float32)` (92 for K = 4): one block of 23 values per follower, in
     follower order; with `leader="agent"` the leader's Nav block (18 values, the table of
-    :class:`NavEnv`) comes first, shape (18 + 19K,). `khepera_gym.obs_layout("formation")` names
+    :class:`NavEnv`) comes first, shape (18 + 23K,). `khepera_gym.obs_layout("formation")` names
     the slices of the default scenario ("follower_0/ir", "follower_0/us", ...). Every follower's
     block has the same bounds, so one policy can serve them all (parameter sharing). Block of
     follower k, in its own robot frame (x forward, y left):
@@ -602,14 +602,18 @@ class FormationEnv(KheperaEnv):
     |       |                 | right                                              |       |      |
     | 13-14 | target_offset   | x, y of its target point (eq. 12) in its robot     | -4.24 | 4.24 |
     |       |                 | frame (m)                                          |       |      |
-    | 15-16 | leader_velocity | the leader's v / 0.813 m/s and ω / 15.4 rad/s      | -1    | 1    |
-    | 17-18 | wheel_speeds    | its left, right wheel speed / 0.813 m/s            | -1    | 1    |
+    | 15-16 | leader_offset   | x, y of the leader in its robot frame (m)          | -4.24 | 4.24 |
+    | 17-18 | leader_heading  | sin, cos of the leader's heading minus its own     | -1    | 1    |
+    | 19-20 | leader_velocity | the leader's v / 0.813 m/s and ω / 15.4 rad/s      | -1    | 1    |
+    | 21-22 | wheel_speeds    | its left, right wheel speed / 0.813 m/s            | -1    | 1    |
 
-    IR and ultrasonic as in :class:`NavEnv` (other robots are seen too). `target_offset` is
-    clipped to the arena diagonal (4.24 m by default); (0, 0) means the follower is on its target.
+    IR and ultrasonic as in :class:`NavEnv` (other robots are seen too). `target_offset` and
+    `leader_offset` are clipped to the arena diagonal (4.24 m by default); a target offset of
+    (0, 0) means the follower is on its target. With `leader_offset` and `leader_heading` a
+    controller can compute eq. 12 targets of its own (`khepera_gym.baselines.LeaderFollower`).
     `leader_velocity` is the leader's forward speed and yaw rate, normalised by the largest wheel
     speed and the largest yaw rate 2 · 0.813 / 0.1054 ≈ 15.4 rad/s. Follower k's block starts at
-    index 19k (18 + 19k with an agent leader).
+    index 23k (18 + 23k with an agent leader).
 
     ## Rewards
 
@@ -649,7 +653,7 @@ class FormationEnv(KheperaEnv):
     ```python
     >>> env = gym.make("KheperaIV-Formation-v0", config="paper_fig7")
     >>> env.action_space.shape, env.observation_space.shape
-    ((8,), (76,))
+    ((8,), (92,))
     >>> obs, info = env.reset(seed=0)
     >>> env.unwrapped.poses().shape, env.unwrapped.formation_targets().shape
     ((5, 3), (4, 2))
@@ -676,7 +680,7 @@ class FormationEnv(KheperaEnv):
     >>> envs = gym.make_vec("KheperaIV-Formation-v0", num_envs=8)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape, envs.formation_targets().shape
-    ((8, 76), (8, 4, 2))
+    ((8, 92), (8, 4, 2))
 
     ```
 
@@ -842,7 +846,7 @@ FORMATION_HEURISTIC_D_0 = 0.05
 #: Largest yaw rate of the Khepera IV (rad/s), 2 · 0.813 / 0.1054: the normalisation of ω.
 KHEPERA_MAX_YAW_RATE = 2.0 * KHEPERA_MAX_WHEEL_SPEED / KHEPERA_AXLE_LENGTH
 #: Length of a follower's observation block.
-FORMATION_FOLLOWER_OBS_DIM = 19
+FORMATION_FOLLOWER_OBS_DIM = 23
 #: Length of the Nav observation (an agent leader's block in the Formation observation).
 NAV_OBS_DIM = 18
 
@@ -867,7 +871,7 @@ def formation_follower_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.f
     0.6 m/s, ``d_0`` = 0.05 m. It ignores obstacles and the other robots.
 
     Args:
-        observation: One follower block of shape (19,), or any batch of them (..., 19).
+        observation: One follower block of shape (23,), or any batch of them (..., 23).
 
     Returns:
         Wheel actions of shape (..., 2), float32, for ``action_type="wheels"``.

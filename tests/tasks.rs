@@ -224,7 +224,7 @@ fn follower_actions(obs: &[f32], k: usize, max_wheel_speed: f32) -> Vec<f32> {
     };
     (0..k)
         .flat_map(|i| {
-            let block = &obs[i * 19..(i + 1) * 19];
+            let block = &obs[i * 23..(i + 1) * 23];
             let (x, y) = (block[13], block[14]);
             let (v, w) = pc.twist((x * x + y * y).sqrt(), y.atan2(x));
             twist_to_wheels(v, w, 0.1054).map(|s| (s / max_wheel_speed).clamp(-1.0, 1.0))

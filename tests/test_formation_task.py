@@ -20,7 +20,7 @@ from khepera_gym.envs import (
 from khepera_gym.vector import FormationVectorEnv
 
 N_FOLLOWERS = 4  # configs/formation.toml [formation] n_followers
-FOLLOWER_OBS_DIM = 19
+FOLLOWER_OBS_DIM = 23
 NAV_OBS_DIM = 18
 SPACING = 0.5  # m, configs/formation.toml formation.spacing
 FIG7_START = (-0.85, 0.0, 0.0)  # configs/paper_fig7.toml spawn.start
@@ -75,11 +75,20 @@ def test_action_space_is_two_wheels_per_follower_plus_an_agent_leader() -> None:
 
 def test_obs_layout_names_each_followers_blocks() -> None:
     layout = khepera_gym.obs_layout("formation")
-    block_names = ["ir", "us", "target_offset", "leader_velocity", "wheel_speeds"]
+    block_names = [
+        "ir",
+        "us",
+        "target_offset",
+        "leader_offset",
+        "leader_heading",
+        "leader_velocity",
+        "wheel_speeds",
+    ]
     expected = [f"follower_{k}/{name}" for k in range(N_FOLLOWERS) for name in block_names]
     assert list(layout) == expected
-    assert layout["follower_1/ir"] == slice(19, 27)
-    assert layout["follower_3/wheel_speeds"] == slice(74, 76)
+    assert layout["follower_1/ir"] == slice(FOLLOWER_OBS_DIM, FOLLOWER_OBS_DIM + 8)
+    end = N_FOLLOWERS * FOLLOWER_OBS_DIM
+    assert layout["follower_3/wheel_speeds"] == slice(end - 2, end)
     env = gym.make(FORMATION_ID, leader="agent")
     agent_layout = env.unwrapped.obs_layout()
     assert list(agent_layout)[:6] == [f"leader/{name}" for name in khepera_gym.obs_layout("nav")]

@@ -97,12 +97,14 @@ def test_spaces_are_cached_and_followers_share_one_space() -> None:
         assert env.action_space(agent) == gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
     follower_spaces = [env.observation_space(agent) for agent in FOLLOWERS]
     assert all(space == follower_spaces[0] for space in follower_spaces)
-    assert follower_spaces[0].shape == (19,)
+    assert follower_spaces[0].shape == (23,)
     assert env.observation_space("leader").shape == (18,)
     assert list(env.agent_obs_layout("follower_2")) == [
         "ir",
         "us",
         "target_offset",
+        "leader_offset",
+        "leader_heading",
         "leader_velocity",
         "wheel_speeds",
     ]
@@ -261,5 +263,5 @@ def test_aec_env_runs_the_heuristic_to_the_end() -> None:
     joint = env.unwrapped.state()
     np.testing.assert_array_equal(
         formation_heuristic(joint).reshape(4, 2),
-        formation_follower_heuristic(joint.reshape(4, 19)),
+        formation_follower_heuristic(joint.reshape(4, 23)),
     )

@@ -12,11 +12,12 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyTypeError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple, PyType};
 
 use crate::batch::Batch as CoreBatch;
+use crate::controllers::{Braitenberg, LeaderFollower, Policy, PositionControl, Vfh, WheelMap};
 use crate::error::Error;
 use crate::robot::{ActionType, PULSES_PER_WHEEL_TURN};
 use crate::scenario::{self, Scenario, Source};
@@ -582,6 +583,256 @@ fn describe(value: &Bound<'_, PyAny>) -> String {
     }
 }
 
+/// A baseline controller of the paper acting on observations (src/controllers/).
+#[pyclass(module = "khepera_gym._core", name = "Policy", frozen)]
+pub struct PyPolicy {
+    inner: Policy,
+}
+
+fn wheel_map(axle_length: f32, max_wheel_speed: f32) -> PyResult<WheelMap> {
+    if !(axle_length > 0.0 && axle_length.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "axle_length must be > 0, got {axle_length}"
+        )));
+    }
+    if !(max_wheel_speed > 0.0 && max_wheel_speed.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "max_wheel_speed must be > 0, got {max_wheel_speed}"
+        )));
+    }
+    Ok(WheelMap {
+        axle_length,
+        max_wheel_speed,
+    })
+}
+
+fn position_control(vmax: f32, wmax: f32, kr: f32, stop_radius: f32) -> PyResult<PositionControl> {
+    for (name, v) in [("vmax", vmax), ("wmax", wmax), ("kr", kr)] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "{name} must be > 0, got {v}"
+            )));
+        }
+    }
+    if !(stop_radius >= 0.0 && stop_radius.is_finite()) {
+        return Err(PyValueError::new_err(format!(
+            "stop_radius must be >= 0, got {stop_radius}"
+        )));
+    }
+    Ok(PositionControl {
+        vmax,
+        wmax,
+        kr,
+        stop_radius,
+    })
+}
+
+fn braitenberg(weights: Vec<Vec<f32>>, threshold: f32) -> PyResult<Braitenberg> {
+    if weights.len() != 2 || weights.iter().any(|row| row.len() != 8) {
+        return Err(PyValueError::new_err(
+            "weights must be a 2 x 8 matrix (left wheel row, right wheel row; K-Team sensor order)",
+        ));
+    }
+    if weights.iter().flatten().any(|w| !w.is_finite()) || threshold.is_nan() || threshold < 0.0 {
+        return Err(PyValueError::new_err(
+            "weights must be finite and threshold >= 0",
+        ));
+    }
+    let mut w = [[0.0f32; 8]; 2];
+    for (dst, src) in w.iter_mut().zip(&weights) {
+        dst.copy_from_slice(src);
+    }
+    Ok(Braitenberg {
+        weights: w,
+        threshold,
+    })
+}
+
+#[pymethods]
+impl PyPolicy {
+    /// Position control, eqs. 1–4.
+    #[staticmethod]
+    fn position_control(
+        vmax: f32,
+        wmax: f32,
+        kr: f32,
+        stop_radius: f32,
+        axle_length: f32,
+        max_wheel_speed: f32,
+    ) -> PyResult<Self> {
+        Ok(Self {
+            inner: Policy::PositionControl(
+                position_control(vmax, wmax, kr, stop_radius)?,
+                wheel_map(axle_length, max_wheel_speed)?,
+            ),
+        })
+    }
+
+    /// Position control followed by Braitenberg avoidance, eqs. 1–7.
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn braitenberg(
+        weights: Vec<Vec<f32>>,
+        threshold: f32,
+        vmax: f32,
+        wmax: f32,
+        kr: f32,
+        stop_radius: f32,
+        axle_length: f32,
+        max_wheel_speed: f32,
+    ) -> PyResult<Self> {
+        Ok(Self {
+            inner: Policy::Braitenberg(
+                position_control(vmax, wmax, kr, stop_radius)?,
+                braitenberg(weights, threshold)?,
+                wheel_map(axle_length, max_wheel_speed)?,
+            ),
+        })
+    }
+
+    /// Vector Field Histogram, eqs. 8–11.
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn vfh(
+        sectors: usize,
+        threshold: f32,
+        hm: f32,
+        vmax: f32,
+        wmax: f32,
+        kr: f32,
+        stop_radius: f32,
+        us_range: f32,
+        beam_width: f32,
+        min_valley: f32,
+        axle_length: f32,
+        max_wheel_speed: f32,
+    ) -> PyResult<Self> {
+        if !(4..=360).contains(&sectors) {
+            return Err(PyValueError::new_err(format!(
+                "sectors must be in 4..=360, got {sectors}"
+            )));
+        }
+        position_control(vmax, wmax, kr, stop_radius)?;
+        for (name, v) in [
+            ("threshold", threshold),
+            ("hm", hm),
+            ("us_range", us_range),
+            ("beam_width", beam_width),
+            ("min_valley", min_valley),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(PyValueError::new_err(format!(
+                    "{name} must be > 0, got {v}"
+                )));
+            }
+        }
+        Ok(Self {
+            inner: Policy::Vfh(
+                Vfh {
+                    sectors,
+                    threshold,
+                    hm,
+                    vmax,
+                    wmax,
+                    kr,
+                    stop_radius,
+                    us_range,
+                    beam_width,
+                    min_valley,
+                    ..Vfh::default()
+                },
+                wheel_map(axle_length, max_wheel_speed)?,
+            ),
+        })
+    }
+
+    /// Leader–follower formation control, eq. 12; `offsets` None follows the observation's
+    /// own targets; `weights` None turns avoidance off; `leader` drives a leader block.
+    #[staticmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn leader_follower(
+        offsets: Option<Vec<(f32, f32)>>,
+        vmax: f32,
+        wmax: f32,
+        kr: f32,
+        stop_radius: f32,
+        feedforward: bool,
+        weights: Option<Vec<Vec<f32>>>,
+        threshold: f32,
+        leader: &PyPolicy,
+        axle_length: f32,
+        max_wheel_speed: f32,
+    ) -> PyResult<Self> {
+        let control = position_control(vmax, wmax, kr, stop_radius)?;
+        let avoidance = weights.map(|w| braitenberg(w, threshold)).transpose()?;
+        let make = |offset| LeaderFollower {
+            offset,
+            control,
+            feedforward,
+            avoidance,
+        };
+        let followers = match offsets {
+            None => vec![make(None)],
+            Some(list) => {
+                if list
+                    .iter()
+                    .any(|(r, b)| !r.is_finite() || !b.is_finite() || *r < 0.0)
+                {
+                    return Err(PyValueError::new_err(
+                        "offsets must be finite (r >= 0, beta) pairs",
+                    ));
+                }
+                list.into_iter().map(|(r, b)| make(Some([r, b]))).collect()
+            }
+        };
+        Ok(Self {
+            inner: Policy::LeaderFollower {
+                followers,
+                leader: Box::new(leader.inner.clone()),
+                wheels: wheel_map(axle_length, max_wheel_speed)?,
+            },
+        })
+    }
+
+    /// Actions (N, act_dim) float32 for observations (N, obs_dim).
+    fn act<'py>(
+        &self,
+        py: Python<'py>,
+        obs: PyReadonlyArray2<'py, f32>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        guard(py, || {
+            let shape = obs.shape().to_vec();
+            let data: Vec<f32> = match obs.as_slice() {
+                Ok(s) => s.to_vec(),
+                Err(_) => obs.as_array().iter().copied().collect(),
+            };
+            let act_dim = self.inner.act_dim(shape[1]).map_err(|e| to_py(py, e))?;
+            let policy = &self.inner;
+            let actions = py
+                .detach(|| policy.act_batch(&data, shape[1]))
+                .map_err(|e| to_py(py, e))?;
+            Ok(PyArray1::from_vec(py, actions)
+                .reshape([shape[0], act_dim])?
+                .into_any())
+        })
+    }
+}
+
+/// Default weights of the Braitenberg block (m/s per unit proximity; rows left, right).
+#[pyfunction]
+fn braitenberg_weights(name: &str) -> PyResult<Vec<Vec<f32>>> {
+    let w = match name {
+        "default" => crate::controllers::braitenberg::DEFAULT_WEIGHTS,
+        "kteam" => crate::controllers::braitenberg::KTEAM_WEIGHTS,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "unknown weight set {name:?}; known: \"default\", \"kteam\""
+            )))
+        }
+    };
+    Ok(w.iter().map(|r| r.to_vec()).collect())
+}
+
 /// Observation layout of a task with its default scenario: (name, start, stop) in order.
 #[pyfunction]
 fn obs_layout(py: Python<'_>, task: &str) -> PyResult<Vec<(String, usize, usize)>> {
@@ -628,6 +879,8 @@ fn builtin_configs() -> Vec<&'static str> {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<Batch>()?;
+    m.add_class::<PyPolicy>()?;
+    m.add_function(wrap_pyfunction!(braitenberg_weights, m)?)?;
     m.add_function(wrap_pyfunction!(obs_layout, m)?)?;
     m.add_function(wrap_pyfunction!(default_config, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_configs, m)?)?;

@@ -6,6 +6,11 @@
 //! followers; follower k's target is the leader's pose composed with its offset (r_k, β_k)
 //! (eq. 12): x = x_L + r cos(β + θ_L), y = y_L + r sin(β + θ_L).
 //!
+//! A follower observes its own sensors, its target and the leader in its own frame (x forward,
+//! y left): the target offset (m), the leader's position (m) and relative heading (sin, cos),
+//! the leader's velocity (v / v_max, ω / ω_max) and its own wheel speeds; so a controller can
+//! compute eq. 12 targets of its own from the leader's pose (`khepera_gym.baselines`).
+//!
 //! Follower reward per step: `−error_weight·e_k − collision_penalty·[k in contact]
 //!  − team_weight·mean_j e_j`, with e_k the distance (m) from follower k to its target. The
 //! episode terminates when the leader reaches its goal (success) or, with
@@ -25,12 +30,14 @@ pub const FOLLOWER_LAYOUT: &[(&str, usize)] = &[
     ("ir", IR_COUNT),
     ("us", US_COUNT),
     ("target_offset", 2),
+    ("leader_offset", 2),
+    ("leader_heading", 2),
     ("leader_velocity", 2),
     ("wheel_speeds", 2),
 ];
 
 /// A follower's observation length.
-pub const FOLLOWER_OBS_DIM: usize = IR_COUNT + US_COUNT + 6;
+pub const FOLLOWER_OBS_DIM: usize = IR_COUNT + US_COUNT + 10;
 
 /// Per-world state of the formation task.
 #[derive(Debug, Clone)]
@@ -178,11 +185,17 @@ impl Formation {
             let offset = nav::to_robot_frame(world, i, self.target(world, k));
             block[base] = offset.x.clamp(-reach, reach);
             block[base + 1] = offset.y.clamp(-reach, reach);
-            block[base + 2] = leader_velocity[0];
-            block[base + 3] = leader_velocity[1];
+            let leader = nav::to_robot_frame(world, i, world.robots[0].position);
+            block[base + 2] = leader.x.clamp(-reach, reach);
+            block[base + 3] = leader.y.clamp(-reach, reach);
+            let relative = world.robots[0].heading - world.robots[i].heading;
+            block[base + 4] = relative.sin();
+            block[base + 5] = relative.cos();
+            block[base + 6] = leader_velocity[0];
+            block[base + 7] = leader_velocity[1];
             let [l, r] = nav::wheel_obs(world, i);
-            block[base + 4] = l;
-            block[base + 5] = r;
+            block[base + 8] = l;
+            block[base + 9] = r;
         }
     }
 
@@ -191,8 +204,10 @@ impl Formation {
         let reach = nav::diagonal(cfg);
         let mut low = vec![0.0; IR_COUNT + US_COUNT];
         let mut high = vec![1.0; IR_COUNT + US_COUNT];
-        low.extend([-reach, -reach, -1.0, -1.0, -1.0, -1.0]);
-        high.extend([reach, reach, 1.0, 1.0, 1.0, 1.0]);
+        low.extend([-reach, -reach, -reach, -reach]);
+        high.extend([reach, reach, reach, reach]);
+        low.extend([-1.0; 6]);
+        high.extend([1.0; 6]);
         (low, high)
     }
 }

@@ -1,0 +1,214 @@
+//! Vector Field Histogram (paper eqs. 8–11, after Ulrich & Borenstein 2000), on observations.
+//!
+//! A polar histogram of obstacle density is built from the 8 IR and 5 ultrasonic readings: each
+//! sensor adds its obstacle magnitude to the sector holding its bearing (IR: the proximity
+//! p in [0, 1]; ultrasonic: 1 − d/us_range for echoes closer than `us_range`, 1 when too close),
+//! and the histogram is smoothed over neighbouring sectors. Sectors under `threshold` are free;
+//! the robot steers to the free sector nearest the goal bearing (the goal itself when its
+//! sector is free): ω = ω_max·sin(θ_e) (eq. 9). The density ahead h'_c, capped at h_m
+//! (eq. 11), slows it: v' = v_max(1 − h'_c/h_m) (eq. 10), v = v'(1 − |ω|/ω_max) (eq. 8); near
+//! the goal the docking law of eq. 3 applies.
+//!
+//! Each reading fills the sectors within half a `beam_width` of its sensor's bearing; a valley
+//! must be `min_valley` wide to be steered into. The histogram is rebuilt from the current
+//! readings at every step (no memory), so an obstacle that leaves every beam leaves the
+//! histogram: the robot turns away, loses sight of it, turns back toward the goal, sees it
+//! again, and zigzags (the paper's observation). With beams narrower than the sensors' 45°
+//! spacing (`beam_width` < 45°) the histogram also has blind zones between sensors that look
+//! free; the default closes them for the IR ring, and `beam_width = 10°` shows the paper's
+//! blind-zone behaviour at its worst.
+
+use std::f32::consts::PI;
+
+use crate::sensors::{IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
+
+/// VFH parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vfh {
+    /// Histogram sectors around the robot.
+    pub sectors: usize,
+    /// Smoothed density under which a sector is free.
+    pub threshold: f32,
+    /// h_m: density ahead at which the robot stops (eqs. 10–11).
+    pub hm: f32,
+    /// v_max (m/s).
+    pub vmax: f32,
+    /// ω_max (rad/s).
+    pub wmax: f32,
+    /// Docking radius k_r (m), as in eq. 3.
+    pub kr: f32,
+    /// Stop distance (m).
+    pub stop_radius: f32,
+    /// Ultrasonic echoes farther than this (m) add nothing.
+    pub us_range: f32,
+    /// Ultrasonic full scale of the observation (m): the reading is distance / us_max_range.
+    pub us_max_range: f32,
+    /// Angular width (rad) of the sectors a reading fills, centred on its sensor's bearing.
+    pub beam_width: f32,
+    /// Narrowest valley (rad) the robot will steer into; it aims at least half of it away
+    /// from the valley's edges.
+    pub min_valley: f32,
+}
+
+impl Default for Vfh {
+    fn default() -> Self {
+        Self {
+            sectors: 36,
+            threshold: 0.15,
+            hm: 0.6,
+            vmax: 0.3,
+            wmax: 3.0,
+            kr: 0.15,
+            stop_radius: 0.02,
+            us_range: 0.45,
+            us_max_range: 2.0,
+            beam_width: 45f32.to_radians(),
+            min_valley: 50f32.to_radians(),
+        }
+    }
+}
+
+impl Vfh {
+    /// Sector index of a robot-frame bearing.
+    fn sector(&self, bearing: f32) -> usize {
+        let width = 2.0 * PI / self.sectors as f32;
+        let a = (bearing + PI).rem_euclid(2.0 * PI);
+        ((a / width) as usize).min(self.sectors - 1)
+    }
+
+    fn centre(&self, k: usize) -> f32 {
+        let width = 2.0 * PI / self.sectors as f32;
+        -PI + (k as f32 + 0.5) * width
+    }
+
+    /// Adds `magnitude` to every sector within half a beam of `bearing`.
+    fn add(&self, h: &mut [f32], bearing: f32, magnitude: f32) {
+        for (k, slot) in h.iter_mut().enumerate() {
+            if angle_between(self.centre(k), bearing) <= 0.5 * self.beam_width {
+                *slot += magnitude;
+            }
+        }
+        // A beam narrower than a sector still fills its own sector.
+        if self.beam_width < 2.0 * PI / self.sectors as f32 {
+            h[self.sector(bearing)] += magnitude;
+        }
+    }
+
+    /// The smoothed polar histogram of `ir` proximities and `us` normalised readings.
+    pub fn histogram(&self, ir: &[f32], us: &[f32]) -> Vec<f32> {
+        let mut h = vec![0.0f32; self.sectors];
+        for k in 0..IR_COUNT {
+            self.add(&mut h, IR_BEARINGS[k], ir[k].max(0.0));
+        }
+        for k in 0..US_COUNT {
+            let magnitude = if us[k] <= 0.0 {
+                1.0 // closer than the sensor can measure
+            } else {
+                (1.0 - us[k] * self.us_max_range / self.us_range).max(0.0)
+            };
+            self.add(&mut h, US_BEARINGS[k], magnitude);
+        }
+        let n = self.sectors;
+        (0..n)
+            .map(|k| 0.25 * h[(k + n - 1) % n] + 0.5 * h[k] + 0.25 * h[(k + 1) % n])
+            .collect()
+    }
+
+    /// The steering direction (rad, robot frame): the goal bearing pulled into the nearest
+    /// valley of free sectors at least `min_valley` wide, `min_valley / 2` clear of its edges;
+    /// None when no valley is wide enough.
+    pub fn steer(&self, h: &[f32], goal_bearing: f32) -> Option<f32> {
+        let n = self.sectors;
+        let width = 2.0 * PI / n as f32;
+        let free: Vec<bool> = h.iter().map(|v| *v < self.threshold).collect();
+        if free.iter().all(|f| *f) {
+            return Some(goal_bearing);
+        }
+        // Start scanning just after a blocked sector so valleys do not wrap.
+        let first_blocked = free.iter().position(|f| !f)?;
+        let mut best: Option<(f32, f32)> = None; // (distance to goal, direction)
+        let mut run_start = None;
+        for step in 1..=n {
+            let k = (first_blocked + step) % n;
+            match (free[k], run_start) {
+                (true, None) => run_start = Some(step),
+                (false, Some(start)) => {
+                    let len = step - start;
+                    if len as f32 * width >= self.min_valley {
+                        // Valley from the start of sector (first_blocked + start) to the end of
+                        // sector (first_blocked + step - 1), as angles unwrapped from there.
+                        let lo = self.centre((first_blocked + start) % n) - 0.5 * width;
+                        let hi = lo + len as f32 * width;
+                        let margin = 0.5 * self.min_valley;
+                        // The goal bearing unwrapped near the valley.
+                        let mut g = goal_bearing;
+                        while g < lo - PI {
+                            g += 2.0 * PI;
+                        }
+                        while g > hi + PI {
+                            g -= 2.0 * PI;
+                        }
+                        let dir = if hi - lo <= 2.0 * margin {
+                            0.5 * (lo + hi)
+                        } else {
+                            g.clamp(lo + margin, hi - margin)
+                        };
+                        let cost = angle_between(dir, goal_bearing);
+                        if best.is_none_or(|(c, _)| cost < c) {
+                            best = Some((cost, crate::robot::wrap_angle(dir)));
+                        }
+                    }
+                    run_start = None;
+                }
+                _ => {}
+            }
+        }
+        best.map(|(_, dir)| dir)
+    }
+
+    /// (v, ω) from one Nav-layout observation's sensors and goal.
+    pub fn twist(&self, ir: &[f32], us: &[f32], distance: f32, goal_bearing: f32) -> (f32, f32) {
+        if distance < self.stop_radius {
+            return (0.0, 0.0);
+        }
+        let h = self.histogram(ir, us);
+        // Boxed in: turn round.
+        let heading_error = self.steer(&h, goal_bearing).unwrap_or(PI);
+        let w = self.wmax * heading_error.sin(); // eq. 9
+        let hc = h[self.sector(0.0)].min(self.hm); // eq. 11
+        let v_prime = self.vmax * (1.0 - hc / self.hm); // eq. 10
+        let mut v = v_prime * (1.0 - w.abs() / self.wmax); // eq. 8
+        if distance <= self.kr {
+            v = v.min(distance * self.vmax / self.kr); // eq. 3 docking
+        }
+        (v.max(0.0), w)
+    }
+}
+
+fn angle_between(a: f32, b: f32) -> f32 {
+    crate::robot::wrap_angle(a - b).abs()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn free_space_goes_straight_to_the_goal() {
+        let vfh = Vfh::default();
+        let (v, w) = vfh.twist(&[0.0; 8], &[1.0; 5], 1.0, 0.3);
+        assert!((w - 3.0 * 0.3f32.sin()).abs() < 1e-6);
+        assert!(v > 0.0 && v < 0.3);
+    }
+
+    #[test]
+    fn obstacle_ahead_slows_and_turns_to_a_free_sector() {
+        let vfh = Vfh::default();
+        let mut ir = [0.0; 8];
+        ir[3] = 0.5; // front
+        let us = [1.0, 1.0, 0.1, 1.0, 1.0]; // front echo at 0.2 m
+        let (v, w) = vfh.twist(&ir, &us, 1.0, 0.0);
+        assert!(w.abs() > 0.1, "does not turn: {w}");
+        assert!(v < 0.1, "does not slow: {v}");
+    }
+}

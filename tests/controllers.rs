@@ -1,0 +1,159 @@
+//! Baseline controllers on observations (paper eqs. 1–12): position control reaches its goal,
+//! Braitenberg and VFH get past the paper's Fig. 6 wall, Braitenberg handles random obstacles,
+//! leader–follower holds the formation; batched and single actions agree.
+
+use _core::batch::Batch;
+use _core::controllers::{Braitenberg, LeaderFollower, Policy, PositionControl, Vfh, WheelMap};
+use _core::robot::ActionType;
+use _core::scenario::{builtin, Scenario, Source};
+use _core::tasks::{EpisodeStats, TaskKind};
+
+fn position_control() -> PositionControl {
+    PositionControl {
+        vmax: 0.3,
+        wmax: 4.0,
+        kr: 0.15,
+        stop_radius: 0.02,
+    }
+}
+
+/// Runs `n` worlds (seeds `seed + i`) of `task` for one episode each under `policy`.
+fn episodes(task: TaskKind, scene: Option<&str>, policy: &Policy, n: usize) -> Vec<EpisodeStats> {
+    let source = Source {
+        file: scene.map(|s| (builtin(s).expect("scene"), s)),
+        overrides: Default::default(),
+    };
+    let cfg = Scenario::load(task.name(), &source).expect("scenario");
+    let mut batch = Batch::new(task, cfg, n, ActionType::Wheels, Some(2), true).expect("batch");
+    batch.reset(Some(1000));
+    let mut result: Vec<Option<EpisodeStats>> = vec![None; n];
+    while result.iter().any(Option::is_none) {
+        let actions = policy
+            .act_batch(batch.obs(), batch.obs_dim())
+            .expect("actions");
+        batch.step(&actions).expect("step");
+        let ended: Vec<bool> = batch
+            .outcomes()
+            .iter()
+            .map(|o| o.terminated || o.truncated)
+            .collect();
+        for (i, (stats, end)) in batch.episode_stats().zip(ended).enumerate() {
+            if end && result[i].is_none() {
+                result[i] = Some(*stats);
+            }
+        }
+    }
+    result.into_iter().flatten().collect()
+}
+
+fn success_rate(stats: &[EpisodeStats]) -> f64 {
+    stats.iter().filter(|s| s.success).count() as f64 / stats.len() as f64
+}
+
+#[test]
+fn test_position_control_reaches_goal_in_nav() {
+    let policy = Policy::PositionControl(position_control(), WheelMap::default());
+    let stats = episodes(TaskKind::Nav, None, &policy, 200);
+    assert!(
+        success_rate(&stats) >= 0.99,
+        "success {}",
+        success_rate(&stats)
+    );
+}
+
+#[test]
+fn test_braitenberg_and_vfh_reach_target_past_fig6_wall() {
+    let braitenberg = Policy::Braitenberg(
+        position_control(),
+        Braitenberg::default(),
+        WheelMap::default(),
+    );
+    let vfh = Policy::Vfh(Vfh::default(), WheelMap::default());
+    let position_only = Policy::PositionControl(position_control(), WheelMap::default());
+    let b = episodes(TaskKind::Avoid, Some("paper_fig6"), &braitenberg, 1)[0];
+    let v = episodes(TaskKind::Avoid, Some("paper_fig6"), &vfh, 1)[0];
+    let p = episodes(TaskKind::Avoid, Some("paper_fig6"), &position_only, 1)[0];
+    assert!(b.success && v.success, "Braitenberg {b:?}, VFH {v:?}");
+    assert!(
+        !p.success,
+        "the wall should stop plain position control: {p:?}"
+    );
+}
+
+#[test]
+fn test_braitenberg_succeeds_among_random_obstacles() {
+    let policy = Policy::Braitenberg(
+        position_control(),
+        Braitenberg::default(),
+        WheelMap::default(),
+    );
+    let stats = episodes(TaskKind::Avoid, None, &policy, 200);
+    assert!(
+        success_rate(&stats) >= 0.9,
+        "success {}",
+        success_rate(&stats)
+    );
+}
+
+#[test]
+fn test_leader_follower_keeps_formation_error_small_without_obstacles() {
+    let follower = LeaderFollower {
+        offset: Some([0.5, 0.0]),
+        control: PositionControl {
+            vmax: 0.35,
+            wmax: 4.0,
+            kr: 0.08,
+            stop_radius: 0.005,
+        },
+        feedforward: true,
+        avoidance: Some(Braitenberg::default()),
+    };
+    // Eq. 12 offsets of the default cross, computed by the controller from the leader's pose.
+    let followers = [0.0f32, 90.0, 180.0, 270.0]
+        .map(|b| LeaderFollower {
+            offset: Some([0.5, b.to_radians()]),
+            ..follower
+        })
+        .to_vec();
+    let policy = Policy::LeaderFollower {
+        followers,
+        leader: Box::new(Policy::PositionControl(
+            position_control(),
+            WheelMap::default(),
+        )),
+        wheels: WheelMap::default(),
+    };
+    let stats = episodes(TaskKind::Formation, None, &policy, 50);
+    let mean = stats.iter().map(|s| s.formation_error_mean).sum::<f32>() / stats.len() as f32;
+    assert!(mean < 0.1, "mean formation error {mean}");
+    assert!(success_rate(&stats) >= 0.95);
+}
+
+#[test]
+fn test_batched_and_single_actions_agree() {
+    let cfg = Scenario::load("avoid", &Source::default()).expect("scenario");
+    let mut batch =
+        Batch::new(TaskKind::Avoid, cfg, 16, ActionType::Wheels, Some(1), true).expect("b");
+    batch.reset(Some(4));
+    let policies = [
+        Policy::PositionControl(position_control(), WheelMap::default()),
+        Policy::Braitenberg(
+            position_control(),
+            Braitenberg::default(),
+            WheelMap::default(),
+        ),
+        Policy::Vfh(Vfh::default(), WheelMap::default()),
+    ];
+    for policy in &policies {
+        let d = batch.obs_dim();
+        let all = policy.act_batch(batch.obs(), d).expect("batched");
+        for i in 0..16 {
+            let one = policy
+                .act_batch(&batch.obs()[i * d..(i + 1) * d], d)
+                .expect("single");
+            assert_eq!(&all[2 * i..2 * i + 2], &one[..]);
+        }
+    }
+    assert!(policies[0].act_batch(&[f32::NAN; 18], 18).is_err());
+    assert!(policies[0].act_batch(&[0.0; 23], 23).is_err());
+}
