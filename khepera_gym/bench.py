@@ -29,6 +29,9 @@ from khepera_gym import _core
 NAV_ID = "KheperaIV-Nav-v0"
 #: Distinct pregenerated action arrays cycled through while timing.
 _ACTION_SETS = 8
+#: The other tasks' native vector envs timed after Nav (with ``task_envs`` worlds). Avoid has 10
+#: random obstacles, Formation 5 robots (a leader and 4 followers).
+OTHER_TASKS = ("KheperaIV-Avoid-v0", "KheperaIV-Formation-v0")
 #: Worlds of the batch whose memory is measured.
 _MEMORY_WORLDS = 4096
 
@@ -57,10 +60,17 @@ def _random_actions(rng: np.random.Generator, shape: tuple[int, ...]) -> list[np
     return [rng.uniform(-1.0, 1.0, size=shape).astype(np.float32) for _ in range(_ACTION_SETS)]
 
 
-def bench_vector(num_envs: int, num_threads: int, duration: float, warmup: int = 20) -> Measurement:
+def bench_vector(
+    num_envs: int,
+    num_threads: int,
+    duration: float,
+    warmup: int = 20,
+    env_id: str = NAV_ID,
+) -> Measurement:
     """Times ``step`` of the native vector env for about ``duration`` seconds."""
-    envs = gym.make_vec(NAV_ID, num_envs=num_envs, num_threads=num_threads)
-    actions = _random_actions(np.random.default_rng(0), (num_envs, 2))
+    envs = gym.make_vec(env_id, num_envs=num_envs, num_threads=num_threads)
+    act_dim = envs.single_action_space.shape[0]
+    actions = _random_actions(np.random.default_rng(0), (num_envs, act_dim))
     envs.reset(seed=0)
     for step in range(warmup):
         envs.step(actions[step % _ACTION_SETS])
@@ -74,7 +84,8 @@ def bench_vector(num_envs: int, num_threads: int, duration: float, warmup: int =
         steps += _ACTION_SETS
         now = time.perf_counter()
     envs.close()
-    return Measurement(f"make_vec n={num_envs}", num_envs, num_threads, steps, now - start)
+    name = "" if env_id == NAV_ID else env_id.removeprefix("KheperaIV-").removesuffix("-v0") + " "
+    return Measurement(f"{name}make_vec n={num_envs}", num_envs, num_threads, steps, now - start)
 
 
 def bench_single(duration: float, warmup: int = 200) -> Measurement:
@@ -134,6 +145,7 @@ def run(
     duration: float = 1.5,
     single: bool = True,
     memory: bool = True,
+    task_envs: int = 1024,
 ) -> list[Measurement]:
     """Runs the benchmark and prints a table; returns the measurements."""
     print(f"khepera_gym {khepera_gym.__version__} benchmark: {NAV_ID}, uniform random actions,")
@@ -148,6 +160,21 @@ def run(
         single_thread_rate: float | None = None
         for threads in num_threads:
             result = bench_vector(count, threads, duration)
+            measurements.append(result)
+            rate = result.env_steps_per_second
+            if threads == 1:
+                single_thread_rate = rate
+            speedup = f"{rate / single_thread_rate:.2f}" if single_thread_rate else ""
+            print(
+                f"{result.label:<22} {threads:>7} {rate:>13,.0f} "
+                f"{result.microseconds_per_step:>10.1f} {speedup:>9}",
+                flush=True,
+            )
+    for env_id in OTHER_TASKS if task_envs else ():
+        count = task_envs
+        single_thread_rate = None
+        for threads in num_threads:
+            result = bench_vector(count, threads, duration, env_id=env_id)
             measurements.append(result)
             rate = result.env_steps_per_second
             if threads == 1:
@@ -182,7 +209,8 @@ def run(
 def main(argv: Sequence[str] | None = None) -> int:
     """Command-line entry point; ``--quick`` runs smaller batches for a shorter time."""
     parser = argparse.ArgumentParser(
-        prog="khepera-gym bench", description="Throughput and memory of KheperaIV-Nav."
+        prog="khepera-gym bench",
+        description="Env-steps/s of the vector and single envs; memory per world.",
     )
     add_arguments(parser)
     return run_from_args(parser.parse_args(argv))

@@ -123,8 +123,16 @@ def test_cli_demo_prints_a_table_and_saves_the_plot(
 
 
 def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:
-    measurements = bench.run(num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False)
-    assert [m.num_envs for m in measurements] == [2, 2, 1]
+    measurements = bench.run(
+        num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False, task_envs=3
+    )
+    assert [m.num_envs for m in measurements] == [2, 2, 3, 3, 3, 3, 1]
+    assert [m.label for m in measurements][2:6] == [
+        "Avoid make_vec n=3",
+        "Avoid make_vec n=3",
+        "Formation make_vec n=3",
+        "Formation make_vec n=3",
+    ]
     assert all(m.steps > 0 and m.env_steps_per_second > 0 for m in measurements)
     assert "env-steps/s" in capsys.readouterr().out
 
