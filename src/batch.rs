@@ -160,6 +160,13 @@ impl Batch {
         self.envs.iter().map(|e| &e.last_episode)
     }
 
+    /// Keeps the last `length` robot positions of every world for rendering (0: off).
+    pub fn set_trail_length(&mut self, length: usize) {
+        for env in &mut self.envs {
+            env.set_trail_length(length);
+        }
+    }
+
     /// Resets every world; with `Some(seed)` world i is seeded with `seed + i` first.
     pub fn reset(&mut self, seed: Option<u64>) {
         if let Some(seed) = seed {

@@ -9,6 +9,7 @@
 pub mod batch;
 pub mod controllers;
 pub mod error;
+pub mod render;
 pub mod robot;
 pub mod scenario;
 pub mod sensors;

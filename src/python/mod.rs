@@ -548,6 +548,42 @@ impl Batch {
         Ok(d)
     }
 
+    /// An RGB frame (height, width, 3) uint8 of world `index`, drawn without a display.
+    #[pyo3(signature = (index=0, width=480, height=480))]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        index: usize,
+        width: u32,
+        height: u32,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        guard(py, || {
+            let env = self.inner.envs().get(index).ok_or_else(|| {
+                to_py(
+                    py,
+                    Error::State(format!(
+                        "world index {index} out of range 0..{}",
+                        self.inner.len()
+                    )),
+                )
+            })?;
+            if !(16..=4096).contains(&width) || !(16..=4096).contains(&height) {
+                return Err(PyValueError::new_err(format!(
+                    "frame size must be 16..=4096 pixels a side, got {width}x{height}"
+                )));
+            }
+            let rgb = py.detach(|| crate::render::render(env, width, height));
+            Ok(PyArray1::from_vec(py, rgb)
+                .reshape([height as usize, width as usize, 3])?
+                .into_any())
+        })
+    }
+
+    /// Keeps the last `length` positions of every robot for the trails of `render` (0: off).
+    fn set_trail_length(&mut self, length: usize) {
+        self.inner.set_trail_length(length.min(100_000));
+    }
+
     /// The resolved scenario as TOML text.
     fn config_toml(&self) -> String {
         self.inner.scenario().to_toml()

@@ -224,6 +224,10 @@ pub struct Env {
     pub last_episode: EpisodeStats,
     /// The episode has ended; the next step must be a reset.
     pub done: bool,
+    /// Positions of each robot over the last `trail_length` steps (for rendering; empty and
+    /// free when `trail_length` is 0).
+    trails: Vec<Vec<Vector>>,
+    trail_length: usize,
 }
 
 impl Env {
@@ -264,6 +268,8 @@ impl Env {
             stats: EpisodeStats::default(),
             last_episode: EpisodeStats::default(),
             done: true,
+            trails: Vec::new(),
+            trail_length: 0,
         })
     }
 
@@ -310,6 +316,33 @@ impl Env {
         }
         self.world.sense();
         self.observe(obs);
+        self.trails.clear();
+        self.record_trail();
+    }
+
+    /// Keeps the last `length` positions of every robot for rendering (0: none, the default).
+    pub fn set_trail_length(&mut self, length: usize) {
+        self.trail_length = length;
+        self.trails.clear();
+        self.record_trail();
+    }
+
+    /// Robot positions over the last steps, oldest first, per robot.
+    pub fn trails(&self) -> &[Vec<Vector>] {
+        &self.trails
+    }
+
+    fn record_trail(&mut self) {
+        if self.trail_length == 0 {
+            return;
+        }
+        self.trails.resize(self.world.robots.len(), Vec::new());
+        for (trail, robot) in self.trails.iter_mut().zip(&self.world.robots) {
+            if trail.len() >= self.trail_length {
+                trail.remove(0);
+            }
+            trail.push(robot.position);
+        }
     }
 
     /// Applies `action` (normalised, two numbers per agent, already checked finite), advances
@@ -371,6 +404,7 @@ impl Env {
             self.last_episode = *stats;
         }
         self.observe(obs);
+        self.record_trail();
         StepOutcome {
             reward,
             terminated,

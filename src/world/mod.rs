@@ -50,6 +50,10 @@ pub struct Robot {
     pub ir_raw: [u16; IR_COUNT],
     /// Ultrasonic readings (cm or code).
     pub us_code: [i32; US_COUNT],
+    /// True distance (m) each IR ray travelled before a hit (its range when none), for drawing.
+    pub ir_hit: [f32; IR_COUNT],
+    /// True distance (m) each ultrasonic ray travelled before a hit, for drawing.
+    pub us_hit: [f32; US_COUNT],
     step_start_heading: f32,
 }
 
@@ -311,12 +315,14 @@ impl World {
                     radius,
                 );
                 self.robots[i].ir_raw[k] = self.ir.read(hit, &mut self.rng);
+                self.robots[i].ir_hit[k] = hit.unwrap_or(self.ir.range);
             }
             for k in 0..US_COUNT {
                 let dir = rotate(self.us_dirs[k], c, s);
                 let origin = pos + radius * dir;
                 let hit = self.scene.cast(origin, dir, us_cast, &self.others, radius);
                 self.robots[i].us_code[k] = self.us.read(k, hit, &mut self.rng);
+                self.robots[i].us_hit[k] = hit.unwrap_or(us_cast);
             }
         }
     }

@@ -1,0 +1,230 @@
+//! Software rendering of a world to an RGB frame with tiny-skia: no display, no OpenGL.
+//!
+//! Drawn in world coordinates (metres, y up) through one transform to pixels (y down), so sizes
+//! below are in metres: floor, walls, obstacles, goals, formation targets, fading trails, the
+//! IR rays (green when nothing is seen, toward red as an obstacle nears) and ultrasonic rays
+//! (blue, to the echo), and the robots as discs with a heading mark.
+
+use rapier2d::math::Vector;
+use tiny_skia::{Color, FillRule, LineCap, Paint, PathBuilder, Pixmap, Stroke, Transform};
+
+use crate::sensors::{IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
+use crate::tasks::Env;
+use crate::world::scene::Geometry;
+
+/// Robot colours (RGB), leader/first robot first.
+const PALETTE: [[u8; 3]; 8] = [
+    [31, 119, 180],
+    [255, 127, 14],
+    [44, 160, 44],
+    [148, 103, 189],
+    [214, 39, 40],
+    [140, 86, 75],
+    [227, 119, 194],
+    [23, 190, 207],
+];
+
+fn paint(rgb: [u8; 3], alpha: u8) -> Paint<'static> {
+    let mut p = Paint::default();
+    p.set_color_rgba8(rgb[0], rgb[1], rgb[2], alpha);
+    p.anti_alias = true;
+    p
+}
+
+fn stroke(width: f32) -> Stroke {
+    Stroke {
+        width,
+        line_cap: LineCap::Round,
+        ..Stroke::default()
+    }
+}
+
+fn line(a: Vector, b: Vector) -> Option<tiny_skia::Path> {
+    let mut pb = PathBuilder::new();
+    pb.move_to(a.x, a.y);
+    pb.line_to(b.x, b.y);
+    pb.finish()
+}
+
+/// Renders `env` into a `width` × `height` RGB frame (row-major, 3 bytes a pixel).
+pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
+    let Some(mut pixmap) = Pixmap::new(width.max(1), height.max(1)) else {
+        return vec![0; (width * height * 3) as usize];
+    };
+    pixmap.fill(Color::from_rgba8(250, 250, 247, 255));
+    let scene = &env.world.scene;
+    let (aw, ah) = scene.arena;
+    let t = if scene.walled {
+        scene.wall_thickness
+    } else {
+        0.02
+    };
+    let scale = (width as f32 / (aw + 2.0 * t)).min(height as f32 / (ah + 2.0 * t));
+    let transform = Transform::from_row(
+        scale,
+        0.0,
+        0.0,
+        -scale,
+        0.5 * width as f32,
+        0.5 * height as f32,
+    );
+    // Walls (or the outline of an open floor).
+    if scene.walled {
+        for wall in scene.walls() {
+            fill_shape(&mut pixmap, &wall, paint([70, 70, 70], 255), transform);
+        }
+    } else if let Some(rect) = tiny_skia::Rect::from_xywh(-0.5 * aw, -0.5 * ah, aw, ah) {
+        let path = PathBuilder::from_rect(rect);
+        pixmap.stroke_path(
+            &path,
+            &paint([160, 160, 160], 255),
+            &stroke(0.01),
+            transform,
+            None,
+        );
+    }
+    for shape in &scene.shapes {
+        fill_shape(&mut pixmap, shape, paint([120, 120, 120], 255), transform);
+    }
+    // Goals.
+    let goal_radius = env.cfg.task.goal_radius;
+    for (k, goal) in env.goals().iter().enumerate() {
+        let colour = if env.n_goals() > 1 {
+            PALETTE[k % 8]
+        } else {
+            [214, 39, 40]
+        };
+        if let Some(c) = PathBuilder::from_circle(goal.x, goal.y, goal_radius.max(0.01)) {
+            pixmap.fill_path(&c, &paint(colour, 70), FillRule::Winding, transform, None);
+            pixmap.stroke_path(&c, &paint(colour, 255), &stroke(0.006), transform, None);
+        }
+    }
+    // Formation targets: crosses in the follower's colour.
+    for (k, target) in env.formation_targets().iter().enumerate() {
+        let colour = PALETTE[(k + 1) % 8];
+        let d = 0.025;
+        for (a, b) in [
+            (Vector::new(-d, -d), Vector::new(d, d)),
+            (Vector::new(-d, d), Vector::new(d, -d)),
+        ] {
+            if let Some(l) = line(*target + a, *target + b) {
+                pixmap.stroke_path(&l, &paint(colour, 220), &stroke(0.008), transform, None);
+            }
+        }
+    }
+    // Trails, fading toward the past.
+    for (k, trail) in env.trails().iter().enumerate() {
+        let colour = PALETTE[k % 8];
+        let n = trail.len();
+        for (i, pair) in trail.windows(2).enumerate() {
+            let alpha = (40.0 + 200.0 * (i + 1) as f32 / n.max(1) as f32) as u8;
+            if let Some(l) = line(pair[0], pair[1]) {
+                pixmap.stroke_path(&l, &paint(colour, alpha), &stroke(0.006), transform, None);
+            }
+        }
+    }
+    // Sensor rays and robots.
+    let radius = env.world.drive.radius;
+    for (k, robot) in env.world.robots.iter().enumerate() {
+        let (s, c) = robot.heading.sin_cos();
+        let dir = |bearing: f32| {
+            let (bs, bc) = bearing.sin_cos();
+            Vector::new(c * bc - s * bs, s * bc + c * bs)
+        };
+        for j in 0..US_COUNT {
+            let d = dir(US_BEARINGS[j]);
+            let start = robot.position + radius * d;
+            let length = robot.us_hit[j].min(env.world.us.max_range);
+            if let Some(l) = line(start, start + length * d) {
+                pixmap.stroke_path(
+                    &l,
+                    &paint([60, 110, 220], 60),
+                    &stroke(0.004),
+                    transform,
+                    None,
+                );
+            }
+        }
+        for j in 0..IR_COUNT {
+            let d = dir(IR_BEARINGS[j]);
+            let start = robot.position + radius * d;
+            let p = env.world.ir.normalise(robot.ir_raw[j]);
+            let colour = [
+                (60.0 + 195.0 * p) as u8,
+                (170.0 * (1.0 - p) + 40.0) as u8,
+                40,
+            ];
+            let length = robot.ir_hit[j].min(env.world.ir.range);
+            if let Some(l) = line(start, start + length * d) {
+                let alpha = (110.0 + 145.0 * p) as u8;
+                pixmap.stroke_path(&l, &paint(colour, alpha), &stroke(0.007), transform, None);
+            }
+        }
+        let colour = PALETTE[k % 8];
+        if let Some(body) = PathBuilder::from_circle(robot.position.x, robot.position.y, radius) {
+            pixmap.fill_path(
+                &body,
+                &paint(colour, 235),
+                FillRule::Winding,
+                transform,
+                None,
+            );
+            let rim = if robot.in_contact {
+                [214, 39, 40]
+            } else {
+                [30, 30, 30]
+            };
+            pixmap.stroke_path(&body, &paint(rim, 255), &stroke(0.006), transform, None);
+        }
+        if let Some(l) = line(robot.position, robot.position + 0.9 * radius * dir(0.0)) {
+            pixmap.stroke_path(
+                &l,
+                &paint([255, 255, 255], 255),
+                &stroke(0.012),
+                transform,
+                None,
+            );
+        }
+    }
+    // Premultiplied RGBA over an opaque background is plain RGB.
+    pixmap
+        .data()
+        .chunks_exact(4)
+        .flat_map(|px| [px[0], px[1], px[2]])
+        .collect()
+}
+
+fn fill_shape(
+    pixmap: &mut Pixmap,
+    shape: &crate::world::SceneShape,
+    paint: Paint,
+    transform: Transform,
+) {
+    let (s, c) = shape.angle.sin_cos();
+    let at = |x: f32, y: f32| shape.center + Vector::new(c * x - s * y, s * x + c * y);
+    match shape.geometry {
+        Geometry::Circle(b) => {
+            if let Some(p) = PathBuilder::from_circle(shape.center.x, shape.center.y, b.radius) {
+                pixmap.fill_path(&p, &paint, FillRule::Winding, transform, None);
+            }
+        }
+        Geometry::Box(b) => {
+            let (hx, hy) = (b.half_extents.x, b.half_extents.y);
+            let mut pb = PathBuilder::new();
+            let corners = [at(-hx, -hy), at(hx, -hy), at(hx, hy), at(-hx, hy)];
+            pb.move_to(corners[0].x, corners[0].y);
+            for p in &corners[1..] {
+                pb.line_to(p.x, p.y);
+            }
+            pb.close();
+            if let Some(p) = pb.finish() {
+                pixmap.fill_path(&p, &paint, FillRule::Winding, transform, None);
+            }
+        }
+        Geometry::Segment(g) => {
+            if let Some(l) = line(shape.center + g.a, shape.center + g.b) {
+                pixmap.stroke_path(&l, &paint, &stroke(0.02), transform, None);
+            }
+        }
+    }
+}
