@@ -8,7 +8,7 @@
 use rapier2d::math::Vector;
 use tiny_skia::{Color, FillRule, LineCap, Paint, PathBuilder, Pixmap, Stroke, Transform};
 
-use crate::sensors::{IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
+use crate::sensors::{IR_BEARINGS, US_BEARINGS};
 use crate::tasks::Env;
 use crate::world::scene::Geometry;
 
@@ -131,10 +131,10 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
             let (bs, bc) = bearing.sin_cos();
             Vector::new(c * bc - s * bs, s * bc + c * bs)
         };
-        for j in 0..US_COUNT {
-            let d = dir(US_BEARINGS[j]);
+        for (bearing, hit) in US_BEARINGS.iter().zip(robot.us_hit) {
+            let d = dir(*bearing);
             let start = robot.position + radius * d;
-            let length = robot.us_hit[j].min(env.world.us.max_range);
+            let length = hit.min(env.world.us.max_range);
             if let Some(l) = line(start, start + length * d) {
                 pixmap.stroke_path(
                     &l,
