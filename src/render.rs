@@ -145,16 +145,16 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
                 );
             }
         }
-        for j in 0..IR_COUNT {
-            let d = dir(IR_BEARINGS[j]);
+        for ((bearing, hit), raw) in IR_BEARINGS.iter().zip(robot.ir_hit).zip(robot.ir_raw) {
+            let d = dir(*bearing);
             let start = robot.position + radius * d;
-            let p = env.world.ir.normalise(robot.ir_raw[j]);
+            let p = env.world.ir.normalise(raw);
             let colour = [
                 (60.0 + 195.0 * p) as u8,
                 (170.0 * (1.0 - p) + 40.0) as u8,
                 40,
             ];
-            let length = robot.ir_hit[j].min(env.world.ir.range);
+            let length = hit.min(env.world.ir.range);
             if let Some(l) = line(start, start + length * d) {
                 let alpha = (110.0 + 145.0 * p) as u8;
                 pixmap.stroke_path(&l, &paint(colour, alpha), &stroke(0.007), transform, None);
