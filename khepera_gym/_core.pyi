@@ -105,11 +105,51 @@ class Batch:
         "wall_thickness": t, "robot_radius": r, "goal_radius": r, "obstacles": [...]} with
         obstacles {"kind": "circle", "center", "radius"}, {"kind": "box", "center",
         "half_extents", "angle"} or {"kind": "segment", "a", "b"} (m, rad)."""
+    def render(self, index: int = 0, width: int = 480, height: int = 480) -> npt.NDArray[np.uint8]:
+        """RGB frame (height, width, 3) of world ``index``, drawn in software (no display, no
+        OpenGL): arena, obstacles, goals, formation targets, trails, IR and ultrasonic rays,
+        robots with heading. Sizes 16..4096 pixels a side."""
+    def set_trail_length(self, length: int) -> None:
+        """Keeps the last ``length`` robot positions of every world for the trails drawn by
+        ``render`` (0, the default, keeps none and costs nothing)."""
     def config_toml(self) -> str:
         """The fully resolved scenario (defaults + file + overrides) as TOML text."""
 
 def obs_layout(task: str) -> list[tuple[str, int, int]]:
     """Observation layout of a task: (name, start, stop) slices, in order."""
+
+class Policy:
+    """A baseline controller of the paper acting on observations (src/controllers/), batched.
+
+    Built by the static constructors; ``act`` maps observations (N, obs_dim) float32 to
+    normalised wheel actions (N, act_dim) float32 (ActionError on NaN or a wrong layout)."""
+
+    @staticmethod
+    def position_control(
+        vmax: float, wmax: float, kr: float, stop_radius: float, axle_length: float,
+        max_wheel_speed: float,
+    ) -> Policy: ...
+    @staticmethod
+    def braitenberg(
+        weights: list[list[float]], threshold: float, vmax: float, wmax: float, kr: float,
+        stop_radius: float, axle_length: float, max_wheel_speed: float,
+    ) -> Policy: ...
+    @staticmethod
+    def vfh(
+        sectors: int, threshold: float, hm: float, vmax: float, wmax: float, kr: float,
+        stop_radius: float, us_range: float, beam_width: float, min_valley: float,
+        axle_length: float, max_wheel_speed: float,
+    ) -> Policy: ...
+    @staticmethod
+    def leader_follower(
+        offsets: list[tuple[float, float]] | None, vmax: float, wmax: float, kr: float,
+        stop_radius: float, feedforward: bool, weights: list[list[float]] | None,
+        threshold: float, leader: Policy, axle_length: float, max_wheel_speed: float,
+    ) -> Policy: ...
+    def act(self, obs: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]: ...
+
+def braitenberg_weights(name: str) -> list[list[float]]:
+    """Weight matrices of the Braitenberg block: "default" or "kteam" (m/s per unit proximity)."""
 
 def default_config(name: str) -> str:
     """A built-in scenario file (TOML text): a task's defaults ("nav", "avoid", "formation",
