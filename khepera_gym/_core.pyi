@@ -157,3 +157,5 @@ def default_config(name: str) -> str:
 
 def builtin_configs() -> list[str]:
     """Names of the built-in scenario files."""
+def _panic_for_test() -> None:
+    """Panics inside the binding guard (tests: a panic must surface as KheperaError)."""

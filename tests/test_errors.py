@@ -253,3 +253,10 @@ def test_batch_misuse_raises_khepera_error_not_panic() -> None:
         error = _outcome(call)
         if error is not None:
             assert isinstance(error, (KheperaError, TypeError, OverflowError)), repr(error)
+
+
+def test_a_real_rust_panic_surfaces_as_khepera_error() -> None:
+    """A panic inside the core (here a deliberate out-of-bounds index) is caught at the binding."""
+    error = _outcome(_core._panic_for_test)
+    assert type(error) is KheperaError, type(error)
+    assert "internal error" in str(error) and "index out of bounds" in str(error)

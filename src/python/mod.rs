@@ -905,6 +905,18 @@ fn default_config(py: Python<'_>, name: &str) -> PyResult<String> {
     })
 }
 
+/// Panics inside the binding's guard, for the test that a Rust panic surfaces as KheperaError
+/// (never as pyo3's PanicException, which escapes `except Exception`).
+#[pyfunction]
+fn _panic_for_test(py: Python<'_>) -> PyResult<()> {
+    guard(py, || {
+        let rows: Vec<u32> = Vec::new();
+        // An out-of-bounds index: the kind of bug the guard exists for.
+        let _ = rows[std::hint::black_box(3)];
+        Ok(())
+    })
+}
+
 /// Names of the built-in scenarios.
 #[pyfunction]
 fn builtin_configs() -> Vec<&'static str> {
@@ -920,5 +932,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(obs_layout, m)?)?;
     m.add_function(wrap_pyfunction!(default_config, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_configs, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_for_test, m)?)?;
     Ok(())
 }
