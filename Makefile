@@ -1,6 +1,6 @@
 # Developer entry points. On a fresh machine (Python >= 3.10 and a Rust toolchain):
 #   make demo    build the extension into .venv and run the Nav demo
-#   make test    build, then run the Rust tests and the Python tests
+#   make test    build with the sb3 extra (torch, ~5 GB), then run the Rust and Python tests
 # Everything Python lives in the virtual environment .venv (created here when missing).
 
 VENV      := .venv
@@ -13,6 +13,7 @@ RUST_SRC  := Cargo.toml $(wildcard Cargo.lock) pyproject.toml \
              $(shell find src configs -type f 2>/dev/null)
 TOOLS     := $(VENV)/.tools-installed
 BUILT     := $(VENV)/.khepera-gym-built
+SB3       := $(VENV)/.sb3-installed
 
 .PHONY: develop test demo bench lint format clean
 
@@ -32,7 +33,14 @@ $(BUILT): $(TOOLS) $(RUST_SRC)
 	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test
 	touch $@
 
-test: develop
+# `make test` also installs the `sb3` extra (stable-baselines3, torch, rich) for tests/test_sb3.py,
+# with the same `maturin develop` (and stamps the build as fresh). PyPI's torch wheel brings its
+# CUDA libraries: about 5.4 GB and 75 s on a fresh machine. `make demo` does without it.
+$(SB3): $(TOOLS) pyproject.toml
+	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3
+	touch $@ $(BUILT)
+
+test: $(SB3) develop
 	cargo test --release
 	$(PYTHON) -m pytest -q
 

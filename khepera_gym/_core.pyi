@@ -126,25 +126,52 @@ class Policy:
 
     @staticmethod
     def position_control(
-        vmax: float, wmax: float, kr: float, stop_radius: float, axle_length: float,
+        vmax: float,
+        wmax: float,
+        kr: float,
+        stop_radius: float,
+        axle_length: float,
         max_wheel_speed: float,
     ) -> Policy: ...
     @staticmethod
     def braitenberg(
-        weights: list[list[float]], threshold: float, vmax: float, wmax: float, kr: float,
-        stop_radius: float, axle_length: float, max_wheel_speed: float,
+        weights: list[list[float]],
+        threshold: float,
+        vmax: float,
+        wmax: float,
+        kr: float,
+        stop_radius: float,
+        axle_length: float,
+        max_wheel_speed: float,
     ) -> Policy: ...
     @staticmethod
     def vfh(
-        sectors: int, threshold: float, hm: float, vmax: float, wmax: float, kr: float,
-        stop_radius: float, us_range: float, beam_width: float, min_valley: float,
-        axle_length: float, max_wheel_speed: float,
+        sectors: int,
+        threshold: float,
+        hm: float,
+        vmax: float,
+        wmax: float,
+        kr: float,
+        stop_radius: float,
+        us_range: float,
+        beam_width: float,
+        min_valley: float,
+        axle_length: float,
+        max_wheel_speed: float,
     ) -> Policy: ...
     @staticmethod
     def leader_follower(
-        offsets: list[tuple[float, float]] | None, vmax: float, wmax: float, kr: float,
-        stop_radius: float, feedforward: bool, weights: list[list[float]] | None,
-        threshold: float, leader: Policy, axle_length: float, max_wheel_speed: float,
+        offsets: list[tuple[float, float]] | None,
+        vmax: float,
+        wmax: float,
+        kr: float,
+        stop_radius: float,
+        feedforward: bool,
+        weights: list[list[float]] | None,
+        threshold: float,
+        leader: Policy,
+        axle_length: float,
+        max_wheel_speed: float,
     ) -> Policy: ...
     def act(self, obs: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]: ...
 
@@ -157,5 +184,6 @@ def default_config(name: str) -> str:
 
 def builtin_configs() -> list[str]:
     """Names of the built-in scenario files."""
+
 def _panic_for_test() -> None:
     """Panics inside the binding guard (tests: a panic must surface as KheperaError)."""

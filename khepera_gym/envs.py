@@ -2,7 +2,8 @@
 
 :class:`NavEnv` (drive to a goal), :class:`AvoidEnv` (the same among random obstacles) and
 :class:`FormationEnv` (followers holding a formation around a leader) share :class:`KheperaEnv`;
-their heuristics are :func:`nav_heuristic`, :func:`avoid_heuristic` and :func:`formation_heuristic`.
+their heuristics are :func:`nav_heuristic`, :func:`avoid_heuristic` and :func:`formation_heuristic`,
+thin wrappers of the paper's controllers in :mod:`khepera_gym.baselines` (computed in Rust).
 
 Each env owns a ``_core.Batch`` of one world without autoreset: the Rust core simulates, observes,
 rewards and ends episodes; this layer only validates actions, converts outputs to Python scalars
@@ -22,9 +23,10 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import _core
+from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
 from khepera_gym.config import ConfigArg, resolve_config
 from khepera_gym.errors import ActionError, ConfigError
-from khepera_gym.layout import layout_dict, obs_layout
+from khepera_gym.layout import layout_dict
 
 #: Action types understood by the Rust core: normalised (left, right) wheel speeds, or (v, ω).
 ACTION_TYPES = ("wheels", "unicycle")
@@ -575,8 +577,9 @@ class FormationEnv(KheperaEnv):
     3 m × 3 m with walls and, by default, no obstacles; robots are obstacles to one another
     (contacts and sensor rays). `config="paper_fig7"` loads the paper's scene (the cross past four
     obstacles). With `leader="agent"` the leader is driven by the action too, with the Nav
-    observation and reward. :func:`formation_heuristic` (a proportional controller on each
-    follower's `target_offset`) keeps the default formation within a few centimetres.
+    observation and reward. :func:`formation_heuristic` (the paper's leader-follower control,
+    :class:`khepera_gym.baselines.LeaderFollower`, toward each follower's `target_offset`)
+    keeps the default formation within a centimetre on average.
 
     ## Action Space
 
@@ -747,160 +750,86 @@ class FormationEnv(KheperaEnv):
         return self._batch.agent_rewards()[0]
 
 
-# --- heuristic policy of the Nav task (paper eqs. 1-4) --------------------------------------------
+# --- heuristic policies: the paper's controllers of khepera_gym.baselines ------------------------
 
-#: Cruise speed of the position controller (m/s).
-NAV_HEURISTIC_V_MAX = 0.3
-#: Largest turn rate of the position controller (rad/s).
-NAV_HEURISTIC_W_MAX = 4.0
-#: Distance to the goal below which the controller slows down proportionally (m).
-NAV_HEURISTIC_K_R = 0.15
-#: Distance between the wheels of the Khepera IV (m).
-KHEPERA_AXLE_LENGTH = 0.1054
-#: Largest wheel speed of the Khepera IV (m/s); normalised wheel commands are divided by it.
-KHEPERA_MAX_WHEEL_SPEED = 0.813
+#: Default Braitenberg weights (m/s per unit of IR proximity; paper eqs. 5-7), as the Rust core
+#: defines them: rows left, right wheel; columns the IR sensors in K-Team order.
+BRAITENBERG_WEIGHTS = np.array(_core.braitenberg_weights("default"), dtype=np.float32)
+
+#: The heuristics' controllers, with their defaults (immutable and stateless: safe to share).
+_NAV_POLICY = PositionControl()
+_AVOID_POLICY = Braitenberg()
+_FORMATION_POLICY = LeaderFollower(shape=None, leader=_AVOID_POLICY)
 
 
 def nav_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
-    """Position controller of the KH4VREP paper (eqs. 1-4) acting on Nav observations.
+    """Position control of the KH4VREP paper (eqs. 1-4) on Nav observations.
 
-    ``v = v_max`` beyond ``k_r`` of the goal, else ``d · v_max / k_r``; ``ω = ω_max · sin(α)``
-    with α the goal bearing in the robot frame; converted to normalised wheel speeds
-    ``(v ∓ ω · axle / 2) / 0.813`` clipped to [-1, 1]. ``v_max`` = 0.3 m/s, ``ω_max`` = 4 rad/s,
-    ``k_r`` = 0.15 m. Ignores obstacles.
+    :class:`khepera_gym.baselines.PositionControl` with its defaults: ``v = v_max`` beyond
+    ``k_r`` of the goal, else ``d · v_max / k_r``; ``ω = ω_max · sin(α)`` with α the goal
+    bearing in the robot frame; ``v_max`` = 0.3 m/s, ``ω_max`` = 4 rad/s, ``k_r`` = 0.15 m,
+    stop within 0.02 m. Ignores obstacles.
 
     Args:
-        observation: One Nav observation of shape (obs_dim,) or a batch (N, obs_dim).
+        observation: One Nav observation of shape (18,) or a batch (N, 18).
 
     Returns:
         Wheel actions of shape (2,) or (N, 2), float32, for ``action_type="wheels"``.
+
+    Raises:
+        ActionError: Wrong length or NaN/inf in the observation.
     """
-    observation = np.asarray(observation, dtype=np.float32)
-    layout = obs_layout("nav")
-    goal_distance = observation[..., layout["goal_distance"]][..., 0]
-    bearing_sin = observation[..., layout["goal_bearing_sin"]][..., 0]
-    bearing_cos = observation[..., layout["goal_bearing_cos"]][..., 0]
-    bearing = np.arctan2(bearing_sin, bearing_cos)
-    speed = np.where(
-        goal_distance > NAV_HEURISTIC_K_R,
-        NAV_HEURISTIC_V_MAX,
-        goal_distance * (NAV_HEURISTIC_V_MAX / NAV_HEURISTIC_K_R),
-    )
-    turn_rate = NAV_HEURISTIC_W_MAX * np.sin(bearing)
-    half_axle = 0.5 * KHEPERA_AXLE_LENGTH
-    wheel_speeds = np.stack((speed - turn_rate * half_axle, speed + turn_rate * half_axle), axis=-1)
-    return np.clip(wheel_speeds / KHEPERA_MAX_WHEEL_SPEED, -1.0, 1.0).astype(np.float32)
-
-
-# --- heuristic policy of the Avoid task (paper eqs. 1-7) ------------------------------------------
-
-#: Braitenberg weights (m/s per unit of IR proximity; paper eqs. 5-7), as the Rust scripted leader
-#: uses them: rows left, right wheel; columns the IR sensors in K-Team order. An obstacle on one
-#: side speeds up that side's wheel and slows the other; one straight ahead turns the robot right.
-BRAITENBERG_WEIGHTS = np.array(
-    [
-        [0.0, 0.6, 1.6, -0.4, -1.8, -0.8, 0.0, 0.0],
-        [0.0, -0.8, -1.8, -2.4, 1.6, 0.6, 0.0, 0.0],
-    ],
-    dtype=np.float32,
-)
-#: IR proximity under which a sensor counts as seeing nothing (the Braitenberg block is off).
-BRAITENBERG_THRESHOLD = 0.02
+    return _NAV_POLICY(observation)
 
 
 def avoid_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
     """Position control followed by Braitenberg avoidance (paper eqs. 1-7, Fig. 5).
 
-    The wheel speeds of :func:`nav_heuristic` (m/s) pass unchanged while every IR proximity is
-    below :data:`BRAITENBERG_THRESHOLD`; otherwise ``W · p`` is added to them, with ``p`` the 8 IR
-    proximities and ``W`` = :data:`BRAITENBERG_WEIGHTS`. Works on Nav and Avoid observations
-    (same layout); it reaches the goal in most Avoid episodes and in the paper's Fig. 6 scene, but
-    like any reactive controller it can be trapped in a dead end.
+    :class:`khepera_gym.baselines.Braitenberg` with its defaults: the wheel speeds of
+    :func:`nav_heuristic` pass unchanged while every IR proximity is below 0.05; otherwise
+    ``W · p`` is added to them (``p`` the 8 IR proximities, ``W`` = :data:`BRAITENBERG_WEIGHTS`).
+    Works on Nav and Avoid observations (same layout); it reaches the goal in most Avoid
+    episodes and in the paper's Fig. 6 scene, but like any reactive controller it can be
+    trapped in a dead end.
 
     Args:
         observation: One Avoid observation of shape (18,) or a batch (N, 18).
 
     Returns:
         Wheel actions of shape (2,) or (N, 2), float32, for ``action_type="wheels"``.
+
+    Raises:
+        ActionError: Wrong length or NaN/inf in the observation.
     """
-    observation = np.asarray(observation, dtype=np.float32)
-    wheel_speeds = nav_heuristic(observation) * KHEPERA_MAX_WHEEL_SPEED
-    proximity = observation[..., obs_layout("avoid")["ir"]]
-    sees_obstacle = np.any(proximity > BRAITENBERG_THRESHOLD, axis=-1, keepdims=True)
-    avoidance = proximity @ BRAITENBERG_WEIGHTS.T
-    wheel_speeds = wheel_speeds + np.where(sees_obstacle, avoidance, 0.0)
-    return np.clip(wheel_speeds / KHEPERA_MAX_WHEEL_SPEED, -1.0, 1.0).astype(np.float32)
-
-
-# --- heuristic policy of the Formation task (LeaderFollower) --------------------------------------
-
-#: Forward speed per metre that the target lies ahead of the follower (1/s).
-FORMATION_HEURISTIC_K_V = 5.0
-#: Turn rate per unit sine of the target bearing (rad/s).
-FORMATION_HEURISTIC_K_W = 10.0
-#: Largest forward speed of a follower (m/s); above the leader's 0.15 m/s, to catch up.
-FORMATION_HEURISTIC_V_MAX = 0.6
-#: Distance to the target under which the bearing term fades out (m): on the target its bearing
-#: is meaningless.
-FORMATION_HEURISTIC_D_0 = 0.05
-#: Largest yaw rate of the Khepera IV (rad/s), 2 · 0.813 / 0.1054: the normalisation of ω.
-KHEPERA_MAX_YAW_RATE = 2.0 * KHEPERA_MAX_WHEEL_SPEED / KHEPERA_AXLE_LENGTH
-#: Length of a follower's observation block.
-FORMATION_FOLLOWER_OBS_DIM = 23
-#: Length of the Nav observation (an agent leader's block in the Formation observation).
-NAV_OBS_DIM = 18
-
-
-def _follower_layout() -> dict[str, slice]:
-    """Layout of one follower's block, from the Formation layout (names "follower_0/...")."""
-    prefix = "follower_0/"
-    return {
-        name.removeprefix(prefix): block
-        for name, block in obs_layout("formation").items()
-        if name.startswith(prefix)
-    }
+    return _AVOID_POLICY(observation)
 
 
 def formation_follower_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
-    """Proportional tracking of the formation target for one follower block (LeaderFollower).
+    """Leader-follower control (paper eq. 12) of follower blocks, toward their own targets.
 
-    With (x, y) = ``target_offset`` (the target in the follower's robot frame), d its length and
-    α its bearing, and (v_L, ω_L) the leader's velocity from ``leader_velocity``:
-    ``v = v_L + k_v · x`` clipped to ±v_max, ``ω = ω_L + k_ω · sin(α) · min(1, d / d_0)``,
-    converted to normalised wheel speeds. ``k_v`` = 5 /s, ``k_ω`` = 10 rad/s, ``v_max`` =
-    0.6 m/s, ``d_0`` = 0.05 m. It ignores obstacles and the other robots.
+    :class:`khepera_gym.baselines.LeaderFollower` with ``shape=None``: each follower drives
+    to the target of its observation (``target_offset``, eq. 12 as the scenario defines it)
+    with position control (v_max 0.35 m/s, ω_max 4 rad/s, k_r 0.08 m), plus the leader's speed
+    along its heading (feed-forward), then Braitenberg avoidance. Fits any shape and number of
+    followers, and a PettingZoo follower's own observation.
 
     Args:
         observation: One follower block of shape (23,), or any batch of them (..., 23).
 
     Returns:
         Wheel actions of shape (..., 2), float32, for ``action_type="wheels"``.
+
+    Raises:
+        ActionError: Wrong length or NaN/inf in the observation.
     """
-    observation = np.asarray(observation, dtype=np.float32)
-    layout = _follower_layout()
-    target_offset = observation[..., layout["target_offset"]]
-    leader_velocity = observation[..., layout["leader_velocity"]]
-    ahead, left = target_offset[..., 0], target_offset[..., 1]
-    distance = np.hypot(ahead, left)
-    bearing = np.arctan2(left, ahead)
-    speed = np.clip(
-        leader_velocity[..., 0] * KHEPERA_MAX_WHEEL_SPEED + FORMATION_HEURISTIC_K_V * ahead,
-        -FORMATION_HEURISTIC_V_MAX,
-        FORMATION_HEURISTIC_V_MAX,
-    )
-    turn_rate = leader_velocity[..., 1] * KHEPERA_MAX_YAW_RATE + FORMATION_HEURISTIC_K_W * np.sin(
-        bearing
-    ) * np.minimum(1.0, distance / FORMATION_HEURISTIC_D_0)
-    half_axle = 0.5 * KHEPERA_AXLE_LENGTH
-    wheel_speeds = np.stack((speed - turn_rate * half_axle, speed + turn_rate * half_axle), axis=-1)
-    return np.clip(wheel_speeds / KHEPERA_MAX_WHEEL_SPEED, -1.0, 1.0).astype(np.float32)
+    return _FORMATION_POLICY(observation)
 
 
 def formation_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
     """Joint action of :class:`FormationEnv` from its joint observation.
 
     Every follower block gets :func:`formation_follower_heuristic`; an agent leader's Nav block
-    (present when the observation length is 18 + 19K) gets :func:`avoid_heuristic`.
+    (present when the observation length is 18 + 23K) gets :func:`avoid_heuristic`.
 
     Args:
         observation: One Formation observation of shape (obs_dim,) or a batch (N, obs_dim).
@@ -909,21 +838,9 @@ def formation_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
         Actions of shape (act_dim,) or (N, act_dim), float32, for ``action_type="wheels"``.
 
     Raises:
-        ValueError: The length is neither 19K nor 18 + 19K.
+        ActionError: The length is neither 23K nor 18 + 23K (a ``ValueError``), or NaN/inf.
     """
-    observation = np.asarray(observation, dtype=np.float32)
-    obs_dim = observation.shape[-1]
-    leader_dim = obs_dim % FORMATION_FOLLOWER_OBS_DIM
-    if leader_dim not in (0, NAV_OBS_DIM) or obs_dim <= leader_dim:
-        raise ValueError(
-            f"a Formation observation has 19K values (18 + 19K with an agent leader), got {obs_dim}"
-        )
-    batch_shape = observation.shape[:-1]
-    followers = observation[..., leader_dim:].reshape(*batch_shape, -1, FORMATION_FOLLOWER_OBS_DIM)
-    actions = formation_follower_heuristic(followers).reshape(*batch_shape, -1)
-    if leader_dim:
-        actions = np.concatenate((avoid_heuristic(observation[..., :leader_dim]), actions), -1)
-    return actions
+    return _FORMATION_POLICY(observation)
 
 
 __all__ = [

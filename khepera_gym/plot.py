@@ -1,7 +1,12 @@
 """Trajectory plots with matplotlib: arena walls, obstacles, goals, robot discs and paths.
 
-One or several robots per episode (a formation: the leader and its followers, each with its
-trace), optionally the formation's target points and snapshots of the robots along the way.
+The counterpart of the KH4VREP library's ``plot`` (the paper's Table 1): :func:`record_rollout`
+runs one seeded episode with a policy and keeps the poses of every step, the goals, the scene
+and the episode statistics (a :class:`Rollout`); :func:`plot_rollouts` draws one or several
+rollouts side by side (e.g. the paper's Fig. 6, Braitenberg vs VFH); :func:`plot_trajectories`
+draws paths into one axes: one or several robots per episode (a formation: the leader and its
+followers, each with its trace), optionally the formation's target points and snapshots of the
+robots along the way.
 
 Works headless: figures are built with matplotlib's object-oriented API (``Figure``), never through
 ``pyplot``'s global state, so no display or GUI backend is needed and saving uses Agg. World frame:
@@ -10,9 +15,12 @@ x right, y up, metres, arena centred at the origin.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import textwrap
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 from matplotlib.axes import Axes
@@ -28,6 +36,8 @@ _DEFAULT_WALL_THICKNESS = 0.05
 _LEADER_COLOUR = "black"
 #: Line width of a thin wall segment in points.
 _SEGMENT_WIDTH = 3.0
+#: Characters per line of a panel title of :func:`plot_rollouts` (fits a 4.8-inch panel).
+_TITLE_WIDTH = 44
 
 
 def _xy(value: Any) -> tuple[float, float]:
@@ -281,4 +291,270 @@ def _draw_targets(
             ax.scatter(x, y, marker="x", s=30, color=colour_of(episode, follower + 1), zorder=7)
 
 
-__all__ = ["plot_trajectories"]
+@dataclass
+class Rollout:
+    """One recorded episode: what :func:`plot_rollouts` draws and the comparison tool saves.
+
+    Attributes:
+        poses: Ground-truth poses at reset and after every step, shape (T + 1, R, 3): x, y (m),
+            θ (rad), robots in the env's order (a formation's leader first).
+        goals: Goal positions of the episode, shape (n_goals, 2) (m).
+        scene: The world's geometry (``env.unwrapped.scene()``) at reset.
+        stats: The episode's ``episode_stats`` ("success", "length", "path_length", ...); empty
+            if the recording stopped before the episode ended.
+        targets: A formation's follower targets (eq. 12) at reset and after every step,
+            shape (T + 1, K, 2), or None for other tasks.
+        dt: Control step (s), so that step t is at time t · dt.
+        label: What produced it, e.g. the policy's name (used as a panel title).
+        seed: The reset seed, if known.
+    """
+
+    poses: np.ndarray
+    goals: np.ndarray
+    scene: dict[str, Any]
+    stats: dict[str, Any] = field(default_factory=dict)
+    targets: np.ndarray | None = None
+    dt: float = 0.05
+    label: str = ""
+    seed: int | None = None
+
+    @property
+    def n_robots(self) -> int:
+        """Number of robots R."""
+        return int(self.poses.shape[1])
+
+    @property
+    def duration(self) -> float:
+        """Simulated time of the recording (s)."""
+        return (len(self.poses) - 1) * self.dt
+
+    def turning(self, robot: int = 0, deadband: float = 0.01) -> tuple[float, int]:
+        """How much a robot turned: (total heading change in rad, turn-direction reversals).
+
+        A reversal is a step whose heading change has the opposite sign of the previous step
+        that turned by more than ``deadband`` rad (0.01 rad per 0.05 s step = 0.2 rad/s); a
+        zigzagging robot has many, a smooth path few.
+        """
+        change = np.diff(np.unwrap(self.poses[:, robot, 2]))
+        signs = np.sign(change[np.abs(change) > deadband])
+        return float(np.abs(change).sum()), int(np.count_nonzero(np.diff(signs)))
+
+
+def control_step(env: Any) -> float:
+    """The scenario's ``physics.dt`` (s) of an env (0.05 s if it cannot be read)."""
+    try:
+        import tomllib
+
+        return float(tomllib.loads(env.unwrapped.config_toml())["physics"]["dt"])
+    except (ImportError, AttributeError, KeyError, TypeError, ValueError):
+        return 0.05
+
+
+def record_rollout(
+    env_id_or_env: str | gym.Env,
+    policy: Callable[[np.ndarray], Any],
+    seed: int,
+    config: Any = None,
+    max_steps: int | None = None,
+    *,
+    label: str = "",
+    **overrides: Any,
+) -> Rollout:
+    """Runs one seeded episode and records the poses after every step.
+
+    Args:
+        env_id_or_env: A registered id (e.g. ``"KheperaIV-Avoid-v0"``), made with
+            ``gym.make(id, config=config, max_steps=max_steps, **overrides)`` and closed
+            afterwards, or a single-world env (not closed).
+        policy: Maps one observation to one action (a baseline of
+            :mod:`khepera_gym.baselines`, a function, ...).
+        seed: ``reset(seed=seed)``: world i of a vector env reset with seed s is this episode
+            for seed s + i.
+        config: Scenario name or TOML path (only with an id).
+        max_steps: With an id, the scenario's ``task.max_steps`` (the core truncates there);
+            with an env, the recording stops after that many steps (``stats`` stays empty if
+            the episode has not ended).
+        label: Stored in :attr:`Rollout.label`.
+        **overrides: Further scenario keys (only with an id).
+
+    Returns:
+        The :class:`Rollout`.
+
+    Raises:
+        ValueError: ``config`` or overrides given with an env instance.
+    """
+    if isinstance(env_id_or_env, str):
+        if max_steps is not None:
+            overrides["max_steps"] = max_steps
+        env = gym.make(env_id_or_env, config=config, **overrides)
+        try:
+            return record_rollout(env, policy, seed, label=label)
+        finally:
+            env.close()
+    if config is not None or overrides:
+        raise ValueError("config and scenario overrides need an env id, not an env instance")
+    env = env_id_or_env
+    unwrapped = env.unwrapped
+    observation, _ = env.reset(seed=seed)
+    has_targets = hasattr(unwrapped, "formation_targets")
+    poses = [unwrapped.poses()]
+    targets = [unwrapped.formation_targets()] if has_targets else []
+    goals, scene = unwrapped.goals(), unwrapped.scene()
+    stats: dict[str, Any] = {}
+    steps = 0
+    while max_steps is None or steps < max_steps:
+        observation, _, terminated, truncated, info = env.step(policy(observation))
+        steps += 1
+        poses.append(unwrapped.poses())
+        if has_targets:
+            targets.append(unwrapped.formation_targets())
+        if terminated or truncated:
+            stats = dict(info.get("episode_stats", {}))
+            break
+    return Rollout(
+        poses=np.array(poses),
+        goals=np.asarray(goals),
+        scene=scene,
+        stats=stats,
+        targets=np.array(targets) if has_targets else None,
+        dt=control_step(env),
+        label=label,
+        seed=seed,
+    )
+
+
+def rollout_summary(rollout: Rollout) -> str:
+    """One line on how a rollout ended, e.g. "reached in 11.2 s, path 1.74 m, no contact"."""
+    stats = rollout.stats
+    if not stats:
+        return f"{rollout.duration:.1f} s recorded"
+    outcome = "reached" if stats.get("success") else "not reached"
+    text = f"{outcome} in {stats['length'] * rollout.dt:.1f} s"
+    if rollout.n_robots == 1 and "path_length" in stats:
+        text += f", path {stats['path_length']:.2f} m"
+    if "formation_error_mean" in stats:
+        text += f", formation error {stats['formation_error_mean'] * 100:.1f} cm"
+    contacts = int(stats.get("collisions", 0))
+    return text + (f", {contacts} steps in contact" if contacts else ", no contact")
+
+
+def _draw_timed_snapshots(ax: Axes, rollout: Rollout, period: float) -> None:
+    """The robot every ``period`` seconds along a single-robot rollout, labelled "5 s", ...;
+    a snapshot within a robot radius of the previous one or of the end is left out, so a
+    robot that stands still is not drawn over and over."""
+    radius = float(rollout.scene.get("robot_radius", 0.0704))
+    every = max(1, round(period / rollout.dt))
+    last, end = rollout.poses[0, 0, :2], rollout.poses[-1, 0, :2]
+    for step in range(every, len(rollout.poses) - 1, every):
+        pose = rollout.poses[step, 0]
+        if min(np.hypot(*(pose[:2] - last)), np.hypot(*(pose[:2] - end))) < radius:
+            continue
+        last = pose[:2]
+        _draw_robot(ax, pose, radius, "C0", alpha=0.15)
+        ax.annotate(
+            f"{step * rollout.dt:g} s",
+            (float(pose[0]), float(pose[1])),
+            xytext=(0, 9),
+            textcoords="offset points",
+            ha="center",
+            fontsize="x-small",
+            zorder=7,
+        )
+
+
+def panel_title(heading: str, rollout: Rollout, width: int = _TITLE_WIDTH) -> str:
+    """``heading`` over :func:`rollout_summary`, wrapped to ``width`` characters a line."""
+    summary = textwrap.fill(rollout_summary(rollout), width)
+    return f"{heading}\n{summary}" if heading else summary
+
+
+def plot_rollouts(
+    rollouts: Sequence[Rollout],
+    titles: Sequence[str] | None = None,
+    *,
+    ncols: int | None = None,
+    panel_size: float = 4.8,
+    snapshots: int = 3,
+    snapshot_period: float | None = 5.0,
+    suptitle: str | None = None,
+) -> Figure:
+    """Draws rollouts side by side, one panel each, in the style of the paper's Figs. 6 and 7.
+
+    A single-robot rollout shows its path with the robot at the start, the end and every
+    ``snapshot_period`` seconds (labelled with the time, so panels compare speeds), the goal
+    and the obstacles; a formation shows one trace per robot (the leader in black), the robots
+    and their targets at ``snapshots`` intermediate times, joined to the leader.
+
+    Args:
+        rollouts: The rollouts (e.g. one per policy on the same seed).
+        titles: One title per panel; default each rollout's label and :func:`rollout_summary`.
+        ncols: Panels per row (default all in one row, at most 4).
+        panel_size: Width and height of a panel (inches).
+        snapshots: Intermediate snapshots of a formation.
+        snapshot_period: Seconds between the snapshots of a single robot (None: none).
+        suptitle: Title of the whole figure.
+
+    Returns:
+        The figure (save it with ``fig.savefig(path)``).
+
+    Raises:
+        ValueError: No rollouts, or a title count that does not match.
+    """
+    if not rollouts:
+        raise ValueError("plot_rollouts needs at least one rollout")
+    if titles is None:
+        titles = [panel_title(r.label, r) for r in rollouts]
+    if len(titles) != len(rollouts):
+        raise ValueError(f"got {len(titles)} titles for {len(rollouts)} rollouts")
+    ncols = min(len(rollouts), 4) if ncols is None else max(1, ncols)
+    nrows = -(-len(rollouts) // ncols)
+    multi_robot = any(r.n_robots > 1 for r in rollouts)
+    width = panel_size * (1.3 if multi_robot else 1.0)
+    height = (panel_size + 0.6) * nrows + (0.3 if suptitle else 0.0)
+    figure = Figure(figsize=(width * ncols, height), layout="constrained")
+    axes = figure.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax, rollout, title in zip(axes, rollouts, titles, strict=False):
+        if rollout.n_robots > 1 and rollout.targets is None:  # several robots, own goals
+            plot_trajectories(
+                [rollout.poses],
+                rollout.scene,
+                goals=[rollout.goals],
+                ax=ax,
+                title=title,
+                robot_names=[f"robot_{i}" for i in range(rollout.n_robots)],
+            )
+        elif rollout.n_robots > 1:  # a formation, leader first
+            k = rollout.n_robots - 1
+            plot_trajectories(
+                [rollout.poses],
+                rollout.scene,
+                goals=[rollout.goals[:1]],
+                ax=ax,
+                title=title,
+                targets=[rollout.targets],
+                leader=0,
+                robot_names=["leader"] + [f"follower_{i}" for i in range(k)],
+                snapshots=snapshots,
+            )
+        else:
+            plot_trajectories(
+                [rollout.poses[:, 0]], rollout.scene, goals=[rollout.goals[0]], ax=ax, title=title
+            )
+            if snapshot_period:
+                _draw_timed_snapshots(ax, rollout, snapshot_period)
+    for ax in axes[len(rollouts) :]:
+        ax.set_axis_off()
+    if suptitle is not None:
+        figure.suptitle(suptitle)
+    return figure
+
+
+__all__ = [
+    "Rollout",
+    "control_step",
+    "panel_title",
+    "plot_rollouts",
+    "plot_trajectories",
+    "record_rollout",
+    "rollout_summary",
+]

@@ -304,3 +304,17 @@ def test_gymnasium_episode_statistics_wrappers_work_on_top():
     for _ in range(5):
         _, _, _, truncated, info = env.step(np.zeros(2, np.float32))
     assert truncated and info["episode"]["l"] == 5 and info["episode_stats"]["length"] == 5
+
+
+def test_column_major_actions_are_read_in_the_right_order() -> None:
+    """rust-numpy hands out Fortran-ordered buffers as slices too; the core must not misread."""
+    results = []
+    for order in ("C", "F"):
+        batch = _core.Batch("nav", 3, num_threads=1)
+        batch.reset(0)
+        actions = np.zeros((3, 2), np.float32, order=order)
+        actions[:, 0] = 1.0
+        batch.step(actions)
+        results.append(batch.sensor_readings()["wheel_speeds"])
+    np.testing.assert_array_equal(results[0], results[1])
+    np.testing.assert_allclose(results[0][:, 0], [[0.813, 0.0]] * 3)

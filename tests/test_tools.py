@@ -107,19 +107,23 @@ def test_plot_trajectories_draws_a_formation_with_its_leader_and_targets(tmp_pat
         plot_trajectories([np.array(poses)], scene, targets=[None, None])
 
 
-def test_cli_demo_prints_a_table_and_saves_the_plot(
+def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert cli.main(["demo", "--episodes", "2", "--out-dir", str(tmp_path)]) == 0
     output = capsys.readouterr().out
-    assert output.count("success rate") == 3  # Nav, Avoid, Formation
+    # The paper's Fig. 6 and Fig. 7 scenes, then Nav, Avoid and Formation.
+    assert output.count("2 episodes per policy") == 5
     for task in ("KheperaIV-Nav-v0", "KheperaIV-Avoid-v0", "KheperaIV-Formation-v0"):
         assert task in output
-    assert "formation_error_mean" in output
-    for name in ("nav_trajectories", "avoid_trajectories", "paper_fig6", "paper_fig7"):
-        plot = tmp_path / f"{name}.png"
+    for policy in ("position_control", "braitenberg", "vfh", "leader_follower", "random"):
+        assert policy in output
+    assert "formation err cm" in output
+    for name in ("paper_fig6", "paper_fig7", "nav", "avoid", "formation"):
+        plot = tmp_path / f"{name}_trajectories.png"
         assert plot.is_file() and plot.stat().st_size > 0
-        assert str(plot) in output
+        assert str(plot.resolve()) in output
+        assert (tmp_path / f"{name}_episodes.csv").is_file()
 
 
 def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:

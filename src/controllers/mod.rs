@@ -107,7 +107,8 @@ impl Policy {
                 let (d, bearing) = goal_of(obs);
                 let ir = &obs[..IR_COUNT];
                 let us = &obs[IR_COUNT..IR_COUNT + US_COUNT];
-                let (v, w) = vfh.twist(ir, us, d, bearing);
+                let wheels = &obs[IR_COUNT + US_COUNT + 3..IR_COUNT + US_COUNT + 5];
+                let (v, w) = vfh.twist(ir, us, d, bearing, wheels[1] - wheels[0]);
                 out.copy_from_slice(&map.action(twist_to_wheels(v, w, map.axle_length)));
             }
             Policy::LeaderFollower {

@@ -48,6 +48,11 @@ pub struct Vfh {
     /// Narrowest valley (rad) the robot will steer into; it aims at least half of it away
     /// from the valley's edges.
     pub min_valley: f32,
+    /// Weight of "close to straight ahead" against "close to the goal" when choosing a valley
+    /// (VFH+'s μ2/μ1; 0 chooses by the goal alone).
+    pub heading_weight: f32,
+    /// Extra cost (rad) of a valley on the other side of the robot's current turn.
+    pub switch_penalty: f32,
 }
 
 impl Default for Vfh {
@@ -63,7 +68,9 @@ impl Default for Vfh {
             us_range: 0.45,
             us_max_range: 2.0,
             beam_width: 45f32.to_radians(),
-            min_valley: 50f32.to_radians(),
+            min_valley: 30f32.to_radians(),
+            heading_weight: 0.4,
+            switch_penalty: 0.6,
         }
     }
 }
@@ -117,7 +124,7 @@ impl Vfh {
     /// The steering direction (rad, robot frame): the goal bearing pulled into the nearest
     /// valley of free sectors at least `min_valley` wide, `min_valley / 2` clear of its edges;
     /// None when no valley is wide enough.
-    pub fn steer(&self, h: &[f32], goal_bearing: f32) -> Option<f32> {
+    pub fn steer(&self, h: &[f32], goal_bearing: f32, turning: f32) -> Option<f32> {
         let n = self.sectors;
         let width = 2.0 * PI / n as f32;
         let free: Vec<bool> = h.iter().map(|v| *v < self.threshold).collect();
@@ -140,20 +147,25 @@ impl Vfh {
                         let lo = self.centre((first_blocked + start) % n) - 0.5 * width;
                         let hi = lo + len as f32 * width;
                         let margin = 0.5 * self.min_valley;
-                        // The goal bearing unwrapped near the valley.
-                        let mut g = goal_bearing;
-                        while g < lo - PI {
-                            g += 2.0 * PI;
-                        }
-                        while g > hi + PI {
-                            g -= 2.0 * PI;
-                        }
+                        // The goal bearing unwrapped into [c - π, c + π] around the
+                        // valley's centre c, so clamping picks the nearer edge.
+                        let centre = 0.5 * (lo + hi);
+                        let g = centre + crate::robot::wrap_angle(goal_bearing - centre);
                         let dir = if hi - lo <= 2.0 * margin {
                             0.5 * (lo + hi)
                         } else {
                             g.clamp(lo + margin, hi - margin)
                         };
-                        let cost = angle_between(dir, goal_bearing);
+                        // VFH+'s cost: near the goal, and near straight ahead (which keeps
+                        // the robot committed to the valley it is turning into).
+                        let mut cost = angle_between(dir, goal_bearing)
+                            + self.heading_weight * angle_between(dir, 0.0);
+                        // The robot's own turn (from its wheel speeds) is the memory VFH+
+                        // keeps as its previous direction: switching sides costs extra, which
+                        // stops a flip-flop between two valleys.
+                        if turning * dir < 0.0 && dir.abs() > 0.05 {
+                            cost += self.switch_penalty;
+                        }
                         if best.is_none_or(|(c, _)| cost < c) {
                             best = Some((cost, crate::robot::wrap_angle(dir)));
                         }
@@ -166,16 +178,32 @@ impl Vfh {
         best.map(|(_, dir)| dir)
     }
 
-    /// (v, ω) from one Nav-layout observation's sensors and goal.
-    pub fn twist(&self, ir: &[f32], us: &[f32], distance: f32, goal_bearing: f32) -> (f32, f32) {
+    /// (v, ω) from one Nav-layout observation's sensors and goal; `turning` is the sign of the
+    /// robot's current turn (right minus left wheel speed).
+    pub fn twist(
+        &self,
+        ir: &[f32],
+        us: &[f32],
+        distance: f32,
+        goal_bearing: f32,
+        turning: f32,
+    ) -> (f32, f32) {
         if distance < self.stop_radius {
             return (0.0, 0.0);
         }
         let h = self.histogram(ir, us);
-        // Boxed in: turn round.
-        let heading_error = self.steer(&h, goal_bearing).unwrap_or(PI);
-        let w = self.wmax * heading_error.sin(); // eq. 9
+        let Some(heading_error) = self.steer(&h, goal_bearing, turning) else {
+            // Boxed in (no valley wide enough): turn in place until one opens.
+            return (0.0, self.wmax);
+        };
+        // Eq. 9, at full rate once the direction is behind (sin would fall back to 0 there).
+        let w = if heading_error.abs() > 0.5 * PI {
+            self.wmax * heading_error.signum()
+        } else {
+            self.wmax * heading_error.sin()
+        };
         let hc = h[self.sector(0.0)].min(self.hm); // eq. 11
+
         let v_prime = self.vmax * (1.0 - hc / self.hm); // eq. 10
         let mut v = v_prime * (1.0 - w.abs() / self.wmax); // eq. 8
         if distance <= self.kr {
@@ -196,7 +224,7 @@ mod tests {
     #[test]
     fn free_space_goes_straight_to_the_goal() {
         let vfh = Vfh::default();
-        let (v, w) = vfh.twist(&[0.0; 8], &[1.0; 5], 1.0, 0.3);
+        let (v, w) = vfh.twist(&[0.0; 8], &[1.0; 5], 1.0, 0.3, 0.0);
         assert!((w - 3.0 * 0.3f32.sin()).abs() < 1e-6);
         assert!(v > 0.0 && v < 0.3);
     }
@@ -207,7 +235,7 @@ mod tests {
         let mut ir = [0.0; 8];
         ir[3] = 0.5; // front
         let us = [1.0, 1.0, 0.1, 1.0, 1.0]; // front echo at 0.2 m
-        let (v, w) = vfh.twist(&ir, &us, 1.0, 0.0);
+        let (v, w) = vfh.twist(&ir, &us, 1.0, 0.0, 0.0);
         assert!(w.abs() > 0.1, "does not turn: {w}");
         assert!(v < 0.1, "does not slow: {v}");
     }

@@ -396,9 +396,10 @@ impl Batch {
                     )),
                 ));
             }
-            match array.as_slice() {
-                Ok(s) => self.actions.copy_from_slice(s),
-                Err(_) => {
+            // as_slice() also accepts column-major data: only take it for C order.
+            match array.as_slice().ok().filter(|_| array.is_c_contiguous()) {
+                Some(s) => self.actions.copy_from_slice(s),
+                None => {
                     for (dst, src) in self.actions.iter_mut().zip(array.as_array().iter()) {
                         *dst = *src;
                     }
@@ -838,9 +839,9 @@ impl PyPolicy {
     ) -> PyResult<Bound<'py, PyAny>> {
         guard(py, || {
             let shape = obs.shape().to_vec();
-            let data: Vec<f32> = match obs.as_slice() {
-                Ok(s) => s.to_vec(),
-                Err(_) => obs.as_array().iter().copied().collect(),
+            let data: Vec<f32> = match obs.as_slice().ok().filter(|_| obs.is_c_contiguous()) {
+                Some(s) => s.to_vec(),
+                None => obs.as_array().iter().copied().collect(),
             };
             let act_dim = self.inner.act_dim(shape[1]).map_err(|e| to_py(py, e))?;
             let policy = &self.inner;

@@ -450,9 +450,12 @@ impl Spawner {
             };
             let goal = match fixed_goal(k).or(goal_hint.take()) {
                 Some(g) => {
+                    // A formation arriving from its start must fit round a fixed goal too.
+                    let arrival = (g - from).y.atan2((g - from).x);
                     if !self.inside(g)
                         || !self.free(g, self.radius)
                         || !self.same_component(from, g)
+                        || !self.formation_fits(g, arrival, &offsets, self.radius)
                     {
                         return None;
                     }

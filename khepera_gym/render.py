@@ -1,0 +1,167 @@
+"""Showing what the robots do: frames, mosaics, a window, GIF/MP4 files.
+
+Frames are drawn by the Rust core in software (``_core.Batch.render``, tiny-skia): no display and
+no OpenGL are needed, so ``render_mode="rgb_array"`` works on a headless machine. This module adds
+what is easier in Python: tiling the frames of several worlds into one mosaic, a pygame window for
+``render_mode="human"`` (imported lazily: ``pip install khepera-gym[render]``), and writing a list
+of frames to a GIF (Pillow, which matplotlib already installs) or an MP4 (imageio-ffmpeg, in the
+``render`` extra).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from khepera_gym.errors import ConfigError, KheperaError
+
+#: Default frame size (pixels, width and height).
+DEFAULT_FRAME_SIZE = (480, 480)
+#: Robot positions kept for the fading trails drawn in frames.
+TRAIL_LENGTH = 100
+
+Frame = npt.NDArray[np.uint8]
+
+
+def check_frame_size(frame_size: Sequence[int]) -> tuple[int, int]:
+    """Validates a (width, height) pair in pixels.
+
+    Raises:
+        ConfigError: Not two integers in 16..4096.
+    """
+    try:
+        width, height = (int(v) for v in frame_size)
+    except (TypeError, ValueError) as error:
+        raise ConfigError(f"frame_size must be (width, height), got {frame_size!r}") from error
+    if not (16 <= width <= 4096 and 16 <= height <= 4096):
+        raise ConfigError(f"frame_size must be 16..4096 pixels a side, got {width}x{height}")
+    return width, height
+
+
+def mosaic(frames: Sequence[Frame], columns: int | None = None, gap: int = 4) -> Frame:
+    """Tiles equally sized frames into one image, row by row, with a dark gap between tiles.
+
+    Args:
+        frames: (H, W, 3) uint8 frames.
+        columns: Tiles per row; default the smallest square grid.
+        gap: Pixels between tiles.
+
+    Returns:
+        One (rows·H + gaps, columns·W + gaps, 3) uint8 frame.
+    """
+    if not frames:
+        raise KheperaError("mosaic() needs at least one frame")
+    count = len(frames)
+    columns = columns or math.ceil(math.sqrt(count))
+    rows = math.ceil(count / columns)
+    height, width, _ = frames[0].shape
+    out = np.full(
+        (rows * height + (rows - 1) * gap, columns * width + (columns - 1) * gap, 3),
+        40,
+        dtype=np.uint8,
+    )
+    for index, frame in enumerate(frames):
+        row, column = divmod(index, columns)
+        top, left = row * (height + gap), column * (width + gap)
+        out[top : top + height, left : left + width] = frame
+    return out
+
+
+class HumanWindow:
+    """A pygame window showing frames at ``fps``; closing it never crashes the program.
+
+    After the user closes the window, :meth:`show` does nothing and :attr:`closed` is True.
+    """
+
+    def __init__(self, title: str, fps: int) -> None:
+        try:
+            import pygame
+        except ImportError as error:
+            raise KheperaError(
+                'render_mode="human" needs pygame: pip install "khepera-gym[render]"'
+            ) from error
+        self._pygame = pygame
+        self._title = title
+        self._fps = fps
+        self._screen: Any = None
+        self._clock: Any = None
+        self.closed = False
+
+    def show(self, frame: Frame) -> None:
+        """Shows one frame and waits to keep ``fps``; handles the window's events."""
+        if self.closed:
+            return
+        pygame = self._pygame
+        if self._screen is None:
+            pygame.init()
+            pygame.display.set_caption(self._title)
+            self._screen = pygame.display.set_mode((frame.shape[1], frame.shape[0]))
+            self._clock = pygame.time.Clock()
+        for event in pygame.event.get():
+            if event.type == pygame.QUIT:
+                self.close()
+                return
+        surface = pygame.surfarray.make_surface(np.ascontiguousarray(frame.swapaxes(0, 1)))
+        self._screen.blit(surface, (0, 0))
+        pygame.display.flip()
+        self._clock.tick(self._fps)
+
+    def close(self) -> None:
+        """Closes the window (safe to call twice)."""
+        if self._screen is not None:
+            self._pygame.display.quit()
+            self._screen = None
+        self.closed = True
+
+
+def save_video(frames: Sequence[Frame], path: str | Path, fps: int = 20) -> Path:
+    """Writes frames to ``path``: ``.gif`` with Pillow, ``.mp4`` with imageio-ffmpeg.
+
+    Raises:
+        KheperaError: No frames, an unknown suffix, or imageio-ffmpeg missing for MP4.
+    """
+    path = Path(path)
+    if not frames:
+        raise KheperaError("save_video() got no frames")
+    suffix = path.suffix.lower()
+    if suffix == ".gif":
+        from PIL import Image
+
+        images = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in frames]
+        images[0].save(
+            path,
+            save_all=True,
+            append_images=images[1:],
+            duration=max(1, round(1000 / fps)),
+            loop=0,
+            optimize=False,
+        )
+        return path
+    if suffix == ".mp4":
+        try:
+            import imageio.v2 as imageio
+        except ImportError as error:
+            raise KheperaError(
+                'MP4 output needs imageio and imageio-ffmpeg: pip install "khepera-gym[render]" '
+                "(or write a .gif)"
+            ) from error
+        with imageio.get_writer(path, fps=fps, codec="libx264", macro_block_size=8) as writer:
+            for frame in frames:
+                writer.append_data(np.asarray(frame, dtype=np.uint8))
+        return path
+    raise KheperaError(f"unknown video format {suffix!r}: use .gif or .mp4")
+
+
+__all__ = [
+    "DEFAULT_FRAME_SIZE",
+    "TRAIL_LENGTH",
+    "HumanWindow",
+    "check_frame_size",
+    "mosaic",
+    "save_video",
+]

@@ -1,0 +1,850 @@
+"""stable-baselines3 vector environments over the Rust batch: no DummyVecEnv, no subprocesses.
+
+:func:`make_vec_env` gives an SB3 ``VecEnv`` whose rows are the N worlds of one ``_core.Batch``
+(``KheperaIV-Nav``, ``-Avoid`` or ``-Formation``); :func:`make_formation_vec_env` one whose rows
+are the (world, follower) pairs of a Formation batch, so one policy drives every follower
+(parameter sharing). :func:`load_policy` loads a model saved by ``khepera-gym train``.
+
+SB3 semantics, and how they are met on a batch that autoresets on the *next* step:
+
+* the batch is built without autoreset; when world i ends at step t (terminated or truncated),
+  ``step_wait`` reads its statistics and calls ``batch.reset_world(i)`` at once, so step t
+  returns the first observation of the new episode, with ``dones[i] = True`` and in
+  ``infos[i]``: ``"terminal_observation"`` (the episode's true last observation),
+  ``"TimeLimit.truncated"`` (truncated and not terminated), ``"is_success"`` and
+  ``"episode_stats"`` (the Gymnasium env's statistics as Python scalars). Rows that did not end
+  get an empty dict;
+* ``reset_world(i)`` without a seed continues world i's own random stream, exactly as a single
+  env's ``reset()`` after an episode does: with the same actions, row i of
+  ``make_vec_env(id, n, seed=s)`` replays ``gym.make(id)`` reset with seed ``s + i`` and then
+  reset without a seed after each episode, bit for bit, whatever ``num_threads``;
+* ``seed(s)`` (SB3's convention) seeds world i with ``s + i`` at the next ``reset()`` only; a
+  ``reset()`` without a pending seed continues every stream (the very first one draws a base
+  seed from the operating system's entropy).
+
+Threading and copies: ``step_wait`` and ``reset`` release the GIL inside the Rust core, which
+steps the worlds on its own pool of ``num_threads`` threads; every returned array is fresh.
+Units and frames are those of the envs (SI, robot frame x forward, y left).
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import time
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar, Protocol
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+
+try:
+    from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices
+except ImportError as error:  # pragma: no cover - exercised only without the extra
+    raise ImportError(
+        "khepera_gym.sb3 needs stable-baselines3: pip install 'khepera-gym[sb3]'"
+    ) from error
+
+from khepera_gym import _core
+from khepera_gym.config import ConfigArg, resolve_config
+from khepera_gym.envs import _check_action_type
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
+from khepera_gym.layout import layout_dict
+
+#: Scenario key that ``max_episode_steps`` (Gymnasium's name) maps onto.
+_MAX_STEPS_KEY = "max_steps"
+#: Seeds drawn when none is given lie in [0, this) (SB3 draws uint32 seeds too).
+_SEED_BOUND = 2**32
+#: File next to a saved model holding its ``VecNormalize`` statistics (``khepera-gym train``).
+VECNORMALIZE_FILE = "vecnormalize.pkl"
+#: SB3 algorithms that :func:`load_policy` recognises in a saved zip: (class name, an attribute
+#: that only its saved ``data`` has), tried in order.
+_ALGORITHM_MARKERS = (
+    ("PPO", "clip_range"),
+    ("SAC", "target_entropy"),
+    ("TD3", "target_policy_noise"),
+    ("A2C", "gae_lambda"),
+)
+_ALGORITHMS = tuple(name for name, _ in _ALGORITHM_MARKERS)
+
+
+def resolve_env_id(env_id: str) -> str:
+    """The registered id of a khepera_gym env: ``"KheperaIV-Nav"`` → ``"KheperaIV-Nav-v0"``.
+
+    An unversioned id resolves to the latest version, without Gymnasium's warning.
+
+    Raises:
+        ConfigError: ``env_id`` is not a registered khepera_gym environment.
+    """
+    import khepera_gym  # noqa: F401  (registers the environments)
+
+    ours = sorted(
+        env_spec.id
+        for env_spec in gym.registry.values()
+        if env_spec.vector_entry_point is not None
+        and str(env_spec.vector_entry_point).startswith("khepera_gym.")
+    )
+    if env_id in ours:
+        return env_id
+    versions = [
+        candidate for candidate in ours if candidate.rsplit("-v", 1)[0] == env_id.rstrip("-")
+    ]
+    if not versions:
+        raise ConfigError(f"unknown environment {env_id!r}; khepera_gym registers {ours}")
+    return max(versions, key=lambda candidate: int(candidate.rsplit("-v", 1)[1]))
+
+
+def task_of(env_id: str) -> str:
+    """The Rust core's task name ("nav", "avoid", "formation") of a khepera_gym env id."""
+    env_spec = gym.spec(resolve_env_id(env_id))
+    vector_class = gym.envs.registration.load_env_creator(str(env_spec.vector_entry_point))
+    return str(vector_class.TASK)
+
+
+class KheperaSB3VecEnv(VecEnv):
+    """An SB3 ``VecEnv`` over N worlds of one task in a ``_core.Batch``; row i is world i.
+
+    Args:
+        task: Task name in the Rust core: "nav", "avoid" or "formation".
+        num_worlds: Number of worlds N (>= 1).
+        seed: If given, world i is seeded with ``seed + i`` at the first ``reset()``.
+        num_threads: Threads of the batch's rayon pool; None uses all cores.
+        config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
+        action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
+        max_episode_steps: If given, overrides the scenario's ``max_steps`` (truncation length).
+        **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1``.
+
+    Attributes that SB3 reads: ``num_envs`` (rows), ``observation_space`` and ``action_space``
+    (one row's), ``render_mode`` (None). ``get_attr`` knows the attributes every world shares
+    (:attr:`SHARED_ATTRIBUTES`); ``env_method`` calls the single env's ground-truth methods on
+    each world (:attr:`WORLD_METHODS`); ``set_attr`` raises (a scenario is fixed at
+    construction: build a new env with other overrides instead).
+    """
+
+    #: Attributes of a single env that are the same for every world, for ``get_attr``.
+    SHARED_ATTRIBUTES: ClassVar[tuple[str, ...]] = (
+        "render_mode",
+        "observation_space",
+        "action_space",
+        "metadata",
+        "action_type",
+        "task",
+        "max_episode_steps",
+        "n_robots",
+    )
+    #: Methods of a single env (``env.unwrapped.NAME()``) that ``env_method`` runs per world.
+    WORLD_METHODS: ClassVar[tuple[str, ...]] = (
+        "poses",
+        "goals",
+        "scene",
+        "sensor_readings",
+        "formation_targets",
+        "obs_layout",
+        "config_toml",
+    )
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+
+    def __init__(
+        self,
+        task: str,
+        num_worlds: int,
+        *,
+        seed: int | None = None,
+        num_threads: int | None = None,
+        config: ConfigArg = None,
+        action_type: str = "wheels",
+        max_episode_steps: int | None = None,
+        **overrides: Any,
+    ) -> None:
+        _check_action_type(action_type)
+        if max_episode_steps is not None:
+            if _MAX_STEPS_KEY in overrides:
+                raise ConfigError(
+                    f"give either max_episode_steps or {_MAX_STEPS_KEY}, not both "
+                    f"(got {max_episode_steps} and {overrides[_MAX_STEPS_KEY]})"
+                )
+            overrides[_MAX_STEPS_KEY] = max_episode_steps
+        config_text, config_name = resolve_config(config, task)
+        self._batch = _core.Batch(
+            task,
+            num_worlds,
+            config_text=config_text,
+            config_name=config_name,
+            overrides=overrides or None,
+            action_type=action_type,
+            num_threads=num_threads,
+            autoreset=False,
+        )
+        self.task = task
+        self.action_type = action_type
+        self.render_mode: str | None = None
+        self.num_worlds: int = self._batch.num_worlds
+        self._configure_rows()
+        super().__init__(
+            self.num_worlds * self.rows_per_world,
+            self._row_observation_space(),
+            self._row_action_space(),
+        )
+        self._actions: npt.NDArray[np.float32] | None = None
+        self._has_reset = False
+        self._closed = False
+        if seed is not None:
+            self.seed(seed)
+
+    # --- rows: one per world here; subclasses map several agents of a world to rows ----------
+
+    def _configure_rows(self) -> None:
+        #: Rows (SB3 envs) per world.
+        self.rows_per_world = 1
+
+    def _row_observation_space(self) -> gym.spaces.Box:
+        low, high = self._batch.obs_bounds()
+        return gym.spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
+
+    def _row_action_space(self) -> gym.spaces.Box:
+        return gym.spaces.Box(-1.0, 1.0, shape=(self._batch.act_dim,), dtype=np.float32)
+
+    def _row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        """Rows of observations from joint observations of shape (worlds, obs_dim)."""
+        return joint
+
+    def _row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        """Rows of rewards of the last step (read before any world is reset)."""
+        return rewards
+
+    def _joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        """Joint actions (worlds, act_dim) from row actions (num_envs, row action)."""
+        return actions
+
+    # --- SB3 VecEnv API ------------------------------------------------------------------------
+
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
+        """Seeds world w with ``seed + w`` at the next ``reset()`` (SB3: seeds act on reset only).
+
+        Args:
+            seed: A non-negative int; None draws one from the operating system's entropy.
+
+        Returns:
+            The seed of each row's world.
+        """
+        if seed is None:
+            seed = int(np.random.default_rng().integers(_SEED_BOUND))
+        if seed < 0:
+            raise ConfigError(f"seed must be >= 0, got {seed}")
+        self._seeds = [seed + row // self.rows_per_world for row in range(self.num_envs)]
+        return list(self._seeds)
+
+    def reset(self) -> npt.NDArray[np.float32]:
+        """Resets every world: seeded where ``seed()`` asked for it, else continuing its stream.
+
+        Returns:
+            Observations of shape (num_envs, obs_dim), float32.
+        """
+        self._check_open()
+        world_seeds: list[int | None] = list(self._seeds[:: self.rows_per_world])
+        if not self._has_reset and None in world_seeds:
+            base = int(np.random.default_rng().integers(_SEED_BOUND))
+            world_seeds = [base + w if s is None else s for w, s in enumerate(world_seeds)]
+        first = world_seeds[0]
+        if all(s is None for s in world_seeds):
+            joint = self._batch.reset(None)
+        elif first is not None and world_seeds == [first + w for w in range(self.num_worlds)]:
+            joint = self._batch.reset(int(first))
+        else:
+            joint = np.stack(
+                [
+                    self._batch.reset_world(w, None if s is None else int(s))
+                    for w, s in enumerate(world_seeds)
+                ]
+            )
+        self._reset_seeds()
+        self._reset_options()
+        self._has_reset = True
+        self._actions = None
+        return self._row_observations(joint)
+
+    def step_async(self, actions: npt.ArrayLike) -> None:
+        """Stores the actions of every row, shape (num_envs, 2 or act_dim), for ``step_wait``.
+
+        Raises:
+            ActionError: Actions are not numeric or have the wrong shape (NaN/inf are reported
+                by ``step_wait``).
+        """
+        self._check_open()
+        expected = (self.num_envs, *self.action_space.shape)
+        try:
+            action_array = np.asarray(actions, dtype=np.float32)
+        except (TypeError, ValueError) as error:
+            raise ActionError(
+                f"actions must be numeric of shape {expected}, got {type(actions).__name__}"
+            ) from error
+        if action_array.shape != expected:
+            raise ActionError(f"actions must have shape {expected}, got {action_array.shape}")
+        self._actions = np.ascontiguousarray(self._joint_actions(action_array))
+
+    def step_wait(
+        self,
+    ) -> tuple[
+        npt.NDArray[np.float32],
+        npt.NDArray[np.float32],
+        npt.NDArray[np.bool_],
+        list[dict[str, Any]],
+    ]:
+        """Steps every world once; a world that ends is reset at once (SB3 semantics).
+
+        Returns:
+            ``(observations, rewards, dones, infos)``: observations (num_envs, obs_dim) float32,
+            rewards (num_envs,) float32, dones (num_envs,) bool, and one info dict per row (see
+            the module docstring for the keys at an episode's end).
+
+        Raises:
+            ActionError: An action is NaN/inf.
+            KheperaError: ``step_wait`` without ``step_async``, or before ``reset()``.
+        """
+        self._check_open()
+        if self._actions is None:
+            raise KheperaError("step_wait() without step_async(actions)")
+        if not self._has_reset:
+            raise KheperaError("step() before reset(): call reset() first")
+        actions, self._actions = self._actions, None
+        joint, rewards, terminated, truncated = self._batch.step(actions)
+        row_rewards = self._row_rewards(rewards)
+        observations = self._row_observations(joint)
+        ended = terminated | truncated
+        rows = self.rows_per_world
+        dones = np.repeat(ended, rows) if rows > 1 else ended
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        if np.count_nonzero(ended):
+            stats = self._batch.episode_stats()
+            for world in np.flatnonzero(ended):
+                world_stats = {name: values[world].item() for name, values in stats.items()}
+                time_limit = bool(truncated[world] and not terminated[world])
+                first_rows = self._row_observations(self._batch.reset_world(int(world))[None])
+                for offset in range(rows):
+                    row = world * rows + offset
+                    infos[row] = {
+                        "terminal_observation": observations[row].copy(),
+                        "TimeLimit.truncated": time_limit,
+                        "is_success": world_stats["success"],
+                        "episode_stats": dict(world_stats),
+                    }
+                observations[world * rows : (world + 1) * rows] = first_rows
+        return observations, row_rewards, dones, infos
+
+    def close(self) -> None:
+        """Marks the env closed (the Rust worlds are freed with it); safe to call twice."""
+        self._closed = True
+
+    def render(self, mode: str | None = None) -> npt.NDArray[np.uint8] | None:
+        """Not available yet.
+
+        Raises:
+            NotImplementedError: Always; plot ``env_method("poses")`` with
+                ``khepera_gym.plot.plot_trajectories`` meanwhile.
+        """
+        raise NotImplementedError(
+            "rendering comes in a later release of khepera_gym; meanwhile record "
+            "env.env_method('poses') and draw it with khepera_gym.plot.plot_trajectories"
+        )
+
+    def get_images(self) -> Sequence[npt.NDArray[np.uint8] | None]:
+        """Not available yet (see :meth:`render`)."""
+        return self.render()  # type: ignore[return-value]
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """The value of a single env's attribute for each row (the same for every world).
+
+        Raises:
+            AttributeError: ``attr_name`` is not one of :attr:`SHARED_ATTRIBUTES`.
+        """
+        if attr_name not in self.SHARED_ATTRIBUTES:
+            raise AttributeError(
+                f"{type(self).__name__}.get_attr knows {self.SHARED_ATTRIBUTES}, not {attr_name!r}"
+            )
+        value = getattr(self, attr_name)
+        return [value for _ in self._row_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Not supported: every world's scenario is fixed when the batch is built.
+
+        Raises:
+            NotImplementedError: Always; build a new env with other scenario overrides instead.
+        """
+        raise NotImplementedError(
+            f"set_attr({attr_name!r}): the worlds of a Rust batch share one scenario fixed at "
+            "construction; make a new env with the overrides you need, e.g. "
+            "make_vec_env(env_id, n_envs, max_steps=200)"
+        )
+
+    def env_method(
+        self,
+        method_name: str,
+        *method_args: Any,
+        indices: VecEnvIndices = None,
+        **method_kwargs: Any,
+    ) -> list[Any]:
+        """Runs a single env's ground-truth method on the world of each row.
+
+        ``poses`` (n_robots, 3), ``goals`` (n_goals, 2), ``scene()``, ``sensor_readings()``,
+        ``formation_targets`` (K, 2), ``obs_layout()``, ``config_toml()``: the results a single
+        env's ``env.unwrapped.NAME()`` gives for that world.
+
+        Raises:
+            AttributeError: ``method_name`` is not one of :attr:`WORLD_METHODS`.
+            TypeError: Arguments were given (these methods take none).
+        """
+        if method_name not in self.WORLD_METHODS:
+            raise AttributeError(
+                f"{type(self).__name__}.env_method knows {self.WORLD_METHODS}, not {method_name!r}"
+            )
+        if method_args or method_kwargs:
+            raise TypeError(f"{method_name}() takes no arguments")
+        worlds = [row // self.rows_per_world for row in self._row_indices(indices)]
+        batch = self._batch
+        if method_name == "scene":
+            return [batch.scene(world) for world in worlds]
+        if method_name == "obs_layout":
+            return [layout_dict(batch.obs_layout()) for _ in worlds]
+        if method_name == "config_toml":
+            return [batch.config_toml() for _ in worlds]
+        if method_name == "sensor_readings":
+            readings = batch.sensor_readings()
+            return [{name: values[world] for name, values in readings.items()} for world in worlds]
+        arrays = getattr(batch, method_name)()
+        return [arrays[world].copy() for world in worlds]
+
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
+        """False for every row: the worlds are not Gymnasium envs, so nothing wraps them (use
+        SB3's ``VecMonitor`` rather than ``Monitor``)."""
+        return [False for _ in self._row_indices(indices)]
+
+    # --- ground truth and helpers --------------------------------------------------------------
+
+    @property
+    def max_episode_steps(self) -> int:
+        """Steps after which the Rust core truncates an episode (the scenario's ``max_steps``)."""
+        return self._batch.max_episode_steps
+
+    @property
+    def n_robots(self) -> int:
+        """Number of robots per world."""
+        return self._batch.n_robots
+
+    @property
+    def num_threads(self) -> int:
+        """Threads of the batch's rayon pool."""
+        return self._batch.num_threads
+
+    def poses(self) -> npt.NDArray[np.float64]:
+        """Ground-truth robot poses of every world, shape (num_worlds, n_robots, 3)."""
+        return self._batch.poses()
+
+    def goals(self) -> npt.NDArray[np.float64]:
+        """Goal positions of every world, shape (num_worlds, n_goals, 2), in metres."""
+        return self._batch.goals()
+
+    def config_toml(self) -> str:
+        """The fully resolved scenario (defaults + file + overrides) as TOML text."""
+        return self._batch.config_toml()
+
+    def _row_indices(self, indices: VecEnvIndices) -> list[int]:
+        if indices is None:
+            return list(range(self.num_envs))
+        if isinstance(indices, (int, np.integer)):
+            return [int(indices)]
+        return [int(index) for index in indices]
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise KheperaError(f"{type(self).__name__} is closed")
+
+
+class FormationFollowersVecEnv(KheperaSB3VecEnv):
+    """An SB3 ``VecEnv`` whose rows are the (world, follower) pairs of a Formation batch.
+
+    Row ``w · K + k`` is follower k of world w: it observes its own 23-value block (IR,
+    ultrasonic, ``target_offset``, ``leader_offset``, ``leader_heading``, ``leader_velocity``,
+    ``wheel_speeds``; see :class:`khepera_gym.envs.FormationEnv`), acts with its (left, right)
+    wheel pair and earns its own reward (``batch.agent_rewards()``), so one policy trained on
+    these rows drives every follower (parameter sharing). The leader is scripted. A world's
+    episode ends for all its followers together: their rows are done at the same step and share
+    its ``"episode_stats"`` (with ``"formation_error_mean"``, ``"formation_error_max"``);
+    ``"is_success"`` is the leader's arrival. ``seed(s)`` seeds world w with ``s + w``.
+
+    Args:
+        num_worlds: Number of worlds N; the env has N · K rows.
+        **kwargs: As :class:`KheperaSB3VecEnv` (scenario overrides such as ``n_followers=3`` or
+            ``shape="wedge"``); ``leader="agent"`` is refused.
+    """
+
+    def __init__(self, num_worlds: int, **kwargs: Any) -> None:
+        if "task" in kwargs:
+            raise ConfigError("FormationFollowersVecEnv runs the task 'formation'")
+        super().__init__("formation", num_worlds, **kwargs)
+
+    def _configure_rows(self) -> None:
+        agents = self._batch.agents()
+        if any(not name.startswith("follower_") for name, *_ in agents):
+            raise ConfigError(
+                "FormationFollowersVecEnv needs the scripted leader (formation.leader = "
+                f"'scripted'); the agents here are {[name for name, *_ in agents]}"
+            )
+        block = agents[0][3] - agents[0][2]
+        contiguous = all(
+            start == k * block and stop == start + block
+            for k, (_, _, start, stop, _) in enumerate(agents)
+        )
+        if not contiguous or agents[-1][3] != self._batch.obs_dim:
+            raise KheperaError(f"unexpected follower blocks in the joint observation: {agents}")
+        self.rows_per_world = len(agents)
+        #: Length of one follower's observation block.
+        self.follower_obs_dim = block
+        #: The layout of one follower's block, name → slice.
+        self.follower_layout = layout_dict(agents[0][4])
+        #: Agent names of the rows of one world, in order ("follower_0", ...).
+        self.follower_names = [name for name, *_ in agents]
+
+    def _row_observation_space(self) -> gym.spaces.Box:
+        low, high = self._batch.obs_bounds()
+        block = slice(0, self.follower_obs_dim)
+        return gym.spaces.Box(
+            low[block].astype(np.float32), high[block].astype(np.float32), dtype=np.float32
+        )
+
+    def _row_action_space(self) -> gym.spaces.Box:
+        return gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+
+    def _row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        return joint.reshape(-1, self.follower_obs_dim)
+
+    def _row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        return self._batch.agent_rewards().reshape(-1)
+
+    def _joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        return actions.reshape(self.num_worlds, -1)
+
+    def formation_targets(self) -> npt.NDArray[np.float64]:
+        """The followers' target points (eq. 12) of every world, shape (num_worlds, K, 2)."""
+        return self._batch.formation_targets()
+
+
+def make_vec_env(
+    env_id: str,
+    n_envs: int = 1,
+    seed: int | None = None,
+    num_threads: int | None = None,
+    **config: Any,
+) -> KheperaSB3VecEnv:
+    """An SB3 ``VecEnv`` of ``n_envs`` worlds of a khepera_gym env, stepped by the Rust batch.
+
+    Args:
+        env_id: ``"KheperaIV-Nav-v0"``, ``"KheperaIV-Avoid-v0"``, ``"KheperaIV-Formation-v0"``
+            (an unversioned id picks the latest version).
+        n_envs: Number of worlds (rows).
+        seed: World i is seeded with ``seed + i`` at the first ``reset()``; None draws a seed.
+        num_threads: Threads of the batch's pool; None uses all cores.
+        **config: ``config=`` (scenario name or TOML path), ``action_type=``,
+            ``max_episode_steps=`` and scenario overrides, as for ``gym.make``.
+
+    Returns:
+        A :class:`KheperaSB3VecEnv`; wrap it in ``VecMonitor`` for SB3's episode logging.
+
+    Example:
+        >>> from stable_baselines3 import PPO
+        >>> envs = make_vec_env("KheperaIV-Nav-v0", n_envs=16, seed=0)
+        >>> model = PPO("MlpPolicy", envs)  # doctest: +SKIP
+    """
+    return KheperaSB3VecEnv(task_of(env_id), n_envs, seed=seed, num_threads=num_threads, **config)
+
+
+def make_formation_vec_env(
+    n_worlds: int,
+    seed: int | None = None,
+    num_threads: int | None = None,
+    **config: Any,
+) -> FormationFollowersVecEnv:
+    """An SB3 ``VecEnv`` whose rows are the followers of ``n_worlds`` Formation worlds.
+
+    Args:
+        n_worlds: Number of worlds; the env has ``n_worlds · K`` rows (K followers each).
+        seed: World w is seeded with ``seed + w`` at the first ``reset()``.
+        num_threads: Threads of the batch's pool; None uses all cores.
+        **config: ``config=``, ``action_type=``, ``max_episode_steps=`` and scenario overrides
+            (``n_followers=3``, ``shape="wedge"``, ...); the leader must stay scripted.
+
+    Returns:
+        A :class:`FormationFollowersVecEnv`.
+    """
+    return FormationFollowersVecEnv(n_worlds, seed=seed, num_threads=num_threads, **config)
+
+
+# --- loading trained models ------------------------------------------------------------------
+
+
+class Predictor(Protocol):
+    """What :func:`load_policy` returns: SB3's ``predict`` on raw env observations."""
+
+    observation_space: gym.spaces.Space[Any]
+    action_space: gym.spaces.Space[Any]
+
+    def predict(
+        self,
+        observation: npt.NDArray[np.float32],
+        state: tuple[npt.NDArray[Any], ...] | None = None,
+        episode_start: npt.NDArray[np.bool_] | None = None,
+        deterministic: bool = False,
+    ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]: ...
+
+
+class NormalizedPolicy:
+    """A model trained under ``VecNormalize``, applying its saved observation statistics.
+
+    ``predict(obs)`` normalises raw env observations with the training statistics (frozen) and
+    calls the model's ``predict``, so it takes what the env gives, like an unnormalised model.
+
+    Args:
+        model: The loaded SB3 model.
+        normalizer: The ``VecNormalize`` whose ``obs_rms`` the model was trained with.
+    """
+
+    def __init__(self, model: BaseAlgorithm, normalizer: VecNormalize) -> None:
+        self.model = model
+        self.normalizer = normalizer
+        self.observation_space = model.observation_space
+        self.action_space = model.action_space
+
+    def predict(
+        self,
+        observation: npt.NDArray[np.float32],
+        state: tuple[npt.NDArray[Any], ...] | None = None,
+        episode_start: npt.NDArray[np.bool_] | None = None,
+        deterministic: bool = False,
+    ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]:
+        """Actions for raw observations of shape (obs_dim,) or (N, obs_dim)."""
+        normalized = self.normalizer.normalize_obs(np.asarray(observation, dtype=np.float32))
+        return self.model.predict(normalized, state, episode_start, deterministic)  # type: ignore[arg-type]
+
+
+def algorithm_of(path: str | Path) -> str:
+    """The SB3 algorithm class name ("PPO", "SAC", ...) that saved the zip at ``path``.
+
+    Raises:
+        KheperaError: The file is not an SB3 zip of a known algorithm.
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+    except (OSError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as error:
+        raise KheperaError(f"{path}: not a stable-baselines3 model zip ({error})") from error
+    # The saved attributes tell the algorithms apart (PPO and A2C share their policy class).
+    for name, attribute in _ALGORITHM_MARKERS:
+        if attribute in data:
+            return name
+    raise KheperaError(f"{path}: cannot tell which algorithm saved it (known: {_ALGORITHMS})")
+
+
+def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
+    """Loads a model saved by ``khepera-gym train`` (or any SB3 ``model.save``) for inference.
+
+    The algorithm is read from the zip. When a ``vecnormalize.pkl`` lies next to it (training
+    with ``normalize = true``), the result normalises raw observations with those statistics
+    (:class:`NormalizedPolicy`); otherwise it is the SB3 model itself. Either way
+    ``predict(obs, deterministic=True)`` takes raw env observations, single or batched.
+
+    Args:
+        path: The model's ``.zip``.
+        device: Torch device for the network ("cpu" by default: these MLPs gain nothing on GPU).
+
+    Raises:
+        KheperaError: The file is not an SB3 zip of a known algorithm.
+    """
+    import stable_baselines3
+
+    path = Path(path)
+    algorithm = getattr(stable_baselines3, algorithm_of(path))
+    model: BaseAlgorithm = algorithm.load(path, device=device)
+    stats_path = path.parent / VECNORMALIZE_FILE
+    if stats_path.exists():
+        with stats_path.open("rb") as stats_file:
+            normalizer: VecNormalize = pickle.load(stats_file)
+        normalizer.training = False
+        return NormalizedPolicy(model, normalizer)
+    return model
+
+
+def first_episode_stats(
+    policy: Predictor,
+    env: KheperaSB3VecEnv,
+    seed: int,
+    deterministic: bool = True,
+) -> dict[str, npt.NDArray[Any]]:
+    """Runs one seeded episode in every world of ``env`` with ``policy``; returns its statistics.
+
+    World w starts from seed ``seed + w``, so ``env`` with N worlds evaluates the N episodes
+    seeded ``seed .. seed + N - 1`` (the same ones as single envs reset with those seeds).
+    Worlds that finish early keep running (their later episodes are ignored) until all are done.
+
+    Returns:
+        ``episode_stats`` keys ("return", "length", "success", ...) → arrays of one value per
+        world; for :class:`FormationFollowersVecEnv` one value per world as well.
+    """
+    env.seed(seed)
+    observations = env.reset()
+    rows = env.rows_per_world
+    finished = np.zeros(env.num_worlds, dtype=bool)
+    results: dict[str, list[Any]] = {}
+    collected: list[dict[str, Any] | None] = [None] * env.num_worlds
+    while not finished.all():
+        actions, _ = policy.predict(observations, deterministic=deterministic)
+        observations, _, dones, infos = env.step(actions)
+        for world in np.flatnonzero(dones[::rows]):
+            if not finished[world]:
+                finished[world] = True
+                collected[world] = infos[world * rows]["episode_stats"]
+    for stats in collected:
+        assert stats is not None
+        for name, value in stats.items():
+            results.setdefault(name, []).append(value)
+    return {name: np.asarray(values) for name, values in results.items()}
+
+
+@dataclass
+class Evaluation:
+    """One evaluation of :class:`SuccessEvalCallback` (or ``khepera-gym train``'s final one)."""
+
+    #: Environment steps of training done when it ran.
+    timesteps: int
+    #: Episodes evaluated (one per seeded world).
+    episodes: int
+    #: Fraction of them that reached the goal.
+    success_rate: float
+    #: Mean undiscounted return.
+    mean_return: float
+    #: Mean episode length (steps).
+    mean_length: float
+    #: Mean number of steps in contact per episode.
+    mean_collisions: float
+    #: Wall time of the evaluation (s).
+    seconds: float
+
+
+def evaluate_episodes(
+    policy: Predictor, env: KheperaSB3VecEnv, seed: int, timesteps: int = 0
+) -> Evaluation:
+    """Success rate and means over one seeded episode per world of ``env`` (deterministic).
+
+    World w plays the episode seeded ``seed + w``; see :func:`first_episode_stats`.
+    """
+    start = time.perf_counter()
+    stats = first_episode_stats(policy, env, seed, deterministic=True)
+    return Evaluation(
+        timesteps=timesteps,
+        episodes=len(stats["success"]),
+        success_rate=float(np.mean(stats["success"])),
+        mean_return=float(np.mean(stats["return"])),
+        mean_length=float(np.mean(stats["length"])),
+        mean_collisions=float(np.mean(stats["collisions"])),
+        seconds=time.perf_counter() - start,
+    )
+
+
+class SuccessEvalCallback(BaseCallback):
+    """Evaluates the model every ``eval_freq`` environment steps on the same seeded episodes.
+
+    Like SB3's ``EvalCallback`` but batched and reproducible: each evaluation plays one episode
+    in every world of ``eval_env`` (world w seeded ``seed + w``), deterministically, and logs
+    ``eval/success_rate``, ``eval/mean_return``, ``eval/mean_length`` and
+    ``eval/mean_collisions`` (then dumps the logger, so TensorBoard and progress.csv get a
+    point per evaluation). When the training env is under ``VecNormalize``, observations are
+    normalised with its current statistics. The best model (by success rate, then return) is
+    saved to ``best_model_path`` when given.
+
+    Args:
+        eval_env: The evaluation env; its number of worlds is the number of episodes.
+        eval_freq: Environment steps (summed over worlds) between evaluations; also evaluates
+            at the end of training.
+        seed: Seed of world 0's episode.
+        best_model_path: Where to save the best model (a ``.zip`` path), or None.
+        verbose: 1 prints one line per evaluation.
+    """
+
+    def __init__(
+        self,
+        eval_env: KheperaSB3VecEnv,
+        eval_freq: int,
+        seed: int,
+        best_model_path: str | Path | None = None,
+        verbose: int = 1,
+    ) -> None:
+        super().__init__(verbose)
+        if eval_freq < 1:
+            raise ConfigError(f"eval_freq must be >= 1 environment steps, got {eval_freq}")
+        self.eval_env = eval_env
+        self.eval_freq = eval_freq
+        self.seed = seed
+        self.best_model_path = None if best_model_path is None else Path(best_model_path)
+        #: Every evaluation so far, in order.
+        self.history: list[Evaluation] = []
+        self._last_eval_timesteps = 0
+        self._best: tuple[float, float] | None = None
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps - self._last_eval_timesteps >= self.eval_freq:
+            self.evaluate()
+        return True
+
+    def _on_training_end(self) -> None:
+        if not self.history or self.history[-1].timesteps != self.num_timesteps:
+            self.evaluate()
+
+    def evaluate(self) -> Evaluation:
+        """Runs one evaluation now, logs it and keeps the best model."""
+        self._last_eval_timesteps = self.num_timesteps
+        normalizer = self.model.get_vec_normalize_env()
+        policy: Predictor = (
+            self.model if normalizer is None else NormalizedPolicy(self.model, normalizer)
+        )
+        result = evaluate_episodes(policy, self.eval_env, self.seed, self.num_timesteps)
+        self.history.append(result)
+        for name in ("success_rate", "mean_return", "mean_length", "mean_collisions"):
+            self.logger.record(f"eval/{name}", getattr(result, name))
+        self.logger.dump(self.num_timesteps)
+        if self.verbose:
+            print(
+                f"step {self.num_timesteps:>9,}: success {100 * result.success_rate:5.1f} % of "
+                f"{result.episodes}, return {result.mean_return:7.2f}, "
+                f"length {result.mean_length:5.1f}, collisions {result.mean_collisions:5.1f}"
+            )
+        score = (result.success_rate, result.mean_return)
+        if self.best_model_path is not None and (self._best is None or score > self._best):
+            self._best = score
+            self.model.save(self.best_model_path)
+        return result
+
+
+__all__ = [
+    "VECNORMALIZE_FILE",
+    "Evaluation",
+    "FormationFollowersVecEnv",
+    "KheperaSB3VecEnv",
+    "NormalizedPolicy",
+    "Predictor",
+    "SuccessEvalCallback",
+    "algorithm_of",
+    "evaluate_episodes",
+    "first_episode_stats",
+    "load_policy",
+    "make_formation_vec_env",
+    "make_vec_env",
+    "resolve_env_id",
+    "task_of",
+]

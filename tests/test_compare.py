@@ -1,0 +1,247 @@
+"""The comparison tool (khepera_gym.compare, ``khepera-gym compare``) and the rollout plots."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import sys
+import types
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID
+
+from khepera_gym import cli, compare
+from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
+from khepera_gym.plot import plot_rollouts, record_rollout
+
+
+def test_wilson_interval_matches_the_textbook_values() -> None:
+    # 8 successes in 10 trials at 95%: the Wilson score interval is (0.4902, 0.9433).
+    estimate = compare.wilson_interval(8, 10)
+    assert estimate.value == 0.8 and estimate.n == 10
+    assert estimate.low == pytest.approx(0.4902, abs=1e-4)
+    assert estimate.high == pytest.approx(0.9433, abs=1e-4)
+    # All or nothing still gives a non-empty interval: 0/20 -> (0, 0.1611), 20/20 -> (0.8389, 1).
+    none, every = compare.wilson_interval(0, 20), compare.wilson_interval(20, 20)
+    assert (none.low, every.high) == (0.0, 1.0)
+    assert none.high == pytest.approx(0.1611, abs=1e-4)
+    assert every.low == pytest.approx(0.8389, abs=1e-4)
+    assert math.isnan(compare.wilson_interval(0, 0).value)
+    with pytest.raises(ValueError, match="successes"):
+        compare.wilson_interval(3, 2)
+
+
+def test_bootstrap_interval_is_seeded_and_close_to_the_t_interval() -> None:
+    rng = np.random.default_rng(7)
+    sample = rng.normal(10.0, 2.0, size=400)
+    estimate = compare.bootstrap_interval(sample, "mean")
+    assert estimate == compare.bootstrap_interval(sample, "mean")  # deterministic
+    assert estimate.value == pytest.approx(sample.mean())
+    # For 400 normal values the t interval's half width is 1.966 s / sqrt(n).
+    half_width = 1.966 * sample.std(ddof=1) / math.sqrt(sample.size)
+    assert (estimate.high - estimate.low) / 2 == pytest.approx(half_width, rel=0.1)
+    assert estimate.low < sample.mean() < estimate.high
+    p95 = compare.bootstrap_interval(sample, "p95")
+    assert p95.value == pytest.approx(np.percentile(sample, 95))
+    assert p95.low <= p95.value <= p95.high
+    constant = compare.bootstrap_interval([2.5, 2.5, 2.5], "mean")
+    assert (constant.value, constant.low, constant.high) == (2.5, 2.5, 2.5)
+    assert compare.bootstrap_interval([], "mean").n == 0
+    assert compare.bootstrap_interval([1.0, float("nan"), 3.0], "mean").value == 2.0
+    with pytest.raises(ValueError, match="statistic"):
+        compare.bootstrap_interval(sample, "mode")
+
+
+def test_compare_runs_every_policy_on_the_same_seeded_episodes() -> None:
+    result = compare.compare(
+        AVOID_ID, ["braitenberg", "random"], episodes=6, seed=40, record_worlds=2, progress=False
+    )
+    assert [s.policy for s in result.summaries] == ["braitenberg", "random"]
+    for name, episodes in result.results.items():
+        assert [e.seed for e in episodes] == list(range(40, 46)), name
+        assert all(e.policy == name for e in episodes)
+    # The same episode (start, goal, obstacles) for every policy: the recorded worlds agree.
+    braitenberg, random = result.rollouts["braitenberg"], result.rollouts["random"]
+    for mine, theirs in zip(braitenberg, random, strict=True):
+        np.testing.assert_array_equal(mine.poses[0], theirs.poses[0])
+        np.testing.assert_array_equal(mine.goals, theirs.goals)
+        assert mine.scene == theirs.scene
+    # World i of the batch is the single env reset with seed + i, step for step.
+    single = record_rollout(AVOID_ID, Braitenberg(), seed=41)
+    np.testing.assert_array_equal(braitenberg[1].poses, single.poses)
+    assert braitenberg[1].stats == single.stats
+    # Time to goal is the episode length times dt, for successes only.
+    for episode in result.results["braitenberg"]:
+        if episode.success:
+            assert episode.time_to_goal == pytest.approx(episode.length * 0.05)
+        else:
+            assert episode.time_to_goal is None
+    assert (
+        compare.compare(AVOID_ID, ["braitenberg"], episodes=6, seed=40, progress=False).results[
+            "braitenberg"
+        ]
+        == result.results["braitenberg"]
+    )
+
+
+def test_cli_compare_writes_table_csv_json_and_plots(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["compare", "--task", "avoid", "--config", "paper_fig6", "--episodes", "3"]
+    argv += ["--policy", "braitenberg", "vfh", "--seed", "5", "--out", str(tmp_path)]
+    argv += ["--num-threads", "2", "--no-progress"]
+    assert cli.main(argv) == 0
+    output = capsys.readouterr().out
+    assert 'KheperaIV-Avoid-v0, config="paper_fig6": 3 episodes per policy, seeds 5..7' in output
+    for column in ("success %", "time to goal s", "p95 time s", "path m", "contact steps"):
+        assert column in output
+    rows = {line.split()[0]: line for line in output.splitlines() if line[:3] in ("bra", "vfh")}
+    assert set(rows) == {"braitenberg", "vfh"}
+    assert "100.0 [43.9, 100.0]" in rows["braitenberg"]  # 3/3 with its Wilson interval
+
+    with (tmp_path / "paper_fig6_episodes.csv").open() as file:
+        episodes = list(csv.DictReader(file))
+    assert [(e["policy"], e["seed"]) for e in episodes] == [
+        (policy, str(seed)) for policy in ("braitenberg", "vfh") for seed in (5, 6, 7)
+    ]
+    document = json.loads((tmp_path / "paper_fig6_results.json").read_text())
+    assert document["env_id"] == AVOID_ID and document["config"] == "paper_fig6"
+    assert [s["policy"] for s in document["summaries"]] == ["braitenberg", "vfh"]
+    success = document["summaries"][0]["success_rate"]
+    assert success["value"] == 1.0 and success["n"] == 3
+    assert len(document["episodes"]) == 6
+    plot = tmp_path / "paper_fig6_trajectories.png"
+    assert plot.is_file() and plot.stat().st_size > 10_000
+    assert f"saved {plot}" in output
+
+
+def test_cli_compare_formation_reports_the_formation_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["compare", "--env", "KheperaIV-Formation", "--episodes", "2", "--no-progress"]
+    assert cli.main([*argv, "--out", str(tmp_path), "--no-plot"]) == 0
+    output = capsys.readouterr().out
+    assert "formation err cm" in output
+    assert "leader_follower" in output and "random" in output  # the task's default policies
+    assert not list(tmp_path.glob("*.png"))  # --no-plot
+    document = json.loads((tmp_path / "formation_results.json").read_text())
+    assert document["summaries"][0]["formation_error_mean"]["value"] < 0.1
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--task", "avoid", "--policy", "bogus"], "unknown policy 'bogus'; known: position_cont"),
+        (["--task", "formation", "--policy", "vfh"], "'vfh' does not act on 'formation'"),
+        (["--task", "nav", "--policy", "leader_follower"], "'leader_follower' does not act on"),
+        (["--env", "KheperaIV-Fly"], "'KheperaIV-Fly' is not registered"),
+        (["--task", "nav", "--policy", "random", "random"], "listed twice"),
+        (["--task", "nav", "--episodes", "0"], "episodes must be >= 1"),
+        (["--task", "nav", "--config", "no_such_scene"], "no_such_scene"),
+    ],
+)
+def test_cli_compare_errors_name_the_problem(argv: list[str], message: str) -> None:
+    with pytest.raises(SystemExit, match="khepera-gym compare: ") as error:
+        cli.main(["compare", *argv, "--no-progress", "--no-plot", "--out", "/nonexistent"])
+    assert message in str(error.value)
+
+
+def test_sb3_policy_without_stable_baselines3_names_the_extra(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "stable_baselines3", None)  # import fails as if missing
+    model = tmp_path / "ppo_nav.zip"
+    model.write_bytes(b"")
+    with pytest.raises(SystemExit, match=r"pip install khepera-gym\[sb3\]") as error:
+        cli.main(["compare", "--task", "nav", "--policy", f"sb3:{model}", "--no-progress"])
+    assert "needs stable-baselines3" in str(error.value)
+    with pytest.raises(ImportError, match="stable-baselines3"):
+        compare.load_sb3_policy(model)
+
+
+def test_record_rollout_and_plot_rollouts_side_by_side(tmp_path: Path) -> None:
+    formation = record_rollout(
+        FORMATION_ID, LeaderFollower(), seed=0, config="paper_fig7", max_steps=50, label="lf"
+    )
+    assert formation.poses.shape == (51, 5, 3) and formation.targets.shape == (51, 4, 2)
+    assert formation.stats["length"] == 50 and not formation.stats["success"]  # truncated
+    nav = record_rollout(NAV_ID, Braitenberg(), seed=3, label="braitenberg")
+    assert nav.poses.shape[1:] == (1, 3) and nav.stats["success"]
+    assert nav.duration == pytest.approx(nav.stats["length"] * 0.05)
+    figure = plot_rollouts([nav, formation], titles=["Nav", "Formation"])
+    assert [ax.get_title() for ax in figure.axes[:2]] == ["Nav", "Formation"]
+    assert len(figure.axes[1].lines) == 5  # one trace per robot of the formation
+    figure.savefig(tmp_path / "rollouts.png")
+    assert (tmp_path / "rollouts.png").stat().st_size > 0
+    with pytest.raises(ValueError, match="1 titles for 2 rollouts"):
+        plot_rollouts([nav, formation], titles=["one"])
+    with pytest.raises(ValueError, match="at least one"):
+        plot_rollouts([])
+
+
+class _FakeModel:
+    """Stands in for a stable-baselines3 model: SB3's ``predict`` and ``observation_space``."""
+
+    def __init__(self, policy, obs_dim: int) -> None:
+        self.policy = policy
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (obs_dim,), np.float32)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=False):
+        assert deterministic
+        assert observation.shape[-1] == self.observation_space.shape[0]
+        return self.policy(observation), state
+
+
+def _fake_stable_baselines3(model: _FakeModel) -> types.ModuleType:
+    """A module with SB3's loader classes: PPO loads ``model``, the others refuse the file."""
+    module = types.ModuleType("stable_baselines3")
+
+    def refuse(path: str, device: str = "cpu") -> None:
+        raise ValueError("not saved by this algorithm")
+
+    for name in compare.SB3_ALGORITHMS:
+        setattr(module, name, type(name, (), {"load": staticmethod(refuse)}))
+    module.PPO.load = staticmethod(lambda path, device="cpu": model)
+    return module
+
+
+@pytest.mark.parametrize("algo", [None, "PPO"])
+def test_sb3_models_are_loaded_by_algorithm_and_act_on_the_episodes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, algo: str | None
+) -> None:
+    fake = _fake_stable_baselines3(_FakeModel(PositionControl(), 18))
+    monkeypatch.setitem(sys.modules, "stable_baselines3", fake)
+    monkeypatch.setitem(sys.modules, "khepera_gym.sb3", None)  # fall back to trying loaders
+    model = tmp_path / "model.zip"
+    model.write_bytes(b"")
+    result = compare.compare(
+        NAV_ID, ["position_control", f"sb3:{model}"], episodes=4, progress=False, algo=algo
+    )
+    # The stand-in model is position control: the same episodes give the same results.
+    sb3_results = result.results[f"sb3:{model}"]
+    assert [dataclasses.replace(r, policy="") for r in sb3_results] == [
+        dataclasses.replace(r, policy="") for r in result.results["position_control"]
+    ]
+    with pytest.raises(ValueError, match="unknown stable-baselines3 algorithm 'XYZ'"):
+        compare.load_sb3_policy(model, "XYZ")
+    with pytest.raises(ValueError, match=r"SAC: ValueError: not saved by this algorithm"):
+        compare.load_sb3_policy(model, "SAC")
+    with pytest.raises(FileNotFoundError, match="no such model file"):
+        compare.load_sb3_policy(tmp_path / "missing.zip")
+
+
+def test_sb3_follower_model_drives_every_follower_of_a_formation(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    follower = _FakeModel(LeaderFollower(shape=None), 23)  # one follower's block in, 2 out
+    monkeypatch.setitem(sys.modules, "stable_baselines3", _fake_stable_baselines3(follower))
+    monkeypatch.setitem(sys.modules, "khepera_gym.sb3", None)
+    model = tmp_path / "followers.zip"
+    model.write_bytes(b"")
+    result = compare.compare(FORMATION_ID, [f"sb3:{model}"], episodes=3, progress=False)
+    assert result.summaries[0].formation_error_mean.value < 0.1
