@@ -27,6 +27,7 @@ from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
 from khepera_gym.config import ConfigArg, resolve_config
 from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.layout import layout_dict
+from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
 #: Action types understood by the Rust core: normalised (left, right) wheel speeds, or (v, ω).
 ACTION_TYPES = ("wheels", "unicycle")
@@ -37,9 +38,7 @@ _SEED_BOUND = 2**62
 def _check_render_mode(render_mode: str | None, render_modes: list[str]) -> None:
     if render_mode is not None and render_mode not in render_modes:
         raise ConfigError(
-            f"render_mode={render_mode!r} is not supported by this version of khepera_gym "
-            f"(supported: {[None, *render_modes]}); rendering comes in a later release, "
-            "use env.unwrapped.poses() and khepera_gym.plot.plot_trajectories meanwhile"
+            f"render_mode={render_mode!r} is not supported (supported: {[None, *render_modes]})"
         )
 
 
@@ -52,14 +51,16 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
     """Base of the single-world Khepera IV environments; subclasses set :attr:`TASK`.
 
     Args:
-        render_mode: Must be None for now (rendering comes in a later release).
+        render_mode: None, "rgb_array" (``render()`` returns the frame) or "human" (a pygame
+            window refreshed after every step; ``pip install khepera-gym[render]``).
         config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
+        frame_size: (width, height) of rendered frames in pixels.
         **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1`` or
             ``task={"max_steps": 100}`` (see the task's docstring, section Scenario file).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": [], "render_fps": 20}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
     #: Task name in the Rust core.
     TASK: ClassVar[str] = ""
 
@@ -68,6 +69,7 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
         render_mode: str | None = None,
         config: ConfigArg = None,
         action_type: str = "wheels",
+        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
         **overrides: Any,
     ) -> None:
         _check_render_mode(render_mode, self.metadata["render_modes"])
@@ -96,6 +98,24 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
         # Reused input buffer of shape (1, act_dim): the Rust core copies actions on entry.
         self._action_buffer = np.zeros((1, self._batch.act_dim), dtype=np.float32)
         self._has_reset = False
+        self._renderer = Renderer(
+            self._batch,
+            render_mode,
+            frame_size,
+            fps=self.metadata["render_fps"],
+            title=f"khepera_gym {self.TASK}",
+        )
+
+    def render(self) -> npt.NDArray[np.uint8] | None:
+        """The current frame, drawn in software without a display: (height, width, 3) uint8 for
+        ``render_mode="rgb_array"``; for ``"human"`` it is shown in a pygame window (also after
+        every step) and None is returned; None without a render mode.
+
+        The frame shows the arena, obstacles, goal(s), formation targets, the robots' fading
+        trails, IR rays (green, turning red as an obstacle nears) and ultrasonic rays (blue, to
+        the echo), and each robot with its heading (red rim while in contact).
+        """
+        return self._renderer.render()
 
     @property
     def max_episode_steps(self) -> int:
@@ -125,6 +145,8 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
             seed = int(self.np_random.integers(_SEED_BOUND))
         observations = self._batch.reset(seed)
         self._has_reset = True
+        if self.render_mode == "human":
+            self.render()
         return observations[0], {}
 
     def step(
@@ -159,6 +181,8 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
         terminated = bool(terminations[0])
         truncated = bool(truncations[0])
         info = self._episode_info() if terminated or truncated else {}
+        if self.render_mode == "human":
+            self.render()
         return observations[0], float(rewards[0]), terminated, truncated, info
 
     def _episode_info(self) -> dict[str, Any]:
@@ -197,7 +221,9 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
         return self._batch.config_toml()
 
     def close(self) -> None:
-        """Release nothing yet (the Rust world is freed with the env); safe to call twice."""
+        """Closes the render window, if any (the Rust world is freed with the env); safe to call
+        twice."""
+        self._renderer.close()
         super().close()
 
 
@@ -298,7 +324,7 @@ class NavEnv(KheperaEnv):
 
     | Parameter     | Type                    | Default    | Description                          |
     |---------------|-------------------------|------------|--------------------------------------|
-    | `render_mode` | str \| None             | `None`     | must be None (rendering comes later) |
+    | `render_mode` | str \| None             | `None`     | `"rgb_array"` or `"human"` (pygame)  |
     | `config`      | str \| PathLike \| None | `None`     | built-in scenario name or TOML path  |
     | `action_type` | str                     | `"wheels"` | `"wheels"` or `"unicycle"`           |
     | `**overrides` | scenario keys           |            | e.g. `goal_radius=0.1`, `task={...}` |

@@ -165,3 +165,69 @@ __all__ = [
     "mosaic",
     "save_video",
 ]
+
+
+class Renderer:
+    """The rendering side of an env over a ``_core.Batch``: frames of its worlds, the window.
+
+    Args:
+        batch: The env's batch.
+        render_mode: None, "rgb_array" or "human".
+        frame_size: (width, height) of one world's frame in pixels.
+        fps: Frames per second of the "human" window.
+        title: The window's title.
+    """
+
+    MODES = ("rgb_array", "human")
+
+    def __init__(
+        self,
+        batch: Any,
+        render_mode: str | None,
+        frame_size: Sequence[int] = DEFAULT_FRAME_SIZE,
+        fps: int = 20,
+        title: str = "khepera_gym",
+    ) -> None:
+        if render_mode is not None and render_mode not in self.MODES:
+            raise ConfigError(
+                f"render_mode must be None, 'rgb_array' or 'human', got {render_mode!r}"
+            )
+        self.render_mode = render_mode
+        self.width, self.height = check_frame_size(frame_size)
+        self._batch = batch
+        self._fps = fps
+        self._title = title
+        self._window: HumanWindow | None = None
+        if render_mode is not None:
+            batch.set_trail_length(TRAIL_LENGTH)
+
+    def frame(self, index: int = 0) -> Frame:
+        """World ``index``'s frame, (height, width, 3) uint8."""
+        return self._batch.render(index, self.width, self.height)
+
+    def frames(self, count: int) -> Frame:
+        """A mosaic of the first ``count`` worlds' frames."""
+        count = max(1, min(count, self._batch.num_worlds))
+        return mosaic([self.frame(i) for i in range(count)])
+
+    def render(self, count: int = 1) -> Frame | None:
+        """What ``env.render()`` returns: the frame (mosaic of ``count`` worlds) for
+        "rgb_array", None after showing it for "human", None without a render mode."""
+        if self.render_mode is None:
+            return None
+        image = self.frame() if count == 1 else self.frames(count)
+        if self.render_mode == "rgb_array":
+            return image
+        if self._window is None:
+            self._window = HumanWindow(self._title, self._fps)
+        self._window.show(image)
+        return None
+
+    def close(self) -> None:
+        """Closes the window, if any."""
+        if self._window is not None:
+            self._window.close()
+            self._window = None
+
+
+__all__ += ["Renderer"]

@@ -35,6 +35,7 @@ from khepera_gym.config import ConfigArg, resolve_config
 from khepera_gym.envs import _SEED_BOUND, _check_action_type, _check_render_mode
 from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.layout import layout_dict
+from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
 #: Scenario key that ``max_episode_steps`` (Gymnasium's name) maps onto.
 _MAX_STEPS_KEY = "max_steps"
@@ -46,16 +47,19 @@ class KheperaVectorEnv(VectorEnv):
     Args:
         num_envs: Number of worlds N (>= 1).
         task: Task name in the Rust core: "nav", "avoid", "formation" (or "multinav").
-        render_mode: Must be None for now (rendering comes in a later release).
+        render_mode: None, "rgb_array" (``render()`` returns a mosaic of the first
+            ``render_worlds`` worlds) or "human" (that mosaic in a pygame window).
         config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
         num_threads: Threads of the batch's rayon pool; None uses all cores.
+        frame_size: (width, height) in pixels of one world's frame.
+        render_worlds: How many worlds ``render()`` tiles (default 4).
         max_episode_steps: If given, overrides the scenario's ``max_steps`` (truncation length).
         **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1``.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": [],
+        "render_modes": ["rgb_array", "human"],
         "render_fps": 20,
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
@@ -69,6 +73,8 @@ class KheperaVectorEnv(VectorEnv):
         action_type: str = "wheels",
         num_threads: int | None = None,
         max_episode_steps: int | None = None,
+        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        render_worlds: int = 4,
         **overrides: Any,
     ) -> None:
         _check_render_mode(render_mode, self.metadata["render_modes"])
@@ -107,6 +113,19 @@ class KheperaVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._action_shape = (self.num_envs, self._batch.act_dim)
         self._has_reset = False
+        self._render_worlds = max(1, int(render_worlds))
+        self._renderer = Renderer(
+            self._batch,
+            render_mode,
+            frame_size,
+            fps=self.metadata["render_fps"],
+            title=f"khepera_gym {task} x{self.num_envs}",
+        )
+
+    def render(self) -> npt.NDArray[np.uint8] | None:
+        """A mosaic of the first ``render_worlds`` worlds' frames (rgb_array), or shown in a
+        window (human, returns None); None without a render mode."""
+        return self._renderer.render(self._render_worlds)
 
     @property
     def num_threads(self) -> int:
@@ -245,7 +264,8 @@ class KheperaVectorEnv(VectorEnv):
         return self._batch.config_toml()
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Nothing to release beyond the Rust batch, freed with the env."""
+        """Closes the render window, if any (the Rust batch is freed with the env)."""
+        self._renderer.close()
 
 
 class _TaskVectorEnv(KheperaVectorEnv):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 
 import gymnasium as gym
@@ -9,6 +10,10 @@ import numpy as np
 import pytest
 
 import khepera_gym  # noqa: F401  (registers the environments)
+
+# render_mode="human" opens a pygame window: on SDL's dummy driver where there is no display.
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 #: The versioned ids; the unversioned "KheperaIV-Nav" makes Gymnasium warn that it picked v0.
 NAV_ID = "KheperaIV-Nav-v0"

@@ -260,10 +260,10 @@ def test_time_limit_wrapper_still_applies_when_asked() -> None:
     env.close()
 
 
-def test_render_modes_are_not_supported_yet() -> None:
-    assert NavEnv.metadata["render_modes"] == []
+def test_unknown_render_mode_is_a_config_error() -> None:
+    assert NavEnv.metadata["render_modes"] == ["rgb_array", "human"]
     with pytest.raises(ConfigError, match="render_mode"):
-        NavEnv(render_mode="rgb_array")
+        NavEnv(render_mode="ansi")
 
 
 def test_unicycle_action_type_drives_forward_along_heading() -> None:

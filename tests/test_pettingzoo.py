@@ -73,7 +73,7 @@ def test_metadata_and_agents() -> None:
     formation = formation_v0.parallel_env()
     assert formation.metadata["name"] == "formation_v0"
     assert formation.metadata["is_parallelizable"] is True
-    assert formation.metadata["render_modes"] == []
+    assert formation.metadata["render_modes"] == ["rgb_array", "human"]
     assert formation.possible_agents == FOLLOWERS
     assert formation.agents == []
     observations, infos = formation.reset(seed=0)

@@ -26,6 +26,7 @@ from khepera_gym.config import ConfigArg, resolve_config
 from khepera_gym.envs import _SEED_BOUND, _check_action_type, _check_render_mode
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.layout import layout_dict
+from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
 #: Scenario key behind PettingZoo's ``max_cycles`` (and our ``max_steps``).
 _MAX_STEPS_KEY = "max_steps"
@@ -44,7 +45,9 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
         max_cycles: Steps before every agent is truncated (the scenario's ``task.max_steps``);
             None keeps the scenario's. ``max_steps`` is accepted as a synonym.
-        render_mode: Must be None for now (rendering comes in a later release).
+        render_mode: None, "rgb_array" (``render()`` returns the frame) or "human" (a pygame
+            window, refreshed after every step).
+        frame_size: (width, height) of the frame in pixels.
         **overrides: Scenario keys overriding the file, as for the Gymnasium envs.
 
     Raises:
@@ -53,7 +56,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
 
     metadata: ClassVar[dict[str, Any]] = {
         "name": "khepera_v0",
-        "render_modes": [],
+        "render_modes": ["rgb_array", "human"],
         "render_fps": 20,
         "is_parallelizable": True,
     }
@@ -67,6 +70,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         action_type: str = "wheels",
         max_cycles: int | None = None,
         render_mode: str | None = None,
+        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
         **overrides: Any,
     ) -> None:
         _check_render_mode(render_mode, self.metadata["render_modes"])
@@ -90,6 +94,13 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
             action_type=action_type,
             num_threads=1,
             autoreset=False,
+        )
+        self._renderer = Renderer(
+            self._batch,
+            render_mode,
+            frame_size,
+            fps=self.metadata["render_fps"],
+            title=f"khepera_gym {self.metadata['name']}",
         )
         low, high = self._batch.obs_bounds()
         low, high = low.astype(np.float32), high.astype(np.float32)
@@ -215,6 +226,8 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
             truncated[agent] = not terminated[agent] and (episode_over or cut_short)
             infos[agent] = {} if stats is None else {"episode_stats": dict(stats)}
         self.agents = [agent for agent in live if not (terminated[agent] or truncated[agent])]
+        if self.render_mode == "human":
+            self.render()
         return observation_dict, rewards, terminated, truncated, infos
 
     def _fill_joint_actions(self, actions: Mapping[str, npt.ArrayLike]) -> None:
@@ -281,12 +294,15 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         """The fully resolved scenario (defaults + file + overrides) as TOML text."""
         return self._batch.config_toml()
 
-    def render(self) -> None:
-        """Nothing to render yet (``render_mode`` must be None); returns None."""
-        return None
+    def render(self) -> npt.NDArray[np.uint8] | None:
+        """The frame (height, width, 3) uint8 for ``render_mode="rgb_array"``; shown in a window
+        for ``"human"`` (returns None); None without a render mode."""
+        return self._renderer.render()
 
     def close(self) -> None:
-        """Release nothing (the Rust world is freed with the env); safe to call twice."""
+        """Closes the render window, if any (the Rust world is freed with the env); safe to call
+        twice."""
+        self._renderer.close()
 
 
 __all__ = ["ACTION_DIM", "KheperaParallelEnv"]

@@ -59,7 +59,7 @@ class FormationParallelEnv(KheperaParallelEnv):
 
     metadata: ClassVar[dict[str, Any]] = {
         "name": "formation_v0",
-        "render_modes": [],
+        "render_modes": ["rgb_array", "human"],
         "render_fps": 20,
         "is_parallelizable": True,
     }

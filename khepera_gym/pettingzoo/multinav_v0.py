@@ -50,7 +50,7 @@ class MultiNavParallelEnv(KheperaParallelEnv):
 
     metadata: ClassVar[dict[str, Any]] = {
         "name": "multinav_v0",
-        "render_modes": [],
+        "render_modes": ["rgb_array", "human"],
         "render_fps": 20,
         "is_parallelizable": True,
     }
