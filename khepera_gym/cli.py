@@ -1,4 +1,4 @@
-"""The ``khepera-gym`` command: ``demo``, ``compare``, ``train`` and ``bench``.
+"""The ``khepera-gym`` command: ``demo``, ``compare``, ``train``, ``render`` and ``bench``.
 
 ``train`` trains a stable-baselines3 agent on the Rust batch (:mod:`khepera_gym.train`; SB3 and
 torch are imported only then).
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, compare, train
+from khepera_gym import bench, compare, render, train
 
 #: Episodes per policy of each comparison of the demo.
 DEMO_EPISODES = 50
@@ -61,6 +61,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_arguments(train_parser)
 
+    render_parser = commands.add_parser(
+        "render", help="record a seeded episode of a policy to a GIF or MP4"
+    )
+    render.add_arguments(render_parser)
+
     bench_parser = commands.add_parser("bench", help="env-steps/s and memory per world")
     bench.add_arguments(bench_parser)
     return parser
@@ -77,6 +82,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return compare.run_from_args(args)
     if args.command == "train":
         return train.run_from_args(args)
+    if args.command == "render":
+        return render.run_from_args(args)
     return bench.run_from_args(args)
 
 

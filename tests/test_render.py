@@ -115,3 +115,15 @@ def test_pettingzoo_envs_render_frames() -> None:
         frame = env.render()
         assert frame.shape == (160, 200, 3) and frame.dtype == np.uint8
         env.close()
+
+
+def test_render_command_records_a_baseline_episode(tmp_path) -> None:
+    from khepera_gym.cli import main
+
+    out = tmp_path / "fig6.gif"
+    argv = ["render", "--env", AVOID_ID, "--config", "paper_fig6", "--policy", "braitenberg"]
+    assert main([*argv, "--size", "64", "64", "--steps", "12", "--out", str(out)]) == 0
+    from PIL import Image
+
+    with Image.open(out) as gif:
+        assert gif.n_frames == 13 and gif.size == (64, 64)
