@@ -15,10 +15,12 @@ x right, y up, metres, arena centred at the origin.
 
 from __future__ import annotations
 
+import json
 import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -307,6 +309,15 @@ class Rollout:
         dt: Control step (s), so that step t is at time t · dt.
         label: What produced it, e.g. the policy's name (used as a panel title).
         seed: The reset seed, if known.
+        actions: The action of every step, shape (T, A), when recorded.
+        rewards: The reward of every step, shape (T,), when recorded.
+        ir_raw: Raw IR readings (0..1023) at reset and after every step, (T + 1, R, 8).
+        us_cm: Ultrasonic readings (cm or codes 0/1000/2000), (T + 1, R, 5).
+        env_id: The environment's id, when known.
+        config: The resolved scenario (TOML text), when known.
+
+    :meth:`save` writes all of it to one compressed ``.npz`` file and :meth:`load` reads it back,
+    so a run can be replayed or plotted later without simulating it again.
     """
 
     poses: np.ndarray
@@ -317,6 +328,58 @@ class Rollout:
     dt: float = 0.05
     label: str = ""
     seed: int | None = None
+    actions: np.ndarray | None = None
+    rewards: np.ndarray | None = None
+    ir_raw: np.ndarray | None = None
+    us_cm: np.ndarray | None = None
+    env_id: str = ""
+    config: str = ""
+
+    _ARRAYS: ClassVar[tuple[str, ...]] = (
+        "poses",
+        "goals",
+        "targets",
+        "actions",
+        "rewards",
+        "ir_raw",
+        "us_cm",
+    )
+
+    def save(self, path: str | Path) -> Path:
+        """Writes the rollout to a compressed ``.npz`` (arrays, plus scene, stats and metadata
+        as JSON)."""
+        path = Path(path)
+        arrays = {
+            name: getattr(self, name) for name in self._ARRAYS if getattr(self, name) is not None
+        }
+        meta = {
+            "scene": self.scene,
+            "stats": {k: (v.item() if hasattr(v, "item") else v) for k, v in self.stats.items()},
+            "dt": self.dt,
+            "label": self.label,
+            "seed": self.seed,
+            "env_id": self.env_id,
+            "config": self.config,
+        }
+        np.savez_compressed(path, meta=np.array(json.dumps(meta)), **arrays)
+        return path if path.suffix == ".npz" else path.with_suffix(path.suffix + ".npz")
+
+    @classmethod
+    def load(cls, path: str | Path) -> Rollout:
+        """Reads a rollout written by :meth:`save`."""
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            arrays = {name: data[name] for name in cls._ARRAYS if name in data.files}
+        return cls(
+            scene=meta["scene"],
+            stats=meta["stats"],
+            dt=meta["dt"],
+            label=meta["label"],
+            seed=meta["seed"],
+            env_id=meta["env_id"],
+            config=meta["config"],
+            **arrays,
+        )
 
     @property
     def n_robots(self) -> int:
@@ -402,8 +465,14 @@ def record_rollout(
     goals, scene = unwrapped.goals(), unwrapped.scene()
     stats: dict[str, Any] = {}
     steps = 0
+    actions, rewards = [], []
+    readings = [unwrapped.sensor_readings()]
     while max_steps is None or steps < max_steps:
-        observation, _, terminated, truncated, info = env.step(policy(observation))
+        action = np.asarray(policy(observation), dtype=np.float32)
+        observation, reward, terminated, truncated, info = env.step(action)
+        actions.append(action)
+        rewards.append(float(reward))
+        readings.append(unwrapped.sensor_readings())
         steps += 1
         poses.append(unwrapped.poses())
         if has_targets:
@@ -420,6 +489,12 @@ def record_rollout(
         dt=control_step(env),
         label=label,
         seed=seed,
+        actions=np.array(actions, dtype=np.float32).reshape(steps, -1),
+        rewards=np.array(rewards, dtype=np.float32),
+        ir_raw=np.array([r["ir_raw"] for r in readings]),
+        us_cm=np.array([r["us_cm"] for r in readings]),
+        env_id=env.spec.id if env.spec is not None else "",
+        config=unwrapped.config_toml(),
     )
 
 

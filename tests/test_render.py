@@ -3,6 +3,7 @@ the pygame window on SDL's dummy driver; videos."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -127,3 +128,23 @@ def test_render_command_records_a_baseline_episode(tmp_path) -> None:
 
     with Image.open(out) as gif:
         assert gif.n_frames == 13 and gif.size == (64, 64)
+
+
+def test_a_recorded_rollout_replays_from_its_file_without_simulating(tmp_path) -> None:
+    from khepera_gym.baselines import Braitenberg
+    from khepera_gym.plot import Rollout, plot_rollouts, record_rollout
+
+    rollout = record_rollout(AVOID_ID, Braitenberg(), seed=3, max_steps=60, label="braitenberg")
+    path = rollout.save(tmp_path / "run.npz")
+    again = Rollout.load(path)
+    for name in ("poses", "goals", "actions", "rewards", "ir_raw", "us_cm"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(rollout, name), err_msg=name)
+    steps = len(rollout.actions)
+    assert again.poses.shape == (steps + 1, 1, 3) and again.ir_raw.shape == (steps + 1, 1, 8)
+    assert again.stats == rollout.stats
+    assert again.scene == json.loads(json.dumps(rollout.scene))  # tuples come back as lists
+    assert again.env_id == AVOID_ID and "[obstacles]" in again.config and again.seed == 3
+    # The file is all a plot needs.
+    figure = plot_rollouts([again])
+    figure.savefig(tmp_path / "replay.png")
+    assert (tmp_path / "replay.png").stat().st_size > 0
