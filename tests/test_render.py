@@ -148,3 +148,20 @@ def test_a_recorded_rollout_replays_from_its_file_without_simulating(tmp_path) -
     figure = plot_rollouts([again])
     figure.savefig(tmp_path / "replay.png")
     assert (tmp_path / "replay.png").stat().st_size > 0
+
+
+def test_gymnasium_record_video_writes_an_mp4(tmp_path) -> None:
+    from gymnasium.wrappers import RecordVideo
+
+    env = RecordVideo(
+        gym.make(NAV_ID, render_mode="rgb_array", frame_size=(96, 96)),
+        str(tmp_path / "videos"),
+        episode_trigger=lambda episode: True,
+        disable_logger=True,
+    )
+    env.reset(seed=0)
+    for _ in range(10):
+        env.step(np.array([0.5, 0.6], np.float32))
+    env.close()
+    videos = list((tmp_path / "videos").glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 0
