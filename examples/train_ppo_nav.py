@@ -38,6 +38,7 @@ def main() -> None:
     parser.add_argument("--timesteps", type=int, default=300_000)
     parser.add_argument("--out", type=Path, default=Path("runs/ppo-nav-example"))
     args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
 
     # Training: 16 worlds, world i seeded 0 + i; VecMonitor adds SB3's episode statistics.
     envs = VecMonitor(make_vec_env(ENV_ID, n_envs=16, seed=0))

@@ -24,7 +24,8 @@ SB3 semantics, and how they are met on a batch that autoresets on the *next* ste
 
 Threading and copies: ``step_wait`` and ``reset`` release the GIL inside the Rust core, which
 steps the worlds on its own pool of ``num_threads`` threads; every returned array is fresh.
-Units and frames are those of the envs (SI, robot frame x forward, y left).
+Units and frames are those of the envs (SI, robot frame x forward, y left). With
+``render_mode="rgb_array"``, ``get_images()`` draws one frame per world in software (no display).
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ from khepera_gym.config import ConfigArg, resolve_config
 from khepera_gym.envs import _check_action_type
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.layout import layout_dict
+from khepera_gym.render import DEFAULT_FRAME_SIZE, TRAIL_LENGTH, check_frame_size, mosaic
 
 #: Scenario key that ``max_episode_steps`` (Gymnasium's name) maps onto.
 _MAX_STEPS_KEY = "max_steps"
@@ -119,10 +121,14 @@ class KheperaSB3VecEnv(VecEnv):
         config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
         max_episode_steps: If given, overrides the scenario's ``max_steps`` (truncation length).
+        render_mode: None, or "rgb_array": ``get_images()`` then gives one frame per world
+            (drawn in software by the Rust core, no display needed) and ``render()`` tiles
+            them, so SB3's ``VecVideoRecorder`` works.
+        frame_size: (width, height) in pixels of one world's frame.
         **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1``.
 
     Attributes that SB3 reads: ``num_envs`` (rows), ``observation_space`` and ``action_space``
-    (one row's), ``render_mode`` (None). ``get_attr`` knows the attributes every world shares
+    (one row's), ``render_mode``. ``get_attr`` knows the attributes every world shares
     (:attr:`SHARED_ATTRIBUTES`); ``env_method`` calls the single env's ground-truth methods on
     each world (:attr:`WORLD_METHODS`); ``set_attr`` raises (a scenario is fixed at
     construction: build a new env with other overrides instead).
@@ -149,7 +155,6 @@ class KheperaSB3VecEnv(VecEnv):
         "obs_layout",
         "config_toml",
     )
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 
     def __init__(
         self,
@@ -161,9 +166,17 @@ class KheperaSB3VecEnv(VecEnv):
         config: ConfigArg = None,
         action_type: str = "wheels",
         max_episode_steps: int | None = None,
+        render_mode: str | None = None,
+        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
         **overrides: Any,
     ) -> None:
         _check_action_type(action_type)
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError(
+                f"render_mode must be None or 'rgb_array' for an SB3 VecEnv, got {render_mode!r} "
+                "(for a window use gym.make(env_id, render_mode='human'))"
+            )
+        self._frame_size = check_frame_size(frame_size)
         if max_episode_steps is not None:
             if _MAX_STEPS_KEY in overrides:
                 raise ConfigError(
@@ -184,7 +197,9 @@ class KheperaSB3VecEnv(VecEnv):
         )
         self.task = task
         self.action_type = action_type
-        self.render_mode: str | None = None
+        self.render_mode: str | None = render_mode
+        if render_mode is not None:
+            self._batch.set_trail_length(TRAIL_LENGTH)
         self.num_worlds: int = self._batch.num_worlds
         self._configure_rows()
         super().__init__(
@@ -343,20 +358,28 @@ class KheperaSB3VecEnv(VecEnv):
         self._closed = True
 
     def render(self, mode: str | None = None) -> npt.NDArray[np.uint8] | None:
-        """Not available yet.
+        """The frames of every world tiled into one RGB image (``render_mode="rgb_array"``).
 
         Raises:
-            NotImplementedError: Always; plot ``env_method("poses")`` with
-                ``khepera_gym.plot.plot_trajectories`` meanwhile.
+            NotImplementedError: The env was made without ``render_mode="rgb_array"``, or
+                another mode is asked for (SB3's "human" needs OpenCV; for a window use
+                ``gym.make(env_id, render_mode="human")``).
         """
-        raise NotImplementedError(
-            "rendering comes in a later release of khepera_gym; meanwhile record "
-            "env.env_method('poses') and draw it with khepera_gym.plot.plot_trajectories"
-        )
+        if self.render_mode != "rgb_array" or mode not in (None, "rgb_array"):
+            raise NotImplementedError(
+                f"render(mode={mode!r}) on an env made with render_mode={self.render_mode!r}: "
+                "make it with render_mode='rgb_array' (frames of every world, tiled); for a "
+                "window use gym.make(env_id, render_mode='human')"
+            )
+        return mosaic(list(self.get_images()))
 
     def get_images(self) -> Sequence[npt.NDArray[np.uint8] | None]:
-        """Not available yet (see :meth:`render`)."""
-        return self.render()  # type: ignore[return-value]
+        """One RGB frame (height, width, 3) per world (not per row), with ``render_mode=
+        "rgb_array"``; without it, None for each world (as SB3's DummyVecEnv gives)."""
+        if self.render_mode != "rgb_array":
+            return [None] * self.num_worlds
+        width, height = self._frame_size
+        return [self._batch.render(world, width, height) for world in range(self.num_worlds)]
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """The value of a single env's attribute for each row (the same for every world).

@@ -30,11 +30,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
-
 import khepera_gym
 from khepera_gym.errors import ConfigError
 
@@ -70,6 +65,16 @@ class LinearDecay:
         return f"lin_{self.start}"
 
 
+def _toml() -> Any:
+    """tomllib, or tomli before Python 3.11 (in the sb3 extra): imported when first needed, so
+    ``khepera-gym demo`` runs without it."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+    return tomllib
+
+
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
     """The hyperparameter table of ``env_id`` in an algorithm's TOML file.
 
@@ -82,6 +87,7 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     Raises:
         ConfigError: The file is missing or unreadable, or has no table for ``env_id``.
     """
+    tomllib = _toml()
     file = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.toml"
     try:
         tables = tomllib.loads(file.read_text(encoding="utf-8"))
@@ -107,6 +113,7 @@ def parse_override(text: str) -> tuple[str, Any]:
     Raises:
         ConfigError: No ``=`` or an empty key.
     """
+    tomllib = _toml()
     key, separator, value = text.partition("=")
     key = key.strip()
     if not separator or not key:

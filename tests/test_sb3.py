@@ -197,8 +197,25 @@ def test_get_attr_env_method_set_attr_env_is_wrapped_and_render() -> None:
     with pytest.raises(NotImplementedError, match="scenario"):
         env.set_attr("max_episode_steps", 5)
     assert env.env_is_wrapped(Monitor) == [False, False, False]
-    with pytest.raises(NotImplementedError, match="rendering"):
+    with pytest.raises(NotImplementedError, match="rgb_array"):
         env.render()
+    assert env.get_images() == [None, None, None]
+
+
+def test_rgb_array_render_tiles_one_frame_per_world() -> None:
+    env = make_formation_vec_env(3, seed=0, n_followers=2, render_mode="rgb_array")
+    assert env.render_mode == "rgb_array" and env.get_attr("render_mode", 0) == ["rgb_array"]
+    env.reset()
+    frames = make_vec_env(NAV_ID, 2, seed=0, render_mode="rgb_array", frame_size=(64, 48))
+    frames.reset()
+    images = frames.get_images()
+    assert [image.shape for image in images] == [(48, 64, 3), (48, 64, 3)]
+    assert images[0].dtype == np.uint8 and not np.array_equal(images[0], images[1])
+    mosaic = frames.render()
+    assert mosaic.ndim == 3 and mosaic.shape[0] >= 48 and mosaic.shape[1] >= 2 * 64
+    assert len(env.get_images()) == 3  # one per world, not per follower row
+    with pytest.raises(ConfigError, match="rgb_array"):
+        make_vec_env(NAV_ID, 1, render_mode="human")
 
 
 def test_wrong_actions_raise_action_error_and_step_needs_reset() -> None:
