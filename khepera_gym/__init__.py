@@ -33,6 +33,10 @@ import gymnasium
 from khepera_gym import _core, errors
 from khepera_gym.layout import obs_layout
 
+#: Real-robot speed units (``kh4_set_speed``, 0.678181 mm/s each) to and from m/s.
+speed_to_units = _core.speed_to_units
+units_to_speed = _core.units_to_speed
+
 __version__: str = _core.__version__
 
 #: (id, single-env entry point, vector entry point) of every registered environment.
@@ -61,4 +65,4 @@ def _register_envs() -> None:
 
 _register_envs()
 
-__all__ = ["__version__", "errors", "obs_layout"]
+__all__ = ["__version__", "errors", "obs_layout", "speed_to_units", "units_to_speed"]

@@ -187,3 +187,15 @@ def builtin_configs() -> list[str]:
 
 def _panic_for_test() -> None:
     """Panics inside the binding guard (tests: a panic must surface as KheperaError)."""
+
+MAX_WHEEL_SPEED: float  # m/s
+MIN_WHEEL_SPEED: float  # m/s
+AXLE_LENGTH: float  # m
+BODY_RADIUS: float  # m
+WHEEL_RADIUS: float  # m
+
+def speed_to_units(speed: float) -> int:
+    """A wheel speed (m/s) in the real robot's ``kh4_set_speed`` units (0.678181 mm/s each)."""
+
+def units_to_speed(units: int) -> float:
+    """``kh4_set_speed`` units as a wheel speed in m/s."""

@@ -318,3 +318,12 @@ def test_column_major_actions_are_read_in_the_right_order() -> None:
         results.append(batch.sensor_readings()["wheel_speeds"])
     np.testing.assert_array_equal(results[0], results[1])
     np.testing.assert_allclose(results[0][:, 0], [[0.813, 0.0]] * 3)
+
+
+def test_real_robot_speed_units_round_trip() -> None:
+    assert khepera_gym.speed_to_units(0.813) == 1199  # about 1200 units: the manual's maximum
+    assert khepera_gym.units_to_speed(1200) == pytest.approx(0.8138, abs=1e-4)
+    assert round(_core.MAX_WHEEL_SPEED, 4) == 0.813
+    assert round(_core.AXLE_LENGTH, 4) == 0.1054
+    with pytest.raises(ValueError, match="finite"):
+        khepera_gym.speed_to_units(float("nan"))

@@ -918,6 +918,23 @@ fn _panic_for_test(py: Python<'_>) -> PyResult<()> {
     })
 }
 
+/// A wheel speed in m/s as the real robot's `kh4_set_speed` units (0.678181 mm/s each).
+#[pyfunction]
+fn speed_to_units(speed: f32) -> PyResult<i32> {
+    if !speed.is_finite() || speed.abs() > 10.0 {
+        return Err(PyValueError::new_err(format!(
+            "speed must be finite, |v| <= 10 m/s, got {speed}"
+        )));
+    }
+    Ok(crate::robot::speed_to_units(speed))
+}
+
+/// The real robot's `kh4_set_speed` units as a wheel speed in m/s.
+#[pyfunction]
+fn units_to_speed(units: i32) -> f32 {
+    crate::robot::units_to_speed(units)
+}
+
 /// Names of the built-in scenarios.
 #[pyfunction]
 fn builtin_configs() -> Vec<&'static str> {
@@ -933,6 +950,13 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(obs_layout, m)?)?;
     m.add_function(wrap_pyfunction!(default_config, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_configs, m)?)?;
+    m.add_function(wrap_pyfunction!(speed_to_units, m)?)?;
+    m.add_function(wrap_pyfunction!(units_to_speed, m)?)?;
+    m.add("MAX_WHEEL_SPEED", crate::robot::MAX_WHEEL_SPEED)?;
+    m.add("MIN_WHEEL_SPEED", crate::robot::MIN_WHEEL_SPEED)?;
+    m.add("AXLE_LENGTH", crate::robot::AXLE_LENGTH)?;
+    m.add("BODY_RADIUS", crate::robot::BODY_RADIUS)?;
+    m.add("WHEEL_RADIUS", crate::robot::WHEEL_RADIUS)?;
     m.add_function(wrap_pyfunction!(_panic_for_test, m)?)?;
     Ok(())
 }
