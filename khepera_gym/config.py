@@ -107,3 +107,63 @@ def resolve_config(config: ConfigArg, task: str) -> tuple[str | None, str]:
 
 
 __all__ = ["BUILT_IN_SOURCE", "builtin_config_names", "builtin_config_text", "resolve_config"]
+
+
+#: Action types understood by the Rust core: normalised (left, right) wheel speeds, or (v, ω).
+ACTION_TYPES = ("wheels", "unicycle")
+#: Scenario key of the episode length (Gymnasium's ``max_episode_steps``, PettingZoo's
+#: ``max_cycles``).
+MAX_STEPS_KEY = "max_steps"
+
+
+def make_batch(
+    task: str,
+    num_worlds: int,
+    config: ConfigArg,
+    overrides: dict[str, object],
+    *,
+    action_type: str = "wheels",
+    num_threads: int | None = None,
+    autoreset: bool = True,
+    episode_steps: tuple[str, int | None] | None = None,
+) -> _core.Batch:
+    """The ``_core.Batch`` every env class builds on: checks the action type, merges an
+    episode-length argument into the overrides, resolves ``config`` and builds the batch.
+
+    Args:
+        task: Task name in the Rust core.
+        num_worlds: Worlds in the batch.
+        config: None, a built-in scenario name or a TOML path (see :func:`resolve_config`).
+        overrides: Scenario keys overriding the file (not modified).
+        action_type: "wheels" or "unicycle".
+        num_threads: Threads of the batch's pool; None uses every core.
+        autoreset: Gymnasium NEXT_STEP autoreset (vector env) or none (single env, SB3, PettingZoo).
+        episode_steps: (argument name, value) of an episode-length argument such as
+            ``("max_episode_steps", 200)``, merged as ``max_steps``; None or a None value: none.
+
+    Raises:
+        ConfigError: Unknown action type, both the argument and ``max_steps`` given, or any
+            scenario error from the core.
+    """
+    if action_type not in ACTION_TYPES:
+        raise ConfigError(f"action_type must be one of {ACTION_TYPES}, got {action_type!r}")
+    overrides = dict(overrides)
+    if episode_steps is not None and episode_steps[1] is not None:
+        name, value = episode_steps
+        if MAX_STEPS_KEY in overrides:
+            raise ConfigError(
+                f"give either {name} or {MAX_STEPS_KEY}, not both "
+                f"(got {value} and {overrides[MAX_STEPS_KEY]})"
+            )
+        overrides[MAX_STEPS_KEY] = value
+    config_text, config_name = resolve_config(config, task)
+    return _core.Batch(
+        task,
+        num_worlds,
+        config_text=config_text,
+        config_name=config_name,
+        overrides=overrides or None,
+        action_type=action_type,
+        num_threads=num_threads,
+        autoreset=autoreset,
+    )

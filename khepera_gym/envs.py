@@ -24,13 +24,11 @@ import numpy.typing as npt
 
 from khepera_gym import _core
 from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
-from khepera_gym.config import ConfigArg, resolve_config
+from khepera_gym.config import ACTION_TYPES, ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
-#: Action types understood by the Rust core: normalised (left, right) wheel speeds, or (v, ω).
-ACTION_TYPES = ("wheels", "unicycle")
 #: Largest seed drawn from ``np_random`` on a first ``reset()`` without a seed (exclusive).
 _SEED_BOUND = 2**62
 
@@ -40,11 +38,6 @@ def _check_render_mode(render_mode: str | None, render_modes: list[str]) -> None
         raise ConfigError(
             f"render_mode={render_mode!r} is not supported (supported: {[None, *render_modes]})"
         )
-
-
-def _check_action_type(action_type: str) -> None:
-    if action_type not in ACTION_TYPES:
-        raise ConfigError(f"action_type must be one of {ACTION_TYPES}, got {action_type!r}")
 
 
 class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
@@ -73,16 +66,13 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
         **overrides: Any,
     ) -> None:
         _check_render_mode(render_mode, self.metadata["render_modes"])
-        _check_action_type(action_type)
-        config_text, config_name = resolve_config(config, self.TASK)
         self.render_mode = render_mode
         self.action_type = action_type
-        self._batch = _core.Batch(
+        self._batch = make_batch(
             self.TASK,
             1,
-            config_text=config_text,
-            config_name=config_name,
-            overrides=dict(overrides) or None,
+            config,
+            overrides,
             action_type=action_type,
             num_threads=1,
             autoreset=False,

@@ -53,15 +53,11 @@ except ImportError as error:  # pragma: no cover - exercised only without the ex
         "khepera_gym.sb3 needs stable-baselines3: pip install 'khepera-gym[sb3]'"
     ) from error
 
-from khepera_gym import _core
-from khepera_gym.config import ConfigArg, resolve_config
-from khepera_gym.envs import _check_action_type
+from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, TRAIL_LENGTH, check_frame_size, mosaic
 
-#: Scenario key that ``max_episode_steps`` (Gymnasium's name) maps onto.
-_MAX_STEPS_KEY = "max_steps"
 #: Seeds drawn when none is given lie in [0, this) (SB3 draws uint32 seeds too).
 _SEED_BOUND = 2**32
 #: File next to a saved model holding its ``VecNormalize`` statistics (``khepera-gym train``).
@@ -170,30 +166,21 @@ class KheperaSB3VecEnv(VecEnv):
         frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
         **overrides: Any,
     ) -> None:
-        _check_action_type(action_type)
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(
                 f"render_mode must be None or 'rgb_array' for an SB3 VecEnv, got {render_mode!r} "
                 "(for a window use gym.make(env_id, render_mode='human'))"
             )
         self._frame_size = check_frame_size(frame_size)
-        if max_episode_steps is not None:
-            if _MAX_STEPS_KEY in overrides:
-                raise ConfigError(
-                    f"give either max_episode_steps or {_MAX_STEPS_KEY}, not both "
-                    f"(got {max_episode_steps} and {overrides[_MAX_STEPS_KEY]})"
-                )
-            overrides[_MAX_STEPS_KEY] = max_episode_steps
-        config_text, config_name = resolve_config(config, task)
-        self._batch = _core.Batch(
+        self._batch = make_batch(
             task,
             num_worlds,
-            config_text=config_text,
-            config_name=config_name,
-            overrides=overrides or None,
+            config,
+            overrides,
             action_type=action_type,
             num_threads=num_threads,
             autoreset=False,
+            episode_steps=("max_episode_steps", max_episode_steps),
         )
         self.task = task
         self.action_type = action_type

@@ -30,15 +30,11 @@ import numpy.typing as npt
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from khepera_gym import _core
-from khepera_gym.config import ConfigArg, resolve_config
-from khepera_gym.envs import _SEED_BOUND, _check_action_type, _check_render_mode
+from khepera_gym.config import ConfigArg, make_batch
+from khepera_gym.envs import _SEED_BOUND, _check_render_mode
 from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
-
-#: Scenario key that ``max_episode_steps`` (Gymnasium's name) maps onto.
-_MAX_STEPS_KEY = "max_steps"
 
 
 class KheperaVectorEnv(VectorEnv):
@@ -78,24 +74,15 @@ class KheperaVectorEnv(VectorEnv):
         **overrides: Any,
     ) -> None:
         _check_render_mode(render_mode, self.metadata["render_modes"])
-        _check_action_type(action_type)
-        if max_episode_steps is not None:
-            if _MAX_STEPS_KEY in overrides:
-                raise ConfigError(
-                    f"give either max_episode_steps or {_MAX_STEPS_KEY}, not both "
-                    f"(got {max_episode_steps} and {overrides[_MAX_STEPS_KEY]})"
-                )
-            overrides[_MAX_STEPS_KEY] = max_episode_steps
-        config_text, config_name = resolve_config(config, task)
-        self._batch = _core.Batch(
+        self._batch = make_batch(
             task,
             num_envs,
-            config_text=config_text,
-            config_name=config_name,
-            overrides=overrides or None,
+            config,
+            overrides,
             action_type=action_type,
             num_threads=num_threads,
             autoreset=True,
+            episode_steps=("max_episode_steps", max_episode_steps),
         )
         self.task = task
         self.num_envs = self._batch.num_worlds

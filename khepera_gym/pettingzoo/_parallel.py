@@ -21,15 +21,12 @@ import numpy as np
 import numpy.typing as npt
 from pettingzoo import ParallelEnv
 
-from khepera_gym import _core
-from khepera_gym.config import ConfigArg, resolve_config
-from khepera_gym.envs import _SEED_BOUND, _check_action_type, _check_render_mode
-from khepera_gym.errors import ActionError, ConfigError, KheperaError
+from khepera_gym.config import ConfigArg, make_batch
+from khepera_gym.envs import _SEED_BOUND, _check_render_mode
+from khepera_gym.errors import ActionError, KheperaError
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
-#: Scenario key behind PettingZoo's ``max_cycles`` (and our ``max_steps``).
-_MAX_STEPS_KEY = "max_steps"
 #: Actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle".
 ACTION_DIM = 2
 
@@ -74,26 +71,17 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         **overrides: Any,
     ) -> None:
         _check_render_mode(render_mode, self.metadata["render_modes"])
-        _check_action_type(action_type)
-        if max_cycles is not None:
-            if _MAX_STEPS_KEY in overrides:
-                raise ConfigError(
-                    f"give either max_cycles or {_MAX_STEPS_KEY}, not both "
-                    f"(got {max_cycles} and {overrides[_MAX_STEPS_KEY]})"
-                )
-            overrides[_MAX_STEPS_KEY] = max_cycles
-        config_text, config_name = resolve_config(config, self.TASK)
         self.render_mode = render_mode
         self.action_type = action_type
-        self._batch = _core.Batch(
+        self._batch = make_batch(
             self.TASK,
             1,
-            config_text=config_text,
-            config_name=config_name,
-            overrides=overrides or None,
+            config,
+            overrides,
             action_type=action_type,
             num_threads=1,
             autoreset=False,
+            episode_steps=("max_cycles", max_cycles),
         )
         self._renderer = Renderer(
             self._batch,
