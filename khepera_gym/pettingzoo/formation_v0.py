@@ -14,7 +14,8 @@ details the observation, reward and scenario keys) with one agent per follower::
 Agents: ``follower_0`` .. ``follower_{K-1}``, with ``leader`` first when ``leader="agent"``.
 
 * Observation of a follower: its 23-value block of the Formation observation (IR, ultrasonic,
-  ``target_offset`` in its robot frame, ``leader_velocity``, ``wheel_speeds``). All followers
+  ``target_offset`` in its robot frame, ``leader_offset``, ``leader_heading``,
+  ``leader_velocity``, ``wheel_speeds``). All followers
   have equal spaces (same bounds), so one shared policy can drive them all (parameter sharing).
   An agent leader observes the 18-value Nav block. ``agent_obs_layout(agent)`` names the slices;
   ``state()`` is the joint observation (``state_space``).
