@@ -15,7 +15,7 @@ TOOLS     := $(VENV)/.tools-installed
 BUILT     := $(VENV)/.khepera-gym-built
 SB3       := $(VENV)/.sb3-installed
 
-.PHONY: develop test demo bench lint format clean
+.PHONY: develop test demo bench lint format clean wheel
 
 develop: $(BUILT)
 
@@ -64,3 +64,16 @@ format: develop
 clean:
 	rm -rf $(BUILT) demo_out
 	rm -f khepera_gym/_core*.so khepera_gym/_core*.pyd
+
+# An abi3 wheel (one wheel for every CPython >= 3.10) and the sdist in dist/, then a smoke test:
+# the wheel installed in a fresh venv, run with no Rust toolchain on PATH.
+wheel: $(TOOLS)
+	rm -rf dist
+	$(VENV)/bin/maturin build --release --out dist
+	$(VENV)/bin/maturin sdist --out dist
+	python3 -m venv dist/smoke-venv
+	dist/smoke-venv/bin/pip install --quiet dist/*.whl
+	cd dist && env PATH=/usr/bin:/bin smoke-venv/bin/python -c "import gymnasium as gym, khepera_gym; \
+	e = gym.make('KheperaIV-Avoid-v0', render_mode='rgb_array'); o, _ = e.reset(seed=0); \
+	o, r, t, u, i = e.step(e.action_space.sample()); f = e.render(); \
+	print('wheel smoke test ok:', khepera_gym.__version__, o.shape, f.shape)"
