@@ -156,23 +156,10 @@ def run(
     print(header)
     print("-" * len(header))
     measurements: list[Measurement] = []
-    for count in num_envs:
+
+    def thread_rows(count: int, env_id: str) -> None:
+        """Times one batch size at every thread count and prints a row each."""
         single_thread_rate: float | None = None
-        for threads in num_threads:
-            result = bench_vector(count, threads, duration)
-            measurements.append(result)
-            rate = result.env_steps_per_second
-            if threads == 1:
-                single_thread_rate = rate
-            speedup = f"{rate / single_thread_rate:.2f}" if single_thread_rate else ""
-            print(
-                f"{result.label:<22} {threads:>7} {rate:>13,.0f} "
-                f"{result.microseconds_per_step:>10.1f} {speedup:>9}",
-                flush=True,
-            )
-    for env_id in OTHER_TASKS if task_envs else ():
-        count = task_envs
-        single_thread_rate = None
         for threads in num_threads:
             result = bench_vector(count, threads, duration, env_id=env_id)
             measurements.append(result)
@@ -185,6 +172,11 @@ def run(
                 f"{result.microseconds_per_step:>10.1f} {speedup:>9}",
                 flush=True,
             )
+
+    for count in num_envs:
+        thread_rows(count, NAV_ID)
+    for env_id in OTHER_TASKS if task_envs else ():
+        thread_rows(task_envs, env_id)
     if single:
         result = bench_single(duration)
         measurements.append(result)

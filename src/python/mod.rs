@@ -276,30 +276,12 @@ impl Batch {
 
     /// Each agent's reward on the last step, shape (N, n_agents).
     fn agent_rewards<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let n_agents = self.inner.envs()[0].agent_rewards.len();
-        let data: Vec<f32> = self
-            .inner
-            .envs()
-            .iter()
-            .flat_map(|e| e.agent_rewards.iter().copied())
-            .collect();
-        Ok(PyArray1::from_vec(py, data)
-            .reshape([self.inner.len(), n_agents])?
-            .into_any())
+        self.per_agent(py, |e| &e.agent_rewards)
     }
 
     /// Each agent's termination on the last step, shape (N, n_agents).
     fn agent_terminated<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let n_agents = self.inner.envs()[0].agent_terminated.len();
-        let data: Vec<bool> = self
-            .inner
-            .envs()
-            .iter()
-            .flat_map(|e| e.agent_terminated.iter().copied())
-            .collect();
-        Ok(PyArray1::from_vec(py, data)
-            .reshape([self.inner.len(), n_agents])?
-            .into_any())
+        self.per_agent(py, |e| &e.agent_terminated)
     }
 
     /// Formation targets of the followers, shape (N, K, 2) (K = 0 for other tasks).
@@ -592,6 +574,24 @@ impl Batch {
 }
 
 impl Batch {
+    /// A per-agent field of every world as an (N, n_agents) array.
+    fn per_agent<'py, T: numpy::Element + Copy>(
+        &self,
+        py: Python<'py>,
+        field: impl Fn(&crate::tasks::Env) -> &Vec<T>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n_agents = field(&self.inner.envs()[0]).len();
+        let data: Vec<T> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| field(e).iter().copied())
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), n_agents])?
+            .into_any())
+    }
+
     fn obs_array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         Ok(PyArray1::from_slice(py, self.inner.obs())
             .reshape([self.inner.len(), self.inner.obs_dim()])?
