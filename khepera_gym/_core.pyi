@@ -114,6 +114,12 @@ class Batch:
         ``render`` (0, the default, keeps none and costs nothing)."""
     def config_toml(self) -> str:
         """The fully resolved scenario (defaults + file + overrides) as TOML text."""
+    def get_state(self) -> bytes:
+        """The state of every world and of the last outputs, for ``set_state``."""
+    def set_state(self, state: bytes) -> None:
+        """Restores a ``get_state`` state of a batch of the same task, scenario and size; raises
+        StateError otherwise (and changes nothing)."""
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]: ...
 
 def obs_layout(task: str) -> list[tuple[str, int, int]]:
     """Observation layout of a task: (name, start, stop) slices, in order."""
@@ -181,6 +187,18 @@ def braitenberg_weights(name: str) -> list[list[float]]:
 def default_config(name: str) -> str:
     """A built-in scenario file (TOML text): a task's defaults ("nav", "avoid", "formation",
     "multinav", every key documented) or a scene ("paper_fig6", "paper_fig7")."""
+
+def _batch_from_state(
+    task: str,
+    num_worlds: int,
+    config_text: str,
+    action_type: str,
+    num_threads: int | None,
+    autoreset: bool,
+    trail_length: int,
+    state: bytes,
+) -> Batch:
+    """Unpickles a Batch."""
 
 def builtin_configs() -> list[str]:
     """Names of the built-in scenario files."""

@@ -223,6 +223,10 @@ class Renderer:
         self._window.show(image)
         return None
 
+    def __getstate__(self) -> dict[str, Any]:
+        # A pickled env reopens its window at the next render, in the process that unpickles it.
+        return {**self.__dict__, "_window": None}
+
     def close(self) -> None:
         """Closes the window, if any."""
         if self._window is not None:

@@ -17,6 +17,35 @@ use crate::robot::ActionType;
 use crate::scenario::Scenario;
 use crate::tasks::{Env, EpisodeStats, StepOutcome, TaskKind};
 
+/// First bytes of a saved state.
+pub const STATE_MAGIC: &[u8; 8] = b"KHEPGYM\0";
+/// Version of the saved-state format; bumped whenever the layout of any saved type changes.
+pub const STATE_VERSION: u32 = 1;
+
+/// What a saved state says about the batch it came from.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct StateHeader {
+    version: u32,
+    task: String,
+    num_worlds: u64,
+    scenario: String,
+    checksum: u32,
+}
+
+/// The first line in which two scenarios' TOML differ, for error messages.
+fn first_difference(saved: &str, current: &str) -> String {
+    let mut section = "";
+    for (a, b) in saved.lines().zip(current.lines()) {
+        if a.starts_with('[') {
+            section = a;
+        }
+        if a != b {
+            return format!("{section} saved `{a}`, this env has `{b}`");
+        }
+    }
+    "different lengths".into()
+}
+
 /// Smallest number of worlds a rayon task takes (amortises scheduling).
 const MIN_WORLDS_PER_TASK: usize = 8;
 
@@ -165,6 +194,103 @@ impl Batch {
         for env in &mut self.envs {
             env.set_trail_length(length);
         }
+    }
+
+    /// The state of every world (see [`Env::save_state`]) and of the batch's output buffers,
+    /// as bytes: restoring it with [`Batch::load_state`] and replaying the same actions gives the
+    /// same results bit for bit. Layout: `STATE_MAGIC`, a postcard header (format version, task,
+    /// number of worlds, scenario as TOML, CRC-32 of the body), then the postcard body.
+    pub fn save_state(&self) -> Result<Vec<u8>> {
+        let mut body = Vec::new();
+        let buffers = (&self.obs, &self.outcomes);
+        body = postcard::to_extend(&buffers, body)
+            .map_err(|e| Error::State(format!("cannot encode the batch state: {e}")))?;
+        for env in &self.envs {
+            env.save_state(&mut body)?;
+        }
+        let header = StateHeader {
+            version: STATE_VERSION,
+            task: self.envs[0].kind().name().to_string(),
+            num_worlds: self.envs.len() as u64,
+            scenario: self.scenario().to_toml(),
+            checksum: crc32fast::hash(&body),
+        };
+        let mut out = STATE_MAGIC.to_vec();
+        out = postcard::to_extend(&header, out)
+            .map_err(|e| Error::State(format!("cannot encode the state header: {e}")))?;
+        out.extend_from_slice(&body);
+        Ok(out)
+    }
+
+    /// Restores a state from [`Batch::save_state`] of a batch of the same task, scenario and
+    /// number of worlds. On any error (not a state, corrupt, or from another batch) nothing is
+    /// changed and the error says which.
+    pub fn load_state(&mut self, bytes: &[u8]) -> Result<()> {
+        let body = bytes.strip_prefix(STATE_MAGIC.as_slice()).ok_or_else(|| {
+            Error::SavedState(
+                "not a khepera_gym state (it does not start with the state marker)".into(),
+            )
+        })?;
+        let (header, body): (StateHeader, _) = postcard::take_from_bytes(body)
+            .map_err(|e| Error::SavedState(format!("corrupt state header: {e}")))?;
+        if header.version != STATE_VERSION {
+            return Err(Error::SavedState(format!(
+                "state format version {} cannot be read by this version of khepera_gym \
+                 (format {STATE_VERSION})",
+                header.version
+            )));
+        }
+        let task = self.envs[0].kind().name();
+        if header.task != task {
+            return Err(Error::SavedState(format!(
+                "the state is of a {:?} env, this env is {task:?}",
+                header.task
+            )));
+        }
+        if header.num_worlds != self.envs.len() as u64 {
+            return Err(Error::SavedState(format!(
+                "the state has {} worlds, this env has {}",
+                header.num_worlds,
+                self.envs.len()
+            )));
+        }
+        let scenario = self.scenario().to_toml();
+        if header.scenario != scenario {
+            return Err(Error::SavedState(format!(
+                "the state was saved from another scenario ({})",
+                first_difference(&header.scenario, &scenario)
+            )));
+        }
+        if crc32fast::hash(body) != header.checksum {
+            return Err(Error::SavedState(
+                "corrupt state: its checksum does not match (truncated or altered bytes)".into(),
+            ));
+        }
+        let ((obs, outcomes), mut rest): ((Vec<f32>, Vec<StepOutcome>), _) =
+            postcard::take_from_bytes(body)
+                .map_err(|e| Error::SavedState(format!("corrupt batch state: {e}")))?;
+        if obs.len() != self.obs.len() || outcomes.len() != self.outcomes.len() {
+            return Err(Error::SavedState(
+                "corrupt batch state: wrong buffer sizes".into(),
+            ));
+        }
+        // Decode into copies first so that a failure leaves the batch as it was.
+        let mut envs = Vec::with_capacity(self.envs.len());
+        for env in &self.envs {
+            let mut copy = env.empty_twin()?;
+            rest = copy.load_state(rest)?;
+            envs.push(copy);
+        }
+        if !rest.is_empty() {
+            return Err(Error::SavedState(format!(
+                "corrupt state: {} unexpected bytes at the end",
+                rest.len()
+            )));
+        }
+        self.envs = envs;
+        self.obs = obs;
+        self.outcomes = outcomes;
+        Ok(())
     }
 
     /// Resets every world; with `Some(seed)` world i is seeded with `seed + i` first.

@@ -19,6 +19,10 @@ pub enum Error {
     /// A call in the wrong state (e.g. stepping a finished episode without reset).
     #[error("{0}")]
     State(String),
+    /// A saved state cannot be restored: not a state, corrupt, or saved from another batch
+    /// (task, scenario or number of worlds).
+    #[error("{0}")]
+    SavedState(String),
 }
 
 impl Error {

@@ -39,10 +39,18 @@ impl ActionType {
             _ => None,
         }
     }
+
+    /// The name [`ActionType::parse`] reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Wheels => "wheels",
+            Self::Unicycle => "unicycle",
+        }
+    }
 }
 
 /// Drive parameters of one robot, taken from the scenario's `[robot]` table.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct Drive {
     /// Body radius (m).
     pub radius: f32,

@@ -19,7 +19,7 @@ pub const DEFAULT_WEIGHTS: [[f32; IR_COUNT]; 2] = [
 ];
 
 /// The Braitenberg avoidance block.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Braitenberg {
     /// Weight matrix W (m/s per unit proximity): row 0 left wheel, row 1 right wheel.
     pub weights: [[f32; IR_COUNT]; 2],

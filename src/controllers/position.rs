@@ -5,7 +5,7 @@
 //! both 0 once d < stop_radius (the library's 0.05 m).
 
 /// The position controller's parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PositionControl {
     /// Cruise speed v_max (m/s).
     pub vmax: f32,

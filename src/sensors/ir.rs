@@ -39,7 +39,7 @@ const CURVE_RAW: [f32; 16] = [
 ];
 
 /// The IR ring's response and noise.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct IrModel {
     /// Distance (m) beyond which a sensor reads the floor value.
     pub range: f32,

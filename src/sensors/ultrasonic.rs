@@ -25,7 +25,7 @@ pub const US_NOTHING: i32 = 1000;
 pub const US_DISABLED: i32 = 2000;
 
 /// The ultrasonic model.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct UsModel {
     /// Closest measurable distance (m).
     pub min_range: f32,

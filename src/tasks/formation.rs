@@ -40,7 +40,7 @@ pub const FOLLOWER_LAYOUT: &[(&str, usize)] = &[
 pub const FOLLOWER_OBS_DIM: usize = IR_COUNT + US_COUNT + 10;
 
 /// Per-world state of the formation task.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Formation {
     /// The leader's goal (m).
     pub goal: Vector,

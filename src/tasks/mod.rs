@@ -167,7 +167,7 @@ impl AgentSpec {
 }
 
 /// Statistics of one episode.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EpisodeStats {
     /// Sum of (joint) rewards.
     pub ret: f32,
@@ -186,7 +186,7 @@ pub struct EpisodeStats {
 }
 
 /// What a step returns besides the observation.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StepOutcome {
     /// Joint reward of the step (mean over agents).
     pub reward: f32,
@@ -196,11 +196,37 @@ pub struct StepOutcome {
     pub truncated: bool,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 enum TaskState {
     Nav(nav::Nav),
     Formation(formation::Formation),
     MultiNav(multinav::MultiNav),
+}
+
+/// What [`Env::save_state`] writes, borrowed from the env.
+#[derive(serde::Serialize)]
+struct EnvStateRef<'a> {
+    world: &'a World,
+    task: &'a TaskState,
+    agent_rewards: &'a [f32],
+    agent_terminated: &'a [bool],
+    stats: &'a EpisodeStats,
+    last_episode: &'a EpisodeStats,
+    done: bool,
+    trails: &'a [Vec<Vector>],
+}
+
+/// What [`Env::load_state`] reads (the owned twin of [`EnvStateRef`]).
+#[derive(serde::Deserialize)]
+struct EnvState {
+    world: World,
+    task: TaskState,
+    agent_rewards: Vec<f32>,
+    agent_terminated: Vec<bool>,
+    stats: EpisodeStats,
+    last_episode: EpisodeStats,
+    done: bool,
+    trails: Vec<Vec<Vector>>,
 }
 
 /// One environment: a world, its task and the episode's bookkeeping.
@@ -418,6 +444,83 @@ impl Env {
             TaskState::MultiNav(m) => m.observe(&self.world, &self.cfg, obs),
             TaskState::Formation(f) => f.observe(&self.world, &self.cfg, obs),
         }
+    }
+
+    /// A fresh env of the same task, scenario, action type and trail length (its state to be
+    /// loaded).
+    pub fn empty_twin(&self) -> Result<Self> {
+        let mut twin = Self::new(
+            self.kind,
+            self.cfg.clone(),
+            self.spawner.clone(),
+            self.action_type,
+        )?;
+        twin.trail_length = self.trail_length;
+        Ok(twin)
+    }
+
+    /// Appends this env's state (world, physics, random stream, task and episode bookkeeping,
+    /// trails) to `out`. The scenario, task and action type are not part of it: they are fixed at
+    /// construction, and [`crate::batch::Batch::load_state`] checks that they match.
+    pub fn save_state(&self, out: &mut Vec<u8>) -> Result<()> {
+        let state = EnvStateRef {
+            world: &self.world,
+            task: &self.state,
+            agent_rewards: &self.agent_rewards,
+            agent_terminated: &self.agent_terminated,
+            stats: &self.stats,
+            last_episode: &self.last_episode,
+            done: self.done,
+            trails: &self.trails,
+        };
+        let bytes = postcard::to_extend(&state, std::mem::take(out))
+            .map_err(|e| Error::State(format!("cannot encode the env state: {e}")))?;
+        *out = bytes;
+        Ok(())
+    }
+
+    /// Restores a state written by [`Env::save_state`] from the front of `bytes`, returning the
+    /// rest. On error `self` is unchanged.
+    pub fn load_state<'a>(&mut self, bytes: &'a [u8]) -> Result<&'a [u8]> {
+        let (state, rest): (EnvState, _) = postcard::take_from_bytes(bytes)
+            .map_err(|e| Error::SavedState(format!("corrupt env state: {e}")))?;
+        let n_robots = self.world.robots.len();
+        let n_agents = self.agent_robots.len();
+        let task_fits = match (&state.task, &self.state) {
+            (TaskState::Nav(_), TaskState::Nav(_)) => true,
+            (TaskState::MultiNav(a), TaskState::MultiNav(_)) => {
+                a.goals.len() == n_robots && a.arrived.len() == n_robots
+            }
+            (TaskState::Formation(a), TaskState::Formation(b)) => {
+                a.offsets.len() == b.offsets.len() && a.errors.len() == b.errors.len()
+            }
+            _ => false,
+        };
+        if state.world.robots.len() != n_robots
+            || state.agent_rewards.len() != n_agents
+            || state.agent_terminated.len() != n_agents
+            || !task_fits
+        {
+            return Err(Error::SavedState(
+                "the state does not fit this env (other task or number of robots)".into(),
+            ));
+        }
+        self.world = state.world;
+        self.state = state.task;
+        self.agent_rewards = state.agent_rewards;
+        self.agent_terminated = state.agent_terminated;
+        self.stats = state.stats;
+        self.last_episode = state.last_episode;
+        self.done = state.done;
+        self.trails = state.trails;
+        if self.trail_length == 0 {
+            self.trails.clear();
+        }
+        for trail in &mut self.trails {
+            let excess = trail.len().saturating_sub(self.trail_length);
+            trail.drain(..excess);
+        }
+        Ok(rest)
     }
 
     /// Goal positions (m).

@@ -11,7 +11,7 @@ use crate::scenario::Scenario;
 use crate::world::World;
 
 /// Per-world state of the multi-robot navigation task.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct MultiNav {
     /// Each robot's goal (m).
     pub goals: Vec<Vector>,

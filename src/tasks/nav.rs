@@ -30,7 +30,7 @@ pub const OBS_LAYOUT: &[(&str, usize)] = &[
 pub const OBS_DIM: usize = IR_COUNT + US_COUNT + 5;
 
 /// Per-world state of the Nav/Avoid task.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Nav {
     /// Goal position (m).
     pub goal: Vector,

@@ -28,7 +28,7 @@ const CONTACT_MARGIN: f32 = 0.002;
 const CONTACT_TOLERANCE: f32 = 0.001;
 
 /// State of one robot.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Robot {
     /// Centre (m).
     pub position: Vector,
@@ -57,7 +57,9 @@ pub struct Robot {
     step_start_heading: f32,
 }
 
-/// A world: scene, physics, robots, sensors and random stream.
+/// A world: scene, physics, robots, sensors and random stream. It serialises whole (scratch
+/// buffers aside), which is how an env's state is saved and restored.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct World {
     /// Drive parameters shared by the robots.
     pub drive: Drive,
@@ -74,12 +76,27 @@ pub struct World {
     physics: Physics,
     dt: f32,
     substeps: u32,
+    // Scratch buffers and constants: not state.
+    #[serde(skip)]
     bodies: Vec<BodyState>,
+    #[serde(skip)]
     others: Vec<Vector>,
+    #[serde(skip)]
     near_others: Vec<Vector>,
+    #[serde(skip)]
     near_shapes: Vec<usize>,
+    #[serde(skip, default = "ir_dirs")]
     ir_dirs: [Vector; IR_COUNT],
+    #[serde(skip, default = "us_dirs")]
     us_dirs: [Vector; US_COUNT],
+}
+
+fn ir_dirs() -> [Vector; IR_COUNT] {
+    IR_BEARINGS.map(unit)
+}
+
+fn us_dirs() -> [Vector; US_COUNT] {
+    US_BEARINGS.map(unit)
 }
 
 impl World {
@@ -118,8 +135,8 @@ impl World {
             others: Vec::with_capacity(n_robots),
             near_others: Vec::with_capacity(n_robots),
             near_shapes: Vec::new(),
-            ir_dirs: IR_BEARINGS.map(unit),
-            us_dirs: US_BEARINGS.map(unit),
+            ir_dirs: ir_dirs(),
+            us_dirs: us_dirs(),
         }
     }
 

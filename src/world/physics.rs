@@ -13,7 +13,10 @@ use rapier2d::prelude::{
 
 use super::scene::{Geometry, Scene};
 
-/// Rapier state of one world.
+/// Rapier state of one world. It serialises whole (bodies, colliders, broad phase, contact
+/// manifolds with their warm-start impulses), so a restored world steps bit for bit as the
+/// original.
+#[derive(serde::Serialize, serde::Deserialize)]
 pub struct Physics {
     world: PhysicsWorld,
     robots: Vec<RigidBodyHandle>,

@@ -12,7 +12,7 @@ use rapier2d::parry::shape::{Ball, Cuboid, Segment, Shape};
 use crate::scenario::ObstacleSpec;
 
 /// One of the scene's shapes, as parry2d knows it, in its local frame.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub enum Geometry {
     /// A disc (cylindrical obstacle).
     Circle(Ball),
@@ -23,7 +23,7 @@ pub enum Geometry {
 }
 
 /// A static shape placed in the world.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct SceneShape {
     /// The shape in its local frame.
     pub geometry: Geometry,
@@ -177,7 +177,7 @@ impl SceneShape {
 /// obstacles inside it. The walls are slabs lying outside the inner rectangle; queries against
 /// them are answered in closed form (the inside of an axis-aligned rectangle), which gives the
 /// same distances as casting on the slabs.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Scene {
     /// Arena inner width and height (m).
     pub arena: (f32, f32),
