@@ -23,11 +23,13 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import _core
+from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed
 from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
 from khepera_gym.config import ACTION_TYPES, ConfigArg, make_batch
-from khepera_gym.errors import ActionError, ConfigError
+from khepera_gym.errors import ConfigError
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.state import StateMixin
 
 #: Largest seed drawn from ``np_random`` on a first ``reset()`` without a seed (exclusive).
 _SEED_BOUND = 2**62
@@ -40,7 +42,7 @@ def _check_render_mode(render_mode: str | None, render_modes: list[str]) -> None
         )
 
 
-class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
+class KheperaEnv(StateMixin, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
     """Base of the single-world Khepera IV environments; subclasses set :attr:`TASK`.
 
     Args:
@@ -130,6 +132,8 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
         Returns:
             The first observation and an empty info dict.
         """
+        if isinstance(seed, int) and seed >= SEED_LIMIT:  # Gymnasium checks the rest
+            check_seed(seed)
         super().reset(seed=seed)
         if seed is None and not self._has_reset:
             seed = int(self.np_random.integers(_SEED_BOUND))
@@ -155,18 +159,8 @@ class KheperaEnv(gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
             ActionError: The action is not numeric, has the wrong shape, or is NaN/inf.
             KheperaError: ``step`` after the episode ended without ``reset``.
         """
-        try:
-            action_array = np.asarray(action, dtype=np.float32)
-        except (TypeError, ValueError) as error:
-            raise ActionError(
-                f"action must be numeric of shape {self._action_shape}, got {action!r}"
-            ) from error
-        if action_array.shape != self._action_shape:
-            raise ActionError(
-                f"action must have shape {self._action_shape}, got shape {action_array.shape}"
-            )
         buffer = self._action_buffer
-        buffer[0] = action_array
+        buffer[0] = as_action_array(action, self._action_shape, "action")
         observations, rewards, terminations, truncations = self._batch.step(buffer)
         terminated = bool(terminations[0])
         truncated = bool(truncations[0])

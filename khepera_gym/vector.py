@@ -30,14 +30,16 @@ import numpy.typing as npt
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from khepera_gym._inputs import as_action_array, check_seed, check_world_seeds
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.envs import _SEED_BOUND, _check_render_mode
-from khepera_gym.errors import ActionError, ConfigError
+from khepera_gym.errors import ConfigError
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.state import StateMixin
 
 
-class KheperaVectorEnv(VectorEnv):
+class KheperaVectorEnv(StateMixin, VectorEnv):
     """N seeded Khepera IV worlds of one task, stepped in parallel by the Rust core.
 
     Args:
@@ -147,31 +149,25 @@ class KheperaVectorEnv(VectorEnv):
             Observations of shape (N, obs_dim) and an empty info dict.
         """
         if seed is None or isinstance(seed, (int, np.integer)):
-            super().reset(seed=None if seed is None else int(seed))
+            seed = check_seed(seed)
+            super().reset(seed=seed)
             if seed is None and not self._has_reset:
                 seed = int(self.np_random.integers(_SEED_BOUND))
-            observations = self._batch.reset(None if seed is None else int(seed))
+            observations = self._batch.reset(seed)
         else:
             observations = self._reset_each(seed)
         self._has_reset = True
         return observations, {}
 
     def _reset_each(self, seeds: Sequence[int | None]) -> npt.NDArray[np.float32]:
-        seeds = list(seeds)
-        if len(seeds) != self.num_envs:
-            raise ConfigError(
-                f"reset(seed=...) takes an int, None, or a sequence of {self.num_envs} seeds "
-                f"(one per world), got a sequence of {len(seeds)}"
-            )
+        seeds = check_world_seeds(seeds, self.num_envs)
         if not self._has_reset:
             # Worlds given None still need a first seed: draw it as an int seed would be.
             base = int(self.np_random.integers(_SEED_BOUND))
             seeds = [base + index if s is None else s for index, s in enumerate(seeds)]
         observations = np.empty((self.num_envs, *self.single_observation_space.shape), np.float32)
         for index, world_seed in enumerate(seeds):
-            observations[index] = self._batch.reset_world(
-                index, None if world_seed is None else int(world_seed)
-            )
+            observations[index] = self._batch.reset_world(index, world_seed)
         return observations
 
     def step(
@@ -194,20 +190,7 @@ class KheperaVectorEnv(VectorEnv):
         Raises:
             ActionError: Actions are not numeric, have the wrong shape, or contain NaN/inf.
         """
-        try:
-            action_array = np.asarray(actions, dtype=np.float32)
-        except (TypeError, ValueError) as error:
-            raise ActionError(
-                f"actions must be numeric of shape {self._action_shape}, "
-                f"got {type(actions).__name__}"
-            ) from error
-        if action_array.shape != self._action_shape:
-            raise ActionError(
-                f"actions must have shape {self._action_shape} (num_envs, act_dim), "
-                f"got shape {action_array.shape}"
-            )
-        if not action_array.flags.c_contiguous:
-            action_array = np.ascontiguousarray(action_array)
+        action_array = as_action_array(actions, self._action_shape, "actions (num_envs, act_dim)")
         observations, rewards, terminations, truncations = self._batch.step(action_array)
         # count_nonzero is several times cheaper than ndarray.any() on small arrays (hot path).
         if np.count_nonzero(terminations) or np.count_nonzero(truncations):

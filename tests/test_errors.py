@@ -12,13 +12,14 @@ from conftest import NAV_ID
 
 from khepera_gym import _core
 from khepera_gym.envs import NavEnv
-from khepera_gym.errors import ActionError, ConfigError, KheperaError
+from khepera_gym.errors import ActionError, ConfigError, KheperaError, StateError
 from khepera_gym.vector import KheperaVectorEnv
 
 
 def test_error_classes_form_the_documented_tree() -> None:
     assert issubclass(ConfigError, KheperaError) and issubclass(ConfigError, ValueError)
     assert issubclass(ActionError, KheperaError) and issubclass(ActionError, ValueError)
+    assert issubclass(StateError, KheperaError) and issubclass(StateError, ValueError)
 
 
 # --- actions ----------------------------------------------------------------------------------

@@ -12,9 +12,9 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple, PyType};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple, PyType};
 
 use crate::batch::Batch as CoreBatch;
 use crate::controllers::{Braitenberg, LeaderFollower, Policy, PositionControl, Vfh, WheelMap};
@@ -30,6 +30,7 @@ fn to_py(py: Python<'_>, err: Error) -> PyErr {
         Error::Config { .. } => "ConfigError",
         Error::Action(_) => "ActionError",
         Error::State(_) => "KheperaError",
+        Error::SavedState(_) => "StateError",
     };
     raise(py, class, err.to_string())
 }
@@ -87,6 +88,10 @@ fn to_toml(py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml
     if value.is_instance_of::<PyString>() {
         return Ok(toml::Value::String(value.extract()?));
     }
+    // NumPy arrays and scalars: their Python equivalents (lists, int, float, bool).
+    if value.get_type().module()?.to_str()?.starts_with("numpy") && value.hasattr("tolist")? {
+        return to_toml(py, key, &value.call_method0("tolist")?);
+    }
     // Python ints and NumPy integers (which have __index__ but are not floats).
     let integral = value.is_instance_of::<PyInt>()
         || (value.hasattr("__index__")? && !value.is_instance_of::<PyFloat>());
@@ -118,9 +123,24 @@ fn to_toml(py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml
 fn dict_to_table(py: Python<'_>, dict: &Bound<'_, PyDict>, prefix: &str) -> PyResult<toml::Table> {
     let mut table = toml::Table::new();
     for (k, v) in dict.iter() {
-        let key: String = k
-            .extract()
-            .map_err(|_| PyTypeError::new_err(format!("config keys must be str, got {k}")))?;
+        let key: String = k.extract().map_err(|_| {
+            let table = if prefix.is_empty() {
+                "the overrides"
+            } else {
+                prefix
+            };
+            to_py(
+                py,
+                Error::config(
+                    scenario::OVERRIDE_ORIGIN,
+                    table,
+                    format!(
+                        "keys must be str, got {}",
+                        k.repr().map_or("?".into(), |r| r.to_string())
+                    ),
+                ),
+            )
+        })?;
         let path = if prefix.is_empty() {
             key.clone()
         } else {
@@ -136,6 +156,11 @@ fn dict_to_table(py: Python<'_>, dict: &Bound<'_, PyDict>, prefix: &str) -> PyRe
 pub struct Batch {
     inner: CoreBatch,
     actions: Vec<f32>,
+    /// Construction arguments not held by the core, for pickling.
+    action_type: String,
+    requested_threads: Option<usize>,
+    autoreset: bool,
+    trail_length: usize,
 }
 
 #[pymethods]
@@ -208,7 +233,14 @@ impl Batch {
                 })
                 .map_err(|e| to_py(py, e))?;
             let actions = vec![0.0; inner.len() * inner.act_dim()];
-            Ok(Self { inner, actions })
+            Ok(Self {
+                inner,
+                actions,
+                action_type: action_type.name().to_string(),
+                requested_threads: num_threads,
+                autoreset,
+                trail_length: 0,
+            })
         })
     }
 
@@ -564,12 +596,68 @@ impl Batch {
 
     /// Keeps the last `length` positions of every robot for the trails of `render` (0: off).
     fn set_trail_length(&mut self, length: usize) {
-        self.inner.set_trail_length(length.min(100_000));
+        self.trail_length = length.min(100_000);
+        self.inner.set_trail_length(self.trail_length);
     }
 
     /// The resolved scenario as TOML text.
     fn config_toml(&self) -> String {
         self.inner.scenario().to_toml()
+    }
+
+    /// The state of every world (poses, velocities, contacts, random streams, step counters,
+    /// task state) and of the last outputs, as bytes for `set_state`.
+    fn get_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        guard(py, || {
+            let inner = &self.inner;
+            let bytes = py.detach(|| inner.save_state()).map_err(|e| to_py(py, e))?;
+            Ok(PyBytes::new(py, &bytes))
+        })
+    }
+
+    /// Pickling: the resolved scenario, the construction arguments and the state; unpickling
+    /// builds the same batch and restores the state (`_batch_from_state`).
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let py = slf.py();
+        let this = slf.borrow();
+        let state = this.get_state(py)?;
+        let rebuild = py
+            .import("khepera_gym._core")?
+            .getattr("_batch_from_state")?;
+        let args = (
+            this.inner.envs()[0].kind().name(),
+            this.inner.len(),
+            this.inner.scenario().to_toml(),
+            this.action_type.clone(),
+            this.requested_threads,
+            this.autoreset,
+            this.trail_length,
+            state,
+        )
+            .into_pyobject(py)?;
+        Ok((rebuild, args))
+    }
+
+    /// Restores a state from `get_state` of a batch of the same task, scenario and size.
+    fn set_state(&mut self, py: Python<'_>, state: &Bound<'_, PyAny>) -> PyResult<()> {
+        guard(py, || {
+            let bytes: Vec<u8> = match state.cast::<PyBytes>() {
+                Ok(b) => b.as_bytes().to_vec(),
+                Err(_) => {
+                    let kind = state.get_type().name()?;
+                    return Err(raise(
+                        py,
+                        "StateError",
+                        format!("a state is the bytes get_state() returned, got {kind}"),
+                    ));
+                }
+            };
+            let inner = &mut self.inner;
+            py.detach(|| inner.load_state(&bytes))
+                .map_err(|e| to_py(py, e))
+        })
     }
 }
 
@@ -935,6 +1023,36 @@ fn units_to_speed(units: i32) -> f32 {
     crate::robot::units_to_speed(units)
 }
 
+/// Unpickles a `Batch` (see `Batch.__reduce__`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn _batch_from_state(
+    py: Python<'_>,
+    task: &str,
+    num_worlds: i64,
+    config_text: String,
+    action_type: &str,
+    num_threads: Option<i64>,
+    autoreset: bool,
+    trail_length: usize,
+    state: &Bound<'_, PyAny>,
+) -> PyResult<Batch> {
+    let mut batch = Batch::new(
+        py,
+        task,
+        num_worlds,
+        Some(config_text),
+        "<pickled>",
+        None,
+        action_type,
+        num_threads,
+        autoreset,
+    )?;
+    batch.set_trail_length(trail_length);
+    batch.set_state(py, state)?;
+    Ok(batch)
+}
+
 /// Names of the built-in scenarios.
 #[pyfunction]
 fn builtin_configs() -> Vec<&'static str> {
@@ -949,6 +1067,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(braitenberg_weights, m)?)?;
     m.add_function(wrap_pyfunction!(obs_layout, m)?)?;
     m.add_function(wrap_pyfunction!(default_config, m)?)?;
+    m.add_function(wrap_pyfunction!(_batch_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(builtin_configs, m)?)?;
     m.add_function(wrap_pyfunction!(speed_to_units, m)?)?;
     m.add_function(wrap_pyfunction!(units_to_speed, m)?)?;
