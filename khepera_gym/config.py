@@ -97,7 +97,7 @@ def resolve_config(config: ConfigArg, task: str) -> tuple[str | None, str]:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
             raise ConfigError(f"{os.fspath(path)}: scenario file not found") from None
-        except (OSError, UnicodeDecodeError) as error:
+        except (OSError, ValueError) as error:  # ValueError: not UTF-8, or a NUL in the path
             raise ConfigError(f"{os.fspath(path)}: cannot read scenario file: {error}") from None
         return text, os.fspath(path)
     raise ConfigError(

@@ -53,8 +53,9 @@ except ImportError as error:  # pragma: no cover - exercised only without the ex
         "khepera_gym.sb3 needs stable-baselines3: pip install 'khepera-gym[sb3]'"
     ) from error
 
+from khepera_gym._inputs import as_action_array, check_seed
 from khepera_gym.config import ConfigArg, make_batch
-from khepera_gym.errors import ActionError, ConfigError, KheperaError
+from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, TRAIL_LENGTH, check_frame_size, mosaic
 
@@ -236,10 +237,9 @@ class KheperaSB3VecEnv(VecEnv):
         Returns:
             The seed of each row's world.
         """
+        seed = check_seed(seed)
         if seed is None:
             seed = int(np.random.default_rng().integers(_SEED_BOUND))
-        if seed < 0:
-            raise ConfigError(f"seed must be >= 0, got {seed}")
         self._seeds = [seed + row // self.rows_per_world for row in range(self.num_envs)]
         return list(self._seeds)
 
@@ -281,14 +281,7 @@ class KheperaSB3VecEnv(VecEnv):
         """
         self._check_open()
         expected = (self.num_envs, *self.action_space.shape)
-        try:
-            action_array = np.asarray(actions, dtype=np.float32)
-        except (TypeError, ValueError) as error:
-            raise ActionError(
-                f"actions must be numeric of shape {expected}, got {type(actions).__name__}"
-            ) from error
-        if action_array.shape != expected:
-            raise ActionError(f"actions must have shape {expected}, got {action_array.shape}")
+        action_array = as_action_array(actions, expected, "actions")
         self._actions = np.ascontiguousarray(self._joint_actions(action_array))
 
     def step_wait(

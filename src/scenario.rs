@@ -263,6 +263,10 @@ pub struct Source<'a> {
     pub overrides: Table,
 }
 
+/// Largest arena side (m): positions are float32 metres, which keep millimetre precision well
+/// beyond this; far larger arenas overflow distances to infinity.
+pub const MAX_ARENA_SIDE: f32 = 1000.0;
+
 /// Name used in messages for keyword overrides.
 pub const OVERRIDE_ORIGIN: &str = "<override>";
 
@@ -348,6 +352,20 @@ impl Scenario {
         for (key, v) in positive {
             if !v.is_finite() || v <= 0.0 {
                 return bad(key, format!("must be a finite number > 0, got {v}"));
+            }
+        }
+        for (key, v) in [
+            ("arena.width", self.arena.width),
+            ("arena.height", self.arena.height),
+        ] {
+            if v > MAX_ARENA_SIDE {
+                return bad(
+                    key,
+                    format!(
+                        "must be at most {MAX_ARENA_SIDE} m (positions are float32 metres), \
+                         got {v}"
+                    ),
+                );
             }
         }
         let params = [
@@ -748,7 +766,16 @@ fn overlay(base: &mut Table, over: &Table, prefix: &str, origin: &str) -> Result
                     ))
                 }
             },
-            Some(slot) => *slot = value.clone(),
+            Some(slot) => {
+                if matches!(value, Value::Table(_)) {
+                    return Err(Error::config(
+                        origin,
+                        &path,
+                        "is a single setting; give a value, not a table",
+                    ));
+                }
+                *slot = value.clone();
+            }
         }
     }
     Ok(())

@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 from pettingzoo import ParallelEnv
 
+from khepera_gym._inputs import as_action_array, check_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.envs import _SEED_BOUND, _check_render_mode
 from khepera_gym.errors import ActionError, KheperaError
@@ -150,9 +151,10 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         Returns:
             Observations and (empty) infos, keyed by agent.
         """
+        seed = check_seed(seed)
         if seed is None and not self._has_reset:
             seed = int(np.random.default_rng().integers(_SEED_BOUND))
-        self._observation = self._batch.reset(None if seed is None else int(seed))[0]
+        self._observation = self._batch.reset(seed)[0]
         self._has_reset = True
         self._steps = 0
         self.agents = list(self.possible_agents)
@@ -237,17 +239,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         joint = self._joint_actions
         joint.fill(0.0)  # finished agents (multinav: parked robots) get zero wheel commands
         for agent, action in actions.items():
-            try:
-                action_array = np.asarray(action, dtype=np.float32)
-            except (TypeError, ValueError) as error:
-                raise ActionError(
-                    f"action of {agent!r} must be numeric of shape ({ACTION_DIM},), got {action!r}"
-                ) from error
-            if action_array.shape != (ACTION_DIM,):
-                raise ActionError(
-                    f"action of {agent!r} must have shape ({ACTION_DIM},), "
-                    f"got shape {action_array.shape}"
-                )
+            action_array = as_action_array(action, (ACTION_DIM,), f"action of {agent!r}")
             if not np.all(np.isfinite(action_array)):
                 raise ActionError(f"action of {agent!r} is not finite: {action_array}")
             column = ACTION_DIM * self._agent_index[agent]

@@ -1,0 +1,129 @@
+"""Checks and conversions of what users pass to ``step`` and ``reset``, shared by every env.
+
+Actions: anything NumPy reads as real numbers (floats of any width, ints, bools, or objects
+holding those) of the right shape becomes a C-contiguous float32 array; finite values beyond
+float32's range are clipped to it (the core clips every action to [-1, 1] anyway), so a huge value
+is never turned into inf. Everything else (strings, bytes, complex numbers, dates, None, ragged
+lists) raises :class:`~khepera_gym.errors.ActionError` naming the dtype or the shape; NaN/inf are
+left for the core, which names the world and element.
+
+Seeds: a seed is a non-negative int below 2**64 (the core's seeds are u64).
+"""
+
+from __future__ import annotations
+
+import numbers
+import warnings
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from khepera_gym.errors import ActionError, ConfigError
+
+_F32_MAX = float(np.finfo(np.float32).max)
+#: Seeds are u64 in the core.
+SEED_LIMIT = 2**64
+
+
+def _real_scalar(value: Any) -> bool:
+    return isinstance(value, (numbers.Real, np.bool_))
+
+
+def _clip_to_f32(value: Any) -> float:
+    """An object array's element as a float within float32's range (huge ints included)."""
+    if isinstance(value, numbers.Integral):
+        return float(max(-_F32_MAX, min(_F32_MAX, int(value))))
+    number = float(value)
+    return number if not np.isfinite(number) else max(-_F32_MAX, min(_F32_MAX, number))
+
+
+def _to_float32(action: Any, shape: tuple[int, ...], what: str) -> npt.NDArray[np.float32]:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            array = np.asarray(action)
+    except (TypeError, ValueError, OverflowError) as error:  # ragged nesting, odd objects
+        raise ActionError(
+            f"{what} must be real numbers (a numeric dtype) of shape {shape}, "
+            f"got {type(action).__name__}: {error}"
+        ) from None
+    kind = array.dtype.kind
+    if kind == "O":
+        items = array.ravel().tolist()
+        bad = [item for item in items if not _real_scalar(item)]
+        if bad:
+            raise ActionError(
+                f"{what} must be real numbers (a numeric dtype) of shape {shape}, "
+                f"got an element of type {type(bad[0]).__name__}: {bad[0]!r}"
+            )
+        values = np.array([_clip_to_f32(item) for item in items], np.float64)
+        return values.reshape(array.shape).astype(np.float32)
+    if kind not in "biuf":
+        raise ActionError(
+            f"{what} must be real numbers (a numeric dtype) of shape {shape}, "
+            f"got dtype {array.dtype}"
+        )
+    if kind == "f" and array.dtype.itemsize > 4:
+        # Finite float64/longdouble values beyond float32's range would become inf.
+        finite = np.isfinite(array)
+        array = np.where(finite, np.clip(array, -_F32_MAX, _F32_MAX), array)
+    return array.astype(np.float32)
+
+
+def as_action_array(action: Any, shape: tuple[int, ...], what: str) -> npt.NDArray[np.float32]:
+    """``action`` as a C-contiguous float32 array of ``shape``.
+
+    Raises:
+        ActionError: ``action`` is not real numbers, or not of ``shape``.
+    """
+    if isinstance(action, np.ndarray) and action.dtype == np.float32:  # the hot path
+        array = action
+    else:
+        array = _to_float32(action, shape, what)
+    if array.shape != shape:
+        raise ActionError(f"{what} must have shape {shape}, got shape {array.shape}")
+    if not array.flags.c_contiguous:
+        array = np.ascontiguousarray(array)
+    return array
+
+
+def check_seed(seed: Any, what: str = "seed") -> int | None:
+    """``seed`` as an int in [0, 2**64), or None.
+
+    Raises:
+        ConfigError: anything else (a float, a string, a negative or too large int, ...).
+    """
+    if seed is None:
+        return None
+    if isinstance(seed, (int, np.integer)):
+        value = int(seed)
+        if 0 <= value < SEED_LIMIT:
+            return value
+        raise ConfigError(f"{what} must be an int in [0, 2**64), got {value}")
+    raise ConfigError(f"{what} must be an int in [0, 2**64) or None, got {seed!r}")
+
+
+def check_world_seeds(seeds: Any, n: int) -> list[int | None]:
+    """A per-world seed sequence (list, tuple or 1-D array) of ``n`` ints or None.
+
+    Raises:
+        ConfigError: not such a sequence, wrong length, or a bad seed (the message says which).
+    """
+    is_sequence = isinstance(seeds, (list, tuple)) or (
+        isinstance(seeds, np.ndarray) and seeds.ndim == 1
+    )
+    if not is_sequence:
+        raise ConfigError(
+            f"reset(seed=...) takes an int, None, or a sequence of {n} seeds (one per world), "
+            f"got {type(seeds).__name__}: {seeds!r}"
+        )
+    if len(seeds) != n:
+        raise ConfigError(
+            f"reset(seed=...) takes an int, None, or a sequence of {n} seeds "
+            f"(one per world), got a sequence of {len(seeds)}"
+        )
+    return [check_seed(seed, f"seed of world {index}") for index, seed in enumerate(seeds)]
+
+
+__all__ = ["SEED_LIMIT", "as_action_array", "check_seed", "check_world_seeds"]
