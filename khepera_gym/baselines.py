@@ -308,8 +308,9 @@ class VFH(BaselinePolicy):
 
     A polar histogram of ``sectors`` sectors is rebuilt at every step from the 8 IR proximities
     and the 5 ultrasonic readings: each sensor adds its obstacle magnitude (IR: its proximity;
-    ultrasonic: :math:`1 - d / \text{us\_range}` for echoes closer than ``us_range``, 1 when too
-    close) to every sector within ``beam_width / 2`` of its bearing, then the histogram is
+    ultrasonic: :math:`1 - d / \text{us\_range}` for echoes closer than ``us_range``, a "too
+    close" reading counting as an echo at the sensor's 25 cm minimum range, the IR ring covering
+    what is nearer) to every sector within ``beam_width / 2`` of its bearing, then the histogram is
     smoothed over neighbouring sectors. Sectors under ``threshold`` are free. Each free valley at
     least ``min_valley`` wide offers one direction: the goal bearing clamped ``min_valley / 2``
     inside its edges; the robot takes the one with the lowest VFH+-style cost (angle to the goal

@@ -1,6 +1,7 @@
 //! Baseline controllers on observations (paper eqs. 1–12): position control reaches its goal,
-//! Braitenberg gets past the paper's Fig. 6 wall, VFH reaches most Nav goals, Braitenberg handles random obstacles,
-//! leader–follower holds the formation; batched and single actions agree.
+//! Braitenberg and VFH get past the paper's Fig. 6 wall and box, VFH reaches most Nav goals,
+//! Braitenberg handles random obstacles, leader–follower holds the formation; batched and single
+//! actions agree.
 
 use _core::batch::Batch;
 use _core::controllers::{Braitenberg, LeaderFollower, Policy, PositionControl, Vfh, WheelMap};
@@ -62,13 +63,13 @@ fn test_position_control_reaches_goal_in_nav() {
 }
 
 #[test]
-fn test_braitenberg_reaches_target_past_fig6_wall() {
-    // VFH does not yet: it stalls in front of the box (README, baseline section).
+fn test_braitenberg_and_vfh_reach_target_past_fig6_wall_and_box() {
     let braitenberg = Policy::Braitenberg(
         position_control(),
         Braitenberg::default(),
         WheelMap::default(),
     );
+    let vfh = Policy::Vfh(Vfh::default(), WheelMap::default());
     let position_only = Policy::PositionControl(position_control(), WheelMap::default());
     let b = episodes(TaskKind::Avoid, Some("paper_fig6"), &braitenberg, 1)[0];
     let p = episodes(TaskKind::Avoid, Some("paper_fig6"), &position_only, 1)[0];
@@ -76,6 +77,13 @@ fn test_braitenberg_reaches_target_past_fig6_wall() {
     assert!(
         !p.success,
         "the wall should stop plain position control: {p:?}"
+    );
+    // 20 worlds from the same start pose: only the sensor noise differs.
+    let v = episodes(TaskKind::Avoid, Some("paper_fig6"), &vfh, 20);
+    let reached = v.iter().filter(|s| s.success).count();
+    assert!(
+        reached >= 18,
+        "VFH reached the target in {reached} of 20: {v:?}"
     );
 }
 
@@ -137,7 +145,7 @@ fn test_vfh_reaches_most_nav_goals_in_an_empty_arena() {
         200,
     );
     assert!(
-        success_rate(&stats) >= 0.7,
+        success_rate(&stats) >= 0.85,
         "success {}",
         success_rate(&stats)
     );

@@ -1,13 +1,26 @@
 //! Vector Field Histogram (paper eqs. 8–11, after Ulrich & Borenstein 2000), on observations.
 //!
 //! A polar histogram of obstacle density is built from the 8 IR and 5 ultrasonic readings: each
-//! sensor adds its obstacle magnitude to the sector holding its bearing (IR: the proximity
-//! p in [0, 1]; ultrasonic: 1 − d/us_range for echoes closer than `us_range`, 1 when too close),
-//! and the histogram is smoothed over neighbouring sectors. Sectors under `threshold` are free;
-//! the robot steers to the free sector nearest the goal bearing (the goal itself when its
-//! sector is free): ω = ω_max·sin(θ_e) (eq. 9). The density ahead h'_c, capped at h_m
-//! (eq. 11), slows it: v' = v_max(1 − h'_c/h_m) (eq. 10), v = v'(1 − |ω|/ω_max) (eq. 8); near
-//! the goal the docking law of eq. 3 applies.
+//! sensor adds its obstacle magnitude to the sectors around its bearing (IR: the proximity
+//! p in [0, 1]; ultrasonic: 1 − d/us_range for echoes closer than `us_range`), and the histogram
+//! is smoothed over neighbouring sectors. Sectors under `threshold` are free. Each free valley
+//! at least `min_valley` wide offers one direction, the goal bearing clamped `min_valley / 2`
+//! inside its edges; the robot takes the one with the lowest VFH+-style cost (angle to the
+//! goal, plus `heading_weight` × angle to straight ahead, plus `switch_penalty` for a valley on
+//! the other side of its current turn, read from the wheel speeds in the observation), or turns
+//! in place when boxed in. Then ω = ω_max·sin(θ_e) (eq. 9, at full rate once the direction is
+//! behind); the density straight ahead h'_c, capped at h_m (eq. 11), slows it:
+//! v' = v_max(1 − h'_c/h_m) (eq. 10), v = v'(1 − |ω|/ω_max) (eq. 8); near the goal the docking
+//! law of eq. 3 caps v.
+//!
+//! An ultrasonic "too close" reading (an object nearer than the sensor's 25 cm minimum range,
+//! observed as 0) counts as an echo at `us_min_range`, the nearest distance the sensor reports,
+//! which is how the ARGoS and Webots models of the sensor saturate it; anything nearer is the
+//! IR ring's to add. (Counting it as an obstacle at 0 m filled the sector ahead up to h_m
+//! whenever something stood 10–25 cm ahead, where the IR proximity is still small, so eq. 10
+//! held the robot there for good: the paper's Fig. 6 box.) With an obstacle that close the
+//! robot creeps at a fraction of v_max, and eq. 10 stops it once the IR proximity ahead adds
+//! the rest of h_m (about 8 cm from the obstacle with the defaults).
 //!
 //! Each reading fills the sectors within half a `beam_width` of its sensor's bearing; a valley
 //! must be `min_valley` wide to be steered into. The histogram is rebuilt from the current
@@ -43,6 +56,9 @@ pub struct Vfh {
     pub us_range: f32,
     /// Ultrasonic full scale of the observation (m): the reading is distance / us_max_range.
     pub us_max_range: f32,
+    /// Ultrasonic minimum range (m): a "too close" reading (observation 0) counts as an echo at
+    /// this distance, the nearest the sensor reports; the IR ring covers what is nearer.
+    pub us_min_range: f32,
     /// Angular width (rad) of the sectors a reading fills, centred on its sensor's bearing.
     pub beam_width: f32,
     /// Narrowest valley (rad) the robot will steer into; it aims at least half of it away
@@ -67,6 +83,7 @@ impl Default for Vfh {
             stop_radius: 0.02,
             us_range: 0.45,
             us_max_range: 2.0,
+            us_min_range: 0.25,
             beam_width: 45f32.to_radians(),
             min_valley: 30f32.to_radians(),
             heading_weight: 0.4,
@@ -108,11 +125,10 @@ impl Vfh {
             self.add(&mut h, IR_BEARINGS[k], ir[k].max(0.0));
         }
         for k in 0..US_COUNT {
-            let magnitude = if us[k] <= 0.0 {
-                1.0 // closer than the sensor can measure
-            } else {
-                (1.0 - us[k] * self.us_max_range / self.us_range).max(0.0)
-            };
+            // "Too close" (0) saturates at the minimum range, as the ARGoS and Webots models of
+            // the sensor report it; nearer obstacles are the IR ring's.
+            let distance = (us[k] * self.us_max_range).max(self.us_min_range);
+            let magnitude = (1.0 - distance / self.us_range).max(0.0);
             self.add(&mut h, US_BEARINGS[k], magnitude);
         }
         let n = self.sectors;
@@ -227,6 +243,31 @@ mod tests {
         let (v, w) = vfh.twist(&[0.0; 8], &[1.0; 5], 1.0, 0.3, 0.0);
         assert!((w - 3.0 * 0.3f32.sin()).abs() < 1e-6);
         assert!(v > 0.0 && v < 0.3);
+    }
+
+    #[test]
+    fn sonar_too_close_with_a_clear_ir_ring_creeps_instead_of_stopping() {
+        let vfh = Vfh::default();
+        let us = [1.0, 1.0, 0.0, 1.0, 1.0]; // front: closer than the 25 cm minimum range
+        let h = vfh.histogram(&[0.0; 8], &us);
+        let ahead = h[vfh.sector(0.0)];
+        // Saturated at the minimum range: 1 − 0.25/0.45, under h_m but over the threshold.
+        assert!(
+            (ahead - (1.0 - 0.25 / 0.45)).abs() < 1e-5,
+            "density ahead {ahead}"
+        );
+        let (v, w) = vfh.twist(&[0.0; 8], &us, 1.0, 0.0, 0.0);
+        assert!(v > 0.0 && v < 0.3 * vfh.vmax, "v = {v}");
+        assert!(w.abs() > 0.1, "does not turn toward a side valley: {w}");
+    }
+
+    #[test]
+    fn sonar_too_close_and_ir_seeing_the_obstacle_stops() {
+        let vfh = Vfh::default();
+        let mut ir = [0.0; 8];
+        ir[3] = 0.2; // front, about 7 cm
+        let (v, _) = vfh.twist(&ir, &[1.0, 1.0, 0.0, 1.0, 1.0], 1.0, 0.0, 0.0);
+        assert_eq!(v, 0.0);
     }
 
     #[test]
