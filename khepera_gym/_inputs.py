@@ -13,7 +13,6 @@ Seeds: a seed is a non-negative int below 2**64 (the core's seeds are u64).
 from __future__ import annotations
 
 import numbers
-import warnings
 from typing import Any
 
 import numpy as np
@@ -38,11 +37,16 @@ def _clip_to_f32(value: Any) -> float:
     return number if not np.isfinite(number) else max(-_F32_MAX, min(_F32_MAX, number))
 
 
+def _within_float32(array: npt.NDArray[np.floating]) -> bool:
+    """Whether every value is finite and within float32's range (False for NaN/inf too)."""
+    if array.size <= 64:  # a Python loop beats NumPy's reductions on small arrays
+        return all(-_F32_MAX <= value <= _F32_MAX for value in array.ravel().tolist())
+    return bool(np.abs(array).max() <= _F32_MAX)
+
+
 def _to_float32(action: Any, shape: tuple[int, ...], what: str) -> npt.NDArray[np.float32]:
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            array = np.asarray(action)
+        array = np.asarray(action)
     except (TypeError, ValueError, OverflowError) as error:  # ragged nesting, odd objects
         raise ActionError(
             f"{what} must be real numbers (a numeric dtype) of shape {shape}, "
@@ -64,10 +68,10 @@ def _to_float32(action: Any, shape: tuple[int, ...], what: str) -> npt.NDArray[n
             f"{what} must be real numbers (a numeric dtype) of shape {shape}, "
             f"got dtype {array.dtype}"
         )
-    if kind == "f" and array.dtype.itemsize > 4:
-        # Finite float64/longdouble values beyond float32's range would become inf.
-        finite = np.isfinite(array)
-        array = np.where(finite, np.clip(array, -_F32_MAX, _F32_MAX), array)
+    if kind == "f" and array.dtype.itemsize > 4 and not _within_float32(array):
+        # Finite float64/longdouble values beyond float32's range would become inf (NaN and inf
+        # stay as they are, for the core to name).
+        array = np.where(np.isfinite(array), np.clip(array, -_F32_MAX, _F32_MAX), array)
     return array.astype(np.float32)
 
 

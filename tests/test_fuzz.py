@@ -1375,7 +1375,7 @@ def test_config_argument_is_a_known_scenario_or_raises_config_error(
         env.close()
 
 
-# --- known bugs: minimal repros (strict xfail until fixed; then delete the label above) ------
+# --- regression tests of the bugs this suite found (strict xfail while labelled in KNOWN_BUGS)
 
 
 def _xfail_if_known(label: str) -> pytest.MarkDecorator:
@@ -1412,7 +1412,7 @@ def test_bug_huge_python_int_in_action_is_clipped_or_action_error() -> None:
 def test_bug_complex_action_raises_action_error() -> None:
     env, _ = _nav_pair()
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # today: ComplexWarning, then the real part is used
+        warnings.simplefilter("ignore")  # was: ComplexWarning, then the real part is used
         with pytest.raises(ActionError, match=r"dtype|numeric|complex"):
             env.step(np.array([0.5 + 0.5j, 0.5]))
 
@@ -1432,7 +1432,7 @@ def test_bug_complex_action_raises_action_error() -> None:
 def test_bug_non_numeric_action_raises_action_error(action: Any) -> None:
     env, _ = _nav_pair()
     with pytest.raises(ActionError):
-        env.step(action)  # today: accepted as numbers
+        env.step(action)  # was: accepted as numbers
 
 
 @_xfail_if_known("big-seed")
@@ -1440,7 +1440,7 @@ def test_bug_non_numeric_action_raises_action_error(action: Any) -> None:
 def test_bug_seed_beyond_u64_works_or_raises_khepera_error(vector: bool) -> None:
     env = gym.make_vec(NAV_ID, num_envs=2) if vector else gym.make(NAV_ID)
     with contextlib.suppress(KheperaError):
-        env.reset(seed=2**64)  # today: OverflowError: int too big to convert
+        env.reset(seed=2**64)  # was: OverflowError: int too big to convert
     env.close()
 
 
@@ -1451,7 +1451,7 @@ def test_bug_seed_beyond_u64_works_or_raises_khepera_error(vector: bool) -> None
     ids=["float", "str4", "str1", "negative", "big", "float-list", "str-list"],
 )
 def test_bug_vector_reset_with_a_bad_seed_raises_khepera_error_naming_seed(seed: Any) -> None:
-    # Today: TypeError ('float' object is not iterable), ValueError (int('a')), a ConfigError
+    # Was: TypeError ('float' object is not iterable), ValueError (int('a')), a ConfigError
     # about "a sequence of 1", OverflowError, or floats/strings silently truncated/parsed.
     envs = gym.make_vec(NAV_ID, num_envs=4)
     with pytest.raises(KheperaError, match="seed") as raised:
@@ -1466,16 +1466,16 @@ def test_bug_huge_arena_is_rejected_or_gives_finite_observations() -> None:
         env = NavEnv(width=1e20, height=1e20)
     except ConfigError:
         return
-    observation, _ = env.reset(seed=0)  # today: goal_distance inf
+    observation, _ = env.reset(seed=0)  # was: goal_distance inf
     assert np.isfinite(observation).all(), observation
     _, reward, *_ = env.step(np.zeros(2, np.float32))
-    assert math.isfinite(reward), reward  # today: NaN
+    assert math.isfinite(reward), reward  # was: NaN
 
 
 @_xfail_if_known("nonstr-config-key")
 def test_bug_non_str_key_in_override_table_raises_config_error() -> None:
     with pytest.raises(ConfigError):
-        gym.make(NAV_ID, robot={1: 0.1})  # today: TypeError: config keys must be str
+        gym.make(NAV_ID, robot={1: 0.1})  # was: TypeError: config keys must be str
 
 
 @_xfail_if_known("config-key-line-n")
@@ -1484,7 +1484,7 @@ def test_bug_non_str_key_in_override_table_raises_config_error() -> None:
     [({"mass": {"a": 1}}, "robot.mass"), ({"robot.radius.x": 3}, "robot.radius")],
 )
 def test_bug_table_where_a_value_belongs_names_the_key(overrides: dict, key: str) -> None:
-    with pytest.raises(ConfigError, match=re.escape(key)):  # today: "<override>: line 33: ..."
+    with pytest.raises(ConfigError, match=re.escape(key)):  # was: "<override>: line 33: ..."
         NavEnv(**overrides)
 
 
@@ -1492,6 +1492,6 @@ def test_bug_table_where_a_value_belongs_names_the_key(overrides: dict, key: str
 @pytest.mark.parametrize("value", [np.array([0.5, 0.6]), np.array(0.5)], ids=["1-d", "0-d"])
 def test_bug_ndarray_override_works_or_names_its_type(value: np.ndarray) -> None:
     try:
-        NavEnv(mass=value)  # today: ConfigError "<override>: mass: integer out of range"
+        NavEnv(mass=value)  # was: ConfigError "<override>: mass: integer out of range"
     except ConfigError as error:
         assert "integer out of range" not in str(error), str(error)
