@@ -13,6 +13,7 @@ from conftest import AVOID_ID, FORMATION_ID, NAV_ID
 from khepera_gym import _core
 from khepera_gym.baselines import (
     VFH,
+    BaselinePolicy,
     Braitenberg,
     LeaderFollower,
     PositionControl,
@@ -54,9 +55,10 @@ def test_position_control_reaches_the_goal_in_99_percent_of_nav_episodes() -> No
     assert stats["success"].mean() >= 0.99, stats["success"].mean()
 
 
-def test_braitenberg_reaches_the_target_past_the_fig6_wall() -> None:
-    # VFH does too, in at least 18 of 20 worlds: tests/controllers.rs (Rust) checks it.
-    rollout = record_rollout(AVOID_ID, Braitenberg(), seed=0, config="paper_fig6")
+@pytest.mark.parametrize("policy", [Braitenberg(), VFH()], ids=["braitenberg", "vfh"])
+def test_braitenberg_and_vfh_reach_the_target_past_the_fig6_wall(policy: BaselinePolicy) -> None:
+    # From the scene's start pose; tests/controllers.rs checks VFH over 20 seeds (>= 18 reach).
+    rollout = record_rollout(AVOID_ID, policy, seed=0, config="paper_fig6")
     np.testing.assert_allclose(rollout.poses[0, 0], FIG6_START, atol=1e-6)
     np.testing.assert_allclose(rollout.goals[0], FIG6_GOAL, atol=1e-6)
     assert rollout.stats["success"], rollout.stats
