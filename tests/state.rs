@@ -146,3 +146,24 @@ fn test_foreign_or_corrupt_states_are_refused_and_change_nothing() {
     let message = load_error(&mut other, &state);
     assert!(message.contains("goal_radius"), "{message}");
 }
+
+#[test]
+fn test_state_does_not_grow_with_episodes() {
+    // Random obstacles rebuild the scene at every reset; the world must not keep what the
+    // previous episodes had (rapier's pending removals grew by ~35 bytes per episode before).
+    let mut avoid = batch("avoid", "max_steps = 2", 2);
+    avoid.reset(Some(0));
+    let actions = vec![0.5f32; avoid.len() * avoid.act_dim()];
+    for _ in 0..20 {
+        avoid.step(&actions).expect("step");
+    }
+    let early = avoid.save_state().expect("save").len();
+    for _ in 0..2000 {
+        avoid.step(&actions).expect("step");
+    }
+    let late = avoid.save_state().expect("save").len();
+    assert!(
+        late <= early + 1024,
+        "state grew from {early} to {late} bytes over 1000 episodes"
+    );
+}
