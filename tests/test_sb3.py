@@ -4,6 +4,7 @@ callbacks, and ``khepera-gym train`` end to end (a short PPO run whose zip loads
 from __future__ import annotations
 
 import json
+import pickle
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -384,3 +385,18 @@ def test_khepera_gym_train_runs_sac(tmp_path: Path) -> None:
     arguments += ["--hp", "learning_starts=100", "--hp", "batch_size=32"]
     assert cli.main(arguments) == 0
     assert type(load_policy(tmp_path / "model.zip")).__name__ == "SAC"
+
+
+def test_vec_env_pickles_mid_episode_and_continues_like_the_original() -> None:
+    # SB3 saves and copies VecEnvs (VecNormalize.save, subprocess wrappers) by pickling.
+    venv = make_vec_env(NAV_ID, n_envs=4)
+    venv.seed(3)
+    venv.reset()
+    actions = np.random.default_rng(0).uniform(-1, 1, (60, 4, 2)).astype(np.float32)
+    for action in actions[:10]:
+        venv.step(action)
+    clone = pickle.loads(pickle.dumps(venv))
+    for action in actions[10:]:
+        expected, got = venv.step(action), clone.step(action)
+        for a, b in zip(expected[:3], got[:3], strict=True):
+            np.testing.assert_array_equal(a, b)
