@@ -42,7 +42,9 @@ impl Param {
     pub fn sample<R: rand::Rng>(&self, rng: &mut R) -> f32 {
         match *self {
             Param::Value(v) => v,
-            Param::Range([lo, hi]) if hi > lo => rng.random_range(lo..=hi),
+            // Validation keeps ranges finite (Scenario::validate); a range that is not
+            // (possible only by building a Scenario by hand) gives its low end, never a panic.
+            Param::Range([lo, hi]) if hi > lo && (hi - lo).is_finite() => rng.random_range(lo..=hi),
             Param::Range([lo, _]) => lo,
         }
     }
@@ -378,7 +380,8 @@ impl Scenario {
         ];
         for (key, p, strictly) in params {
             let (lo, hi) = p.bounds();
-            if !lo.is_finite() || !hi.is_finite() || lo > hi {
+            // hi - lo must be finite too: a range is sampled as lo + (hi - lo)·u.
+            if !lo.is_finite() || !hi.is_finite() || lo > hi || !(hi - lo).is_finite() {
                 return bad(
                     key,
                     format!("must be a finite number or a [low, high] range, got {p:?}"),
@@ -390,11 +393,12 @@ impl Scenario {
             }
         }
         let (alo, ahi) = r.wheel_accel_limit.bounds();
-        if alo.is_nan() || ahi.is_nan() || alo <= 0.0 || alo > ahi {
+        let infinite_range = r.wheel_accel_limit.is_random() && !ahi.is_finite();
+        if alo.is_nan() || ahi.is_nan() || alo <= 0.0 || alo > ahi || infinite_range {
             return bad(
                 "robot.wheel_accel_limit",
                 format!(
-                    "must be > 0 (inf for no limit) or a [low, high] range, got {:?}",
+                    "must be > 0 (inf for no limit) or a finite [low, high] range, got {:?}",
                     r.wheel_accel_limit
                 ),
             );
@@ -706,7 +710,7 @@ fn error_key(e: &toml::de::Error, text: &str) -> String {
     let line = &text[line_start..line_end];
     let line_no = text[..offset].matches('\n').count() + 1;
     match line.split_once('=') {
-        Some((key, _)) if !line.trim_start().starts_with('[') => {
+        Some((key, _)) if !line.trim_start().starts_with('[') && is_plain_key(key.trim()) => {
             let key = key.trim().trim_matches('"');
             match section_at(text, offset) {
                 Some(section) => format!("{section}.{key}"),
@@ -715,6 +719,19 @@ fn error_key(e: &toml::de::Error, text: &str) -> String {
         }
         _ => format!("line {line_no}"),
     }
+}
+
+/// Whether `key` is a dotted key of bare words (`task.goal_radius`): the only keys a scenario
+/// has, so anything else in a message is better said as its line number.
+fn is_plain_key(key: &str) -> bool {
+    !key.is_empty()
+        && key.split('.').all(|part| {
+            let part = part.trim().trim_matches('"');
+            !part.is_empty()
+                && part
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        })
 }
 
 /// The name of the last `[section]` header at or before `offset`; for an array of tables

@@ -136,6 +136,10 @@ def test_negative_robot_radius_names_robot_radius() -> None:
         ({"dt": 0.0}, "dt"),
         ({"substeps": 0}, "substeps"),
         ({"arena": {"width": -2.0}}, "arena.width"),
+        # Found by the long hypothesis run: an infinite range panicked when sampled at reset.
+        ({"wheel_accel_limit": [1.0, float("inf")]}, "robot.wheel_accel_limit"),
+        ({"robot": {0: 1.0}}, "robot: keys must be str"),
+        ({"robot": {"mass": {"kg": 1.0}}}, "robot.mass: is a single setting"),
     ],
 )
 def test_impossible_values_raise_config_error_naming_the_key(
@@ -160,6 +164,13 @@ def test_malformed_toml_raises_config_error(tmp_path) -> None:
     scenario = tmp_path / "broken.toml"
     scenario.write_text("[task\nmax_steps = \n")
     with pytest.raises(ConfigError, match=r"broken\.toml"):
+        NavEnv(config=scenario)
+
+
+def test_a_line_that_is_not_a_key_is_named_by_its_line_number(tmp_path) -> None:
+    scenario = tmp_path / "dot.toml"
+    scenario.write_text("[task]\n.= 1\n")
+    with pytest.raises(ConfigError, match=r"dot\.toml: line 2: "):
         NavEnv(config=scenario)
 
 

@@ -105,7 +105,7 @@ fn to_toml(py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml
         return Ok(toml::Value::Float(f));
     }
     if let Ok(d) = value.cast::<PyDict>() {
-        return Ok(toml::Value::Table(dict_to_table(py, d, key)?));
+        return Ok(toml::Value::Table(dict_to_table(py, d, Some(key))?));
     }
     if value.is_instance_of::<PyList>() || value.is_instance_of::<PyTuple>() {
         let mut items = Vec::new();
@@ -120,20 +120,20 @@ fn to_toml(py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<toml
     )))
 }
 
-fn dict_to_table(py: Python<'_>, dict: &Bound<'_, PyDict>, prefix: &str) -> PyResult<toml::Table> {
+/// The overrides (`prefix` None) or the table under the dotted key `prefix`, as TOML.
+fn dict_to_table(
+    py: Python<'_>,
+    dict: &Bound<'_, PyDict>,
+    prefix: Option<&str>,
+) -> PyResult<toml::Table> {
     let mut table = toml::Table::new();
     for (k, v) in dict.iter() {
         let key: String = k.extract().map_err(|_| {
-            let table = if prefix.is_empty() {
-                "the overrides"
-            } else {
-                prefix
-            };
             to_py(
                 py,
                 Error::config(
                     scenario::OVERRIDE_ORIGIN,
-                    table,
+                    prefix.unwrap_or("the overrides"),
                     format!(
                         "keys must be str, got {}",
                         k.repr().map_or("?".into(), |r| r.to_string())
@@ -141,10 +141,9 @@ fn dict_to_table(py: Python<'_>, dict: &Bound<'_, PyDict>, prefix: &str) -> PyRe
                 ),
             )
         })?;
-        let path = if prefix.is_empty() {
-            key.clone()
-        } else {
-            format!("{prefix}.{key}")
+        let path = match prefix {
+            None => key.clone(),
+            Some(prefix) => format!("{prefix}.{key}"),
         };
         table.insert(key, to_toml(py, &path, &v)?);
     }
@@ -182,7 +181,7 @@ impl Batch {
         guard(py, || {
             let kind = task_kind(py, task)?;
             let overrides = match overrides {
-                Some(d) => dict_to_table(py, d, "")?,
+                Some(d) => dict_to_table(py, d, None)?,
                 None => toml::Table::new(),
             };
             let source = Source {
