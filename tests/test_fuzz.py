@@ -744,33 +744,14 @@ def _check_seed_rejection(error: BaseException | None, expect: _SeedExpect) -> N
     assert any(word in str(error) for word in expect.words), (str(error), expect.words)
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
-@given(seed=_SEEDS)
-def test_single_env_seed_is_deterministic_or_rejected(env_id: str, seed: Any) -> None:
-    pair = _get_pair("single", env_id)
-    expect = _single_seed_expectation(seed)
-    with _watchdog():
-        obs, error = _attempt(lambda: pair.reset(pair.env, seed))
-        note(f"expectation {expect}, outcome {_describe(error)}")
-        with _tolerating(expect.bug):
-            if not expect.ok or (expect.may_reject and isinstance(error, KheperaError)):
-                _check_seed_rejection(error, expect)
-            else:
-                assert error is None, f"seed {seed!r} was rejected: {_describe(error)}"
-                _assert_in_bounds(obs, pair.low, pair.high)
-                if expect.world_seeds != [None]:
-                    _assert_same(pair.reset(pair.env, seed), obs, "second reset, same seed")
-                    _assert_same(pair.reset(pair.twin, seed), obs, "twin reset, same seed")
-                    pair.step_both(np.zeros(pair.shape, np.float32))
-        pair.reset_both(0)  # usable whatever happened
-
-
-@pytest.mark.parametrize("env_id", ENV_IDS)
-@given(seed=_SEEDS)
-def test_vector_env_seed_is_deterministic_or_rejected(env_id: str, seed: Any) -> None:
-    pair = _get_pair("vector", env_id)
-    single = _single_core_env(env_id)
-    expect = _vector_seed_expectation(seed, N_VECTOR)
+def _check_seed(
+    pair: _Pair,
+    seed: Any,
+    expect: _SeedExpect,
+    check_worlds: Callable[[np.ndarray], None] | None = None,
+) -> None:
+    """Resets ``pair.env`` with ``seed``: a rejection as ``expect`` says, or observations that a
+    second reset and the twin reproduce (and ``check_worlds`` accepts); then both step alike."""
     with _watchdog():
         obs, error = _attempt(lambda: pair.reset(pair.env, seed))
         note(f"expectation {expect}, outcome {_describe(error)}")
@@ -783,11 +764,29 @@ def test_vector_env_seed_is_deterministic_or_rejected(env_id: str, seed: Any) ->
                 if None not in expect.world_seeds:
                     _assert_same(pair.reset(pair.env, seed), obs, "second reset, same seed")
                     _assert_same(pair.reset(pair.twin, seed), obs, "twin reset, same seed")
-                    for world, world_seed in enumerate(expect.world_seeds):
-                        row = obs[world : world + 1]
-                        _assert_same(single.reset(world_seed), row, f"world {world}")
+                    if check_worlds is not None:
+                        check_worlds(obs)
                     pair.step_both(np.zeros(pair.shape, np.float32))
         pair.reset_both(0)  # usable whatever happened
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@given(seed=_SEEDS)
+def test_single_env_seed_is_deterministic_or_rejected(env_id: str, seed: Any) -> None:
+    _check_seed(_get_pair("single", env_id), seed, _single_seed_expectation(seed))
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@given(seed=_SEEDS)
+def test_vector_env_seed_is_deterministic_or_rejected(env_id: str, seed: Any) -> None:
+    single = _single_core_env(env_id)
+    expect = _vector_seed_expectation(seed, N_VECTOR)
+
+    def each_world_is_a_single_env(obs: np.ndarray) -> None:
+        for world, world_seed in enumerate(expect.world_seeds):
+            _assert_same(single.reset(world_seed), obs[world : world + 1], f"world {world}")
+
+    _check_seed(_get_pair("vector", env_id), seed, expect, each_world_is_a_single_env)
 
 
 @functools.cache
