@@ -23,11 +23,8 @@ examples per property, 4000 by default, random), e.g.::
 
     HYPOTHESIS_PROFILE=long pytest tests/test_fuzz.py --hypothesis-show-statistics
 
-Known bugs: inputs that misbehave today are labelled in ``KNOWN_BUGS``. The properties tolerate
-exactly those symptoms (recording a hypothesis event, visible with ``--hypothesis-show-statistics``)
-and each label has a strict-xfail test at the end of this file with a minimal repro; once a bug
-is fixed its test passes, strict xfail turns that into a failure, and the label must be deleted,
-which puts the inputs back under the full properties.
+Regression tests: the end of this file holds a minimal repro of each bug this suite has found
+(all fixed), so that each stays fixed whatever the random draws.
 """
 
 from __future__ import annotations
@@ -84,23 +81,6 @@ settings.register_profile(
     suppress_health_check=_HEALTH,
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
-
-# --- known bugs -------------------------------------------------------------------------------
-
-#: Bugs found by this suite and not fixed yet, by label; each has a strict-xfail repro test below.
-#: Empty: the ten this suite found (float64 overflow, huge ints, complex/string/date actions, seeds
-#: beyond u64 and of other types, huge arenas, non-str and table-for-value override keys, ndarray
-#: overrides) are fixed, and their repro tests below are regression tests.
-KNOWN_BUGS: frozenset[str] = frozenset()
-
-
-def _known_bug(label: str | None) -> bool:
-    """Whether ``label`` is a known, unfixed bug (recorded as a hypothesis event)."""
-    if label is None or label not in KNOWN_BUGS:
-        return False
-    event(f"known bug: {label}")
-    return True
-
 
 # --- helpers ----------------------------------------------------------------------------------
 
@@ -398,7 +378,6 @@ class _Expect:
     action: np.ndarray | None = None  # when ok: the float32 action the twin applies
     problems: frozenset[str] = frozenset()  # when rejected: what the message may name
     nonfinite: frozenset[tuple[int, int]] = frozenset()  # (world, element) of NaN/inf entries
-    bug: str | None = None  # a known bug this input runs into
     may_reject: bool = False  # ok, but an ActionError is an acceptable answer too
 
 
@@ -415,8 +394,6 @@ def _is_huge_int(value: Any) -> bool:
 def _lenient_expectation(action: Any, shape: tuple[int, ...]) -> _Expect:
     """For the envs: any real numbers (bool, int, float, or objects holding those) of the right
     shape are valid, finite values outside [-1, 1] are clipped; anything else is rejected.
-
-    The bug labels come from replaying the env's conversion, ``np.asarray(x, np.float32)``.
     """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -436,24 +413,12 @@ def _lenient_expectation(action: Any, shape: tuple[int, ...]) -> _Expect:
     if array.shape != shape:
         problems.add("shape")
 
-    # The env's conversion, replayed: what it sees, and whether it warns or overflows.
-    bug = None
+    # A plain float32 conversion: the shape NumPy sees, and the NaN that None and "nan" become.
     converted = None
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with contextlib.suppress(TypeError, ValueError, OverflowError):
             converted = np.asarray(action, dtype=np.float32)
-        except OverflowError:
-            bug = "huge-int-action"
-        except (TypeError, ValueError):
-            pass
-    for warning in caught:
-        if issubclass(warning.category, np.exceptions.ComplexWarning):
-            bug = "complex-action"
-        elif "overflow" in str(warning.message):
-            bug = bug or "f64-overflow"
-        else:
-            bug = bug or f"unexpected {warning.category.__name__}"  # not known: must fail
     if converted is not None and converted.shape != shape:
         problems.add("shape")
 
@@ -473,18 +438,13 @@ def _lenient_expectation(action: Any, shape: tuple[int, ...]) -> _Expect:
             nonfinite = _positions(~finite)
         else:
             clipped = np.clip(real, -1, 1).astype(np.float32)
-            if converted is not None and not np.isfinite(converted).all():
-                bug = bug or "f64-overflow"
-            return _Expect(True, clipped, bug=bug, may_reject=huge_ints)
-    elif converted is not None:
-        if "dtype" in problems and "shape" not in problems and np.isfinite(converted).all():
-            bug = bug or "non-numeric-dtype-action"  # accepted silently
-        if not np.isfinite(converted).all():
-            # None and "nan" become NaN: a message about NaN names a real problem.
-            problems.add("finite")
-            if converted.shape == shape:
-                nonfinite = _positions(~np.isfinite(converted))
-    return _Expect(False, problems=frozenset(problems), nonfinite=nonfinite, bug=bug)
+            return _Expect(True, clipped, may_reject=huge_ints)
+    elif converted is not None and not np.isfinite(converted).all():
+        # None and "nan" become NaN: a message about NaN names a real problem.
+        problems.add("finite")
+        if converted.shape == shape:
+            nonfinite = _positions(~np.isfinite(converted))
+    return _Expect(False, problems=frozenset(problems), nonfinite=nonfinite)
 
 
 def _strict_expectation(action: Any, shape: tuple[int, ...]) -> _Expect:
@@ -533,17 +493,6 @@ def _assert_action_error(error: BaseException | None, expect: _Expect, shape: tu
     )
 
 
-@contextlib.contextmanager
-def _tolerating(bug: str | None) -> Iterator[None]:
-    """Turns a failed check into a pass (and a hypothesis event) when the input runs into the
-    known bug ``bug``; inputs that the buggy code happens to get right are checked in full."""
-    try:
-        yield
-    except AssertionError:
-        if not _known_bug(bug):
-            raise
-
-
 def _check_action(pair: _Pair, seed: int, prefix: list, action: Any, follow: np.ndarray) -> None:
     """Resets env and twin, steps both through ``prefix``, tries ``action`` on the env only, and
     checks the outcome against the oracle; then both must step ``follow`` alike."""
@@ -556,16 +505,15 @@ def _check_action(pair: _Pair, seed: int, prefix: list, action: Any, follow: np.
     before = pair.poses(pair.env)
     out, error = _attempt(lambda: pair.step(pair.env, action))
     note(f"outcome: {_describe(error)}")
-    with _tolerating(expect.bug):
-        if expect.ok and not (expect.may_reject and isinstance(error, ActionError)):
-            assert error is None, f"valid action {action!r} was rejected: {_describe(error)}"
-            _assert_same(out, pair.step(pair.twin, expect.action), "step (clipped twin)")
-            pair.check_outputs(out)
-        else:
-            assert error is not None, f"invalid action {action!r} was accepted"
-            _assert_action_error(error, expect, pair.shape)
-            np.testing.assert_array_equal(pair.poses(pair.env), before, "a world moved")
-        pair.step_both(follow)
+    if expect.ok and not (expect.may_reject and isinstance(error, ActionError)):
+        assert error is None, f"valid action {action!r} was rejected: {_describe(error)}"
+        _assert_same(out, pair.step(pair.twin, expect.action), "step (clipped twin)")
+        pair.check_outputs(out)
+    else:
+        assert error is not None, f"invalid action {action!r} was accepted"
+        _assert_action_error(error, expect, pair.shape)
+        np.testing.assert_array_equal(pair.poses(pair.env), before, "a world moved")
+    pair.step_both(follow)
 
 
 # --- 1. actions -------------------------------------------------------------------------------
@@ -602,7 +550,7 @@ def _nonfinite_cells(draw: st.DrawFn, shape: tuple[int, ...]) -> np.ndarray:
 def _bad_actions(shape: tuple[int, ...], strict: bool) -> st.SearchStrategy[Any]:
     def rejected(action: Any) -> bool:
         expect = _expectation(action, shape, strict)
-        return not expect.ok and expect.bug not in KNOWN_BUGS
+        return not expect.ok
 
     return st.one_of(_nonfinite_cells(shape), _action_inputs(shape)).filter(rejected)
 
@@ -690,7 +638,6 @@ class _SeedExpect:
     world_seeds: list[int | None] | None = None  # when ok: each world's seed (None: continue)
     errors: tuple[type[BaseException], ...] = (KheperaError,)
     words: tuple[str, ...] = ("seed",)  # a rejection's message names one of these
-    bug: str | None = None
     may_reject: bool = False
 
 
@@ -708,7 +655,7 @@ def _single_seed_expectation(seed: Any) -> _SeedExpect:
         if seed < 0:
             return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
         if seed >= U64:  # Gymnasium takes it; working or a KheperaError are both fine
-            return _SeedExpect(True, [seed], bug="big-seed", may_reject=True)
+            return _SeedExpect(True, [seed], may_reject=True)
         return _SeedExpect(True, [int(seed)])
     return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
 
@@ -721,20 +668,20 @@ def _vector_seed_expectation(seed: Any, n: int) -> _SeedExpect:
         if value < 0:
             return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
         if value >= U64:
-            return _SeedExpect(True, [None] * n, bug="big-seed", may_reject=True)
+            return _SeedExpect(True, [None] * n, may_reject=True)
         # World i is seeded s + i; where that passes 2**64 it is unspecified, so not compared.
         return _SeedExpect(True, [value + i if value + i < U64 else None for i in range(n)])
     is_sequence = isinstance(seed, (list, tuple)) or (
         isinstance(seed, np.ndarray) and seed.ndim == 1
     )
     if not is_sequence:
-        return _SeedExpect(False, bug="vector-seed-types")
+        return _SeedExpect(False)
     seeds = list(seed)
     if len(seeds) != n:
         return _SeedExpect(False, words=(f"{n} seeds",))
     if all(s is None or (_is_int(s) and 0 <= int(s) < U64) for s in seeds):
         return _SeedExpect(True, [None if s is None else int(s) for s in seeds])
-    return _SeedExpect(False, bug="vector-seed-types")
+    return _SeedExpect(False)
 
 
 def _check_seed_rejection(error: BaseException | None, expect: _SeedExpect) -> None:
@@ -755,18 +702,17 @@ def _check_seed(
     with _watchdog():
         obs, error = _attempt(lambda: pair.reset(pair.env, seed))
         note(f"expectation {expect}, outcome {_describe(error)}")
-        with _tolerating(expect.bug):
-            if not expect.ok or (expect.may_reject and isinstance(error, KheperaError)):
-                _check_seed_rejection(error, expect)
-            else:
-                assert error is None, f"seed {seed!r} was rejected: {_describe(error)}"
-                _assert_in_bounds(obs, pair.low, pair.high)
-                if None not in expect.world_seeds:
-                    _assert_same(pair.reset(pair.env, seed), obs, "second reset, same seed")
-                    _assert_same(pair.reset(pair.twin, seed), obs, "twin reset, same seed")
-                    if check_worlds is not None:
-                        check_worlds(obs)
-                    pair.step_both(np.zeros(pair.shape, np.float32))
+        if not expect.ok or (expect.may_reject and isinstance(error, KheperaError)):
+            _check_seed_rejection(error, expect)
+        else:
+            assert error is None, f"seed {seed!r} was rejected: {_describe(error)}"
+            _assert_in_bounds(obs, pair.low, pair.high)
+            if None not in expect.world_seeds:
+                _assert_same(pair.reset(pair.env, seed), obs, "second reset, same seed")
+                _assert_same(pair.reset(pair.twin, seed), obs, "twin reset, same seed")
+                if check_worlds is not None:
+                    check_worlds(obs)
+                pair.step_both(np.zeros(pair.shape, np.float32))
         pair.reset_both(0)  # usable whatever happened
 
 
@@ -1076,18 +1022,10 @@ def _assert_config_error_names_a_key(
     error: BaseException | None, origin: str, task: str, given_keys: list[str]
 ) -> None:
     """A ConfigError "ORIGIN: KEY: problem" whose KEY is a scenario key or one the user gave."""
-    if (
-        isinstance(error, TypeError)
-        and "config keys must be str" in str(error)
-        and _known_bug("nonstr-config-key")
-    ):
-        return
     assert isinstance(error, ConfigError), f"expected ConfigError, got {_describe(error)}"
     message = str(error)
     assert message.startswith(f"{origin}: "), f"{message!r} does not start with {origin!r}"
     rest = message[len(origin) + 2 :]
-    if re.match(r"line \d+: ", rest) and _known_bug("config-key-line-n"):
-        return
     candidates = _dotted_keys(task) | set(_schema(task)) | {"spawn"}
     for key in given_keys:
         parts = key.split(".")
@@ -1111,10 +1049,9 @@ def _leaves(value: Any) -> Iterator[Any]:
 
 def _check_override_message(error: BaseException | None, overrides: dict[str, Any]) -> None:
     """ "integer out of range" must be about an int that does not fit 64 bits."""
-    if "integer out of range" in str(error) and not any(
+    assert "integer out of range" not in str(error) or any(
         _is_int(v) and not -(2**63) <= int(v) < 2**63 for v in _leaves(overrides)
-    ):
-        assert _known_bug("ndarray-override-message"), str(error)
+    ), str(error)
 
 
 def _check_built_env(env: gym.Env, seed: int, data: st.DataObject) -> None:
@@ -1122,19 +1059,12 @@ def _check_built_env(env: gym.Env, seed: int, data: st.DataObject) -> None:
     space = env.observation_space
     obs, error = _attempt(lambda: env.reset(seed=seed)[0])
     assert error is None, f"reset failed: {_describe(error)}"
-    huge_arena = max(env.unwrapped.scene()["arena"]) > 1e18
-    if huge_arena and not np.isfinite(obs).all() and _known_bug("huge-arena"):
-        return
     _assert_in_bounds(obs, space.low, space.high)
     for step in range(3):
         action = data.draw(_valid_actions(env.action_space.shape), label=f"action {step}")
         out, error = _attempt(lambda a=action: env.step(a))
-        if huge_arena and error is not None and "NaN" in str(error) and _known_bug("huge-arena"):
-            return
         assert error is None, f"step failed: {_describe(error)}"
         obs, reward, terminated, truncated, _ = out
-        if huge_arena and not np.isfinite(reward) and _known_bug("huge-arena"):
-            return
         _assert_in_bounds(obs, space.low, space.high)
         assert math.isfinite(reward), f"non-finite reward {reward}"
         if terminated or truncated:
@@ -1193,8 +1123,6 @@ def test_multinav_batch_overrides_build_a_working_batch_or_raise_config_error(
         low, high = batch.obs_bounds()
         obs, error = _attempt(lambda: batch.reset(data.draw(st.integers(0, 2**32 - 1))))
         assert error is None, _describe(error)
-        if max(batch.scene(0)["arena"]) > 1e18 and _known_bug("huge-arena"):
-            return
         _assert_in_bounds(obs, low, high)
         for _ in range(2):
             action = data.draw(_valid_actions((2, batch.act_dim)))
@@ -1323,10 +1251,11 @@ def test_scenario_file_builds_a_working_env_or_raises_config_error(
             assert message.startswith(f"{path}: "), f"{message!r} does not name the file first"
             rest = message[len(str(path)) + 2 :]
             line = re.match(r"line (\d+): ", rest)
-            if line and isinstance(contents, str) and int(line[1]) > contents.count("\n") + 1:
-                # A line number past the end of the file counts lines of some internal text.
-                assert _known_bug("config-key-line-n"), message
-            elif not (line or re.match(r"(<syntax>|cannot read scenario file): ", rest)):
+            # A line number past the end of the file would count lines of some internal text.
+            assert not (
+                line and isinstance(contents, str) and int(line[1]) > contents.count("\n") + 1
+            ), message
+            if not (line or re.match(r"(<syntax>|cannot read scenario file): ", rest)):
                 # Otherwise it names a key: one of the scenario's or a word of the file.
                 text = (
                     contents.decode("utf-8", "replace") if isinstance(contents, bytes) else contents
@@ -1374,11 +1303,7 @@ def test_config_argument_is_a_known_scenario_or_raises_config_error(
         env.close()
 
 
-# --- regression tests of the bugs this suite found (strict xfail while labelled in KNOWN_BUGS)
-
-
-def _xfail_if_known(label: str) -> pytest.MarkDecorator:
-    return pytest.mark.xfail(label in KNOWN_BUGS, reason=f"known bug {label}", strict=True)
+# --- regression tests: a minimal repro of each bug this suite found (all fixed) -------------
 
 
 def _nav_pair() -> tuple[gym.Env, gym.Env]:
@@ -1388,7 +1313,6 @@ def _nav_pair() -> tuple[gym.Env, gym.Env]:
     return env, twin
 
 
-@_xfail_if_known("f64-overflow")
 def test_bug_finite_float64_action_beyond_float32_range_is_clipped() -> None:
     env, twin = _nav_pair()
     with warnings.catch_warnings():
@@ -1397,7 +1321,6 @@ def test_bug_finite_float64_action_beyond_float32_range_is_clipped() -> None:
     np.testing.assert_array_equal(observation, twin.step(np.array([1.0, -1.0], np.float32))[0])
 
 
-@_xfail_if_known("huge-int-action")
 def test_bug_huge_python_int_in_action_is_clipped_or_action_error() -> None:
     env, twin = _nav_pair()
     try:
@@ -1407,7 +1330,6 @@ def test_bug_huge_python_int_in_action_is_clipped_or_action_error() -> None:
     np.testing.assert_array_equal(observation, twin.step(np.array([1.0, 0.0], np.float32))[0])
 
 
-@_xfail_if_known("complex-action")
 def test_bug_complex_action_raises_action_error() -> None:
     env, _ = _nav_pair()
     with warnings.catch_warnings():
@@ -1416,7 +1338,6 @@ def test_bug_complex_action_raises_action_error() -> None:
             env.step(np.array([0.5 + 0.5j, 0.5]))
 
 
-@_xfail_if_known("non-numeric-dtype-action")
 @pytest.mark.parametrize(
     "action",
     [
@@ -1434,7 +1355,6 @@ def test_bug_non_numeric_action_raises_action_error(action: Any) -> None:
         env.step(action)  # was: accepted as numbers
 
 
-@_xfail_if_known("big-seed")
 @pytest.mark.parametrize("vector", [False, True], ids=["single", "vector"])
 def test_bug_seed_beyond_u64_works_or_raises_khepera_error(vector: bool) -> None:
     env = gym.make_vec(NAV_ID, num_envs=2) if vector else gym.make(NAV_ID)
@@ -1443,7 +1363,6 @@ def test_bug_seed_beyond_u64_works_or_raises_khepera_error(vector: bool) -> None
     env.close()
 
 
-@_xfail_if_known("vector-seed-types")
 @pytest.mark.parametrize(
     "seed",
     [1.5, "abcd", "a", [-1, 0, 0, 0], [2**64, 0, 0, 0], [1.5, 0, 0, 0], ["5", 0, 0, 0]],
@@ -1459,7 +1378,6 @@ def test_bug_vector_reset_with_a_bad_seed_raises_khepera_error_naming_seed(seed:
     envs.close()
 
 
-@_xfail_if_known("huge-arena")
 def test_bug_huge_arena_is_rejected_or_gives_finite_observations() -> None:
     try:
         env = NavEnv(width=1e20, height=1e20)
@@ -1471,13 +1389,11 @@ def test_bug_huge_arena_is_rejected_or_gives_finite_observations() -> None:
     assert math.isfinite(reward), reward  # was: NaN
 
 
-@_xfail_if_known("nonstr-config-key")
 def test_bug_non_str_key_in_override_table_raises_config_error() -> None:
     with pytest.raises(ConfigError):
         gym.make(NAV_ID, robot={1: 0.1})  # was: TypeError: config keys must be str
 
 
-@_xfail_if_known("config-key-line-n")
 @pytest.mark.parametrize(
     ("overrides", "key"),
     [({"mass": {"a": 1}}, "robot.mass"), ({"robot.radius.x": 3}, "robot.radius")],
@@ -1487,7 +1403,6 @@ def test_bug_table_where_a_value_belongs_names_the_key(overrides: dict, key: str
         NavEnv(**overrides)
 
 
-@_xfail_if_known("ndarray-override-message")
 @pytest.mark.parametrize("value", [np.array([0.5, 0.6]), np.array(0.5)], ids=["1-d", "0-d"])
 def test_bug_ndarray_override_works_or_names_its_type(value: np.ndarray) -> None:
     try:
