@@ -7,15 +7,22 @@ a drop-in policy for the environments created with ``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
 
-    policy = Braitenberg()
+    policy = Braitenberg(weights="kteam")
     action = policy(obs)                          # one (18,) observation or a batch (N, 18)
     action, state = policy.predict(obs)           # stable-baselines3's signature
 
 All the maths lives in the Rust core (src/controllers/, the code the scripted formation leader
-runs inside the simulator) and is exposed as ``khepera_gym._core.Policy``; this module only
-converts parameters and array shapes. Units: metres, seconds, radians; robot frame x forward,
-y left, angles counter-clockwise. Actions are normalised (left, right) wheel speeds in [-1, 1]:
-wheel speeds ``v ∓ ω · axle_length / 2`` divided by ``max_wheel_speed`` and clipped.
+runs inside the simulator), and so do the controllers' parameters: their names (as in the
+papers), defaults, units and checks are declared once in Rust, and each class here takes them as
+keywords (see ``help(Braitenberg)`` or ``inspect.signature``; :func:`parameters` lists them).
+A policy reads the observation of its task's default scenario; for another (other sensors
+observed), give ``layout=env.unwrapped.obs_layout()`` and it finds its blocks by name. Units:
+metres, seconds, radians; robot frame x forward, y left, angles counter-clockwise. Actions are
+normalised (left, right) wheel speeds in [-1, 1]: wheel speeds ``v ∓ ω · axle_length / 2``
+divided by ``max_wheel_speed`` and clipped.
+
+Adding a controller: a Rust file in src/controllers/ and a short class here that names it
+(``CONTROLLER = "..."``) and says in its docstring what it does.
 
 Threading and copies: a call copies the observations into Rust, releases the GIL while acting
 and returns a fresh float32 array. Policies are immutable and hold no state between calls, so one
@@ -24,11 +31,12 @@ instance may serve several environments (``predict`` returns ``state`` unchanged
 
 from __future__ import annotations
 
+import inspect
 import math
 import numbers
 import re
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -42,32 +50,123 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     tomllib = None  # type: ignore[assignment]
 
 #: Distance between the wheels of the Khepera IV (m), the Rust core's ``robot::AXLE_LENGTH``.
-KHEPERA_AXLE_LENGTH = 0.1054
+KHEPERA_AXLE_LENGTH = float(_core.AXLE_LENGTH)
 #: Largest wheel speed of the Khepera IV (m/s): a normalised wheel action of 1 stands for it.
-KHEPERA_MAX_WHEEL_SPEED = 0.813
+KHEPERA_MAX_WHEEL_SPEED = float(_core.MAX_WHEEL_SPEED)
 #: Formation shapes of :class:`LeaderFollower` (as ``formation.shape`` of a scenario).
 FORMATION_SHAPES = ("cross", "line", "wedge", "circle")
 #: Names of the built-in Braitenberg weight matrices (``_core.braitenberg_weights``).
 BRAITENBERG_WEIGHT_SETS = ("default", "kteam")
 
 Observation = npt.ArrayLike | Mapping[str, npt.ArrayLike]
+#: An observation layout: ``env.unwrapped.obs_layout()`` (name → slice) or an env with one.
+Layout = Mapping[str, slice] | Any
 
 
-def _positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise ConfigError(f"{name} must be a finite number > 0, got {value}")
-    return value
+def parameters(controller: str) -> list[tuple[str, Any, str]]:
+    """The parameters of a controller of the Rust core, as declared there.
+
+    Args:
+        controller: Its name: ``"position_control"``, ``"braitenberg"``, ``"vfh"`` or
+            ``"leader_follower"`` (``_core.controllers()`` lists them).
+
+    Returns:
+        ``(name, default, comment)`` per parameter, in order; the comment gives units and source.
+    """
+    return [(name, default, comment) for name, default, comment in _core.controller_params(controller)]
+
+
+def _layout_triples(layout: Layout | None) -> list[tuple[str, int, int]] | None:
+    """``(name, start, stop)`` triples of a layout dict, an env's ``obs_layout()``, or None."""
+    if layout is None:
+        return None
+    if not isinstance(layout, Mapping):
+        unwrapped = getattr(layout, "unwrapped", layout)
+        if not hasattr(unwrapped, "obs_layout"):
+            raise ConfigError(
+                f"layout must be an env's obs_layout() (name -> slice) or an env, got "
+                f"{type(layout).__name__}"
+            )
+        layout = unwrapped.obs_layout()
+    triples = []
+    for name, block in layout.items():
+        if not isinstance(block, slice):
+            raise ConfigError(f"layout[{name!r}] must be a slice, got {block!r}")
+        triples.append((str(name), int(block.start), int(block.stop)))
+    return triples
 
 
 class BaselinePolicy:
-    """Base of the baselines: applies a ``_core.Policy`` to observations of any batch shape.
+    """Base of the baselines: a ``_core.Policy`` applied to observations of any batch shape.
 
-    Subclasses build ``self._policy`` in ``__init__``. ``__call__`` takes one observation (D,), a
-    batch (N, D) or any (..., D), or a PettingZoo dict ``{agent: observation}``.
+    A subclass names its controller in :attr:`CONTROLLER`; its keyword parameters, their defaults
+    and its signature come from the Rust core. ``__call__`` takes one observation (D,), a batch
+    (N, D) or any (..., D), or a PettingZoo dict ``{agent: observation}``.
+
+    Args:
+        *args, **params: The controller's parameters (positionally in their declared order, or
+            by name); the rest keep their defaults.
+        layout: The layout of the observations it will read (``env.unwrapped.obs_layout()`` or
+            the env itself); None for its task's default observation.
+
+    Raises:
+        ConfigError: An unknown parameter, a value of the wrong type or an impossible one, or a
+            layout that lacks a block the controller reads (the message names it).
     """
 
+    #: The controller's name in the Rust core.
+    CONTROLLER: ClassVar[str] = ""
+    #: Its parameters: (name, default, comment), from the Rust core.
+    PARAMETERS: ClassVar[list[tuple[str, Any, str]]] = []
     _policy: _core.Policy
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if not cls.CONTROLLER or "PARAMETERS" in cls.__dict__:
+            return
+        cls.PARAMETERS = parameters(cls.CONTROLLER)
+        if "__init__" not in cls.__dict__:
+            cls.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
+                [
+                    inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default)
+                    for name, default, _ in cls.PARAMETERS
+                ]
+                + [inspect.Parameter("layout", inspect.Parameter.KEYWORD_ONLY, default=None)]
+            )
+        lines = [f"    {name}: {comment} (default {default!r})." for name, default, comment in cls.PARAMETERS]
+        cls.__doc__ = (cls.__doc__ or "").rstrip() + (
+            f"\n\n    Parameters of the Rust controller ``{cls.CONTROLLER}``:\n\n" + "\n".join(lines) + "\n"
+        )
+
+    def __init__(self, *args: Any, layout: Layout | None = None, **params: Any) -> None:
+        names = [name for name, _, _ in self.PARAMETERS]
+        if len(args) > len(names):
+            raise ConfigError(
+                f"{type(self).__name__} takes at most {len(names)} positional parameters "
+                f"({', '.join(names)}), got {len(args)}"
+            )
+        for name, value in zip(names, args, strict=False):
+            if name in params:
+                raise ConfigError(f"{type(self).__name__}: {name} given twice")
+            params[name] = value
+        self._given = dict(params)
+        self._policy = _core.Policy(self.CONTROLLER, params, _layout_triples(layout))
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """Every parameter's value: the given ones, the defaults for the others."""
+        values = {name: default for name, default, _ in self.PARAMETERS}
+        values.update(self._given)
+        return values
+
+    def __getattr__(self, name: str) -> Any:
+        # Parameters read as attributes (policy.vmax); only called for missing attributes.
+        if name.startswith("_") or name in ("params", "PARAMETERS", "CONTROLLER"):
+            raise AttributeError(name)
+        values = self.params
+        if name in values:
+            return values[name]
+        raise AttributeError(f"{type(self).__name__!r} has no attribute {name!r}")
 
     def __call__(self, observation: Observation) -> Any:
         """Actions for observations.
@@ -128,11 +227,8 @@ class BaselinePolicy:
         return dict(zip(agents, actions, strict=True))
 
     def __repr__(self) -> str:
-        arguments = ", ".join(f"{name}={value!r}" for name, value in self._parameters().items())
+        arguments = ", ".join(f"{name}={value!r}" for name, value in self._given.items())
         return f"{type(self).__name__}({arguments})"
-
-    def _parameters(self) -> dict[str, Any]:
-        return {}
 
 
 class PositionControl(BaselinePolicy):
@@ -148,43 +244,9 @@ class PositionControl(BaselinePolicy):
 
     and :math:`v = \omega = 0` once :math:`d` < ``stop_radius`` (the library stops at 0.05 m;
     the task succeeds within 0.05 m, so the default stops closer). Obstacles are ignored.
-
-    Args:
-        vmax: Cruise speed :math:`v_{max}` (m/s).
-        wmax: Largest turn rate :math:`\omega_{max}` (rad/s), reached at a bearing of ±90°.
-        kr: Radius :math:`k_r` of the docking area where the speed falls linearly (m).
-        stop_radius: Distance to the goal under which the robot stops (m).
-        axle_length: Wheel separation (m) turning (v, ω) into wheel speeds.
-        max_wheel_speed: Wheel speed that an action of 1 stands for (m/s).
-
-    Raises:
-        ValueError: A parameter is not finite and positive (``stop_radius`` may be 0).
     """
 
-    def __init__(
-        self,
-        vmax: float = 0.3,
-        wmax: float = 4.0,
-        kr: float = 0.15,
-        stop_radius: float = 0.02,
-        *,
-        axle_length: float = KHEPERA_AXLE_LENGTH,
-        max_wheel_speed: float = KHEPERA_MAX_WHEEL_SPEED,
-    ) -> None:
-        self.vmax, self.wmax, self.kr = float(vmax), float(wmax), float(kr)
-        self.stop_radius = float(stop_radius)
-        self.axle_length, self.max_wheel_speed = float(axle_length), float(max_wheel_speed)
-        self._policy = _core.Policy.position_control(
-            self.vmax, self.wmax, self.kr, self.stop_radius, self.axle_length, self.max_wheel_speed
-        )
-
-    def _parameters(self) -> dict[str, Any]:
-        return {
-            "vmax": self.vmax,
-            "wmax": self.wmax,
-            "kr": self.kr,
-            "stop_radius": self.stop_radius,
-        }
+    CONTROLLER: ClassVar[str] = "position_control"
 
 
 def braitenberg_weights(
@@ -206,11 +268,6 @@ def braitenberg_weights(
         ValueError: Unknown name, not a finite 2 × 8 matrix, or ``smax`` not > 0.
     """
     if isinstance(weights, str):
-        if weights not in BRAITENBERG_WEIGHT_SETS:
-            raise ConfigError(
-                f"unknown Braitenberg weights {weights!r}; give one of "
-                f"{BRAITENBERG_WEIGHT_SETS} or a 2 x 8 array"
-            )
         matrix = np.array(_core.braitenberg_weights(weights), dtype=np.float64)
     else:
         try:
@@ -222,7 +279,10 @@ def braitenberg_weights(
                 "weights must be a finite 2 x 8 matrix (rows left, right wheel; columns the IR "
                 f"sensors in K-Team order), got shape {matrix.shape}"
             )
-    return matrix / _positive("smax", smax)
+    smax = float(smax)
+    if not (math.isfinite(smax) and smax > 0):
+        raise ConfigError(f"smax must be a finite number > 0, got {smax}")
+    return matrix / smax
 
 
 class Braitenberg(BaselinePolicy):
@@ -240,66 +300,16 @@ class Braitenberg(BaselinePolicy):
     ``smax`` rescales the proximity, :math:`p / s_{max}`: the sensors then count as saturated
     at :math:`p = s_{max}` instead of 1 (``smax`` = 1 is eq. 7 as written). It is implemented
     exactly by dividing the weights by ``smax``; ``threshold`` still applies to :math:`p`.
-
-    Args:
-        weights: "default" (tuned on KheperaIV-Avoid: about 97% success), "kteam" (K-Team's
-            ``braitenbergAvoidance`` demo converted to m/s per unit proximity) or a 2 × 8 array
-            (m/s per unit proximity; rows left, right wheel; columns K-Team sensor order).
-        smax: Full scale of the proximity :math:`S_{max}` relative to the observation's (> 0).
-        threshold: Proximity above which a sensor sees an obstacle (above the IR noise).
-        vmax: :class:`PositionControl`'s cruise speed (m/s).
-        wmax: :class:`PositionControl`'s largest turn rate (rad/s).
-        kr: :class:`PositionControl`'s docking radius (m).
-        stop_radius: Distance to the goal under which the robot stops (m).
-        axle_length: Wheel separation (m).
-        max_wheel_speed: Wheel speed that an action of 1 stands for (m/s).
-
-    Raises:
-        ValueError: Unknown weight set, weights not a finite 2 × 8 matrix, or a bad parameter.
+    ``weights="default"`` reaches about 97% of KheperaIV-Avoid goals; ``"kteam"`` (K-Team's
+    ``braitenbergAvoidance`` demo converted to m/s per unit proximity) about 70%.
     """
 
-    def __init__(
-        self,
-        weights: str | npt.ArrayLike = "default",
-        smax: float = 1.0,
-        threshold: float = 0.05,
-        vmax: float = 0.3,
-        wmax: float = 4.0,
-        kr: float = 0.15,
-        stop_radius: float = 0.02,
-        *,
-        axle_length: float = KHEPERA_AXLE_LENGTH,
-        max_wheel_speed: float = KHEPERA_MAX_WHEEL_SPEED,
-    ) -> None:
-        self.weights = weights if isinstance(weights, str) else np.array(weights, dtype=float)
-        self.smax, self.threshold = float(smax), float(threshold)
-        self.vmax, self.wmax, self.kr = float(vmax), float(wmax), float(kr)
-        self.stop_radius = float(stop_radius)
-        self.axle_length, self.max_wheel_speed = float(axle_length), float(max_wheel_speed)
-        #: The weights handed to the Rust block: W / smax (m/s per unit proximity).
-        self.effective_weights = braitenberg_weights(weights, smax)
-        self._policy = _core.Policy.braitenberg(
-            self.effective_weights.tolist(),
-            self.threshold,
-            self.vmax,
-            self.wmax,
-            self.kr,
-            self.stop_radius,
-            self.axle_length,
-            self.max_wheel_speed,
-        )
+    CONTROLLER: ClassVar[str] = "braitenberg"
 
-    def _parameters(self) -> dict[str, Any]:
-        weights = self.weights if isinstance(self.weights, str) else self.weights.tolist()
-        return {
-            "weights": weights,
-            "smax": self.smax,
-            "threshold": self.threshold,
-            "vmax": self.vmax,
-            "wmax": self.wmax,
-            "kr": self.kr,
-            "stop_radius": self.stop_radius,
-        }
+    @property
+    def effective_weights(self) -> npt.NDArray[np.float64]:
+        """The weights of the Rust block: W / smax (m/s per unit proximity), shape (2, 8)."""
+        return braitenberg_weights(self.params["weights"], self.params["smax"])
 
 
 class VFH(BaselinePolicy):
@@ -314,10 +324,10 @@ class VFH(BaselinePolicy):
     smoothed over neighbouring sectors. Sectors under ``threshold`` are free. Each free valley at
     least ``min_valley`` wide offers one direction: the goal bearing clamped ``min_valley / 2``
     inside its edges; the robot takes the one with the lowest VFH+-style cost (angle to the goal
-    + 0.4 × angle to straight ahead, + 0.6 rad for a valley on the other side of its current
-    turn, read from its wheel speeds, against flip-flopping). Boxed in, it turns in place. Eq. 9
-    is applied at full rate once the direction is behind the robot. With :math:`\theta_e` that
-    heading error and :math:`h'_c` the density in the sector straight ahead:
+    + ``heading_weight`` × angle to straight ahead, + ``switch_penalty`` rad for a valley on the
+    other side of its current turn, read from its wheel speeds, against flip-flopping). Boxed in,
+    it turns in place. Eq. 9 is applied at full rate once the direction is behind the robot. With
+    :math:`\theta_e` that heading error and :math:`h'_c` the density in the sector straight ahead:
 
     * eq. 9: :math:`\omega = \omega_{max} \sin(\theta_e)`;
     * eq. 11: :math:`h'_c = \min(h'_c, h_m)`;
@@ -330,90 +340,20 @@ class VFH(BaselinePolicy):
     Beams narrower than the sensors' 45° spacing leave blind zones between them (the paper's
     explanation); ``beam_width = math.radians(10)`` shows that at its worst.
 
-    The ultrasonic observation is read as distance / 2 m (``sensors.us_max_range`` of the
-    default scenarios).
-
-    Args:
-        sectors: Histogram sectors around the robot (4..360).
-        threshold: Smoothed density under which a sector is free.
-        hm: :math:`h_m` of eqs. 10-11: the density ahead at which the robot stops.
-        vmax: :math:`v_{max}` (m/s).
-        wmax: :math:`\omega_{max}` (rad/s).
-        kr: Docking radius of eq. 3 (m).
-        stop_radius: Distance to the goal under which the robot stops (m).
-        us_range: Ultrasonic echoes farther than this add nothing (m).
-        beam_width: Angular width a reading fills, centred on its sensor, in radians
-            (default 45°).
-        min_valley: Narrowest free valley the robot steers into, in radians (default 30°).
-        axle_length: Wheel separation (m).
-        max_wheel_speed: Wheel speed that an action of 1 stands for (m/s).
-
-    Raises:
-        ValueError: ``sectors`` outside 4..360 or a parameter not finite and positive.
+    The ultrasonic observation is read as distance / ``us_max_range`` (the scenario's
+    ``sensors.us_max_range``, 2 m by default).
     """
 
-    def __init__(
-        self,
-        sectors: int = 36,
-        threshold: float = 0.15,
-        hm: float = 0.6,
-        vmax: float = 0.3,
-        wmax: float = 3.0,
-        kr: float = 0.15,
-        stop_radius: float = 0.02,
-        us_range: float = 0.45,
-        beam_width: float = math.radians(45.0),
-        min_valley: float = math.radians(30.0),
-        *,
-        axle_length: float = KHEPERA_AXLE_LENGTH,
-        max_wheel_speed: float = KHEPERA_MAX_WHEEL_SPEED,
-    ) -> None:
-        if isinstance(sectors, bool) or int(sectors) != sectors:
-            raise ConfigError(f"sectors must be an integer, got {sectors!r}")
-        self.sectors = int(sectors)
-        self.threshold, self.hm = float(threshold), float(hm)
-        self.vmax, self.wmax, self.kr = float(vmax), float(wmax), float(kr)
-        self.stop_radius, self.us_range = float(stop_radius), float(us_range)
-        self.beam_width, self.min_valley = float(beam_width), float(min_valley)
-        self.axle_length, self.max_wheel_speed = float(axle_length), float(max_wheel_speed)
-        self._policy = _core.Policy.vfh(
-            self.sectors,
-            self.threshold,
-            self.hm,
-            self.vmax,
-            self.wmax,
-            self.kr,
-            self.stop_radius,
-            self.us_range,
-            self.beam_width,
-            self.min_valley,
-            self.axle_length,
-            self.max_wheel_speed,
-        )
-
-    def _parameters(self) -> dict[str, Any]:
-        return {
-            "sectors": self.sectors,
-            "threshold": self.threshold,
-            "hm": self.hm,
-            "vmax": self.vmax,
-            "wmax": self.wmax,
-            "kr": self.kr,
-            "stop_radius": self.stop_radius,
-            "us_range": self.us_range,
-            "beam_width": self.beam_width,
-            "min_valley": self.min_valley,
-        }
+    CONTROLLER: ClassVar[str] = "vfh"
 
 
 def formation_offsets(shape: str, r: float, n_followers: int) -> list[tuple[float, float]]:
     """The followers' (r, β) offsets of a formation shape, as the scenarios' ``formation.shape``.
 
-    The same numbers as the Rust core's ``FormationConfig::offsets`` (computed in float32 like
-    it): "cross" puts follower i at β = (i mod 4) · 90° (ahead, left, behind, right), the next
-    four one ``r`` further out; "line" at ±90° (left, right alternately); "wedge" at ±135°;
-    "circle" evenly round the leader at ``r``; along a line or wedge further followers go
-    ``r`` further out.
+    Computed by the Rust core's formation task (the same float32 numbers as the scenarios):
+    "cross" puts follower i at β = (i mod 4) · 90° (ahead, left, behind, right), the next four one
+    ``r`` further out; "line" at ±90° (left, right alternately); "wedge" at ±135°; "circle" evenly
+    round the leader at ``r``; along a line or wedge further followers go ``r`` further out.
 
     Args:
         shape: "cross", "line", "wedge" or "circle".
@@ -430,22 +370,10 @@ def formation_offsets(shape: str, r: float, n_followers: int) -> list[tuple[floa
         raise ConfigError(f"unknown formation shape {shape!r}; known: {FORMATION_SHAPES}")
     if isinstance(n_followers, bool) or int(n_followers) != n_followers or n_followers < 1:
         raise ConfigError(f"n_followers must be an integer >= 1, got {n_followers!r}")
-    f32 = np.float32
-    spacing = f32(_positive("r", r))
-    half_pi, pi = f32(math.pi / 2), f32(math.pi)
-    offsets = []
-    for i in range(int(n_followers)):
-        if shape == "cross":
-            offset = (spacing * f32(1 + i // 4), half_pi * f32(i % 4))
-        elif shape == "line":
-            offset = (spacing * f32(1 + i // 2), half_pi if i % 2 == 0 else -half_pi)
-        elif shape == "wedge":
-            side = f32(0.75) * pi
-            offset = (spacing * f32(1 + i // 2), side if i % 2 == 0 else -side)
-        else:
-            offset = (spacing, f32(2) * pi * f32(i) / f32(n_followers))
-        offsets.append((float(offset[0]), float(offset[1])))
-    return offsets
+    r = float(r)
+    if not (math.isfinite(r) and r > 0):
+        raise ConfigError(f"r must be a finite number > 0, got {r}")
+    return [(float(a), float(b)) for a, b in _core.formation_offsets(shape, r, int(n_followers))]
 
 
 #: Agent names of a PettingZoo formation follower: "follower_<k>".
@@ -479,19 +407,16 @@ class LeaderFollower(BaselinePolicy):
         beta: Explicit angles :math:`\beta_k` (radians, counter-clockwise from the leader's
             heading), one per follower.
         n_followers: Number of followers K for a ``shape``; None: 4 (or ``len(beta)``).
-        vmax: Followers' cruise speed (m/s), above the leader's so they can catch up.
-        wmax: Followers' largest turn rate (rad/s).
-        kr: Followers' docking radius (m).
-        stop_radius: Distance to its target under which a follower stops (m).
-        feedforward: Add the leader's speed along the follower's heading.
         avoidance: True for the default :class:`Braitenberg` block, False for none, or a
-            :class:`Braitenberg` whose weights (divided by its ``smax``) and threshold are used.
+            :class:`Braitenberg` whose weights, ``smax`` and threshold are used.
         leader: Policy of the leader's Nav block when the leader is an agent
             (:class:`PositionControl`, :class:`Braitenberg` or :class:`VFH`); None for
             ``PositionControl()``.
-        axle_length: Wheel separation (m).
-        max_wheel_speed: Wheel speed that an action of 1 stands for (m/s); also scales the
-            leader's observed normalised speed back to m/s.
+        layout: The layout of one follower's block (an env's agent layout); None: the default
+            Formation scenario's.
+        **params: The Rust controller's other parameters (``vmax``, ``wmax``, ``kr``,
+            ``stop_radius``, ``feedforward``, ``axle_length``, ``max_wheel_speed``; listed
+            below with their defaults).
 
     Raises:
         ValueError: Unknown shape, inconsistent ``beta``/``r``/``n_followers``, or a bad
@@ -499,30 +424,32 @@ class LeaderFollower(BaselinePolicy):
             offsets raises ActionError.
     """
 
+    CONTROLLER: ClassVar[str] = "leader_follower"
+    #: Parameters that the arguments above set (not passed through ``**params``).
+    _DERIVED = ("offsets", "avoidance", "weights", "smax", "threshold")
+
     def __init__(
         self,
         shape: str | None = "cross",
         r: float | Sequence[float] = 0.5,
         beta: Sequence[float] | None = None,
         n_followers: int | None = None,
-        vmax: float = 0.35,
-        wmax: float = 4.0,
-        kr: float = 0.08,
-        stop_radius: float = 0.005,
-        feedforward: bool = True,
         avoidance: bool | Braitenberg = True,
-        leader: PositionControl | Braitenberg | VFH | None = None,
+        leader: BaselinePolicy | None = None,
         *,
-        axle_length: float = KHEPERA_AXLE_LENGTH,
-        max_wheel_speed: float = KHEPERA_MAX_WHEEL_SPEED,
+        layout: Layout | None = None,
+        **params: Any,
     ) -> None:
+        derived = sorted(set(params) & set(self._DERIVED))
+        if derived:
+            raise ConfigError(
+                f"LeaderFollower sets {derived} from shape/r/beta/avoidance; give those instead"
+            )
         self.offsets = _leader_follower_offsets(shape, r, beta, n_followers)
         self.shape = None if beta is not None else shape
-        self.vmax, self.wmax, self.kr = float(vmax), float(wmax), float(kr)
-        self.stop_radius, self.feedforward = float(stop_radius), bool(feedforward)
         if leader is None:
             leader = PositionControl()
-        if not isinstance(leader, (PositionControl, Braitenberg, VFH)):
+        if not isinstance(leader, BaselinePolicy):
             raise ConfigError(
                 "leader must be a PositionControl, Braitenberg or VFH policy, got "
                 f"{type(leader).__name__}"
@@ -537,7 +464,8 @@ class LeaderFollower(BaselinePolicy):
                 f"avoidance must be True, False or a Braitenberg policy, got {avoidance!r}"
             )
         self.avoidance = avoidance
-        self.axle_length, self.max_wheel_speed = float(axle_length), float(max_wheel_speed)
+        self._layout = _layout_triples(layout)
+        self._given = dict(params)
         self._policy = self._make_policy(self.offsets)
         # Single-follower policies for PettingZoo dicts (agent "follower_k" gets offset k).
         self._follower_policies = (
@@ -545,20 +473,21 @@ class LeaderFollower(BaselinePolicy):
         )
 
     def _make_policy(self, offsets: list[tuple[float, float]] | None) -> _core.Policy:
-        avoidance = self.avoidance
-        return _core.Policy.leader_follower(
-            offsets,
-            self.vmax,
-            self.wmax,
-            self.kr,
-            self.stop_radius,
-            self.feedforward,
-            None if avoidance is None else avoidance.effective_weights.tolist(),
-            0.0 if avoidance is None else avoidance.threshold,
-            self.leader._policy,
-            self.axle_length,
-            self.max_wheel_speed,
-        )
+        params: dict[str, Any] = dict(self._given)
+        params["offsets"] = [] if offsets is None else [list(o) for o in offsets]
+        params["avoidance"] = self.avoidance is not None
+        if self.avoidance is not None:
+            for name in ("weights", "smax", "threshold"):
+                params[name] = self.avoidance.params[name]
+        return _core.Policy(self.CONTROLLER, params, self._layout, self.leader._policy)
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """Every parameter of the Rust controller: given, set from the arguments, or default."""
+        values = super().params
+        values["offsets"] = [] if self.offsets is None else [list(o) for o in self.offsets]
+        values["avoidance"] = self.avoidance is not None
+        return values
 
     @classmethod
     def for_env(cls, env: Any, **kwargs: Any) -> LeaderFollower:
@@ -612,17 +541,14 @@ class LeaderFollower(BaselinePolicy):
             actions[agent] = self._act(policy, observation)
         return actions
 
-    def _parameters(self) -> dict[str, Any]:
-        return {
+    def __repr__(self) -> str:
+        arguments = {
             "offsets": self.offsets,
-            "vmax": self.vmax,
-            "wmax": self.wmax,
-            "kr": self.kr,
-            "stop_radius": self.stop_radius,
-            "feedforward": self.feedforward,
             "avoidance": self.avoidance,
             "leader": self.leader,
+            **self._given,
         }
+        return f"LeaderFollower({', '.join(f'{k}={v!r}' for k, v in arguments.items())})"
 
 
 def _leader_follower_offsets(
@@ -652,7 +578,8 @@ def _leader_follower_offsets(
     if len(distances) != len(angles):
         raise ConfigError(f"r has {len(distances)} distances for {len(angles)} angles in beta")
     for distance, angle in zip(distances, angles, strict=True):
-        _positive("r", distance)
+        if not (math.isfinite(distance) and distance > 0):
+            raise ConfigError(f"r must be a finite number > 0, got {distance}")
         if not math.isfinite(angle):
             raise ConfigError(f"beta must be finite angles (rad), got {angle}")
     return list(zip(distances, angles, strict=True))
@@ -670,4 +597,5 @@ __all__ = [
     "PositionControl",
     "braitenberg_weights",
     "formation_offsets",
+    "parameters",
 ]

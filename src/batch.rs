@@ -20,7 +20,8 @@ use crate::tasks::{Env, EpisodeStats, StepOutcome, TaskKind};
 /// First bytes of a saved state.
 pub const STATE_MAGIC: &[u8; 8] = b"KHEPGYM\0";
 /// Version of the saved-state format; bumped whenever the layout of any saved type changes.
-pub const STATE_VERSION: u32 = 1;
+/// 2: sensors behind the sensor contract (readings per sensor), tasks behind the task contract.
+pub const STATE_VERSION: u32 = 2;
 
 /// What a saved state says about the batch it came from.
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -125,8 +126,8 @@ impl Batch {
                 Ok(env)
             })
             .collect::<Result<_>>()?;
-        let obs_dim = kind.obs_dim(&cfg);
-        let act_dim = kind.act_dim(&cfg);
+        let obs_dim = kind.obs_layout(&cfg)?.len();
+        let act_dim = 2 * kind.agents(&cfg)?.len();
         Ok(Self {
             envs,
             pool,

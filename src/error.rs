@@ -19,6 +19,10 @@ pub enum Error {
     /// A call in the wrong state (e.g. stepping a finished episode without reset).
     #[error("{0}")]
     State(String),
+    /// A controller's parameter is unknown, of the wrong type or impossible; the message names
+    /// the controller and the parameter (`vfh: sectors must be in 4..=360, got 2`).
+    #[error("{0}")]
+    Param(String),
     /// A saved state cannot be restored: not a state, corrupt, or saved from another batch
     /// (task, scenario or number of worlds).
     #[error("{0}")]

@@ -1,28 +1,19 @@
 //! Software rendering of a world to an RGB frame with tiny-skia: no display, no OpenGL.
 //!
 //! Drawn in world coordinates (metres, y up) through one transform to pixels (y down), so sizes
-//! below are in metres: floor, walls, obstacles, goals, formation targets, fading trails, the
-//! IR rays (green when nothing is seen, toward red as an obstacle nears) and ultrasonic rays
-//! (blue, to the echo), and the robots as discs with a heading mark.
+//! below are in metres: floor, walls, obstacles, then what the task asks for (goals, targets),
+//! fading trails, what each robot's sensors ask for (the IR rays, green when nothing is seen and
+//! toward red as an obstacle nears; the ultrasonic rays, blue, to the echo), and the robots as
+//! discs with a heading mark. Tasks and sensors describe themselves as [`Mark`]s; this file is
+//! the only one that turns marks into pixels.
 
 use rapier2d::math::Vector;
 use tiny_skia::{Color, FillRule, LineCap, Paint, PathBuilder, Pixmap, Stroke, Transform};
 
-use crate::sensors::{IR_BEARINGS, US_BEARINGS};
+use crate::draw::{Mark, PALETTE};
+use crate::sensors::DrawContext;
 use crate::tasks::Env;
 use crate::world::scene::Geometry;
-
-/// Robot colours (RGB), leader/first robot first.
-const PALETTE: [[u8; 3]; 8] = [
-    [31, 119, 180],
-    [255, 127, 14],
-    [44, 160, 44],
-    [148, 103, 189],
-    [214, 39, 40],
-    [140, 86, 75],
-    [227, 119, 194],
-    [23, 190, 207],
-];
 
 fn paint(rgb: [u8; 3], alpha: u8) -> Paint<'static> {
     let mut p = Paint::default();
@@ -86,31 +77,11 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
     for shape in &scene.shapes {
         fill_shape(&mut pixmap, shape, paint([120, 120, 120], 255), transform);
     }
-    // Goals.
-    let goal_radius = env.cfg.task.goal_radius;
-    for (k, goal) in env.goals().iter().enumerate() {
-        let colour = if env.n_goals() > 1 {
-            PALETTE[k % 8]
-        } else {
-            [214, 39, 40]
-        };
-        if let Some(c) = PathBuilder::from_circle(goal.x, goal.y, goal_radius.max(0.01)) {
-            pixmap.fill_path(&c, &paint(colour, 70), FillRule::Winding, transform, None);
-            pixmap.stroke_path(&c, &paint(colour, 255), &stroke(0.006), transform, None);
-        }
-    }
-    // Formation targets: crosses in the follower's colour.
-    for (k, target) in env.formation_targets().iter().enumerate() {
-        let colour = PALETTE[(k + 1) % 8];
-        let d = 0.025;
-        for (a, b) in [
-            (Vector::new(-d, -d), Vector::new(d, d)),
-            (Vector::new(-d, d), Vector::new(d, -d)),
-        ] {
-            if let Some(l) = line(*target + a, *target + b) {
-                pixmap.stroke_path(&l, &paint(colour, 220), &stroke(0.008), transform, None);
-            }
-        }
+    // What the task draws: goals, targets.
+    let mut marks = Vec::new();
+    env.task_marks(&mut marks);
+    for mark in &marks {
+        draw_mark(&mut pixmap, mark, transform);
     }
     // Trails, fading toward the past.
     for (k, trail) in env.trails().iter().enumerate() {
@@ -131,34 +102,15 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
             let (bs, bc) = bearing.sin_cos();
             Vector::new(c * bc - s * bs, s * bc + c * bs)
         };
-        for (bearing, hit) in US_BEARINGS.iter().zip(robot.us_hit) {
-            let d = dir(*bearing);
-            let start = robot.position + radius * d;
-            let length = hit.min(env.world.us.max_range);
-            if let Some(l) = line(start, start + length * d) {
-                pixmap.stroke_path(
-                    &l,
-                    &paint([60, 110, 220], 60),
-                    &stroke(0.004),
-                    transform,
-                    None,
-                );
-            }
-        }
-        for ((bearing, hit), raw) in IR_BEARINGS.iter().zip(robot.ir_hit).zip(robot.ir_raw) {
-            let d = dir(*bearing);
-            let start = robot.position + radius * d;
-            let p = env.world.ir.normalise(raw);
-            let colour = [
-                (60.0 + 195.0 * p) as u8,
-                (170.0 * (1.0 - p) + 40.0) as u8,
-                40,
-            ];
-            let length = hit.min(env.world.ir.range);
-            if let Some(l) = line(start, start + length * d) {
-                let alpha = (110.0 + 145.0 * p) as u8;
-                pixmap.stroke_path(&l, &paint(colour, alpha), &stroke(0.007), transform, None);
-            }
+        marks.clear();
+        let at = DrawContext {
+            position: robot.position,
+            heading: robot.heading,
+            radius,
+        };
+        env.world.sensors.draw(&at, &robot.readings, &mut marks);
+        for mark in &marks {
+            draw_mark(&mut pixmap, mark, transform);
         }
         let colour = PALETTE[k % 8];
         if let Some(body) = PathBuilder::from_circle(robot.position.x, robot.position.y, radius) {
@@ -192,6 +144,68 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
         .chunks_exact(4)
         .flat_map(|px| [px[0], px[1], px[2]])
         .collect()
+}
+
+fn draw_mark(pixmap: &mut Pixmap, mark: &Mark, transform: Transform) {
+    match mark {
+        Mark::Goal {
+            position,
+            radius,
+            colour,
+        } => {
+            if let Some(c) = PathBuilder::from_circle(position.x, position.y, *radius) {
+                pixmap.fill_path(&c, &paint(*colour, 70), FillRule::Winding, transform, None);
+                pixmap.stroke_path(&c, &paint(*colour, 255), &stroke(0.006), transform, None);
+            }
+        }
+        Mark::Cross {
+            position,
+            size,
+            colour,
+        } => {
+            let d = *size;
+            for (a, b) in [
+                (Vector::new(-d, -d), Vector::new(d, d)),
+                (Vector::new(-d, d), Vector::new(d, -d)),
+            ] {
+                if let Some(l) = line(*position + a, *position + b) {
+                    pixmap.stroke_path(&l, &paint(*colour, 220), &stroke(0.008), transform, None);
+                }
+            }
+        }
+        Mark::Ray {
+            from,
+            to,
+            colour,
+            alpha,
+            width,
+        } => {
+            if let Some(l) = line(*from, *to) {
+                pixmap.stroke_path(&l, &paint(*colour, *alpha), &stroke(*width), transform, None);
+            }
+        }
+        Mark::Path {
+            points,
+            colour,
+            alpha,
+            width,
+            closed,
+        } => {
+            let mut pb = PathBuilder::new();
+            if let Some(first) = points.first() {
+                pb.move_to(first.x, first.y);
+                for p in &points[1..] {
+                    pb.line_to(p.x, p.y);
+                }
+                if *closed {
+                    pb.close();
+                }
+            }
+            if let Some(path) = pb.finish() {
+                pixmap.stroke_path(&path, &paint(*colour, *alpha), &stroke(*width), transform, None);
+            }
+        }
+    }
 }
 
 fn fill_shape(

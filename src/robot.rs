@@ -3,7 +3,8 @@
 //! Numbers come from `shared/khepera4_spec.md` §1 (K-Team user manual 3.0). Units are SI: metres,
 //! seconds, radians. Robot frame: x forward, y left, angles counter-clockwise. World state is f32.
 
-use crate::scenario::RobotConfig;
+use crate::config::Param;
+use crate::error::{Error, Result};
 
 /// Body radius (m): 140.8 mm diameter in the mechanical drawing.
 pub const BODY_RADIUS: f32 = 0.0704;
@@ -19,6 +20,72 @@ pub const MIN_WHEEL_SPEED: f32 = 0.003;
 pub const MM_S_PER_SPEED_UNIT: f32 = 0.678181;
 /// Encoder pulses per wheel revolution: 128 × 4 (quadrature) × 38:1 gearbox.
 pub const PULSES_PER_WHEEL_TURN: f64 = 19456.0;
+
+crate::config_table! {
+    /// `[robot]`: the Khepera IV's body and drive (spec §1). Entries typed [`Param`] may be
+    /// `[low, high]` ranges, drawn at every reset (domain randomisation).
+    pub struct RobotConfig {
+        /// body radius (m): 140.8 mm diameter (K-Team manual fig. 8.1)
+        radius: f32 = 0.0704,
+        /// m: 42 mm wheels (K-Team manual §4.14)
+        wheel_radius: f32 = 0.021,
+        /// wheel separation (m), KH4_WHEELS_DISTANCE; may be a [low, high] range
+        axle_length: Param = 0.1054,
+        /// m/s, closed-loop limit (about 1200 speed units, manual §4.14.1); may be a range
+        max_wheel_speed: Param = 0.813,
+        /// m/s; smaller commands give 0 (the real PID's floor, manual §4.14.1)
+        min_wheel_speed: f32 = 0.003,
+        /// m/s^2 per wheel; inf = none (Webots motor model: 2.74); may be a finite range
+        wheel_accel_limit: Param = inf,
+        /// kg [E]: K-Team's usual figure; Webots uses 0.606; may be a range
+        mass: Param = 0.54,
+    }
+}
+
+impl RobotConfig {
+    /// Checks every value; the error names `origin` and the first offending key.
+    pub fn validate(&self, origin: &str) -> Result<()> {
+        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
+        for (key, v) in [
+            ("robot.radius", self.radius),
+            ("robot.wheel_radius", self.wheel_radius),
+        ] {
+            if !v.is_finite() || v <= 0.0 {
+                return bad(key, format!("must be a finite number > 0, got {v}"));
+            }
+        }
+        self.axle_length.check(origin, "robot.axle_length", true)?;
+        self.max_wheel_speed.check(origin, "robot.max_wheel_speed", true)?;
+        self.mass.check(origin, "robot.mass", true)?;
+        let (alo, ahi) = self.wheel_accel_limit.bounds();
+        let infinite_range = self.wheel_accel_limit.is_random() && !ahi.is_finite();
+        if alo.is_nan() || ahi.is_nan() || alo <= 0.0 || alo > ahi || infinite_range {
+            return bad(
+                "robot.wheel_accel_limit",
+                format!(
+                    "must be > 0 (inf for no limit) or a finite [low, high] range, got {:?}",
+                    self.wheel_accel_limit
+                ),
+            );
+        }
+        if !self.min_wheel_speed.is_finite() || self.min_wheel_speed < 0.0 {
+            return bad(
+                "robot.min_wheel_speed",
+                format!("must be a finite number >= 0, got {}", self.min_wheel_speed),
+            );
+        }
+        if self.min_wheel_speed >= self.max_wheel_speed.bounds().0 {
+            return bad(
+                "robot.min_wheel_speed",
+                format!(
+                    "must be below robot.max_wheel_speed ({:?}), got {}",
+                    self.max_wheel_speed, self.min_wheel_speed
+                ),
+            );
+        }
+        Ok(())
+    }
+}
 
 /// How an action's two numbers are read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

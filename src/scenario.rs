@@ -1,94 +1,60 @@
-//! Scenario configuration: the TOML tables that describe a world, parsed with serde
-//! (`deny_unknown_fields`), merged from built-in defaults, a user file and keyword overrides, and
-//! validated. Every error names where the value came from (file, `<override>`) and its key.
+//! Scenarios: the TOML tables that describe a world, with every key declared once (default,
+//! units, comment) by the module that owns it, merged from those defaults, the task's own
+//! defaults, a user file and keyword overrides, and validated. Every error names where the value
+//! came from (file, `<override>`) and its key.
+//!
+//! Sections and their owners: `[robot]` (`robot.rs`), `[sensors]` (each sensor in `sensors/`),
+//! `[arena]`, `[obstacles]`, `[spawn]`, `[task]`, `[physics]` (here), and the task's own table
+//! when it has one (`[formation]`, `[multinav]`: the task's file in `tasks/`). This module never
+//! calls into the world: whether layouts fit is checked once, when a batch builds its spawner.
 //!
 //! Units: metres, seconds, radians, m/s, raw sensor counts where stated.
 
 use serde::{Deserialize, Serialize};
 use toml::{Table, Value};
 
+use crate::config::{self, ConfigTable, KeyDoc, OVERRIDE_ORIGIN};
 use crate::error::{Error, Result};
-use crate::world::layout::{Spawn, Spawner};
+use crate::robot::RobotConfig;
+use crate::sensors::SensorsConfig;
+use crate::world::scene::{Scene, SceneShape};
 
-/// Built-in scenario files, embedded so an installed wheel has them: (name, text). The first
-/// three are the tasks' defaults; the others are scenes overlaid on a task's defaults.
-pub const BUILTIN: &[(&str, &str)] = &[
-    ("nav", include_str!("../configs/nav.toml")),
-    ("avoid", include_str!("../configs/avoid.toml")),
-    ("formation", include_str!("../configs/formation.toml")),
-    ("multinav", include_str!("../configs/multinav.toml")),
+pub use crate::config::Param;
+
+/// Built-in scenes: scenario files overlaid on a task's defaults like a user's file, embedded so
+/// an installed wheel has them: (name, text).
+pub const SCENES: &[(&str, &str)] = &[
     ("paper_fig6", include_str!("../configs/paper_fig6.toml")),
     ("paper_fig7", include_str!("../configs/paper_fig7.toml")),
 ];
 
-/// Returns the text of a built-in scenario.
-pub fn builtin(name: &str) -> Option<&'static str> {
-    BUILTIN.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+/// The text of a built-in scene.
+pub fn scene(name: &str) -> Option<&'static str> {
+    SCENES.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
 }
 
-/// A number, or a `[low, high]` range from which a value is drawn at every reset (domain
-/// randomisation).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum Param {
-    /// A fixed value.
-    Value(f32),
-    /// Uniform in [low, high].
-    Range([f32; 2]),
+crate::config_table! {
+    /// `[arena]`: the rectangle, centred at the origin, walled or open.
+    pub struct ArenaConfig {
+        /// m, inner size along x (arena centred at the origin)
+        width: f32 = 2.0,
+        /// m, inner size along y
+        height: f32 = 2.0,
+        /// m, walls lie outside the inner rectangle
+        wall_thickness: f32 = 0.05,
+        /// false: an open floor (the size then only bounds spawning)
+        walls: bool = true,
+    }
 }
 
-impl Param {
-    /// The value for an episode, drawn from `rng` when a range.
-    pub fn sample<R: rand::Rng>(&self, rng: &mut R) -> f32 {
-        match *self {
-            Param::Value(v) => v,
-            // Validation keeps ranges finite (Scenario::validate); a range that is not
-            // (possible only by building a Scenario by hand) gives its low end, never a panic.
-            Param::Range([lo, hi]) if hi > lo && (hi - lo).is_finite() => rng.random_range(lo..=hi),
-            Param::Range([lo, _]) => lo,
+impl ArenaConfig {
+    /// The empty arena this table describes.
+    pub fn scene(&self) -> Scene {
+        Scene {
+            walled: self.walls,
+            ..Scene::arena(self.width, self.height, self.wall_thickness)
         }
     }
-
-    /// Smallest and largest possible values.
-    pub fn bounds(&self) -> (f32, f32) {
-        match *self {
-            Param::Value(v) => (v, v),
-            Param::Range([lo, hi]) => (lo, hi),
-        }
-    }
-
-    /// Largest possible value.
-    pub fn max(&self) -> f32 {
-        self.bounds().1
-    }
-
-    /// Whether the value changes between episodes.
-    pub fn is_random(&self) -> bool {
-        matches!(self, Param::Range([lo, hi]) if hi > lo)
-    }
-}
-
-/// `[robot]`: the Khepera IV's body and drive (spec §1). Entries typed [`Param`] may be ranges.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RobotConfig {
-    pub radius: f32,
-    pub wheel_radius: f32,
-    pub axle_length: Param,
-    pub max_wheel_speed: Param,
-    pub min_wheel_speed: f32,
-    pub wheel_accel_limit: Param,
-    pub mass: Param,
-}
-
-/// `[arena]`: the rectangle, centred at the origin, walled or open.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ArenaConfig {
-    pub width: f32,
-    pub height: f32,
-    pub wall_thickness: f32,
-    pub walls: bool,
 }
 
 /// A fixed obstacle of a scenario file.
@@ -106,6 +72,22 @@ pub enum ObstacleSpec {
     },
     /// A thin wall from `a` to `b`.
     Segment { a: [f32; 2], b: [f32; 2] },
+}
+
+impl ObstacleSpec {
+    /// The obstacle as a scene shape.
+    pub fn shape(&self) -> SceneShape {
+        let v = |p: [f32; 2]| rapier2d::math::Vector::new(p[0], p[1]);
+        match *self {
+            ObstacleSpec::Circle { center, radius } => SceneShape::circle(v(center), radius),
+            ObstacleSpec::Box {
+                center,
+                half_extents,
+                angle,
+            } => SceneShape::rect(v(center), v(half_extents), angle),
+            ObstacleSpec::Segment { a, b } => SceneShape::segment(v(a), v(b)),
+        }
+    }
 }
 
 /// Shapes the random obstacle generator draws from.
@@ -127,132 +109,122 @@ pub enum Placement {
     Anywhere,
 }
 
-/// `[obstacles]`: a fixed list and/or a random generator run at every reset.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ObstacleConfig {
-    pub fixed: Vec<ObstacleSpec>,
-    pub count: u32,
-    pub kinds: Vec<ObstacleKind>,
-    pub circle_radius: [f32; 2],
-    pub box_half_extent: [f32; 2],
-    pub segment_length: [f32; 2],
-    pub placement: Placement,
-    pub corridor_width: f32,
-    pub min_gap: f32,
-    pub spawn_clearance: f32,
+crate::config_table! {
+    /// `[obstacles]`: a fixed list and/or a random generator run at every reset. Fixed ones are
+    /// e.g. `{kind = "circle", center = [0.3, 0.0], radius = 0.1}`,
+    /// `{kind = "box", center = [x, y], half_extents = [hx, hy], angle = 0.0}`,
+    /// `{kind = "segment", a = [x0, y0], b = [x1, y1]}`.
+    pub struct ObstacleConfig {
+        /// fixed obstacles: circle {center, radius}, box {center, half_extents, angle}, segment {a, b}
+        fixed: Vec<ObstacleSpec> = [],
+        /// random obstacles drawn at every reset
+        count: u32 = 0,
+        /// shapes the random ones are drawn from
+        kinds: Vec<ObstacleKind> = ["circle", "box", "segment"],
+        /// m, range of random circle radii
+        circle_radius: [f32; 2] = [0.04, 0.10],
+        /// m, range of random box half sides
+        box_half_extent: [f32; 2] = [0.03, 0.10],
+        /// m, range of random wall-segment lengths
+        segment_length: [f32; 2] = [0.20, 0.45],
+        /// "between" start and goal, or "anywhere"
+        placement: Placement = "between",
+        /// m, width of the band around start->goal used by "between"
+        corridor_width: f32 = 0.8,
+        /// m, free gap between random obstacles, walls and fixed obstacles (>= robot diameter + 1 cm keeps every goal reachable)
+        min_gap: f32 = 0.16,
+        /// m, free gap between obstacles and robots at their start and goals
+        spawn_clearance: f32 = 0.05,
+    }
 }
 
-/// `[spawn]`: where robots start and goals lie.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SpawnConfig {
-    pub wall_margin: f32,
-    pub min_goal_distance: f32,
-    pub start: Vec<f32>,
-    pub goal: Vec<f32>,
+crate::config_table! {
+    /// `[spawn]`: where robots start and goals lie.
+    pub struct SpawnConfig {
+        /// m, gap between a spawned robot (or goal) and the walls
+        wall_margin: f32 = 0.05,
+        /// m, start-goal distance at reset is at least this
+        min_goal_distance: f32 = 0.5,
+        /// [] random, or [x, y, heading] (m, m, rad) to fix it
+        start: Vec<f32> = [],
+        /// [] random, or [x, y] (m) to fix it
+        goal: Vec<f32> = [],
+    }
 }
 
-/// `[sensors]`: IR ring and ultrasonic models (spec §3, §5).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SensorConfig {
-    pub ir_range: f32,
-    pub ir_floor_value: Param,
-    pub ir_noise_sigma: Param,
-    pub us_min_range: f32,
-    pub us_max_range: f32,
-    pub us_noise_sigma: Param,
-    pub us_enabled: [bool; 5],
+crate::config_table! {
+    /// `[task]`: goal, reward weights, episode length.
+    pub struct TaskConfig {
+        /// m, success when the robot centre is this close to the goal
+        goal_radius: f32 = 0.05,
+        /// control steps before truncation (20 s at dt = 0.05)
+        max_steps: u32 = 400,
+        /// reward per metre of progress toward the goal
+        progress_weight: f32 = 10.0,
+        /// reward subtracted every step
+        time_cost: f32 = 0.01,
+        /// reward on reaching the goal
+        success_bonus: f32 = 10.0,
+        /// reward subtracted per step in contact with a wall or obstacle
+        collision_penalty: f32 = 0.1,
+        /// end the episode at the first contact
+        terminate_on_collision: bool = false,
+    }
 }
 
-/// `[task]`: goal, reward weights, episode length.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TaskConfig {
-    pub goal_radius: f32,
-    pub max_steps: u32,
-    pub progress_weight: f32,
-    pub time_cost: f32,
-    pub success_bonus: f32,
-    pub collision_penalty: f32,
-    pub terminate_on_collision: bool,
+crate::config_table! {
+    /// `[physics]`: control step and rapier settings.
+    pub struct PhysicsConfig {
+        /// s per control step (V-REP's default)
+        dt: f32 = 0.05,
+        /// physics substeps per control step
+        substeps: u32 = 4,
+        /// rapier solver iterations for contact steps
+        solver_iterations: u32 = 4,
+        /// robot-wall friction: 0 lets a robot slide along a wall
+        friction: f32 = 0.0,
+    }
 }
 
-/// `[physics]`: control step and rapier settings.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PhysicsConfig {
-    pub dt: f32,
-    pub substeps: u32,
-    pub solver_iterations: u32,
-    pub friction: f32,
+/// What a task adds to the shared schema: its own defaults and its own table.
+#[derive(Debug, Clone, Copy)]
+pub struct TaskSchema {
+    /// The task's name (`"avoid"`), in messages.
+    pub name: &'static str,
+    /// TOML overlaid on the shared defaults: the values this task changes (`[obstacles] count =
+    /// 10`).
+    pub defaults: &'static str,
+    /// The task's own table, if it has one.
+    pub section: Option<Section>,
 }
 
-/// Formation shapes: offsets (r, β) of the followers relative to the leader's pose (eq. 12).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum FormationShape {
-    /// Arms ahead, left, behind, right of the leader (the paper's Fig. 7).
-    Cross,
-    /// Abreast, alternating left and right of the leader.
-    Line,
-    /// A V behind the leader.
-    Wedge,
-    /// Evenly round the leader.
-    Circle,
-    /// The `offsets` list.
-    Custom,
-}
-
-/// Who drives the leader.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum LeaderMode {
-    /// Position control with Braitenberg avoidance, in Rust.
-    Scripted,
-    /// A learning agent's actions.
-    Agent,
-}
-
-/// `[formation]`: leader–follower formation (paper §3.5).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FormationConfig {
-    pub shape: FormationShape,
-    pub n_followers: u32,
-    pub spacing: f32,
-    pub offsets: Vec<[f32; 2]>,
-    pub leader: LeaderMode,
-    pub leader_vmax: f32,
-    pub leader_wmax: f32,
-    pub leader_kr: f32,
-    pub error_weight: f32,
-    pub team_weight: f32,
+/// A task's own table: its name, keys, and the check of its values.
+#[derive(Debug, Clone, Copy)]
+pub struct Section {
+    /// The table's name (`"formation"`).
+    pub name: &'static str,
+    /// Its keys with defaults and comments.
+    pub keys: &'static [KeyDoc],
+    /// Reads and checks the table (`scenario` is the rest, already checked); errors name
+    /// `origin` and `name.key`.
+    pub check: fn(table: &Table, scenario: &Scenario, origin: &str) -> Result<()>,
 }
 
 /// A whole scenario.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone)]
 pub struct Scenario {
     pub robot: RobotConfig,
     pub arena: ArenaConfig,
     pub obstacles: ObstacleConfig,
     pub spawn: SpawnConfig,
-    pub sensors: SensorConfig,
+    pub sensors: SensorsConfig,
     pub task: TaskConfig,
     pub physics: PhysicsConfig,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub formation: Option<FormationConfig>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub multinav: Option<MultiNavConfig>,
-}
-
-/// `[multinav]`: several robots, each with its own goal.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MultiNavConfig {
-    pub n_robots: u32,
+    /// The task's own table (name, checked values), if it has one.
+    pub own: Option<(String, Table)>,
+    /// Where the last part of the scenario came from (a file's name, `<override>` or
+    /// `<built-in>`), for messages about layouts checked later.
+    pub origin: String,
 }
 
 /// Where the parts of a scenario come from.
@@ -269,42 +241,85 @@ pub struct Source<'a> {
 /// beyond this; far larger arenas overflow distances to infinity.
 pub const MAX_ARENA_SIDE: f32 = 1000.0;
 
-/// Name used in messages for keyword overrides.
-pub const OVERRIDE_ORIGIN: &str = "<override>";
+/// The shared sections in file order: name and keys.
+fn shared_sections() -> Vec<(&'static str, Vec<KeyDoc>)> {
+    vec![
+        ("robot", RobotConfig::KEYS.to_vec()),
+        ("arena", ArenaConfig::KEYS.to_vec()),
+        ("obstacles", ObstacleConfig::KEYS.to_vec()),
+        ("spawn", SpawnConfig::KEYS.to_vec()),
+        ("sensors", SensorsConfig::keys()),
+        ("task", TaskConfig::KEYS.to_vec()),
+        ("physics", PhysicsConfig::KEYS.to_vec()),
+    ]
+}
 
-impl Scenario {
-    /// Loads the scenario of `task`: its built-in defaults, then the file, then the overrides.
-    /// Values are validated; layouts are checked by `world::layout::Spawner::new`.
-    pub fn load(task: &str, source: &Source) -> Result<Self> {
-        let base_text = builtin(task).ok_or_else(|| {
-            let known: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
-            Error::config(
-                "<built-in>",
-                "task",
-                format!("unknown task {task:?}; known: {known:?}"),
-            )
-        })?;
-        let mut table = parse(base_text, task)?;
-        let mut scenario = Self::from_table(&table, task)?;
-        let mut origin = task;
-        if let Some((text, name)) = source.file {
-            let file = parse(text, name)?;
-            overlay(&mut table, &file, "", name)?;
-            scenario = Self::from_table(&table, name)?;
-            origin = name;
+impl TaskSchema {
+    /// The sections of this task's scenario in file order: name and keys.
+    pub fn sections(&self) -> Vec<(&'static str, Vec<KeyDoc>)> {
+        let mut sections = shared_sections();
+        if let Some(s) = &self.section {
+            sections.push((s.name, s.keys.to_vec()));
         }
-        if !source.overrides.is_empty() {
-            let over = expand_overrides(&table, &source.overrides)?;
-            overlay(&mut table, &over, "", OVERRIDE_ORIGIN)?;
-            scenario = Self::from_table(&table, OVERRIDE_ORIGIN)?;
-            origin = OVERRIDE_ORIGIN;
-        }
-        let spawn = Spawn::for_task(task, &scenario, origin)?;
-        Spawner::new(&scenario, spawn, origin)?;
-        Ok(scenario)
+        sections
     }
 
-    fn from_table(table: &Table, origin: &str) -> Result<Self> {
+    /// Every key of the task's scenario with its default: the shared defaults, the task's own
+    /// table, then the task's defaults overlaid.
+    pub fn defaults_table(&self) -> Result<Table> {
+        let mut table = Table::new();
+        for (name, keys) in self.sections() {
+            table.insert(name.to_string(), Value::Table(config::keys_table(&keys)));
+        }
+        let origin = format!("<built-in:{}>", self.name);
+        let own = config::parse(self.defaults, &origin)?;
+        config::overlay(&mut table, &own, "", &origin)?;
+        Ok(table)
+    }
+
+    /// The task's default scenario file: every key with its default and comment.
+    pub fn render_defaults(&self, header: &str) -> Result<String> {
+        let table = self.defaults_table()?;
+        let mut out = String::new();
+        for line in header.lines() {
+            out.push_str(&format!("# {line}\n").replace("# \n", "#\n"));
+        }
+        out.push('\n');
+        for (name, keys) in self.sections() {
+            if let Some(Value::Table(section)) = table.get(name) {
+                config::render_section(&mut out, name, &keys, section, true);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Loads the task's scenario: its defaults, then the file, then the overrides. Values are
+    /// validated; layouts are checked when a batch builds its spawner.
+    pub fn load(&self, source: &Source) -> Result<Scenario> {
+        let mut table = self.defaults_table()?;
+        let mut scenario = Scenario::from_table(&table, self, &format!("<built-in:{}>", self.name))?;
+        if let Some((text, name)) = source.file {
+            let file = config::parse(text, name)?;
+            config::overlay(&mut table, &file, "", name)?;
+            scenario = Scenario::from_table(&table, self, name)?;
+        }
+        if !source.overrides.is_empty() {
+            let over = config::expand_overrides(&table, &source.overrides)?;
+            config::overlay(&mut table, &over, "", OVERRIDE_ORIGIN)?;
+            scenario = Scenario::from_table(&table, self, OVERRIDE_ORIGIN)?;
+        }
+        Ok(scenario)
+    }
+}
+
+impl Scenario {
+    fn from_table(table: &Table, schema: &TaskSchema, origin: &str) -> Result<Self> {
+        let section = |name: &str| -> Table {
+            match table.get(name) {
+                Some(Value::Table(t)) => t.clone(),
+                _ => Table::new(),
+            }
+        };
         // Entries of `obstacles.fixed` are checked one by one first: serde's errors inside a
         // tagged list entry carry no position, and the message should say which entry.
         if let Some(Value::Array(fixed)) = table.get("obstacles").and_then(|o| o.get("fixed")) {
@@ -314,40 +329,72 @@ impl Scenario {
                 })?;
             }
         }
-        // Deserialise from text so that serde's errors carry a span we can map to a key.
-        let text = toml::to_string(table)
-            .map_err(|e| Error::config(origin, "<table>", format!("cannot serialise: {e}")))?;
-        let scenario: Scenario = toml::from_str(&text).map_err(|e: toml::de::Error| {
-            Error::config(
-                origin,
-                &error_key(&e, &text),
-                e.message().trim().to_string(),
-            )
-        })?;
+        let scenario = Scenario {
+            robot: RobotConfig::from_table(&section("robot"), origin, "robot")?,
+            arena: ArenaConfig::from_table(&section("arena"), origin, "arena")?,
+            obstacles: ObstacleConfig::from_table(&section("obstacles"), origin, "obstacles")?,
+            spawn: SpawnConfig::from_table(&section("spawn"), origin, "spawn")?,
+            sensors: SensorsConfig::from_table(&section("sensors"), origin)?,
+            task: TaskConfig::from_table(&section("task"), origin, "task")?,
+            physics: PhysicsConfig::from_table(&section("physics"), origin, "physics")?,
+            own: schema
+                .section
+                .map(|s| (s.name.to_string(), section(s.name))),
+            origin: origin.to_string(),
+        };
         scenario.validate(origin)?;
+        if let Some(s) = &schema.section {
+            (s.check)(&section(s.name), &scenario, origin)?;
+        }
         Ok(scenario)
     }
 
-    /// The scenario as TOML text.
-    pub fn to_toml(&self) -> String {
-        toml::to_string(self).unwrap_or_else(|e| format!("# cannot serialise scenario: {e}\n"))
+    /// The task's own table as `T` (it was checked at load).
+    pub fn own<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
+        match &self.own {
+            Some((name, table)) => config::read_table(table, &self.origin, name),
+            None => Err(Error::config(
+                &self.origin,
+                "<task>",
+                "this scenario has no task table",
+            )),
+        }
     }
 
-    /// Checks that every value is possible; the error names the first offending key. Whether
-    /// layouts fit (start, goal, obstacles) is checked by `world::layout::Spawner::new`.
+    /// The scenario as TOML text (every key, in file order; no comments).
+    pub fn to_toml(&self) -> String {
+        let mut out = String::new();
+        let mut sections: Vec<(&str, Vec<KeyDoc>, Table)> = vec![
+            ("robot", RobotConfig::KEYS.to_vec(), as_table(&self.robot)),
+            ("arena", ArenaConfig::KEYS.to_vec(), as_table(&self.arena)),
+            (
+                "obstacles",
+                ObstacleConfig::KEYS.to_vec(),
+                as_table(&self.obstacles),
+            ),
+            ("spawn", SpawnConfig::KEYS.to_vec(), as_table(&self.spawn)),
+            ("sensors", SensorsConfig::keys(), self.sensors.to_table()),
+            ("task", TaskConfig::KEYS.to_vec(), as_table(&self.task)),
+            ("physics", PhysicsConfig::KEYS.to_vec(), as_table(&self.physics)),
+        ];
+        if let Some((name, table)) = &self.own {
+            sections.push((name.as_str(), Vec::new(), table.clone()));
+        }
+        for (name, keys, table) in sections {
+            config::render_section(&mut out, name, &keys, &table, false);
+        }
+        out
+    }
+
+    /// Checks every value of the shared sections; the error names the first offending key.
+    /// Whether layouts fit (start, goal, obstacles) is checked by `world::layout::Spawner::new`.
     pub fn validate(&self, origin: &str) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        let r = &self.robot;
-        let sn = &self.sensors;
+        self.robot.validate(origin)?;
         let positive = [
-            ("robot.radius", r.radius),
-            ("robot.wheel_radius", r.wheel_radius),
             ("arena.width", self.arena.width),
             ("arena.height", self.arena.height),
             ("arena.wall_thickness", self.arena.wall_thickness),
-            ("sensors.ir_range", sn.ir_range),
-            ("sensors.us_min_range", sn.us_min_range),
-            ("sensors.us_max_range", sn.us_max_range),
             ("task.goal_radius", self.task.goal_radius),
             ("physics.dt", self.physics.dt),
         ];
@@ -370,40 +417,8 @@ impl Scenario {
                 );
             }
         }
-        let params = [
-            ("robot.axle_length", r.axle_length, true),
-            ("robot.max_wheel_speed", r.max_wheel_speed, true),
-            ("robot.mass", r.mass, true),
-            ("sensors.ir_floor_value", sn.ir_floor_value, false),
-            ("sensors.ir_noise_sigma", sn.ir_noise_sigma, false),
-            ("sensors.us_noise_sigma", sn.us_noise_sigma, false),
-        ];
-        for (key, p, strictly) in params {
-            let (lo, hi) = p.bounds();
-            if !lo.is_finite() || !hi.is_finite() || lo > hi {
-                return bad(
-                    key,
-                    format!("must be a finite number or a [low, high] range, got {p:?}"),
-                );
-            }
-            if lo < 0.0 || (strictly && lo <= 0.0) {
-                let op = if strictly { ">" } else { ">=" };
-                return bad(key, format!("must be {op} 0, got {p:?}"));
-            }
-        }
-        let (alo, ahi) = r.wheel_accel_limit.bounds();
-        let infinite_range = r.wheel_accel_limit.is_random() && !ahi.is_finite();
-        if alo.is_nan() || ahi.is_nan() || alo <= 0.0 || alo > ahi || infinite_range {
-            return bad(
-                "robot.wheel_accel_limit",
-                format!(
-                    "must be > 0 (inf for no limit) or a finite [low, high] range, got {:?}",
-                    r.wheel_accel_limit
-                ),
-            );
-        }
+        self.sensors.validate(origin)?;
         let non_negative = [
-            ("robot.min_wheel_speed", r.min_wheel_speed),
             ("spawn.wall_margin", self.spawn.wall_margin),
             ("spawn.min_goal_distance", self.spawn.min_goal_distance),
             ("obstacles.corridor_width", self.obstacles.corridor_width),
@@ -419,39 +434,6 @@ impl Scenario {
             if !v.is_finite() || v < 0.0 {
                 return bad(key, format!("must be a finite number >= 0, got {v}"));
             }
-        }
-        if r.min_wheel_speed >= r.max_wheel_speed.bounds().0 {
-            return bad(
-                "robot.min_wheel_speed",
-                format!(
-                    "must be below robot.max_wheel_speed ({:?}), got {}",
-                    r.max_wheel_speed, r.min_wheel_speed
-                ),
-            );
-        }
-        if sn.ir_floor_value.max() > 111.0 {
-            return bad(
-                "sensors.ir_floor_value",
-                format!(
-                    "must be in [0, 111] (the response curve reads 111 at 0.2 m), got {:?}",
-                    sn.ir_floor_value
-                ),
-            );
-        }
-        if sn.ir_range <= 0.2 || sn.ir_range > 1.0 {
-            return bad(
-                "sensors.ir_range",
-                format!("must be in (0.2, 1.0] m, got {}", sn.ir_range),
-            );
-        }
-        if sn.us_min_range >= sn.us_max_range {
-            return bad(
-                "sensors.us_min_range",
-                format!(
-                    "must be below sensors.us_max_range ({}), got {}",
-                    sn.us_max_range, sn.us_min_range
-                ),
-            );
         }
         if self.task.max_steps == 0 {
             return bad("task.max_steps", "must be >= 1, got 0".into());
@@ -480,7 +462,10 @@ impl Scenario {
                 "arena.width",
                 format!(
                     "a {}x{} m arena leaves no room to spawn a robot of radius {} with wall margin {}",
-                    self.arena.width, self.arena.height, r.radius, self.spawn.wall_margin
+                    self.arena.width,
+                    self.arena.height,
+                    self.robot.radius,
+                    self.spawn.wall_margin
                 ),
             );
         }
@@ -494,19 +479,7 @@ impl Scenario {
                 ),
             );
         }
-        self.validate_obstacles(origin)?;
-        if let Some(f) = &self.formation {
-            f.validate(origin, r.radius)?;
-        }
-        if let Some(m) = &self.multinav {
-            if m.n_robots == 0 || m.n_robots > 32 {
-                return bad(
-                    "multinav.n_robots",
-                    format!("must be in 1..=32, got {}", m.n_robots),
-                );
-            }
-        }
-        Ok(())
+        self.validate_obstacles(origin)
     }
 
     fn validate_obstacles(&self, origin: &str) -> Result<()> {
@@ -588,297 +561,53 @@ impl Scenario {
         let m = self.robot.radius + self.spawn.wall_margin;
         (0.5 * self.arena.width - m, 0.5 * self.arena.height - m)
     }
-}
 
-impl FormationConfig {
-    /// The followers' (r, β) offsets from the leader (β in radians, CCW from its heading).
-    pub fn offsets(&self) -> Vec<[f32; 2]> {
-        use std::f32::consts::{FRAC_PI_2, PI};
-        let k = self.n_followers as usize;
-        let r = self.spacing;
-        match self.shape {
-            // Arms ahead, left, behind, right; further followers go one spacing further out.
-            FormationShape::Cross => (0..k)
-                .map(|i| [r * (1 + i / 4) as f32, FRAC_PI_2 * (i % 4) as f32])
-                .collect(),
-            FormationShape::Line => (0..k)
-                .map(|i| {
-                    let side = if i % 2 == 0 { FRAC_PI_2 } else { -FRAC_PI_2 };
-                    [r * (1 + i / 2) as f32, side]
-                })
-                .collect(),
-            FormationShape::Wedge => (0..k)
-                .map(|i| {
-                    let side = if i % 2 == 0 { 0.75 * PI } else { -0.75 * PI };
-                    [r * (1 + i / 2) as f32, side]
-                })
-                .collect(),
-            FormationShape::Circle => (0..k)
-                .map(|i| [r, 2.0 * PI * i as f32 / k as f32])
-                .collect(),
-            FormationShape::Custom => self.offsets.clone(),
-        }
-    }
-
-    fn validate(&self, origin: &str, radius: f32) -> Result<()> {
-        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        if self.shape == FormationShape::Custom {
-            if self.offsets.is_empty() || self.offsets.len() > 16 {
-                return bad(
-                    "formation.offsets",
-                    format!(
-                        "a custom shape needs 1 to 16 [r, beta] offsets, got {}",
-                        self.offsets.len()
-                    ),
-                );
-            }
-        } else if self.n_followers == 0 || self.n_followers > 16 {
-            return bad(
-                "formation.n_followers",
-                format!("must be in 1..=16, got {}", self.n_followers),
-            );
-        }
-        for (key, v) in [
-            ("formation.spacing", self.spacing),
-            ("formation.leader_vmax", self.leader_vmax),
-            ("formation.leader_wmax", self.leader_wmax),
-            ("formation.leader_kr", self.leader_kr),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return bad(key, format!("must be a finite number > 0, got {v}"));
-            }
-        }
-        for (key, v) in [
-            ("formation.error_weight", self.error_weight),
-            ("formation.team_weight", self.team_weight),
-        ] {
-            if !v.is_finite() || v < 0.0 {
-                return bad(key, format!("must be a finite number >= 0, got {v}"));
-            }
-        }
-        // Robots in formation must not overlap one another (the leader sits at the origin).
-        let points: Vec<(f32, f32)> = std::iter::once((0.0, 0.0))
-            .chain(
-                self.offsets()
-                    .iter()
-                    .map(|[r, b]| (r * b.cos(), r * b.sin())),
-            )
-            .collect();
-        for (i, a) in points.iter().enumerate() {
-            for b in &points[i + 1..] {
-                let d = ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt();
-                if !d.is_finite() || d < 2.0 * radius + 0.01 {
-                    let key = if self.shape == FormationShape::Custom {
-                        "formation.offsets"
-                    } else {
-                        "formation.spacing"
-                    };
-                    return bad(key, format!("robots in formation would be {d:.3} m apart, closer than a robot's diameter + 1 cm"));
-                }
-            }
-        }
-        Ok(())
+    /// The arena's diagonal (m): the largest distance between two points in it.
+    pub fn diagonal(&self) -> f32 {
+        (self.arena.width * self.arena.width + self.arena.height * self.arena.height).sqrt()
     }
 }
 
-fn parse(text: &str, origin: &str) -> Result<Table> {
-    text.parse::<Table>().map_err(|e| {
-        let key = error_key(&e, text);
-        Error::config(origin, &key, e.message().trim().to_string())
-    })
-}
-
-/// The dotted key a toml error is about: found from the error's span in `text` (the key on that
-/// line, under the last `[section]` header above it), else `line N`.
-fn error_key(e: &toml::de::Error, text: &str) -> String {
-    if let Some(start) = e.message().find("unknown field `") {
-        let rest = &e.message()[start + 15..];
-        if let Some(end) = rest.find('`') {
-            if let Some(section) = e.span().and_then(|s| section_at(text, s.start)) {
-                return format!("{section}.{}", &rest[..end]);
-            }
-            return rest[..end].to_string();
-        }
-    }
-    let Some(span) = e.span() else {
-        return "<syntax>".to_string();
-    };
-    let offset = span.start.min(text.len());
-    let line_start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
-    let line_end = text[offset..].find('\n').map_or(text.len(), |i| offset + i);
-    let line = &text[line_start..line_end];
-    let line_no = text[..offset].matches('\n').count() + 1;
-    match line.split_once('=') {
-        Some((key, _)) if !line.trim_start().starts_with('[') && is_plain_key(key.trim()) => {
-            let key = key.trim().trim_matches('"');
-            match section_at(text, offset) {
-                Some(section) => format!("{section}.{key}"),
-                None => key.to_string(),
-            }
-        }
-        _ => format!("line {line_no}"),
-    }
-}
-
-/// Whether `key` is a dotted key of bare words (`task.goal_radius`): the only keys a scenario
-/// has, so anything else in a message is better said as its line number.
-fn is_plain_key(key: &str) -> bool {
-    !key.is_empty()
-        && key.split('.').all(|part| {
-            let part = part.trim().trim_matches('"');
-            !part.is_empty()
-                && part
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-        })
-}
-
-/// The name of the last `[section]` header at or before `offset`; for an array of tables
-/// (`[[obstacles.fixed]]`) the entry's index is appended (`obstacles.fixed[1]`).
-fn section_at(text: &str, offset: usize) -> Option<String> {
-    let offset = offset.min(text.len());
-    // A span on a header line itself belongs to that header.
-    let line_end = text[offset..].find('\n').map_or(text.len(), |i| offset + i);
-    let before = &text[..line_end];
-    let header = before
-        .lines()
-        .rev()
-        .map(str::trim)
-        .find(|l| l.starts_with('[') && l.ends_with(']'))?;
-    let name = header.trim_matches(|c| c == '[' || c == ']').trim();
-    if header.starts_with("[[") {
-        let index = before.lines().filter(|l| l.trim() == header).count() - 1;
-        Some(format!("{name}[{index}]"))
-    } else {
-        Some(name.to_string())
-    }
-}
-
-/// Overlays `over` on `base`. Every key of `over` must exist in `base` (so a typo is an error
-/// naming the key, not a silently ignored setting).
-fn overlay(base: &mut Table, over: &Table, prefix: &str, origin: &str) -> Result<()> {
-    for (key, value) in over {
-        let path = if prefix.is_empty() {
-            key.clone()
-        } else {
-            format!("{prefix}.{key}")
-        };
-        match base.get_mut(key) {
-            None => {
-                let known: Vec<&String> = base.keys().collect();
-                return Err(Error::config(
-                    origin,
-                    &path,
-                    format!("unknown key; known keys here: {known:?}"),
-                ));
-            }
-            Some(Value::Table(sub)) => match value {
-                Value::Table(over_sub) => overlay(sub, over_sub, &path, origin)?,
-                _ => {
-                    return Err(Error::config(
-                        origin,
-                        &path,
-                        "is a table of settings; give a table, not a single value",
-                    ))
-                }
-            },
-            Some(slot) => {
-                if matches!(value, Value::Table(_)) {
-                    return Err(Error::config(
-                        origin,
-                        &path,
-                        "is a single setting; give a value, not a table",
-                    ));
-                }
-                *slot = value.clone();
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Turns keyword overrides into a table shaped like the scenario: `task.goal_radius = x` and
-/// leaf names that occur in exactly one section (`goal_radius = x`) become `[task] goal_radius`.
-fn expand_overrides(base: &Table, overrides: &Table) -> Result<Table> {
-    let mut out = Table::new();
-    for (key, value) in overrides {
-        let path: Vec<String> = if key.contains('.') {
-            key.split('.').map(str::to_string).collect()
-        } else if base.contains_key(key) {
-            vec![key.clone()]
-        } else {
-            let sections: Vec<&String> = base
-                .iter()
-                .filter(|(_, v)| matches!(v, Value::Table(t) if t.contains_key(key)))
-                .map(|(k, _)| k)
-                .collect();
-            match sections.as_slice() {
-                [one] => vec![(*one).clone(), key.clone()],
-                [] => {
-                    return Err(Error::config(
-                        OVERRIDE_ORIGIN,
-                        key,
-                        "unknown key: no scenario section has it".to_string(),
-                    ))
-                }
-                many => {
-                    return Err(Error::config(
-                        OVERRIDE_ORIGIN,
-                        key,
-                        format!("ambiguous: it is in sections {many:?}; write section.{key}"),
-                    ))
-                }
-            }
-        };
-        insert_path(&mut out, &path, value.clone());
-    }
-    Ok(out)
-}
-
-fn insert_path(table: &mut Table, path: &[String], value: Value) {
-    match path {
-        [] => {}
-        [last] => {
-            match (table.get_mut(last), value) {
-                (Some(Value::Table(existing)), Value::Table(new)) => {
-                    for (k, v) in new {
-                        existing.insert(k, v);
-                    }
-                }
-                (_, value) => {
-                    table.insert(last.clone(), value);
-                }
-            };
-        }
-        [first, rest @ ..] => {
-            let entry = table
-                .entry(first.clone())
-                .or_insert_with(|| Value::Table(Table::new()));
-            if !entry.is_table() {
-                *entry = Value::Table(Table::new());
-            }
-            if let Value::Table(sub) = entry {
-                insert_path(sub, rest, value);
-            }
-        }
-    }
+/// A section struct as a TOML table, its numbers written as their shortest text (so f32 values
+/// read back as written: 0.0704, not 0.07040000259876251).
+fn as_table<T: Serialize>(section: &T) -> Table {
+    toml::to_string(section)
+        .ok()
+        .and_then(|text| text.parse::<Table>().ok())
+        .unwrap_or_default()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    const NAV: TaskSchema = TaskSchema {
+        name: "nav",
+        defaults: "",
+        section: None,
+    };
+
     fn overrides(text: &str) -> Table {
         text.parse().expect("test override")
     }
 
     #[test]
-    fn builtin_nav_loads_and_round_trips() {
-        let s = Scenario::load("nav", &Source::default()).expect("nav");
+    fn defaults_load_render_and_round_trip() {
+        let s = NAV.load(&Source::default()).expect("nav");
         assert_eq!(s.task.max_steps, 400);
         assert!(s.robot.wheel_accel_limit.max().is_infinite());
-        let again: Scenario = toml::from_str(&s.to_toml()).expect("round trip");
-        assert_eq!(again.task.goal_radius, s.task.goal_radius);
+        let text = s.to_toml();
+        assert!(text.contains("radius = 0.0704\n"), "{text}");
+        let back = NAV
+            .load(&Source {
+                file: Some((&text, "resolved.toml")),
+                overrides: Table::new(),
+            })
+            .expect("round trip");
+        assert_eq!(back.to_toml(), text);
+        let file = NAV.render_defaults("KheperaIV-Nav").expect("render");
+        assert!(file.contains("# body radius (m)"), "{file}");
+        assert!(file.parse::<Table>().is_ok(), "{file}");
     }
 
     #[test]
@@ -889,7 +618,7 @@ mod tests {
                 "goal_radius = 0.1\n\"robot.mass\" = 0.6\nphysics = { substeps = 2 }",
             ),
         };
-        let s = Scenario::load("nav", &src).expect("overrides");
+        let s = NAV.load(&src).expect("overrides");
         assert_eq!(s.task.goal_radius, 0.1);
         assert_eq!(s.robot.mass, Param::Value(0.6));
         assert_eq!(s.physics.substeps, 2);
@@ -902,7 +631,7 @@ mod tests {
             file: Some(("[task]\ngoal_radios = 0.1\n", "my.toml")),
             overrides: Table::new(),
         };
-        let e = Scenario::load("nav", &src).unwrap_err().to_string();
+        let e = NAV.load(&src).unwrap_err().to_string();
         assert!(
             e.starts_with("my.toml: task.goal_radios: unknown key"),
             "{e}"
@@ -911,8 +640,14 @@ mod tests {
             file: None,
             overrides: overrides("goal_radios = 0.1"),
         };
-        let e = Scenario::load("nav", &src).unwrap_err().to_string();
+        let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("<override>: goal_radios"), "{e}");
+        let src = Source {
+            file: Some(("[sensors]\nir_rnage = 0.3\n", "s.toml")),
+            overrides: Table::new(),
+        };
+        let e = NAV.load(&src).unwrap_err().to_string();
+        assert!(e.starts_with("s.toml: sensors.ir_rnage: unknown key"), "{e}");
     }
 
     #[test]
@@ -921,45 +656,32 @@ mod tests {
             file: Some(("[robot]\nradius = \"big\"\n", "f.toml")),
             overrides: Table::new(),
         };
-        let e = Scenario::load("nav", &src).unwrap_err().to_string();
+        let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.starts_with("f.toml: robot.radius"), "{e}");
         let src = Source {
             file: None,
             overrides: overrides("radius = -1.0"),
         };
-        let e = Scenario::load("nav", &src).unwrap_err().to_string();
+        let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("robot.radius: must be"), "{e}");
         let src = Source {
             file: None,
             overrides: overrides("min_goal_distance = 5.0"),
         };
-        let e = Scenario::load("nav", &src).unwrap_err().to_string();
+        let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("spawn.min_goal_distance"), "{e}");
         let src = Source {
             file: Some(("[task\n", "broken.toml")),
             overrides: Table::new(),
         };
-        let e = Scenario::load("nav", &src).unwrap_err().to_string();
+        let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.starts_with("broken.toml: "), "{e}");
-    }
-
-    #[test]
-    fn every_builtin_scenario_loads_on_its_task() {
-        for task in ["nav", "avoid", "formation", "multinav"] {
-            Scenario::load(task, &Source::default()).unwrap_or_else(|e| panic!("{task}: {e}"));
-        }
-        for (scene, task) in [
-            ("paper_fig6", "avoid"),
-            ("paper_fig6", "nav"),
-            ("paper_fig7", "formation"),
-        ] {
-            let text = builtin(scene).expect("scene");
-            let src = Source {
-                file: Some((text, scene)),
-                overrides: Table::new(),
-            };
-            Scenario::load(task, &src).unwrap_or_else(|e| panic!("{scene} on {task}: {e}"));
-        }
+        let src = Source {
+            file: None,
+            overrides: overrides("ir_noise_sigma = \"loud\""),
+        };
+        let e = NAV.load(&src).unwrap_err().to_string();
+        assert!(e.starts_with("<override>: sensors.ir_noise_sigma"), "{e}");
     }
 
     #[test]
@@ -968,44 +690,13 @@ mod tests {
             file: None,
             overrides: overrides("mass = [0.5, 0.6]\nir_noise_sigma = [0.0, 20.0]"),
         };
-        let s = Scenario::load("nav", &src).expect("ranges");
+        let s = NAV.load(&src).expect("ranges");
         assert_eq!(s.robot.mass, Param::Range([0.5, 0.6]));
         let src = Source {
             file: None,
             overrides: overrides("mass = [0.6, 0.5]"),
         };
-        let e = Scenario::load("nav", &src).unwrap_err().to_string();
+        let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("robot.mass"), "{e}");
-    }
-
-    #[test]
-    fn impossible_layouts_are_config_errors_naming_the_key() {
-        let cases = [
-            ("[obstacles]\nfixed = [{kind = \"circle\", center = [1.5, 0.0], radius = 0.1}]\n", "obstacles.fixed[0]"),
-            ("[obstacles]\nfixed = [{kind = \"circle\", center = [0.0, 0.0], radius = -0.1}]\n", "obstacles.fixed[0]"),
-            ("[obstacles]\ncount = 60\ncircle_radius = [0.3, 0.4]\nkinds = [\"circle\"]\n", "obstacles.count"),
-            ("[obstacles]\ncount = 2\nmin_gap = 0.05\n", "obstacles.min_gap"),
-            ("[obstacles]\nfixed = [{kind = \"triangle\", center = [0.0, 0.0]}]\n", "obstacles.fixed[0]"),
-            (
-                "[obstacles]\nfixed = [{kind = \"circle\", center = [0.5, 0.5], radius = 0.1}, \
-                 {kind = \"circle\", center = [0.0, 0.0], radius = 0.1, colour = 1}]\n",
-                "obstacles.fixed[1]",
-            ),
-            // A wall across the whole arena leaves the fixed goal unreachable.
-            ("[obstacles]\nfixed = [{kind = \"box\", center = [0.0, 0.0], half_extents = [0.05, 1.0]}]\n\
-              [spawn]\nstart = [-0.5, 0.0, 0.0]\ngoal = [0.5, 0.0]\n", "spawn.goal"),
-            ("[spawn]\nstart = [0.0, 0.0]\n", "spawn.start"),
-        ];
-        for (text, key) in cases {
-            let src = Source {
-                file: Some((text, "bad.toml")),
-                overrides: Table::new(),
-            };
-            let e = Scenario::load("avoid", &src).unwrap_err().to_string();
-            assert!(
-                e.starts_with(&format!("bad.toml: {key}")),
-                "expected {key}: {e}"
-            );
-        }
     }
 }

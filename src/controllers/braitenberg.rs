@@ -4,8 +4,169 @@
 //! paper's block diagram (Fig. 5) the block sits after the control law: with no obstacle seen
 //! (every p below `threshold`) the control law's wheel speeds pass unchanged; otherwise W·p is
 //! added to them.
+//!
+//! [`Braitenberg`] is the avoidance block; [`BraitenbergPolicy`] the controller of the paper's
+//! Fig. 5: position control to the goal of a Nav-like observation, then the block on its `ir`.
 
+use super::position::{twist_to_wheels, PositionControl, PositionParams};
+use super::{goal_of, positive, Controller, GoalBlocks, WheelMap};
+use crate::error::{Error, Result};
+use crate::obs::ObsLayout;
 use crate::sensors::IR_COUNT;
+
+/// A weight matrix by name (`"default"`, `"kteam"`) or given (2 rows of 8).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(untagged)]
+pub enum Weights {
+    /// A built-in set: "default" or "kteam".
+    Named(String),
+    /// Rows left and right wheel; columns the IR sensors in K-Team order (m/s per unit
+    /// proximity).
+    Matrix(Vec<Vec<f32>>),
+}
+
+/// Names of the built-in weight sets.
+pub const WEIGHT_SETS: &[&str] = &["default", "kteam"];
+
+impl Weights {
+    /// The matrix, checked: a known name, or 2 finite rows of 8.
+    pub fn matrix(&self) -> Result<[[f32; IR_COUNT]; 2]> {
+        match self {
+            Weights::Named(name) => match name.as_str() {
+                "default" => Ok(DEFAULT_WEIGHTS),
+                "kteam" => Ok(KTEAM_WEIGHTS),
+                _ => Err(Error::Param(format!(
+                    "unknown Braitenberg weights '{name}'; give one of {WEIGHT_SETS:?} or a 2 x 8 \
+                     array"
+                ))),
+            },
+            Weights::Matrix(rows) => {
+                if rows.len() != 2 || rows.iter().any(|r| r.len() != IR_COUNT) {
+                    return Err(Error::Param(format!(
+                        "braitenberg: weights must be a 2 x 8 matrix (rows left, right wheel; \
+                         columns the IR sensors in K-Team order), got {} rows of {:?}",
+                        rows.len(),
+                        rows.iter().map(Vec::len).collect::<Vec<_>>()
+                    )));
+                }
+                if rows.iter().flatten().any(|w| !w.is_finite()) {
+                    return Err(Error::Param(
+                        "braitenberg: weights must be finite (a 2 x 8 matrix)".into(),
+                    ));
+                }
+                let mut m = [[0.0f32; IR_COUNT]; 2];
+                for (dst, src) in m.iter_mut().zip(rows) {
+                    dst.copy_from_slice(src);
+                }
+                Ok(m)
+            }
+        }
+    }
+}
+
+crate::config_table! {
+    /// Parameters of position control followed by Braitenberg avoidance (eqs. 1–7, Fig. 5).
+    pub struct BraitenbergParams {
+        /// weight matrix W of eq. 5: "default" (tuned on KheperaIV-Avoid), "kteam" (K-Team's braitenbergAvoidance demo in m/s) or a 2 x 8 array (m/s per unit proximity; rows left, right wheel; columns K-Team sensor order)
+        weights: Weights = "default",
+        /// full scale S_max of the proximity relative to the observation's (> 0): W is divided by it
+        smax: f32 = 1.0,
+        /// proximity above which a sensor sees an obstacle (above the IR noise)
+        threshold: f32 = 0.05,
+        /// position control's cruise speed v_max (m/s)
+        vmax: f32 = 0.3,
+        /// position control's largest turn rate ω_max (rad/s)
+        wmax: f32 = 4.0,
+        /// position control's docking radius k_r (m)
+        kr: f32 = 0.15,
+        /// distance to the goal under which the robot stops (m)
+        stop_radius: f32 = 0.02,
+        /// wheel separation (m)
+        axle_length: f32 = 0.1054,
+        /// wheel speed that an action of 1 stands for (m/s)
+        max_wheel_speed: f32 = 0.813,
+    }
+}
+
+impl BraitenbergParams {
+    /// The avoidance block of these parameters: W / smax and the threshold, checked.
+    pub fn block(&self, who: &str) -> Result<Braitenberg> {
+        let smax = positive(who, "smax", self.smax)?;
+        if self.threshold.is_nan() || self.threshold < 0.0 {
+            return Err(Error::Param(format!(
+                "{who}: threshold must be >= 0, got {}",
+                self.threshold
+            )));
+        }
+        let weights = self.weights.matrix()?.map(|row| row.map(|w| w / smax));
+        Ok(Braitenberg {
+            weights,
+            threshold: self.threshold,
+        })
+    }
+
+    /// The position control these parameters describe.
+    pub fn position(&self) -> PositionParams {
+        PositionParams {
+            vmax: self.vmax,
+            wmax: self.wmax,
+            kr: self.kr,
+            stop_radius: self.stop_radius,
+            axle_length: self.axle_length,
+            max_wheel_speed: self.max_wheel_speed,
+        }
+    }
+}
+
+/// Position control to the goal of a Nav-like observation, then Braitenberg avoidance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BraitenbergPolicy {
+    /// The control law.
+    pub law: PositionControl,
+    /// The avoidance block.
+    pub avoidance: Braitenberg,
+    /// The drive.
+    pub wheels: WheelMap,
+    goal: GoalBlocks,
+    ir: usize,
+    obs_dim: usize,
+}
+
+impl Controller for BraitenbergPolicy {
+    const NAME: &'static str = "braitenberg";
+    const READS: &'static str = "nav";
+    type Params = BraitenbergParams;
+
+    fn new(params: &BraitenbergParams, layout: &ObsLayout) -> Result<Self> {
+        let (law, wheels) = params.position().law(Self::NAME)?;
+        Ok(Self {
+            law,
+            avoidance: params.block(Self::NAME)?,
+            wheels,
+            goal: GoalBlocks::find(layout, Self::NAME)?,
+            ir: layout.require("ir", IR_COUNT, Self::NAME)?,
+            obs_dim: layout.len(),
+        })
+    }
+
+    fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    fn act(&self, obs: &[f32], out: &mut [f32]) {
+        let (d, bearing) = goal_of(obs, self.goal);
+        let (v, w) = self.law.twist(d, bearing);
+        let mut p = [0.0f32; IR_COUNT];
+        p.copy_from_slice(&obs[self.ir..self.ir + IR_COUNT]);
+        let wheels = if d < self.law.stop_radius {
+            [0.0, 0.0]
+        } else {
+            self.avoidance
+                .apply(twist_to_wheels(v, w, self.wheels.axle_length), &p)
+        };
+        out.copy_from_slice(&self.wheels.action(wheels));
+    }
+}
 
 /// Default weights (m/s per unit of proximity), K-Team order back-left, left, front-left,
 /// front, front-right, right, back-right, back; rows left wheel, right wheel. An obstacle on
@@ -28,13 +189,12 @@ pub struct Braitenberg {
 }
 
 impl Default for Braitenberg {
+    /// The block of the default [`BraitenbergParams`].
     fn default() -> Self {
-        Self {
-            weights: DEFAULT_WEIGHTS,
-            // Above the IR noise (σ = 10 counts ≈ 0.011 in proximity) so that noise alone does
-            // not steer; an obstacle about 15 cm from a sensor crosses it.
-            threshold: 0.05,
-        }
+        // The declared defaults are valid (tested): this cannot fail on user input.
+        BraitenbergParams::default()
+            .block("braitenberg")
+            .expect("the default Braitenberg parameters are valid")
     }
 }
 

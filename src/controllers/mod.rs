@@ -1,26 +1,35 @@
 //! The KH4VREP paper's classical controllers (Farias et al. 2017, §3.3–3.5), written once in
-//! Rust: the scripted formation leader uses them inside the simulator, and the baselines of
-//! `khepera_gym.baselines` run the same code on observations, batched.
+//! Rust, one file each behind the [`Controller`] contract: the baselines of
+//! `khepera_gym.baselines` run them on observations, batched, and the scripted formation leader
+//! runs their laws inside the simulator.
 //!
-//! A [`Policy`] maps one observation row to one action row: normalised wheel speeds (left,
-//! right) in [-1, 1] per agent, for environments with `action_type = "wheels"`. Units: metres,
-//! seconds, radians; robot frame x forward, y left, angles CCW.
+//! A controller is built from its named parameters (a table declared with `config_table!`:
+//! names as in its paper, defaults, units, one comment each — the only list of them; Python
+//! builds one from keywords) and bound to the layout of the observations it will read: it finds
+//! the blocks it needs (`goal_distance`, `ir`, ...) by name, once. It then maps one observation
+//! row to normalised wheel speeds (left, right) in [-1, 1] per robot it drives, for
+//! environments with `action_type = "wheels"`.
+//!
+//! Adding a controller: a file here implementing [`Controller`], one line in
+//! `controller_registry!`, and a short Python class in `khepera_gym/baselines.py`.
+//!
+//! Units: metres, seconds, radians; robot frame x forward, y left, angles CCW.
 
 pub mod braitenberg;
-pub mod formation;
+pub mod leader_follower;
 pub mod position;
 pub mod vfh;
 
 pub use braitenberg::Braitenberg;
-pub use formation::LeaderFollower;
+pub use leader_follower::LeaderFollower;
 pub use position::PositionControl;
 pub use vfh::Vfh;
 
+use toml::{Table, Value};
+
+use crate::config::{self, ConfigTable, KeyDoc};
 use crate::error::{Error, Result};
-use crate::sensors::{IR_COUNT, US_COUNT};
-use crate::tasks::formation::FOLLOWER_OBS_DIM;
-use crate::tasks::nav;
-use position::twist_to_wheels;
+use crate::obs::ObsLayout;
 
 /// The robot's drive as a policy needs it to turn (v, ω) into normalised wheel actions.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,112 +50,151 @@ impl Default for WheelMap {
 }
 
 impl WheelMap {
-    fn action(&self, wheels: [f32; 2]) -> [f32; 2] {
+    /// A drive of wheel separation `axle_length` (m) and full-scale wheel speed
+    /// `max_wheel_speed` (m/s); both must be finite and > 0.
+    pub fn new(controller: &str, axle_length: f32, max_wheel_speed: f32) -> Result<Self> {
+        positive(controller, "axle_length", axle_length)?;
+        positive(controller, "max_wheel_speed", max_wheel_speed)?;
+        Ok(Self {
+            axle_length,
+            max_wheel_speed,
+        })
+    }
+
+    /// Normalised actions of wheel speeds (m/s), clipped to [-1, 1].
+    pub fn action(&self, wheels: [f32; 2]) -> [f32; 2] {
         wheels.map(|w| (w / self.max_wheel_speed).clamp(-1.0, 1.0))
     }
 }
 
-/// A baseline policy on observations.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Policy {
-    /// Position control to the goal of a Nav-layout observation (eqs. 1–4).
-    PositionControl(PositionControl, WheelMap),
-    /// Position control followed by Braitenberg avoidance (eqs. 1–7, Fig. 5).
-    Braitenberg(PositionControl, Braitenberg, WheelMap),
-    /// Vector Field Histogram (eqs. 8–11).
-    Vfh(Vfh, WheelMap),
-    /// Leader–follower formation control (eq. 12) for every follower block; a leader block
-    /// (when the leader is an agent) is driven by `leader`.
-    LeaderFollower {
-        /// One controller per follower, or one shared by all when a single one is given.
-        followers: Vec<LeaderFollower>,
-        /// Policy of the leader's Nav block, if the observation has one.
-        leader: Box<Policy>,
-        /// The drive.
-        wheels: WheelMap,
-    },
+/// The contract every controller implements.
+pub trait Controller: Sized + Clone + std::fmt::Debug + PartialEq {
+    /// Its name (`"braitenberg"`): the key of `Policy::new` and of `khepera_gym.baselines`.
+    const NAME: &'static str;
+    /// The task whose default observation it reads when no layout is given.
+    const READS: &'static str;
+    /// Its parameters: names as in its paper, defaults, units, one comment each.
+    type Params: ConfigTable;
+
+    /// The controller with `params`, reading observations laid out as `layout` (it finds its
+    /// blocks by name). Errors name the parameter or the missing block.
+    fn new(params: &Self::Params, layout: &ObsLayout) -> Result<Self>;
+
+    /// Length of the observation rows it reads.
+    fn obs_dim(&self) -> usize;
+
+    /// Length of the action for an observation row of `obs_dim` values (2 per robot driven).
+    fn act_dim(&self, obs_dim: usize) -> Result<usize> {
+        if obs_dim == self.obs_dim() {
+            Ok(2)
+        } else {
+            Err(Error::Action(format!(
+                "{} reads observations of {} values, got {obs_dim}",
+                Self::NAME,
+                self.obs_dim()
+            )))
+        }
+    }
+
+    /// Writes the action for one observation row into `out` (length from `act_dim`).
+    fn act(&self, obs: &[f32], out: &mut [f32]);
+}
+
+/// Declares the controllers. Each line is `Variant: Type`.
+macro_rules! controller_registry {
+    ($($variant:ident : $ty:ty),* $(,)?) => {
+        /// A baseline policy on observations: one of the registered controllers.
+        #[derive(Debug, Clone, PartialEq)]
+        pub enum Policy {
+            $(
+                #[doc = concat!("The `", stringify!($variant), "` controller.")]
+                $variant($ty),
+            )*
+        }
+
+        /// Names of the controllers, in registry order.
+        pub const NAMES: &[&str] = &[$(<$ty as Controller>::NAME),*];
+
+        impl Policy {
+            /// The controller `name` with the parameters of `params` (missing ones take their
+            /// defaults; unknown ones are errors), reading observations laid out as `layout`.
+            pub fn new(name: &str, params: &Table, layout: &ObsLayout) -> Result<Self> {
+                $(
+                    if name == <$ty as Controller>::NAME {
+                        let params = read_params::<<$ty as Controller>::Params>(name, params)?;
+                        return Ok(Policy::$variant(<$ty as Controller>::new(&params, layout)?));
+                    }
+                )*
+                Err(Error::config(
+                    "<policy>",
+                    "controller",
+                    format!("unknown controller {name:?}; known: {NAMES:?}"),
+                ))
+            }
+
+            /// The parameters of controller `name` (with defaults and comments).
+            pub fn params(name: &str) -> Option<&'static [KeyDoc]> {
+                $(
+                    if name == <$ty as Controller>::NAME {
+                        return Some(<<$ty as Controller>::Params as ConfigTable>::KEYS);
+                    }
+                )*
+                None
+            }
+
+            /// The task whose default observation controller `name` reads.
+            pub fn reads(name: &str) -> Option<&'static str> {
+                $(
+                    if name == <$ty as Controller>::NAME {
+                        return Some(<$ty as Controller>::READS);
+                    }
+                )*
+                None
+            }
+
+            /// The controller's name.
+            pub fn name(&self) -> &'static str {
+                match self {
+                    $(Policy::$variant(_) => <$ty as Controller>::NAME,)*
+                }
+            }
+
+            /// Length of the observation rows (or, for several agents, of one block) it reads.
+            pub fn obs_dim(&self) -> usize {
+                match self {
+                    $(Policy::$variant(c) => c.obs_dim(),)*
+                }
+            }
+
+            /// Length of the action for an observation row of length `obs_dim`.
+            pub fn act_dim(&self, obs_dim: usize) -> Result<usize> {
+                match self {
+                    $(Policy::$variant(c) => c.act_dim(obs_dim),)*
+                }
+            }
+
+            /// Writes the action for one observation row into `out` (length from
+            /// [`Policy::act_dim`]).
+            pub fn act(&self, obs: &[f32], out: &mut [f32]) {
+                match self {
+                    $(Policy::$variant(c) => c.act(obs, out),)*
+                }
+            }
+        }
+    };
+}
+
+controller_registry! {
+    PositionControl: position::PositionPolicy,
+    Braitenberg: braitenberg::BraitenbergPolicy,
+    Vfh: vfh::VfhPolicy,
+    LeaderFollower: leader_follower::LeaderFollowerPolicy,
 }
 
 impl Policy {
-    /// Length of the action for an observation row of length `obs_dim`.
-    pub fn act_dim(&self, obs_dim: usize) -> Result<usize> {
-        match self {
-            Policy::LeaderFollower { .. } => {
-                let (leader, k) = split_formation(obs_dim)?;
-                Ok(2 * (k + usize::from(leader)))
-            }
-            _ if obs_dim == nav::OBS_DIM => Ok(2),
-            _ => Err(Error::Action(format!(
-                "this policy reads Nav/Avoid observations of {} values, got {obs_dim}",
-                nav::OBS_DIM
-            ))),
-        }
-    }
-
-    /// Writes the action for one observation row into `out` (length from [`Policy::act_dim`]).
-    pub fn act(&self, obs: &[f32], out: &mut [f32]) {
-        match self {
-            Policy::PositionControl(pc, map) => {
-                let (d, bearing) = goal_of(obs);
-                let (v, w) = pc.twist(d, bearing);
-                out.copy_from_slice(&map.action(twist_to_wheels(v, w, map.axle_length)));
-            }
-            Policy::Braitenberg(pc, b, map) => {
-                let (d, bearing) = goal_of(obs);
-                let (v, w) = pc.twist(d, bearing);
-                let mut p = [0.0f32; IR_COUNT];
-                p.copy_from_slice(&obs[..IR_COUNT]);
-                let wheels = if d < pc.stop_radius {
-                    [0.0, 0.0]
-                } else {
-                    b.apply(twist_to_wheels(v, w, map.axle_length), &p)
-                };
-                out.copy_from_slice(&map.action(wheels));
-            }
-            Policy::Vfh(vfh, map) => {
-                let (d, bearing) = goal_of(obs);
-                let ir = &obs[..IR_COUNT];
-                let us = &obs[IR_COUNT..IR_COUNT + US_COUNT];
-                let wheels = &obs[IR_COUNT + US_COUNT + 3..IR_COUNT + US_COUNT + 5];
-                let (v, w) = vfh.twist(ir, us, d, bearing, wheels[1] - wheels[0]);
-                out.copy_from_slice(&map.action(twist_to_wheels(v, w, map.axle_length)));
-            }
-            Policy::LeaderFollower {
-                followers,
-                leader,
-                wheels,
-            } => {
-                let (has_leader, k) = split_formation(obs.len()).unwrap_or((false, 0));
-                let (mut blocks, mut actions) = (obs, &mut out[..]);
-                if has_leader {
-                    leader.act(&blocks[..nav::OBS_DIM], &mut actions[..2]);
-                    blocks = &blocks[nav::OBS_DIM..];
-                    actions = &mut actions[2..];
-                }
-                for i in 0..k {
-                    let block = &blocks[i * FOLLOWER_OBS_DIM..(i + 1) * FOLLOWER_OBS_DIM];
-                    let lf = followers.get(i).or(followers.first());
-                    let w = lf.map_or([0.0, 0.0], |lf| {
-                        lf.wheels(block, wheels.axle_length, wheels.max_wheel_speed)
-                    });
-                    actions[2 * i..2 * i + 2].copy_from_slice(&wheels.action(w));
-                }
-            }
-        }
-    }
-
-    /// Actions for `rows` observation rows of `obs_dim` values each (row-major).
+    /// Actions for the rows of `obs`, `obs_dim` values each (row-major).
     pub fn act_batch(&self, obs: &[f32], obs_dim: usize) -> Result<Vec<f32>> {
         let act_dim = self.act_dim(obs_dim)?;
-        if let Policy::LeaderFollower { followers, .. } = self {
-            let (_, k) = split_formation(obs_dim)?;
-            if followers.len() > 1 && followers.len() != k {
-                return Err(Error::Action(format!(
-                    "the policy has {} follower offsets but the observation has {k} followers",
-                    followers.len()
-                )));
-            }
-        }
         if let Some(i) = obs.iter().position(|v| !v.is_finite()) {
             return Err(Error::Action(format!(
                 "observation row {} element {} is {}",
@@ -162,25 +210,97 @@ impl Policy {
         }
         Ok(out)
     }
+
+    /// A leader–follower policy whose leader block (when the observation has one) is driven by
+    /// `leader`.
+    pub fn with_leader(self, leader: Policy) -> Result<Self> {
+        match self {
+            Policy::LeaderFollower(lf) => Ok(Policy::LeaderFollower(lf.with_leader(leader)?)),
+            other => Err(Error::Param(format!(
+                "{}: only leader_follower takes a leader policy",
+                other.name()
+            ))),
+        }
+    }
 }
 
-/// Goal distance and bearing of a Nav-layout observation.
-fn goal_of(obs: &[f32]) -> (f32, f32) {
-    let base = IR_COUNT + US_COUNT;
-    (obs[base], obs[base + 1].atan2(obs[base + 2]))
+/// Reads a controller's parameters: every key must be one of its parameters; an integer may
+/// stand for a real number, a real number with no fraction for an integer.
+fn read_params<T: ConfigTable>(controller: &str, given: &Table) -> Result<T> {
+    let mut table = T::defaults_table();
+    for (key, value) in given {
+        let Some(default) = table.get(key) else {
+            let known: Vec<&str> = T::KEYS.iter().map(|k| k.name).collect();
+            return Err(Error::Param(format!(
+                "{controller}: unknown parameter {key:?}; its parameters are {known:?}"
+            )));
+        };
+        let value = match (default, value) {
+            (Value::Float(_), Value::Integer(i)) => Value::Float(*i as f64),
+            (Value::Integer(_), Value::Float(f)) => {
+                if f.fract() == 0.0 && f.abs() < 9.0e15 {
+                    Value::Integer(*f as i64)
+                } else {
+                    return Err(Error::Param(format!(
+                        "{controller}: {key} must be an integer, got {f}"
+                    )));
+                }
+            }
+            (_, v) => v.clone(),
+        };
+        table.insert(key.clone(), value);
+    }
+    config::read_table(&table, controller, "").map_err(|e| match e {
+        Error::Config { key, message, .. } => {
+            Error::Param(format!("{controller}: {key}: {message}"))
+        }
+        other => other,
+    })
 }
 
-/// (leader block present, followers) of a formation observation of length `obs_dim`.
-fn split_formation(obs_dim: usize) -> Result<(bool, usize)> {
-    if obs_dim > 0 && obs_dim % FOLLOWER_OBS_DIM == 0 {
-        Ok((false, obs_dim / FOLLOWER_OBS_DIM))
-    } else if obs_dim > nav::OBS_DIM && (obs_dim - nav::OBS_DIM) % FOLLOWER_OBS_DIM == 0 {
-        Ok((true, (obs_dim - nav::OBS_DIM) / FOLLOWER_OBS_DIM))
+/// Checks that parameter `name` of `controller` is finite and > 0.
+pub fn positive(controller: &str, name: &str, value: f32) -> Result<f32> {
+    if value > 0.0 && value.is_finite() {
+        Ok(value)
     } else {
-        Err(Error::Action(format!(
-            "not a formation observation: {obs_dim} values is neither K x {FOLLOWER_OBS_DIM} \
-             (followers) nor {} + K x {FOLLOWER_OBS_DIM} (leader and followers)",
-            nav::OBS_DIM
+        Err(Error::Param(format!(
+            "{controller}: {name} must be a finite number > 0, got {value}"
         )))
+    }
+}
+
+/// Checks that parameter `name` of `controller` is finite and >= 0.
+pub fn non_negative(controller: &str, name: &str, value: f32) -> Result<f32> {
+    if value >= 0.0 && value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::Param(format!(
+            "{controller}: {name} must be a finite number >= 0, got {value}"
+        )))
+    }
+}
+
+/// Goal distance and bearing of an observation row whose goal blocks start at `at`
+/// (`goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`).
+#[inline]
+fn goal_of(obs: &[f32], at: GoalBlocks) -> (f32, f32) {
+    (obs[at.distance], obs[at.sin].atan2(obs[at.cos]))
+}
+
+/// Where a Nav-like observation keeps its goal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct GoalBlocks {
+    distance: usize,
+    sin: usize,
+    cos: usize,
+}
+
+impl GoalBlocks {
+    fn find(layout: &ObsLayout, who: &str) -> Result<Self> {
+        Ok(Self {
+            distance: layout.require("goal_distance", 1, who)?,
+            sin: layout.require("goal_bearing_sin", 1, who)?,
+            cos: layout.require("goal_bearing_cos", 1, who)?,
+        })
     }
 }

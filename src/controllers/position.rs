@@ -3,6 +3,83 @@
 //! d = distance to the target (eq. 1), α − θ = its bearing in the robot frame (eq. 2);
 //! v = v_max if d > k_r else d·v_max/k_r (eq. 3); ω = ω_max·sin(α − θ) (eq. 4);
 //! both 0 once d < stop_radius (the library's 0.05 m).
+//!
+//! [`PositionControl`] is the law; [`PositionPolicy`] the controller reading a Nav-like
+//! observation (`goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`).
+
+use super::{goal_of, positive, non_negative, Controller, GoalBlocks, WheelMap};
+use crate::error::Result;
+use crate::obs::ObsLayout;
+
+crate::config_table! {
+    /// Parameters of position control (eqs. 1–4).
+    pub struct PositionParams {
+        /// cruise speed v_max (m/s)
+        vmax: f32 = 0.3,
+        /// largest turn rate ω_max (rad/s), reached at a bearing of ±90°
+        wmax: f32 = 4.0,
+        /// radius k_r of the docking area where the speed falls linearly (m)
+        kr: f32 = 0.15,
+        /// distance to the goal under which the robot stops (m; the task succeeds within 0.05 m, so the default stops closer)
+        stop_radius: f32 = 0.02,
+        /// wheel separation (m) turning (v, ω) into wheel speeds
+        axle_length: f32 = 0.1054,
+        /// wheel speed that an action of 1 stands for (m/s)
+        max_wheel_speed: f32 = 0.813,
+    }
+}
+
+impl PositionParams {
+    /// The law and the drive of these parameters, checked (`who` names the controller).
+    pub fn law(&self, who: &str) -> Result<(PositionControl, WheelMap)> {
+        Ok((
+            PositionControl {
+                vmax: positive(who, "vmax", self.vmax)?,
+                wmax: positive(who, "wmax", self.wmax)?,
+                kr: positive(who, "kr", self.kr)?,
+                stop_radius: non_negative(who, "stop_radius", self.stop_radius)?,
+            },
+            WheelMap::new(who, self.axle_length, self.max_wheel_speed)?,
+        ))
+    }
+}
+
+/// Position control to the goal of a Nav-like observation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PositionPolicy {
+    /// The law.
+    pub law: PositionControl,
+    /// The drive.
+    pub wheels: WheelMap,
+    goal: GoalBlocks,
+    obs_dim: usize,
+}
+
+impl Controller for PositionPolicy {
+    const NAME: &'static str = "position_control";
+    const READS: &'static str = "nav";
+    type Params = PositionParams;
+
+    fn new(params: &PositionParams, layout: &ObsLayout) -> Result<Self> {
+        let (law, wheels) = params.law(Self::NAME)?;
+        Ok(Self {
+            law,
+            wheels,
+            goal: GoalBlocks::find(layout, Self::NAME)?,
+            obs_dim: layout.len(),
+        })
+    }
+
+    fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    fn act(&self, obs: &[f32], out: &mut [f32]) {
+        let (d, bearing) = goal_of(obs, self.goal);
+        let (v, w) = self.law.twist(d, bearing);
+        out.copy_from_slice(&self.wheels.action(twist_to_wheels(v, w, self.wheels.axle_length)));
+    }
+}
 
 /// The position controller's parameters.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

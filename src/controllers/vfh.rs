@@ -33,7 +33,49 @@
 
 use std::f32::consts::PI;
 
+use super::position::twist_to_wheels;
+use super::{goal_of, non_negative, positive, Controller, GoalBlocks, WheelMap};
+use crate::error::{Error, Result};
+use crate::obs::ObsLayout;
 use crate::sensors::{IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
+
+crate::config_table! {
+    /// Parameters of the Vector Field Histogram (eqs. 8–11).
+    pub struct VfhParams {
+        /// histogram sectors around the robot (4..360)
+        sectors: usize = 36,
+        /// smoothed density under which a sector is free
+        threshold: f32 = 0.15,
+        /// h_m of eqs. 10-11: the density ahead at which the robot stops
+        hm: f32 = 0.6,
+        /// v_max (m/s)
+        vmax: f32 = 0.3,
+        /// ω_max (rad/s)
+        wmax: f32 = 3.0,
+        /// docking radius k_r of eq. 3 (m)
+        kr: f32 = 0.15,
+        /// distance to the goal under which the robot stops (m)
+        stop_radius: f32 = 0.02,
+        /// ultrasonic echoes farther than this add nothing (m)
+        us_range: f32 = 0.45,
+        /// the ultrasonic observation's full scale (m): the scenario's sensors.us_max_range
+        us_max_range: f32 = 2.0,
+        /// the ultrasonic minimum range (m): a "too close" reading counts as an echo here
+        us_min_range: f32 = 0.25,
+        /// angular width a reading fills, centred on its sensor (rad; 45°)
+        beam_width: f32 = 0.7853981633974483,
+        /// narrowest free valley the robot steers into (rad; 30°)
+        min_valley: f32 = 0.5235987755982988,
+        /// weight of "close to straight ahead" against "close to the goal" (VFH+'s μ2/μ1)
+        heading_weight: f32 = 0.4,
+        /// extra cost (rad) of a valley on the other side of the robot's current turn
+        switch_penalty: f32 = 0.6,
+        /// wheel separation (m)
+        axle_length: f32 = 0.1054,
+        /// wheel speed that an action of 1 stands for (m/s)
+        max_wheel_speed: f32 = 0.813,
+    }
+}
 
 /// VFH parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,23 +114,106 @@ pub struct Vfh {
 }
 
 impl Default for Vfh {
+    /// The law of the default [`VfhParams`].
     fn default() -> Self {
-        Self {
-            sectors: 36,
-            threshold: 0.15,
-            hm: 0.6,
-            vmax: 0.3,
-            wmax: 3.0,
-            kr: 0.15,
-            stop_radius: 0.02,
-            us_range: 0.45,
-            us_max_range: 2.0,
-            us_min_range: 0.25,
-            beam_width: 45f32.to_radians(),
-            min_valley: 30f32.to_radians(),
-            heading_weight: 0.4,
-            switch_penalty: 0.6,
+        // The declared defaults are valid (tested): this cannot fail on user input.
+        VfhParams::default()
+            .law("vfh")
+            .expect("the default VFH parameters are valid")
+    }
+}
+
+impl VfhParams {
+    /// The law of these parameters, checked.
+    pub fn law(&self, who: &str) -> Result<Vfh> {
+        if !(4..=360).contains(&self.sectors) {
+            return Err(Error::Param(format!(
+                "{who}: sectors must be in 4..=360, got {}",
+                self.sectors
+            )));
         }
+        for (name, v) in [
+            ("threshold", self.threshold),
+            ("hm", self.hm),
+            ("vmax", self.vmax),
+            ("wmax", self.wmax),
+            ("kr", self.kr),
+            ("us_range", self.us_range),
+            ("us_max_range", self.us_max_range),
+            ("us_min_range", self.us_min_range),
+            ("beam_width", self.beam_width),
+            ("min_valley", self.min_valley),
+        ] {
+            positive(who, name, v)?;
+        }
+        for (name, v) in [
+            ("stop_radius", self.stop_radius),
+            ("heading_weight", self.heading_weight),
+            ("switch_penalty", self.switch_penalty),
+        ] {
+            non_negative(who, name, v)?;
+        }
+        Ok(Vfh {
+            sectors: self.sectors,
+            threshold: self.threshold,
+            hm: self.hm,
+            vmax: self.vmax,
+            wmax: self.wmax,
+            kr: self.kr,
+            stop_radius: self.stop_radius,
+            us_range: self.us_range,
+            us_max_range: self.us_max_range,
+            us_min_range: self.us_min_range,
+            beam_width: self.beam_width,
+            min_valley: self.min_valley,
+            heading_weight: self.heading_weight,
+            switch_penalty: self.switch_penalty,
+        })
+    }
+}
+
+/// VFH on a Nav-like observation (`ir`, `us`, the goal blocks and `wheel_speeds`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VfhPolicy {
+    /// The law.
+    pub vfh: Vfh,
+    /// The drive.
+    pub wheels: WheelMap,
+    goal: GoalBlocks,
+    ir: usize,
+    us: usize,
+    wheel_speeds: usize,
+    obs_dim: usize,
+}
+
+impl Controller for VfhPolicy {
+    const NAME: &'static str = "vfh";
+    const READS: &'static str = "nav";
+    type Params = VfhParams;
+
+    fn new(params: &VfhParams, layout: &ObsLayout) -> Result<Self> {
+        Ok(Self {
+            vfh: params.law(Self::NAME)?,
+            wheels: WheelMap::new(Self::NAME, params.axle_length, params.max_wheel_speed)?,
+            goal: GoalBlocks::find(layout, Self::NAME)?,
+            ir: layout.require("ir", IR_COUNT, Self::NAME)?,
+            us: layout.require("us", US_COUNT, Self::NAME)?,
+            wheel_speeds: layout.require("wheel_speeds", 2, Self::NAME)?,
+            obs_dim: layout.len(),
+        })
+    }
+
+    fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    fn act(&self, obs: &[f32], out: &mut [f32]) {
+        let (d, bearing) = goal_of(obs, self.goal);
+        let ir = &obs[self.ir..self.ir + IR_COUNT];
+        let us = &obs[self.us..self.us + US_COUNT];
+        let wheels = &obs[self.wheel_speeds..self.wheel_speeds + 2];
+        let (v, w) = self.vfh.twist(ir, us, d, bearing, wheels[1] - wheels[0]);
+        out.copy_from_slice(&self.wheels.action(twist_to_wheels(v, w, self.wheels.axle_length)));
     }
 }
 

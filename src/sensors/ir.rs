@@ -3,9 +3,19 @@
 //! digitised ±10 counts) interpolated linearly in distance, plus Gaussian noise in raw counts.
 //!
 //! Distances are measured from the sensor (on the body rim) to the obstacle surface, in metres.
+//! One ray per sensor along its axis, cast against the obstacles and robots within reach only.
+//! Scenario keys: `sensors.ir_range`, `ir_floor_value`, `ir_noise_sigma`.
 
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use rapier2d::math::Vector;
+
+use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
+use crate::config::Param;
+use crate::draw::Mark;
+use crate::error::{Error, Result};
+use crate::obs::Block;
 
 /// Number of ring sensors.
 pub const IR_COUNT: usize = 8;
@@ -37,6 +47,18 @@ const CURVE_RAW: [f32; 16] = [
     1018.0, 1012.0, 1002.0, 979.0, 889.0, 764.0, 597.0, 492.0, 380.0, 319.0, 254.0, 228.0, 199.0,
     163.0, 133.0, 111.0,
 ];
+
+crate::config_table! {
+    /// The IR ring's keys in `[sensors]` (spec §2–3).
+    pub struct IrConfig {
+        /// m, beyond this the IR reads the floor value
+        ir_range: f32 = 0.25,
+        /// raw count with nothing in range (floor reflection) [E]; may be a [low, high] range
+        ir_floor_value: Param = 100.0,
+        /// raw counts, Gaussian, per reading [E]; may be a range
+        ir_noise_sigma: Param = 10.0,
+    }
+}
 
 /// The IR ring's response and noise.
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
@@ -81,6 +103,162 @@ impl IrModel {
     /// Normalised proximity in [0, 1]: 0 at the floor value (nothing seen), 1 at 1023.
     pub fn normalise(&self, raw: u16) -> f32 {
         ((raw as f32 - self.floor_value) / (IR_MAX_RAW - self.floor_value)).clamp(0.0, 1.0)
+    }
+}
+
+/// One robot's IR ring reading.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct IrReading {
+    /// Raw readings (0..1023), K-Team order.
+    pub raw: [u16; IR_COUNT],
+    /// True distance (m) each ray travelled before a hit (its range when none), for drawing.
+    pub hit: [f32; IR_COUNT],
+}
+
+/// The 8-sensor IR proximity ring as a [`Sensor`].
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct IrRing {
+    /// Response and noise.
+    pub model: IrModel,
+    // Constants and scratch buffers: not state.
+    #[serde(skip, default = "ir_dirs")]
+    dirs: [Vector; IR_COUNT],
+    #[serde(skip)]
+    near_shapes: Vec<usize>,
+    #[serde(skip)]
+    near_others: Vec<Vector>,
+}
+
+fn ir_dirs() -> [Vector; IR_COUNT] {
+    IR_BEARINGS.map(unit)
+}
+
+impl Sensor for IrRing {
+    const NAME: &'static str = "ir";
+    type Config = IrConfig;
+    type Reading = IrReading;
+
+    fn new(cfg: &IrConfig) -> Self {
+        Self {
+            model: IrModel {
+                range: cfg.ir_range,
+                floor_value: cfg.ir_floor_value.bounds().0,
+                noise_sigma: cfg.ir_noise_sigma.bounds().0,
+            },
+            dirs: ir_dirs(),
+            near_shapes: Vec::new(),
+            near_others: Vec::new(),
+        }
+    }
+
+    fn validate(cfg: &IrConfig, origin: &str) -> Result<()> {
+        if !cfg.ir_range.is_finite() || cfg.ir_range <= 0.0 {
+            return Err(Error::config(
+                origin,
+                "sensors.ir_range",
+                format!("must be a finite number > 0, got {}", cfg.ir_range),
+            ));
+        }
+        cfg.ir_floor_value
+            .check(origin, "sensors.ir_floor_value", false)?;
+        cfg.ir_noise_sigma
+            .check(origin, "sensors.ir_noise_sigma", false)?;
+        if cfg.ir_floor_value.max() > CURVE_RAW[CURVE_RAW.len() - 1] {
+            return Err(Error::config(
+                origin,
+                "sensors.ir_floor_value",
+                format!(
+                    "must be in [0, 111] (the response curve reads 111 at 0.2 m), got {:?}",
+                    cfg.ir_floor_value
+                ),
+            ));
+        }
+        if cfg.ir_range <= 0.2 || cfg.ir_range > 1.0 {
+            return Err(Error::config(
+                origin,
+                "sensors.ir_range",
+                format!("must be in (0.2, 1.0] m, got {}", cfg.ir_range),
+            ));
+        }
+        Ok(())
+    }
+
+    fn randomise(&mut self, cfg: &IrConfig, rng: &mut ChaCha8Rng) {
+        self.model.floor_value = cfg.ir_floor_value.sample(rng);
+        self.model.noise_sigma = cfg.ir_noise_sigma.sample(rng);
+    }
+
+    fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut IrReading) {
+        let (pos, radius) = (ctx.position, ctx.radius);
+        // The IR rays are short: only obstacles and robots within reach of the rim can be hit.
+        let reach = radius + self.model.range;
+        self.near_others.clear();
+        for other in ctx.others {
+            if (*other - pos).length() < reach + radius {
+                self.near_others.push(*other);
+            }
+        }
+        self.near_shapes.clear();
+        for (k, shape) in ctx.scene.shapes.iter().enumerate() {
+            if (shape.center - pos).length() - shape.bound_radius < reach {
+                self.near_shapes.push(k);
+            }
+        }
+        let (s, c) = ctx.sin_cos;
+        for k in 0..IR_COUNT {
+            let dir = rotate(self.dirs[k], c, s);
+            let origin = pos + radius * dir;
+            let near = self.near_shapes.iter().map(|&n| &ctx.scene.shapes[n]);
+            let hit = ctx.scene.cast_among(
+                origin,
+                dir,
+                self.model.range,
+                near,
+                &self.near_others,
+                radius,
+            );
+            reading.raw[k] = self.model.read(hit, rng);
+            reading.hit[k] = hit.unwrap_or(self.model.range);
+        }
+    }
+
+    fn block(&self) -> Block {
+        Block::new(Self::NAME, IR_COUNT, 0.0, 1.0)
+    }
+
+    fn obs_len(&self) -> usize {
+        IR_COUNT
+    }
+
+    fn observe(&self, reading: &IrReading, out: &mut [f32]) {
+        for (o, raw) in out.iter_mut().zip(reading.raw) {
+            *o = self.model.normalise(raw);
+        }
+    }
+
+    fn readout(&self, reading: &IrReading, out: &mut Readout) {
+        out.ints("ir_raw", IR_COUNT, &reading.raw.map(i64::from));
+    }
+
+    fn draw(&self, at: &DrawContext, reading: &IrReading, marks: &mut Vec<Mark>) {
+        let (s, c) = at.heading.sin_cos();
+        for ((dir, hit), raw) in self.dirs.iter().zip(reading.hit).zip(reading.raw) {
+            let d = rotate(*dir, c, s);
+            let start = at.position + at.radius * d;
+            let p = self.model.normalise(raw);
+            marks.push(Mark::Ray {
+                from: start,
+                to: start + hit.min(self.model.range) * d,
+                // Green when nothing is seen, toward red as an obstacle nears.
+                colour: [
+                    (60.0 + 195.0 * p) as u8,
+                    (170.0 * (1.0 - p) + 40.0) as u8,
+                    40,
+                ],
+                alpha: (110.0 + 145.0 * p) as u8,
+                width: 0.007,
+            });
+        }
     }
 }
 

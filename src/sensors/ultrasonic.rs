@@ -2,10 +2,20 @@
 //! right), readings in whole centimetres from 25 to 200 cm with the K-Team library's codes for
 //! "too close" (0), "nothing in range" (1000) and "disabled" (2000). Spec §5.
 //!
-//! One ray per sensor along its axis (the beam width is not documented; Webots uses one ray too).
+//! One ray per sensor along its axis (the beam width is not documented; Webots uses one ray too),
+//! cast against every obstacle and robot (the range is long). Scenario keys:
+//! `sensors.us_min_range`, `us_max_range`, `us_noise_sigma`, `us_enabled`.
 
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use rapier2d::math::Vector;
+
+use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
+use crate::config::Param;
+use crate::draw::Mark;
+use crate::error::{Error, Result};
+use crate::obs::Block;
 
 /// Number of ultrasonic sensors.
 pub const US_COUNT: usize = 5;
@@ -23,6 +33,20 @@ pub const US_TOO_CLOSE: i32 = 0;
 pub const US_NOTHING: i32 = 1000;
 /// Code for a disabled sensor.
 pub const US_DISABLED: i32 = 2000;
+
+crate::config_table! {
+    /// The ultrasonic sensors' keys in `[sensors]` (spec §5).
+    pub struct UsConfig {
+        /// m, closer objects read code 0 ("too close")
+        us_min_range: f32 = 0.25,
+        /// m, farther than this reads code 1000 ("nothing")
+        us_max_range: f32 = 2.0,
+        /// m, Gaussian [E] (K-Team states +-2 cm tolerance); may be a range
+        us_noise_sigma: Param = 0.01,
+        /// left, front-left, front, front-right, right; off reads 2000
+        us_enabled: [bool; 5] = [true, true, true, true, true],
+    }
+}
 
 /// The ultrasonic model.
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
@@ -64,6 +88,125 @@ impl UsModel {
             US_TOO_CLOSE => 0.0,
             US_NOTHING | US_DISABLED => 1.0,
             cm => (cm as f32 / (self.max_range * 100.0)).clamp(0.0, 1.0),
+        }
+    }
+}
+
+/// One robot's ultrasonic reading.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct UsReading {
+    /// Readings in cm, or the codes [`US_TOO_CLOSE`], [`US_NOTHING`], [`US_DISABLED`].
+    pub code: [i32; US_COUNT],
+    /// True distance (m) each ray travelled before a hit, for drawing.
+    pub hit: [f32; US_COUNT],
+}
+
+/// The five ultrasonic sensors as a [`Sensor`].
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct Ultrasonic {
+    /// Ranges, noise, enabled sensors.
+    pub model: UsModel,
+    #[serde(skip, default = "us_dirs")]
+    dirs: [Vector; US_COUNT],
+}
+
+fn us_dirs() -> [Vector; US_COUNT] {
+    US_BEARINGS.map(unit)
+}
+
+impl Sensor for Ultrasonic {
+    const NAME: &'static str = "us";
+    type Config = UsConfig;
+    type Reading = UsReading;
+
+    fn new(cfg: &UsConfig) -> Self {
+        Self {
+            model: UsModel {
+                min_range: cfg.us_min_range,
+                max_range: cfg.us_max_range,
+                noise_sigma: cfg.us_noise_sigma.bounds().0,
+                enabled: cfg.us_enabled,
+            },
+            dirs: us_dirs(),
+        }
+    }
+
+    fn validate(cfg: &UsConfig, origin: &str) -> Result<()> {
+        for (key, v) in [
+            ("sensors.us_min_range", cfg.us_min_range),
+            ("sensors.us_max_range", cfg.us_max_range),
+        ] {
+            if !v.is_finite() || v <= 0.0 {
+                return Err(Error::config(
+                    origin,
+                    key,
+                    format!("must be a finite number > 0, got {v}"),
+                ));
+            }
+        }
+        cfg.us_noise_sigma
+            .check(origin, "sensors.us_noise_sigma", false)?;
+        if cfg.us_min_range >= cfg.us_max_range {
+            return Err(Error::config(
+                origin,
+                "sensors.us_min_range",
+                format!(
+                    "must be below sensors.us_max_range ({}), got {}",
+                    cfg.us_max_range, cfg.us_min_range
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn randomise(&mut self, cfg: &UsConfig, rng: &mut ChaCha8Rng) {
+        self.model.noise_sigma = cfg.us_noise_sigma.sample(rng);
+    }
+
+    fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut UsReading) {
+        let cast_range = self.model.max_range + 0.01;
+        let (s, c) = ctx.sin_cos;
+        for k in 0..US_COUNT {
+            let dir = rotate(self.dirs[k], c, s);
+            let origin = ctx.position + ctx.radius * dir;
+            let hit = ctx
+                .scene
+                .cast(origin, dir, cast_range, ctx.others, ctx.radius);
+            reading.code[k] = self.model.read(k, hit, rng);
+            reading.hit[k] = hit.unwrap_or(cast_range);
+        }
+    }
+
+    fn block(&self) -> Block {
+        Block::new(Self::NAME, US_COUNT, 0.0, 1.0)
+    }
+
+    fn obs_len(&self) -> usize {
+        US_COUNT
+    }
+
+    fn observe(&self, reading: &UsReading, out: &mut [f32]) {
+        for (o, code) in out.iter_mut().zip(reading.code) {
+            *o = self.model.normalise(code);
+        }
+    }
+
+    fn readout(&self, reading: &UsReading, out: &mut Readout) {
+        out.ints("us_cm", US_COUNT, &reading.code.map(i64::from));
+    }
+
+    fn draw(&self, at: &DrawContext, reading: &UsReading, marks: &mut Vec<Mark>) {
+        let (s, c) = at.heading.sin_cos();
+        for (dir, hit) in self.dirs.iter().zip(reading.hit) {
+            let d = rotate(*dir, c, s);
+            let start = at.position + at.radius * d;
+            marks.push(Mark::Ray {
+                from: start,
+                to: start + hit.min(self.model.max_range) * d,
+                colour: [60, 110, 220],
+                alpha: 60,
+                width: 0.004,
+            });
         }
     }
 }

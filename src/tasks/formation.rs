@@ -14,30 +14,213 @@
 //! Follower reward per step: `−error_weight·e_k − collision_penalty·[k in contact]
 //!  − team_weight·mean_j e_j`, with e_k the distance (m) from follower k to its target. The
 //! episode terminates when the leader reaches its goal (success) or, with
-//! `terminate_on_collision`, on any contact; `Env` truncates at `max_steps`.
+//! `terminate_on_collision`, on any contact; `Env` truncates at `max_steps`. Extra episode
+//! statistics: `formation_error_mean`, `formation_error_max` (m).
 
 use rapier2d::math::Vector;
+use toml::Table;
 
 use super::nav;
+use super::{Agent, Task, TaskInfo};
+use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
-use crate::scenario::{FormationConfig, LeaderMode, Scenario};
-use crate::sensors::{IR_COUNT, US_COUNT};
+use crate::draw::{Mark, PALETTE};
+use crate::error::{Error, Result};
+use crate::obs::{Block, ObsLayout, ObsWriter};
+use crate::scenario::{Scenario, Section, TaskSchema};
+use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 
-/// A follower's observation layout: (name, length) in order.
-pub const FOLLOWER_LAYOUT: &[(&str, usize)] = &[
-    ("ir", IR_COUNT),
-    ("us", US_COUNT),
-    ("target_offset", 2),
-    ("leader_offset", 2),
-    ("leader_heading", 2),
-    ("leader_velocity", 2),
-    ("wheel_speeds", 2),
-];
+/// KheperaIV-Formation: a 3 m × 3 m arena and the `[formation]` table.
+pub const FORMATION: TaskInfo = TaskInfo {
+    env_id: Some("KheperaIV-Formation"),
+    summary: "one leader drives to a goal; K followers keep offsets (r, beta) from the leader's \
+              pose (paper eq. 12): x = xL + r cos(beta + thetaL), y = yL + r sin(beta + thetaL); \
+              spawn.start/goal are the leader's, the robots start at rest in formation",
+    schema: TaskSchema {
+        name: "formation",
+        defaults: r#"
+[arena]
+width = 3.0                  # m: room for a formation to travel
+height = 3.0
 
-/// A follower's observation length.
-pub const FOLLOWER_OBS_DIM: usize = IR_COUNT + US_COUNT + 10;
+[spawn]
+min_goal_distance = 1.5
+
+[task]
+max_steps = 800              # 40 s
+"#,
+        section: Some(Section {
+            name: "formation",
+            keys: FormationConfig::KEYS,
+            check: check_section,
+        }),
+    },
+};
+
+/// Formation shapes: offsets (r, β) of the followers relative to the leader's pose (eq. 12).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FormationShape {
+    /// Arms ahead, left, behind, right of the leader (the paper's Fig. 7).
+    Cross,
+    /// Abreast, alternating left and right of the leader.
+    Line,
+    /// A V behind the leader.
+    Wedge,
+    /// Evenly round the leader.
+    Circle,
+    /// The `offsets` list.
+    Custom,
+}
+
+/// Who drives the leader.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LeaderMode {
+    /// Position control with Braitenberg avoidance, in Rust.
+    Scripted,
+    /// A learning agent's actions.
+    Agent,
+}
+
+crate::config_table! {
+    /// `[formation]`: leader–follower formation (paper §3.5).
+    pub struct FormationConfig {
+        /// cross (Fig. 7), line (abreast), wedge (V behind), circle, custom
+        shape: FormationShape = "cross",
+        /// K followers (cross: 4 fills the arms)
+        n_followers: u32 = 4,
+        /// r (m): nearest followers' distance to the leader (the paper's example; > 2 x radius + IR range, so robots in formation do not see each other)
+        spacing: f32 = 0.5,
+        /// custom shape: [[r, beta], ...] (m, rad CCW from the leader's heading)
+        offsets: Vec<[f32; 2]> = [],
+        /// "scripted": position control + Braitenberg in Rust; "agent": learnt
+        leader: LeaderMode = "scripted",
+        /// m/s, scripted leader's speed (slow enough for followers to keep up)
+        leader_vmax: f32 = 0.15,
+        /// rad/s, scripted leader's turn rate limit (eq. 4)
+        leader_wmax: f32 = 1.0,
+        /// m, scripted leader's docking radius (eq. 3)
+        leader_kr: f32 = 0.15,
+        /// reward per metre of a follower's distance to its target
+        error_weight: f32 = 1.0,
+        /// reward per metre of the followers' mean error, shared by all
+        team_weight: f32 = 0.0,
+    }
+}
+
+impl FormationShape {
+    /// The followers' (r, β) offsets of `k` followers at `spacing` (β in radians, CCW from the
+    /// leader's heading). `Custom` has none of its own.
+    pub fn offsets(self, k: usize, spacing: f32) -> Vec<[f32; 2]> {
+        use std::f32::consts::{FRAC_PI_2, PI};
+        let r = spacing;
+        match self {
+            // Arms ahead, left, behind, right; further followers go one spacing further out.
+            FormationShape::Cross => (0..k)
+                .map(|i| [r * (1 + i / 4) as f32, FRAC_PI_2 * (i % 4) as f32])
+                .collect(),
+            FormationShape::Line => (0..k)
+                .map(|i| {
+                    let side = if i % 2 == 0 { FRAC_PI_2 } else { -FRAC_PI_2 };
+                    [r * (1 + i / 2) as f32, side]
+                })
+                .collect(),
+            FormationShape::Wedge => (0..k)
+                .map(|i| {
+                    let side = if i % 2 == 0 { 0.75 * PI } else { -0.75 * PI };
+                    [r * (1 + i / 2) as f32, side]
+                })
+                .collect(),
+            FormationShape::Circle => (0..k)
+                .map(|i| [r, 2.0 * PI * i as f32 / k as f32])
+                .collect(),
+            FormationShape::Custom => Vec::new(),
+        }
+    }
+}
+
+impl FormationConfig {
+    /// The followers' (r, β) offsets from the leader (β in radians, CCW from its heading).
+    pub fn offsets(&self) -> Vec<[f32; 2]> {
+        match self.shape {
+            FormationShape::Custom => self.offsets.clone(),
+            shape => shape.offsets(self.n_followers as usize, self.spacing),
+        }
+    }
+
+    fn validate(&self, origin: &str, radius: f32) -> Result<()> {
+        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
+        if self.shape == FormationShape::Custom {
+            if self.offsets.is_empty() || self.offsets.len() > 16 {
+                return bad(
+                    "formation.offsets",
+                    format!(
+                        "a custom shape needs 1 to 16 [r, beta] offsets, got {}",
+                        self.offsets.len()
+                    ),
+                );
+            }
+        } else if self.n_followers == 0 || self.n_followers > 16 {
+            return bad(
+                "formation.n_followers",
+                format!("must be in 1..=16, got {}", self.n_followers),
+            );
+        }
+        for (key, v) in [
+            ("formation.spacing", self.spacing),
+            ("formation.leader_vmax", self.leader_vmax),
+            ("formation.leader_wmax", self.leader_wmax),
+            ("formation.leader_kr", self.leader_kr),
+        ] {
+            if !v.is_finite() || v <= 0.0 {
+                return bad(key, format!("must be a finite number > 0, got {v}"));
+            }
+        }
+        for (key, v) in [
+            ("formation.error_weight", self.error_weight),
+            ("formation.team_weight", self.team_weight),
+        ] {
+            if !v.is_finite() || v < 0.0 {
+                return bad(key, format!("must be a finite number >= 0, got {v}"));
+            }
+        }
+        // Robots in formation must not overlap one another (the leader sits at the origin).
+        let points: Vec<(f32, f32)> = std::iter::once((0.0, 0.0))
+            .chain(
+                self.offsets()
+                    .iter()
+                    .map(|[r, b]| (r * b.cos(), r * b.sin())),
+            )
+            .collect();
+        for (i, a) in points.iter().enumerate() {
+            for b in &points[i + 1..] {
+                let d = ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt();
+                if !d.is_finite() || d < 2.0 * radius + 0.01 {
+                    let key = if self.shape == FormationShape::Custom {
+                        "formation.offsets"
+                    } else {
+                        "formation.spacing"
+                    };
+                    return bad(
+                        key,
+                        format!(
+                            "robots in formation would be {d:.3} m apart, closer than a robot's \
+                             diameter + 1 cm"
+                        ),
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()> {
+    FormationConfig::from_table(table, origin, "formation")?.validate(origin, scenario.robot.radius)
+}
 
 /// Per-world state of the formation task.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -50,6 +233,8 @@ pub struct Formation {
     pub leader_agent: bool,
     leader_control: PositionControl,
     avoidance: Braitenberg,
+    error_weight: f32,
+    team_weight: f32,
     prev_leader_distance: f32,
     /// Each follower's distance to its target after the last step (m).
     pub errors: Vec<f32>,
@@ -59,28 +244,6 @@ pub struct Formation {
 }
 
 impl Formation {
-    /// The task for a scenario with the `[formation]` table `f`.
-    pub fn new(cfg: &Scenario, f: &FormationConfig) -> Self {
-        let offsets = f.offsets();
-        Self {
-            goal: Vector::ZERO,
-            errors: vec![0.0; offsets.len()],
-            offsets,
-            leader_agent: f.leader == LeaderMode::Agent,
-            leader_control: PositionControl {
-                vmax: f.leader_vmax,
-                wmax: f.leader_wmax,
-                kr: f.leader_kr,
-                stop_radius: 0.5 * cfg.task.goal_radius,
-            },
-            avoidance: Braitenberg::default(),
-            prev_leader_distance: 0.0,
-            error_sum: 0.0,
-            error_count: 0,
-            error_max: 0.0,
-        }
-    }
-
     /// Followers.
     pub fn n_followers(&self) -> usize {
         self.offsets.len()
@@ -94,10 +257,88 @@ impl Formation {
         leader.position + Vector::new(r * a.cos(), r * a.sin())
     }
 
-    /// Starts an episode toward `goal` (robots already placed in formation).
-    pub fn reset(&mut self, world: &World, goal: Vector) {
-        self.goal = goal;
-        self.prev_leader_distance = (goal - world.robots[0].position).length();
+    /// Mean and largest follower error over the episode so far (m).
+    pub fn error_stats(&self) -> (f32, f32) {
+        let mean = if self.error_count == 0 {
+            0.0
+        } else {
+            (self.error_sum / self.error_count as f64) as f32
+        };
+        (mean, self.error_max)
+    }
+
+    /// One follower's observation blocks: its observed sensors', then target_offset,
+    /// leader_offset (m, clipped to the arena diagonal), leader_heading, leader_velocity and
+    /// wheel_speeds.
+    pub fn follower_blocks(cfg: &Scenario, sensors: &[Block]) -> ObsLayout {
+        let reach = cfg.diagonal();
+        let mut blocks = sensors.to_vec();
+        blocks.extend([
+            Block::new("target_offset", 2, -reach, reach),
+            Block::new("leader_offset", 2, -reach, reach),
+            Block::new("leader_heading", 2, -1.0, 1.0),
+            Block::new("leader_velocity", 2, -1.0, 1.0),
+            Block::new("wheel_speeds", 2, -1.0, 1.0),
+        ]);
+        ObsLayout::new(blocks)
+    }
+}
+
+impl Task for Formation {
+    const EXTRA_STATS: &'static [&'static str] = &["formation_error_mean", "formation_error_max"];
+
+    fn new(cfg: &Scenario) -> Result<Self> {
+        let f: FormationConfig = cfg.own()?;
+        let offsets = f.offsets();
+        Ok(Self {
+            goal: Vector::ZERO,
+            errors: vec![0.0; offsets.len()],
+            offsets,
+            leader_agent: f.leader == LeaderMode::Agent,
+            leader_control: PositionControl {
+                vmax: f.leader_vmax,
+                wmax: f.leader_wmax,
+                kr: f.leader_kr,
+                stop_radius: 0.5 * cfg.task.goal_radius,
+            },
+            avoidance: Braitenberg::default(),
+            error_weight: f.error_weight,
+            team_weight: f.team_weight,
+            prev_leader_distance: 0.0,
+            error_sum: 0.0,
+            error_count: 0,
+            error_max: 0.0,
+        })
+    }
+
+    fn spawn(cfg: &Scenario) -> Result<Spawn> {
+        let f: FormationConfig = cfg.own()?;
+        Ok(Spawn::Formation(f.offsets()))
+    }
+
+    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+        let f: FormationConfig = cfg.own()?;
+        let mut agents = Vec::new();
+        if f.leader == LeaderMode::Agent {
+            agents.push(Agent {
+                name: "leader".into(),
+                robot: 0,
+                layout: nav::nav_blocks(cfg, sensors),
+            });
+        }
+        for k in 0..f.offsets().len() {
+            agents.push(Agent {
+                name: format!("follower_{k}"),
+                robot: k + 1,
+                layout: Self::follower_blocks(cfg, sensors),
+            });
+        }
+        Ok(agents)
+    }
+
+    fn reset(&mut self, world: &World, layout: &Layout) {
+        self.goal = layout.goals[0];
+        self.prev_leader_distance = (self.goal - world.robots[0].position).length();
         self.error_sum = 0.0;
         self.error_count = 0;
         self.error_max = 0.0;
@@ -107,15 +348,23 @@ impl Formation {
     }
 
     /// Sets the scripted leader's wheel command from its true pose and last IR readings.
-    pub fn drive_leader(&self, world: &mut World) {
+    fn before_step(&self, world: &mut World) {
+        if self.leader_agent {
+            return;
+        }
         let local = nav::to_robot_frame(world, 0, self.goal);
         let distance = local.length();
         let bearing = local.y.atan2(local.x);
         let (v, w) = self.leader_control.twist(distance, bearing);
         let axle = world.drive.axle_length;
-        let mut proximity = [0.0f32; IR_COUNT];
-        for (p, raw) in proximity.iter_mut().zip(world.robots[0].ir_raw) {
-            *p = world.ir.normalise(raw);
+        let mut proximity = [0.0f32; crate::sensors::IR_COUNT];
+        if let Some(ir) = &world.sensors.ir {
+            for (p, raw) in proximity
+                .iter_mut()
+                .zip(world.robots[0].readings.ir.raw)
+            {
+                *p = ir.sensor.model.normalise(raw);
+            }
         }
         let wheels = self
             .avoidance
@@ -126,11 +375,13 @@ impl Formation {
 
     /// Per-agent rewards after a step (leader first when it is an agent); returns whether the
     /// leader reached its goal.
-    pub fn judge(&mut self, world: &World, cfg: &Scenario, rewards: &mut [f32]) -> bool {
-        let (error_weight, team_weight) = cfg
-            .formation
-            .as_ref()
-            .map_or((1.0, 0.0), |f| (f.error_weight, f.team_weight));
+    fn judge(
+        &mut self,
+        world: &World,
+        cfg: &Scenario,
+        rewards: &mut [f32],
+        _terminated: &mut [bool],
+    ) -> bool {
         for k in 0..self.n_followers() {
             let e = (self.target(world, k) - world.robots[k + 1].position).length();
             self.errors[k] = e;
@@ -146,68 +397,72 @@ impl Formation {
         }
         for k in 0..self.n_followers() {
             let contact = world.robots[k + 1].in_contact as u8 as f32;
-            rewards[first + k] = -error_weight * self.errors[k]
+            rewards[first + k] = -self.error_weight * self.errors[k]
                 - cfg.task.collision_penalty * contact
-                - team_weight * mean;
+                - self.team_weight * mean;
         }
         leader.success
     }
 
-    /// Mean and largest follower error over the episode so far (m).
-    pub fn error_stats(&self) -> (f32, f32) {
-        let mean = if self.error_count == 0 {
-            0.0
-        } else {
-            (self.error_sum / self.error_count as f64) as f32
-        };
-        (mean, self.error_max)
+    fn extra_stats(&self, out: &mut [f32]) {
+        (out[0], out[1]) = self.error_stats();
     }
 
     /// Writes the joint observation: the leader's Nav block when it is an agent, then one block
-    /// per follower (layout [`FOLLOWER_LAYOUT`]).
-    pub fn observe(&self, world: &World, cfg: &Scenario, obs: &mut [f32]) {
-        let mut rest = obs;
+    /// per follower ([`Formation::follower_blocks`]).
+    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
         if self.leader_agent {
-            let (block, tail) = rest.split_at_mut(nav::OBS_DIM);
-            nav::observe_robot(world, 0, self.goal, cfg, block);
-            rest = tail;
+            nav::observe_robot(world, 0, self.goal, cfg, out);
         }
         let (v, w) = world.drive.twist(world.robots[0].wheel_speeds);
         let leader_velocity = [
             (v / world.drive.max_wheel_speed).clamp(-1.0, 1.0),
             (w / world.drive.max_yaw_rate()).clamp(-1.0, 1.0),
         ];
-        let reach = nav::diagonal(cfg);
-        for (k, block) in rest.chunks_exact_mut(FOLLOWER_OBS_DIM).enumerate() {
+        let reach = cfg.diagonal();
+        for k in 0..self.n_followers() {
             let i = k + 1;
-            nav::observe_sensors(world, i, block);
-            let base = IR_COUNT + US_COUNT;
+            world.sensors.observe(&world.robots[i].readings, out);
             let offset = nav::to_robot_frame(world, i, self.target(world, k));
-            block[base] = offset.x.clamp(-reach, reach);
-            block[base + 1] = offset.y.clamp(-reach, reach);
+            out.put(offset.x.clamp(-reach, reach));
+            out.put(offset.y.clamp(-reach, reach));
             let leader = nav::to_robot_frame(world, i, world.robots[0].position);
-            block[base + 2] = leader.x.clamp(-reach, reach);
-            block[base + 3] = leader.y.clamp(-reach, reach);
+            out.put(leader.x.clamp(-reach, reach));
+            out.put(leader.y.clamp(-reach, reach));
             let relative = world.robots[0].heading - world.robots[i].heading;
-            block[base + 4] = relative.sin();
-            block[base + 5] = relative.cos();
-            block[base + 6] = leader_velocity[0];
-            block[base + 7] = leader_velocity[1];
+            out.put(relative.sin());
+            out.put(relative.cos());
+            out.put(leader_velocity[0]);
+            out.put(leader_velocity[1]);
             let [l, r] = nav::wheel_obs(world, i);
-            block[base + 8] = l;
-            block[base + 9] = r;
+            out.put(l);
+            out.put(r);
         }
     }
 
-    /// Bounds of one follower block.
-    pub fn follower_bounds(cfg: &Scenario) -> (Vec<f32>, Vec<f32>) {
-        let reach = nav::diagonal(cfg);
-        let mut low = vec![0.0; IR_COUNT + US_COUNT];
-        let mut high = vec![1.0; IR_COUNT + US_COUNT];
-        low.extend([-reach, -reach, -reach, -reach]);
-        high.extend([reach, reach, reach, reach]);
-        low.extend([-1.0; 6]);
-        high.extend([1.0; 6]);
-        (low, high)
+    fn goals(&self) -> Vec<Vector> {
+        vec![self.goal]
+    }
+
+    fn targets(&self, world: &World) -> Vec<Vector> {
+        (0..self.n_followers())
+            .map(|k| self.target(world, k))
+            .collect()
+    }
+
+    fn fits(&self, twin: &Self) -> bool {
+        self.offsets.len() == twin.offsets.len() && self.errors.len() == twin.errors.len()
+    }
+
+    fn draw(&self, world: &World, cfg: &Scenario, marks: &mut Vec<Mark>) {
+        marks.push(nav::goal_mark(self.goal, cfg, None));
+        // Targets: crosses in their follower's colour.
+        for (k, target) in self.targets(world).into_iter().enumerate() {
+            marks.push(Mark::Cross {
+                position: target,
+                size: 0.025,
+                colour: PALETTE[(k + 1) % 8],
+            });
+        }
     }
 }

@@ -1,11 +1,15 @@
-//! Tasks: what a world is for. Each task file (nav.rs for Nav and Avoid, formation.rs,
-//! multinav.rs) starts its episodes, judges a step (rewards, success) and writes observations.
-//! [`Env`] joins a task to a world and keeps the episode's bookkeeping (layout at reset, step
-//! counter, termination, statistics) in one place.
+//! Tasks: what a world is for. Each task is one file here implementing the [`Task`] contract
+//! (its scenario defaults and table, spawn rule, agents and their observation blocks, reset,
+//! per-step hook, rewards and termination, extra episode statistics, what it draws) and one line
+//! in `task_registry!` below. [`Env`] joins a task to a world and keeps the episode's bookkeeping
+//! (layout at reset, step counter, termination, statistics, trails) in one place; the batch,
+//! the world, the renderer and the binding never look at which task they hold.
 //!
 //! Agents: a task has one or more agents, each acting on one robot with two normalised numbers
 //! and observing one block of the joint observation. The joint action is the agents' actions
 //! in order; the joint reward is the mean of the agents' rewards.
+//!
+//! Dispatch is static: the registry generates an enum of the tasks' states and matches on it.
 
 pub mod formation;
 pub mod multinav;
@@ -16,154 +20,289 @@ use std::sync::Arc;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
+use serde::{de::DeserializeOwned, Serialize};
 
+use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::robot::ActionType;
-use crate::scenario::{LeaderMode, Scenario};
-use crate::world::layout::{Spawn, Spawner};
+use crate::scenario::{Scenario, Source, TaskSchema};
+use crate::world::layout::{Layout, Spawn, Spawner};
 use crate::world::World;
 
-/// The tasks the simulator knows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TaskKind {
-    /// Position control to a goal in an empty arena.
-    Nav,
-    /// Position control to a goal among obstacles.
-    Avoid,
-    /// A leader and followers holding a formation.
-    Formation,
-    /// Several robots, each with its own goal.
-    MultiNav,
-}
-
-impl TaskKind {
-    /// Every task, for listings.
-    pub const ALL: [TaskKind; 4] = [
-        TaskKind::Nav,
-        TaskKind::Avoid,
-        TaskKind::Formation,
-        TaskKind::MultiNav,
-    ];
-
-    /// Parses a task name ("nav", "avoid", "formation", "multinav").
-    pub fn parse(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|k| k.name() == name)
-    }
-
-    /// The task's name, also its built-in scenario's name.
-    pub fn name(self) -> &'static str {
-        match self {
-            TaskKind::Nav => "nav",
-            TaskKind::Avoid => "avoid",
-            TaskKind::Formation => "formation",
-            TaskKind::MultiNav => "multinav",
-        }
-    }
-
-    /// The agents of a world of this task: (name, robot index, observation layout).
-    pub fn agents(self, cfg: &Scenario) -> Vec<AgentSpec> {
-        let nav_agent = |name: String, robot| AgentSpec {
-            name,
-            robot,
-            layout: nav::OBS_LAYOUT,
-        };
-        match self {
-            TaskKind::Nav | TaskKind::Avoid => vec![nav_agent("robot".into(), 0)],
-            TaskKind::MultiNav => {
-                let n = cfg.multinav.as_ref().map_or(1, |m| m.n_robots as usize);
-                (0..n).map(|i| nav_agent(format!("robot_{i}"), i)).collect()
-            }
-            TaskKind::Formation => {
-                let Some(f) = &cfg.formation else {
-                    return Vec::new();
-                };
-                let mut agents = Vec::new();
-                if f.leader == LeaderMode::Agent {
-                    agents.push(nav_agent("leader".into(), 0));
-                }
-                for k in 0..f.offsets().len() {
-                    agents.push(AgentSpec {
-                        name: format!("follower_{k}"),
-                        robot: k + 1,
-                        layout: formation::FOLLOWER_LAYOUT,
-                    });
-                }
-                agents
-            }
-        }
-    }
-
-    /// The joint observation layout: (name, length) blocks in order; with several agents each
-    /// name is prefixed by the agent's (`follower_0/ir`).
-    pub fn obs_layout(self, cfg: &Scenario) -> Vec<(String, usize)> {
-        let agents = self.agents(cfg);
-        let single = agents.len() == 1;
-        agents
-            .iter()
-            .flat_map(|a| {
-                a.layout.iter().map(move |(name, n)| {
-                    let full = if single {
-                        name.to_string()
-                    } else {
-                        format!("{}/{name}", a.name)
-                    };
-                    (full, *n)
-                })
-            })
-            .collect()
-    }
-
-    /// Joint observation length.
-    pub fn obs_dim(self, cfg: &Scenario) -> usize {
-        self.agents(cfg).iter().map(AgentSpec::obs_dim).sum()
-    }
-
-    /// Joint action length: two wheel numbers per agent.
-    pub fn act_dim(self, cfg: &Scenario) -> usize {
-        2 * self.agents(cfg).len()
-    }
-
-    /// Robots in a world.
-    pub fn n_robots(self, cfg: &Scenario) -> usize {
-        match self {
-            TaskKind::Nav | TaskKind::Avoid => 1,
-            TaskKind::MultiNav => cfg.multinav.as_ref().map_or(1, |m| m.n_robots as usize),
-            TaskKind::Formation => 1 + cfg.formation.as_ref().map_or(0, |f| f.offsets().len()),
-        }
-    }
-
-    /// Joint observation bounds (low, high).
-    pub fn obs_bounds(self, cfg: &Scenario) -> (Vec<f32>, Vec<f32>) {
-        let (mut low, mut high) = (Vec::new(), Vec::new());
-        for agent in self.agents(cfg) {
-            let (l, h) = if agent.layout == formation::FOLLOWER_LAYOUT {
-                formation::Formation::follower_bounds(cfg)
-            } else {
-                nav::Nav::bounds(cfg)
-            };
-            low.extend(l);
-            high.extend(h);
-        }
-        (low, high)
-    }
+/// What a task is, beyond its code: its Gymnasium id, a summary, and its scenario schema.
+#[derive(Debug, Clone, Copy)]
+pub struct TaskInfo {
+    /// Gymnasium id without version (`"KheperaIV-Nav"`), or None for a PettingZoo-only task.
+    pub env_id: Option<&'static str>,
+    /// One line for the head of its default scenario file.
+    pub summary: &'static str,
+    /// Its name, defaults and own table.
+    pub schema: TaskSchema,
 }
 
 /// One agent of a task.
-#[derive(Debug, Clone)]
-pub struct AgentSpec {
+#[derive(Debug, Clone, PartialEq)]
+pub struct Agent {
     /// Its name (PettingZoo agent id).
     pub name: String,
     /// The robot it drives.
     pub robot: usize,
     /// Its observation block's layout.
-    pub layout: &'static [(&'static str, usize)],
+    pub layout: ObsLayout,
 }
 
-impl AgentSpec {
-    /// Length of its observation block.
-    pub fn obs_dim(&self) -> usize {
-        self.layout.iter().map(|(_, n)| n).sum()
+/// Most extra statistics a task may keep ([`Task::EXTRA_STATS`]).
+pub const MAX_EXTRA_STATS: usize = 4;
+
+/// The contract every task implements. `Self` is the per-world task state; it is saved with the
+/// world (`get_state`), so it must serialise whole.
+pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
+    /// Names of its extra episode statistics (at most [`MAX_EXTRA_STATS`]).
+    const EXTRA_STATS: &'static [&'static str] = &[];
+
+    /// The state of one world for a validated scenario (its own table read with
+    /// `cfg.own()`).
+    fn new(cfg: &Scenario) -> Result<Self>;
+
+    /// How its robots are spawned: how many, and where relative to one another.
+    fn spawn(cfg: &Scenario) -> Result<Spawn>;
+
+    /// Its agents, each with its observation blocks (the observed sensors' `sensors`, then the
+    /// task's own).
+    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>>;
+
+    /// Starts an episode; the robots are already placed at `layout`'s poses.
+    fn reset(&mut self, world: &World, layout: &Layout);
+
+    /// Before the world moves (agents' commands are set): commands of scripted robots.
+    fn before_step(&self, _world: &mut World) {}
+
+    /// After the world moved and sensed: each agent's reward and termination; returns whether
+    /// the task succeeded (which terminates the episode).
+    fn judge(
+        &mut self,
+        world: &World,
+        cfg: &Scenario,
+        rewards: &mut [f32],
+        terminated: &mut [bool],
+    ) -> bool;
+
+    /// Its extra statistics of the running episode, in the order of `EXTRA_STATS`.
+    fn extra_stats(&self, _out: &mut [f32]) {}
+
+    /// Writes the joint observation (every agent's blocks, in agent order).
+    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter);
+
+    /// Goal positions (m).
+    fn goals(&self) -> Vec<Vector>;
+
+    /// Target points other than goals (formation targets), m.
+    fn targets(&self, _world: &World) -> Vec<Vector> {
+        Vec::new()
     }
+
+    /// Whether a saved state of this task fits `twin`, a fresh state of this env.
+    fn fits(&self, _twin: &Self) -> bool {
+        true
+    }
+
+    /// What the renderer draws for it (goals, targets, references).
+    fn draw(&self, world: &World, cfg: &Scenario, marks: &mut Vec<Mark>);
+}
+
+/// Declares the tasks. Each line is `Variant(StateType) = INFO`; several variants may share a
+/// state type (Nav and Avoid).
+macro_rules! task_registry {
+    ($($variant:ident($ty:ty) = $info:expr),* $(,)?) => {
+        /// The tasks the simulator knows.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub enum TaskKind {
+            $(
+                #[doc = concat!("See [`", stringify!($info), "`].")]
+                $variant,
+            )*
+        }
+
+        /// A world's task state, one variant per task.
+        #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+        enum TaskState {
+            $($variant($ty),)*
+        }
+
+        impl TaskKind {
+            /// Every task, in registry order.
+            pub const ALL: &'static [TaskKind] = &[$(TaskKind::$variant),*];
+
+            /// What the task is: id, summary, scenario schema.
+            pub fn info(self) -> &'static TaskInfo {
+                match self {
+                    $(TaskKind::$variant => &$info,)*
+                }
+            }
+
+            /// Names of its extra episode statistics.
+            pub fn extra_stats(self) -> &'static [&'static str] {
+                match self {
+                    $(TaskKind::$variant => <$ty as Task>::EXTRA_STATS,)*
+                }
+            }
+
+            /// How its robots are spawned.
+            pub fn spawn(self, cfg: &Scenario) -> Result<Spawn> {
+                match self {
+                    $(TaskKind::$variant => <$ty as Task>::spawn(cfg),)*
+                }
+            }
+
+            /// Its agents with their observation layouts, for a scenario.
+            pub fn agents(self, cfg: &Scenario) -> Result<Vec<Agent>> {
+                let sensors = crate::sensors::Suite::new(&cfg.sensors).blocks();
+                match self {
+                    $(TaskKind::$variant => <$ty as Task>::agents(cfg, &sensors),)*
+                }
+            }
+
+            fn new_state(self, cfg: &Scenario) -> Result<TaskState> {
+                match self {
+                    $(TaskKind::$variant => Ok(TaskState::$variant(<$ty as Task>::new(cfg)?)),)*
+                }
+            }
+        }
+
+        impl TaskState {
+            fn kind(&self) -> TaskKind {
+                match self {
+                    $(TaskState::$variant(_) => TaskKind::$variant,)*
+                }
+            }
+
+            fn reset(&mut self, world: &World, layout: &Layout) {
+                match self {
+                    $(TaskState::$variant(t) => t.reset(world, layout),)*
+                }
+            }
+
+            fn before_step(&self, world: &mut World) {
+                match self {
+                    $(TaskState::$variant(t) => t.before_step(world),)*
+                }
+            }
+
+            fn judge(
+                &mut self,
+                world: &World,
+                cfg: &Scenario,
+                rewards: &mut [f32],
+                terminated: &mut [bool],
+            ) -> bool {
+                match self {
+                    $(TaskState::$variant(t) => t.judge(world, cfg, rewards, terminated),)*
+                }
+            }
+
+            fn extra_stats(&self, out: &mut [f32]) {
+                match self {
+                    $(TaskState::$variant(t) => t.extra_stats(out),)*
+                }
+            }
+
+            fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+                match self {
+                    $(TaskState::$variant(t) => t.observe(world, cfg, out),)*
+                }
+            }
+
+            fn goals(&self) -> Vec<Vector> {
+                match self {
+                    $(TaskState::$variant(t) => t.goals(),)*
+                }
+            }
+
+            fn targets(&self, world: &World) -> Vec<Vector> {
+                match self {
+                    $(TaskState::$variant(t) => t.targets(world),)*
+                }
+            }
+
+            fn fits(&self, twin: &TaskState) -> bool {
+                match (self, twin) {
+                    $((TaskState::$variant(a), TaskState::$variant(b)) => a.fits(b),)*
+                    #[allow(unreachable_patterns)]
+                    _ => false,
+                }
+            }
+
+            fn draw(&self, world: &World, cfg: &Scenario, marks: &mut Vec<Mark>) {
+                match self {
+                    $(TaskState::$variant(t) => t.draw(world, cfg, marks),)*
+                }
+            }
+        }
+    };
+}
+
+task_registry! {
+    Nav(nav::Nav) = nav::NAV,
+    Avoid(nav::Nav) = nav::AVOID,
+    Formation(formation::Formation) = formation::FORMATION,
+    MultiNav(multinav::MultiNav) = multinav::MULTINAV,
+}
+
+impl TaskKind {
+    /// Parses a task name ("nav", "avoid", "formation", "multinav").
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.iter().copied().find(|k| k.name() == name)
+    }
+
+    /// The task's name, also its default scenario's name.
+    pub fn name(self) -> &'static str {
+        self.info().schema.name
+    }
+
+    /// Loads the task's scenario: its defaults, then `source`'s file and overrides.
+    pub fn scenario(self, source: &Source) -> Result<Scenario> {
+        self.info().schema.load(source)
+    }
+
+    /// The task's default scenario file: every key with its default and comment.
+    pub fn default_config(self) -> Result<String> {
+        let info = self.info();
+        let title = info.env_id.unwrap_or(info.schema.name);
+        let header = format!(
+            "{title}: {}.\nEvery key the scenario has, with its default; a scenario file or keyword \
+             override may change any of them and may not add others.\nUnits: metres, seconds, \
+             radians, m/s. [E] marks an estimate (spec §11).",
+            info.summary
+        );
+        info.schema.render_defaults(&header)
+    }
+
+    /// The joint observation layout: the agents' blocks in order; with several agents each
+    /// name is prefixed by the agent's (`follower_0/ir`).
+    pub fn obs_layout(self, cfg: &Scenario) -> Result<ObsLayout> {
+        let agents = self.agents(cfg)?;
+        let single = agents.len() == 1;
+        let mut joint = ObsLayout::default();
+        for agent in &agents {
+            joint.extend(&agent.layout, (!single).then_some(agent.name.as_str()));
+        }
+        Ok(joint)
+    }
+}
+
+/// Loads the scenario of the task named `task` (its defaults, then the file, then the
+/// overrides); an unknown task is a [`crate::error::Error::Config`] listing the known ones.
+pub fn load_scenario(task: &str, source: &Source) -> Result<Scenario> {
+    let kind = TaskKind::parse(task).ok_or_else(|| {
+        let known: Vec<&str> = TaskKind::ALL.iter().map(|k| k.name()).collect();
+        Error::config(
+            "<built-in>",
+            "task",
+            format!("unknown task {task:?}; known: {known:?}"),
+        )
+    })?;
+    kind.scenario(source)
 }
 
 /// Statistics of one episode.
@@ -179,10 +318,8 @@ pub struct EpisodeStats {
     pub path_length: f32,
     /// Steps in which a robot was in contact with something.
     pub collisions: u32,
-    /// Formation only: mean follower distance to target over the episode (m).
-    pub formation_error_mean: f32,
-    /// Formation only: largest follower distance to target in the episode (m).
-    pub formation_error_max: f32,
+    /// The task's extra statistics, in the order of its `EXTRA_STATS`.
+    pub extra: [f32; MAX_EXTRA_STATS],
 }
 
 /// What a step returns besides the observation.
@@ -194,13 +331,6 @@ pub struct StepOutcome {
     pub terminated: bool,
     /// The episode hit its step limit.
     pub truncated: bool,
-}
-
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-enum TaskState {
-    Nav(nav::Nav),
-    Formation(formation::Formation),
-    MultiNav(multinav::MultiNav),
 }
 
 /// What [`Env::save_state`] writes, borrowed from the env.
@@ -236,8 +366,7 @@ pub struct Env {
     /// The scenario it was built from.
     pub cfg: Arc<Scenario>,
     spawner: Arc<Spawner>,
-    kind: TaskKind,
-    state: TaskState,
+    task: TaskState,
     action_type: ActionType,
     agent_robots: Vec<usize>,
     /// Each agent's reward on the last step.
@@ -264,29 +393,15 @@ impl Env {
         spawner: Arc<Spawner>,
         action_type: ActionType,
     ) -> Result<Self> {
-        let world = World::new(&cfg, spawner.base.clone(), kind.n_robots(&cfg));
-        let state = match kind {
-            TaskKind::Nav | TaskKind::Avoid => TaskState::Nav(nav::Nav::default()),
-            TaskKind::MultiNav => TaskState::MultiNav(multinav::MultiNav::new(kind.n_robots(&cfg))),
-            TaskKind::Formation => {
-                let f = cfg.formation.as_ref().ok_or_else(|| {
-                    Error::config(
-                        "<batch>",
-                        "formation",
-                        "the formation task needs a [formation] table",
-                    )
-                })?;
-                TaskState::Formation(formation::Formation::new(&cfg, f))
-            }
-        };
-        let agent_robots: Vec<usize> = kind.agents(&cfg).iter().map(|a| a.robot).collect();
+        let world = World::new(&cfg, spawner.base.clone(), spawner.n_robots());
+        let task = kind.new_state(&cfg)?;
+        let agent_robots: Vec<usize> = kind.agents(&cfg)?.iter().map(|a| a.robot).collect();
         let n_agents = agent_robots.len();
         Ok(Self {
             world,
             cfg,
             spawner,
-            kind,
-            state,
+            task,
             action_type,
             agent_robots,
             agent_rewards: vec![0.0; n_agents],
@@ -299,18 +414,15 @@ impl Env {
         })
     }
 
-    /// The spawner of a scenario for `kind` (shared by every world of a batch).
+    /// The spawner of a scenario for `kind` (built once and shared by every world of a batch);
+    /// checks that its layouts are feasible, naming the scenario's origin in errors.
     pub fn spawner(kind: TaskKind, cfg: &Scenario) -> Result<Spawner> {
-        Spawner::new(
-            cfg,
-            Spawn::for_task(kind.name(), cfg, "<batch>")?,
-            "<batch>",
-        )
+        Spawner::new(cfg, kind.spawn(cfg)?, &cfg.origin)
     }
 
     /// The task.
     pub fn kind(&self) -> TaskKind {
-        self.kind
+        self.task.kind()
     }
 
     /// Restarts the world's random stream from `seed`.
@@ -329,17 +441,13 @@ impl Env {
         if self.cfg.obstacles.count > 0 {
             // New random obstacles: the fixed scene plus this episode's.
             let mut scene = self.spawner.base.clone();
-            scene.shapes.extend(layout.obstacles);
+            scene.shapes.extend(layout.obstacles.iter().copied());
             self.world.set_scene(scene);
         }
         for (i, (position, heading)) in layout.poses.iter().enumerate() {
             self.world.place_robot(i, *position, *heading);
         }
-        match &mut self.state {
-            TaskState::Nav(nav) => nav.reset(&self.world, layout.goals[0]),
-            TaskState::MultiNav(m) => m.reset(&self.world, &layout.goals),
-            TaskState::Formation(f) => f.reset(&self.world, layout.goals[0]),
-        }
+        self.task.reset(&self.world, &layout);
         self.world.sense();
         self.observe(obs);
         self.trails.clear();
@@ -381,34 +489,15 @@ impl Env {
                 .wheel_command([pair[0], pair[1]], self.action_type);
             self.world.robots[*robot].wheel_command = command;
         }
-        match &self.state {
-            TaskState::Formation(f) if !f.leader_agent => f.drive_leader(&mut self.world),
-            TaskState::MultiNav(m) => {
-                for (robot, arrived) in self.world.robots.iter_mut().zip(&m.arrived) {
-                    if *arrived {
-                        robot.wheel_command = [0.0, 0.0];
-                    }
-                }
-            }
-            _ => {}
-        }
+        self.task.before_step(&mut self.world);
         self.world.advance();
         self.world.sense();
-        let success = match &mut self.state {
-            TaskState::Nav(nav) => {
-                let j = nav.judge(&self.world, &self.cfg);
-                self.agent_rewards[0] = j.reward;
-                self.agent_terminated[0] = j.success;
-                j.success
-            }
-            TaskState::MultiNav(m) => m.judge(
-                &self.world,
-                &self.cfg,
-                &mut self.agent_rewards,
-                &mut self.agent_terminated,
-            ),
-            TaskState::Formation(f) => f.judge(&self.world, &self.cfg, &mut self.agent_rewards),
-        };
+        let success = self.task.judge(
+            &self.world,
+            &self.cfg,
+            &mut self.agent_rewards,
+            &mut self.agent_terminated,
+        );
         let reward = self.agent_rewards.iter().sum::<f32>() / self.agent_rewards.len() as f32;
         let collided = self.world.robots.iter().any(|r| r.in_contact);
         let stats = &mut self.stats;
@@ -417,9 +506,7 @@ impl Env {
         stats.success |= success;
         stats.path_length += self.world.robots.iter().map(|r| r.step_travel).sum::<f32>();
         stats.collisions += collided as u32;
-        if let TaskState::Formation(f) = &self.state {
-            (stats.formation_error_mean, stats.formation_error_max) = f.error_stats();
-        }
+        self.task.extra_stats(&mut stats.extra);
         let terminated = success || (collided && self.cfg.task.terminate_on_collision);
         let truncated = !terminated && stats.length >= self.cfg.task.max_steps;
         if terminated {
@@ -439,18 +526,16 @@ impl Env {
     }
 
     fn observe(&self, obs: &mut [f32]) {
-        match &self.state {
-            TaskState::Nav(nav) => nav.observe(&self.world, &self.cfg, obs),
-            TaskState::MultiNav(m) => m.observe(&self.world, &self.cfg, obs),
-            TaskState::Formation(f) => f.observe(&self.world, &self.cfg, obs),
-        }
+        let mut out = ObsWriter::new(obs);
+        self.task.observe(&self.world, &self.cfg, &mut out);
+        debug_assert_eq!(out.position(), obs.len(), "observation layout and writer disagree");
     }
 
     /// A fresh env of the same task, scenario, action type and trail length (its state to be
     /// loaded).
     pub fn empty_twin(&self) -> Result<Self> {
         let mut twin = Self::new(
-            self.kind,
+            self.kind(),
             self.cfg.clone(),
             self.spawner.clone(),
             self.action_type,
@@ -465,7 +550,7 @@ impl Env {
     pub fn save_state(&self, out: &mut Vec<u8>) -> Result<()> {
         let state = EnvStateRef {
             world: &self.world,
-            task: &self.state,
+            task: &self.task,
             agent_rewards: &self.agent_rewards,
             agent_terminated: &self.agent_terminated,
             stats: &self.stats,
@@ -486,27 +571,17 @@ impl Env {
             .map_err(|e| Error::SavedState(format!("corrupt env state: {e}")))?;
         let n_robots = self.world.robots.len();
         let n_agents = self.agent_robots.len();
-        let task_fits = match (&state.task, &self.state) {
-            (TaskState::Nav(_), TaskState::Nav(_)) => true,
-            (TaskState::MultiNav(a), TaskState::MultiNav(_)) => {
-                a.goals.len() == n_robots && a.arrived.len() == n_robots
-            }
-            (TaskState::Formation(a), TaskState::Formation(b)) => {
-                a.offsets.len() == b.offsets.len() && a.errors.len() == b.errors.len()
-            }
-            _ => false,
-        };
         if state.world.robots.len() != n_robots
             || state.agent_rewards.len() != n_agents
             || state.agent_terminated.len() != n_agents
-            || !task_fits
+            || !state.task.fits(&self.task)
         {
             return Err(Error::SavedState(
                 "the state does not fit this env (other task or number of robots)".into(),
             ));
         }
         self.world = state.world;
-        self.state = state.task;
+        self.task = state.task;
         self.agent_rewards = state.agent_rewards;
         self.agent_terminated = state.agent_terminated;
         self.stats = state.stats;
@@ -525,28 +600,26 @@ impl Env {
 
     /// Goal positions (m).
     pub fn goals(&self) -> Vec<Vector> {
-        match &self.state {
-            TaskState::Nav(nav) => vec![nav.goal],
-            TaskState::MultiNav(m) => m.goals.clone(),
-            TaskState::Formation(f) => vec![f.goal],
-        }
+        self.task.goals()
     }
 
-    /// How many goals [`Env::goals`] returns.
-    pub fn n_goals(&self) -> usize {
-        match &self.state {
-            TaskState::MultiNav(_) => self.world.robots.len(),
-            _ => 1,
-        }
+    /// Target points of the task other than goals (the followers' formation targets), m.
+    pub fn targets(&self) -> Vec<Vector> {
+        self.task.targets(&self.world)
     }
 
-    /// Formation targets of the followers (empty for other tasks).
-    pub fn formation_targets(&self) -> Vec<Vector> {
-        match &self.state {
-            TaskState::Formation(f) => (0..f.n_followers())
-                .map(|k| f.target(&self.world, k))
-                .collect(),
-            _ => Vec::new(),
-        }
+    /// What the renderer draws for the task (goals, targets).
+    pub fn task_marks(&self, marks: &mut Vec<Mark>) {
+        self.task.draw(&self.world, &self.cfg, marks);
+    }
+
+    /// The task's extra statistics of an episode, by name.
+    pub fn extra_stats(&self, stats: &EpisodeStats) -> Vec<(&'static str, f32)> {
+        self.kind()
+            .extra_stats()
+            .iter()
+            .zip(stats.extra)
+            .map(|(n, v)| (*n, v))
+            .collect()
     }
 }

@@ -5,10 +5,65 @@
 //! an obstacle for the others. The episode terminates when every robot has arrived.
 
 use rapier2d::math::Vector;
+use toml::Table;
 
 use super::nav;
-use crate::scenario::Scenario;
+use super::{Agent, Task, TaskInfo};
+use crate::config::ConfigTable;
+use crate::draw::Mark;
+use crate::error::{Error, Result};
+use crate::obs::{Block, ObsWriter};
+use crate::scenario::{Scenario, Section, TaskSchema};
+use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
+
+/// Largest number of robots in a multinav world.
+pub const MAX_ROBOTS: u32 = 32;
+
+/// multinav: the Nav defaults and the `[multinav]` table.
+pub const MULTINAV: TaskInfo = TaskInfo {
+    env_id: None,
+    summary: "several robots, each driving to its own goal; they are obstacles to each other",
+    schema: TaskSchema {
+        name: "multinav",
+        defaults: r#"
+[obstacles]
+placement = "anywhere"       # with count > 0, obstacles anywhere in the arena
+
+[spawn]
+min_goal_distance = 1.0      # m: each robot crosses the arena, so robots meet on the way
+
+[task]
+max_steps = 600              # 30 s: robots make way for one another
+collision_penalty = 0.5      # contacts (with walls and other robots) cost as in Avoid
+"#,
+        section: Some(Section {
+            name: "multinav",
+            keys: MultiNavConfig::KEYS,
+            check: check_section,
+        }),
+    },
+};
+
+crate::config_table! {
+    /// `[multinav]`: several robots, each with its own goal.
+    pub struct MultiNavConfig {
+        /// robots, each with its own goal; they are obstacles to each other (1..32)
+        n_robots: u32 = 4,
+    }
+}
+
+fn check_section(table: &Table, _scenario: &Scenario, origin: &str) -> Result<()> {
+    let m = MultiNavConfig::from_table(table, origin, "multinav")?;
+    if m.n_robots == 0 || m.n_robots > MAX_ROBOTS {
+        return Err(Error::config(
+            origin,
+            "multinav.n_robots",
+            format!("must be in 1..={MAX_ROBOTS}, got {}", m.n_robots),
+        ));
+    }
+    Ok(())
+}
 
 /// Per-world state of the multi-robot navigation task.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
@@ -20,30 +75,54 @@ pub struct MultiNav {
     pub arrived: Vec<bool>,
 }
 
-impl MultiNav {
-    /// The task for `n` robots (goals at the origin until the first reset).
-    pub fn new(n: usize) -> Self {
-        Self {
+impl Task for MultiNav {
+    fn new(cfg: &Scenario) -> Result<Self> {
+        let n = cfg.own::<MultiNavConfig>()?.n_robots as usize;
+        Ok(Self {
             goals: vec![Vector::ZERO; n],
             prev_distance: vec![0.0; n],
             arrived: vec![false; n],
-        }
+        })
     }
 
-    /// Starts an episode toward `goals` (robots already placed).
-    pub fn reset(&mut self, world: &World, goals: &[Vector]) {
-        self.goals = goals.to_vec();
-        self.prev_distance = goals
+    fn spawn(cfg: &Scenario) -> Result<Spawn> {
+        Ok(Spawn::Multi(cfg.own::<MultiNavConfig>()?.n_robots as usize))
+    }
+
+    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+        let n = cfg.own::<MultiNavConfig>()?.n_robots as usize;
+        Ok((0..n)
+            .map(|i| Agent {
+                name: format!("robot_{i}"),
+                robot: i,
+                layout: nav::nav_blocks(cfg, sensors),
+            })
+            .collect())
+    }
+
+    fn reset(&mut self, world: &World, layout: &Layout) {
+        self.goals = layout.goals.clone();
+        self.prev_distance = self
+            .goals
             .iter()
             .zip(&world.robots)
             .map(|(g, r)| (*g - r.position).length())
             .collect();
-        self.arrived = vec![false; goals.len()];
+        self.arrived = vec![false; self.goals.len()];
+    }
+
+    /// Parked robots (arrived) get zero wheel commands.
+    fn before_step(&self, world: &mut World) {
+        for (robot, arrived) in world.robots.iter_mut().zip(&self.arrived) {
+            if *arrived {
+                robot.wheel_command = [0.0, 0.0];
+            }
+        }
     }
 
     /// Rewards and arrivals after a step: `rewards[i]` and `terminated[i]` per robot; returns
     /// whether every robot has now arrived.
-    pub fn judge(
+    fn judge(
         &mut self,
         world: &World,
         cfg: &Scenario,
@@ -65,9 +144,23 @@ impl MultiNav {
     }
 
     /// Writes every robot's Nav observation, one block after another.
-    pub fn observe(&self, world: &World, cfg: &Scenario, obs: &mut [f32]) {
-        for (i, block) in obs.chunks_exact_mut(nav::OBS_DIM).enumerate() {
-            nav::observe_robot(world, i, self.goals[i], cfg, block);
+    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+        for (i, goal) in self.goals.iter().enumerate() {
+            nav::observe_robot(world, i, *goal, cfg, out);
+        }
+    }
+
+    fn goals(&self) -> Vec<Vector> {
+        self.goals.clone()
+    }
+
+    fn fits(&self, twin: &Self) -> bool {
+        self.goals.len() == twin.goals.len() && self.arrived.len() == twin.arrived.len()
+    }
+
+    fn draw(&self, _world: &World, cfg: &Scenario, marks: &mut Vec<Mark>) {
+        for (k, goal) in self.goals.iter().enumerate() {
+            marks.push(nav::goal_mark(*goal, cfg, Some(k)));
         }
     }
 }

@@ -1,33 +1,59 @@
 //! KheperaIV-Nav and KheperaIV-Avoid: position control to a goal, in an empty walled arena (Nav,
 //! the paper's §3.3) or among obstacles (Avoid, §3.4). Both are this file; they differ only in
-//! their scenario (configs/nav.toml, configs/avoid.toml).
+//! their defaults ([`NAV`], [`AVOID`]).
 //!
 //! Reset: the spawner (world/layout.rs) draws the start pose, the goal and random obstacles.
 //! Reward per step: `progress_weight·(d_prev − d) − time_cost + success_bonus·[d < goal_radius]
 //!  − collision_penalty·[in contact]`. Terminates on success (or on contact when
 //! `terminate_on_collision`); `Env` truncates at `max_steps`.
 //!
-//! Observation (robot frame x forward, y left): see [`OBS_LAYOUT`]. The helpers here work on any
-//! robot of a world, so multi-robot tasks reuse them.
+//! Observation (robot frame x forward, y left): the observed sensors' blocks, then
+//! `goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`, `wheel_speeds` ([`nav_blocks`]).
+//! The helpers here work on any robot of a world, so multi-robot tasks reuse them.
 
 use rapier2d::math::Vector;
 
-use crate::scenario::Scenario;
-use crate::sensors::{IR_COUNT, US_COUNT};
+use super::{Agent, Task, TaskInfo};
+use crate::draw::Mark;
+use crate::error::Result;
+use crate::obs::{Block, ObsLayout, ObsWriter};
+use crate::scenario::{Scenario, TaskSchema};
+use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 
-/// Observation layout: (name, length) in order.
-pub const OBS_LAYOUT: &[(&str, usize)] = &[
-    ("ir", IR_COUNT),
-    ("us", US_COUNT),
-    ("goal_distance", 1),
-    ("goal_bearing_sin", 1),
-    ("goal_bearing_cos", 1),
-    ("wheel_speeds", 2),
-];
+/// KheperaIV-Nav: the shared defaults as they are.
+pub const NAV: TaskInfo = TaskInfo {
+    env_id: Some("KheperaIV-Nav"),
+    summary: "drive a Khepera IV to a goal in an empty walled arena (position control)",
+    schema: TaskSchema {
+        name: "nav",
+        defaults: "",
+        section: None,
+    },
+};
 
-/// Observation length of one navigating robot.
-pub const OBS_DIM: usize = IR_COUNT + US_COUNT + 5;
+/// KheperaIV-Avoid: Nav among random obstacles, new ones every episode.
+pub const AVOID: TaskInfo = TaskInfo {
+    env_id: Some("KheperaIV-Avoid"),
+    summary: "the Nav task among random obstacles (circles, boxes, wall segments), new ones \
+              every episode",
+    schema: TaskSchema {
+        name: "avoid",
+        defaults: r#"
+[obstacles]
+count = 10                   # random obstacles per episode
+placement = "anywhere"       # at this density several lie between start and goal
+
+[spawn]
+min_goal_distance = 1.0      # far enough for obstacles to be in the way
+
+[task]
+max_steps = 600              # 30 s: detours take longer
+collision_penalty = 0.5      # contacts cost more than in Nav
+"#,
+        section: None,
+    },
+};
 
 /// Per-world state of the Nav/Avoid task.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
@@ -46,31 +72,66 @@ pub struct Judgement {
     pub success: bool,
 }
 
-impl Nav {
-    /// Starts an episode toward `goal` (the robot is already placed).
-    pub fn reset(&mut self, world: &World, goal: Vector) {
-        self.goal = goal;
-        self.prev_distance = (goal - world.robots[0].position).length();
+impl Task for Nav {
+    fn new(_cfg: &Scenario) -> Result<Self> {
+        Ok(Self::default())
     }
 
-    /// Reward and success after a step.
-    pub fn judge(&mut self, world: &World, cfg: &Scenario) -> Judgement {
-        judge_robot(world, 0, self.goal, &mut self.prev_distance, cfg)
+    fn spawn(_cfg: &Scenario) -> Result<Spawn> {
+        Ok(Spawn::Single)
     }
 
-    /// Writes the observation into `obs`.
-    pub fn observe(&self, world: &World, cfg: &Scenario, obs: &mut [f32]) {
-        observe_robot(world, 0, self.goal, cfg, obs);
+    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+        Ok(vec![Agent {
+            name: "robot".into(),
+            robot: 0,
+            layout: nav_blocks(cfg, sensors),
+        }])
     }
 
-    /// Observation bounds (low, high).
-    pub fn bounds(cfg: &Scenario) -> (Vec<f32>, Vec<f32>) {
-        let mut low = vec![0.0; IR_COUNT + US_COUNT];
-        let mut high = vec![1.0; IR_COUNT + US_COUNT];
-        low.extend([0.0, -1.0, -1.0, -1.0, -1.0]);
-        high.extend([diagonal(cfg), 1.0, 1.0, 1.0, 1.0]);
-        (low, high)
+    fn reset(&mut self, world: &World, layout: &Layout) {
+        self.goal = layout.goals[0];
+        self.prev_distance = (self.goal - world.robots[0].position).length();
     }
+
+    fn judge(
+        &mut self,
+        world: &World,
+        cfg: &Scenario,
+        rewards: &mut [f32],
+        terminated: &mut [bool],
+    ) -> bool {
+        let j = judge_robot(world, 0, self.goal, &mut self.prev_distance, cfg);
+        rewards[0] = j.reward;
+        terminated[0] = j.success;
+        j.success
+    }
+
+    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+        observe_robot(world, 0, self.goal, cfg, out);
+    }
+
+    fn goals(&self) -> Vec<Vector> {
+        vec![self.goal]
+    }
+
+    fn draw(&self, _world: &World, cfg: &Scenario, marks: &mut Vec<Mark>) {
+        marks.push(goal_mark(self.goal, cfg, None));
+    }
+}
+
+/// A navigating robot's observation blocks: the observed sensors' blocks, then the goal's
+/// distance (m, up to the arena diagonal) and bearing (sin, cos), then its wheel speeds
+/// (normalised by the maximum wheel speed).
+pub fn nav_blocks(cfg: &Scenario, sensors: &[Block]) -> ObsLayout {
+    let mut blocks = sensors.to_vec();
+    blocks.extend([
+        Block::new("goal_distance", 1, 0.0, cfg.diagonal()),
+        Block::new("goal_bearing_sin", 1, -1.0, 1.0),
+        Block::new("goal_bearing_cos", 1, -1.0, 1.0),
+        Block::new("wheel_speeds", 2, -1.0, 1.0),
+    ]);
+    ObsLayout::new(blocks)
 }
 
 /// Reward and success of robot `i` heading for `goal`; updates its previous distance.
@@ -95,21 +156,6 @@ pub fn judge_robot(
     Judgement { reward, success }
 }
 
-/// Writes robot `i`'s sensors, the part of its observation every task shares: IR proximity
-/// (8) then ultrasonic (5), each normalised to [0, 1].
-pub fn observe_sensors(world: &World, i: usize, obs: &mut [f32]) {
-    let robot = &world.robots[i];
-    for (o, raw) in obs[..IR_COUNT].iter_mut().zip(robot.ir_raw) {
-        *o = world.ir.normalise(raw);
-    }
-    for (o, code) in obs[IR_COUNT..IR_COUNT + US_COUNT]
-        .iter_mut()
-        .zip(robot.us_code)
-    {
-        *o = world.us.normalise(code);
-    }
-}
-
 /// `point` in robot `i`'s frame (x forward, y left), metres.
 pub fn to_robot_frame(world: &World, i: usize, point: Vector) -> Vector {
     let robot = &world.robots[i];
@@ -126,10 +172,11 @@ pub fn wheel_obs(world: &World, i: usize) -> [f32; 2] {
         .map(|w| (w / vmax).clamp(-1.0, 1.0))
 }
 
-/// Writes robot `i`'s navigation observation (layout [`OBS_LAYOUT`]) toward `goal`.
-pub fn observe_robot(world: &World, i: usize, goal: Vector, cfg: &Scenario, obs: &mut [f32]) {
-    observe_sensors(world, i, obs);
-    let base = IR_COUNT + US_COUNT;
+/// Writes robot `i`'s navigation observation ([`nav_blocks`]) toward `goal`.
+pub fn observe_robot(world: &World, i: usize, goal: Vector, cfg: &Scenario, out: &mut ObsWriter) {
+    world
+        .sensors
+        .observe(&world.robots[i].readings, out);
     let local = to_robot_frame(world, i, goal);
     let distance = local.length();
     let (bs, bc) = if distance > 0.0 {
@@ -137,15 +184,19 @@ pub fn observe_robot(world: &World, i: usize, goal: Vector, cfg: &Scenario, obs:
     } else {
         (0.0, 1.0)
     };
-    obs[base] = distance.min(diagonal(cfg));
-    obs[base + 1] = bs.clamp(-1.0, 1.0);
-    obs[base + 2] = bc.clamp(-1.0, 1.0);
+    out.put(distance.min(cfg.diagonal()));
+    out.put(bs.clamp(-1.0, 1.0));
+    out.put(bc.clamp(-1.0, 1.0));
     let [l, r] = wheel_obs(world, i);
-    obs[base + 3] = l;
-    obs[base + 4] = r;
+    out.put(l);
+    out.put(r);
 }
 
-/// The arena's diagonal (m): the largest distance between two points in it.
-pub fn diagonal(cfg: &Scenario) -> f32 {
-    (cfg.arena.width * cfg.arena.width + cfg.arena.height * cfg.arena.height).sqrt()
+/// The mark of a goal: red, or robot `k`'s colour when each robot has its own.
+pub fn goal_mark(goal: Vector, cfg: &Scenario, robot: Option<usize>) -> Mark {
+    Mark::Goal {
+        position: goal,
+        radius: cfg.task.goal_radius.max(0.01),
+        colour: robot.map_or([214, 39, 40], |k| crate::draw::PALETTE[k % 8]),
+    }
 }

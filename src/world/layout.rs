@@ -40,37 +40,8 @@ pub enum Spawn {
 }
 
 impl Spawn {
-    /// How the robots of `task` are spawned; the formation task needs a `[formation]` table and
-    /// multinav a `[multinav]` table.
-    pub fn for_task(task: &str, cfg: &Scenario, origin: &str) -> Result<Self> {
-        match task {
-            "formation" => cfg
-                .formation
-                .as_ref()
-                .map(|f| Spawn::Formation(f.offsets()))
-                .ok_or_else(|| {
-                    Error::config(
-                        origin,
-                        "formation",
-                        "the formation task needs a [formation] table",
-                    )
-                }),
-            "multinav" => cfg
-                .multinav
-                .as_ref()
-                .map(|m| Spawn::Multi(m.n_robots as usize))
-                .ok_or_else(|| {
-                    Error::config(
-                        origin,
-                        "multinav",
-                        "the multinav task needs a [multinav] table",
-                    )
-                }),
-            _ => Ok(Spawn::Single),
-        }
-    }
-
-    fn n_robots(&self) -> usize {
+    /// Robots this rule places.
+    pub fn n_robots(&self) -> usize {
         match self {
             Spawn::Single => 1,
             Spawn::Formation(offsets) => 1 + offsets.len(),
@@ -186,9 +157,9 @@ impl Spawner {
     /// A spawner for `cfg`, checking that its fixed parts are feasible and that its random
     /// obstacles fit; errors name `origin` and the key.
     pub fn new(cfg: &Scenario, spawn: Spawn, origin: &str) -> Result<Self> {
-        let mut base = Scene::from_config(&cfg.arena);
+        let mut base = cfg.arena.scene();
         for (i, spec) in cfg.obstacles.fixed.iter().enumerate() {
-            let shape = SceneShape::from_spec(spec);
+            let shape = spec.shape();
             if shape.wall_gap(cfg.arena.width, cfg.arena.height) < 0.0 {
                 return Err(Error::config(
                     origin,
@@ -217,6 +188,11 @@ impl Spawner {
         };
         spawner.check(cfg, origin)?;
         Ok(spawner)
+    }
+
+    /// Robots placed by this spawner.
+    pub fn n_robots(&self) -> usize {
+        self.spawn.n_robots()
     }
 
     fn check(&self, cfg: &Scenario, origin: &str) -> Result<()> {

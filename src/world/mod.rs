@@ -18,7 +18,7 @@ use rapier2d::math::Vector;
 
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::Scenario;
-use crate::sensors::{IrModel, UsModel, IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
+use crate::sensors::{Readings, SenseContext, Suite};
 use physics::{BodyState, Physics};
 pub use scene::{Scene, SceneShape};
 
@@ -46,14 +46,8 @@ pub struct Robot {
     pub step_travel: f32,
     /// Whether the robot touched a wall, obstacle or robot during the last step.
     pub in_contact: bool,
-    /// Raw IR ring readings (0..1023), K-Team order.
-    pub ir_raw: [u16; IR_COUNT],
-    /// Ultrasonic readings (cm or code).
-    pub us_code: [i32; US_COUNT],
-    /// True distance (m) each IR ray travelled before a hit (its range when none), for drawing.
-    pub ir_hit: [f32; IR_COUNT],
-    /// True distance (m) each ultrasonic ray travelled before a hit, for drawing.
-    pub us_hit: [f32; US_COUNT],
+    /// Its sensors' last readings, in the real robot's units.
+    pub readings: Readings,
     step_start_heading: f32,
 }
 
@@ -63,10 +57,8 @@ pub struct Robot {
 pub struct World {
     /// Drive parameters shared by the robots.
     pub drive: Drive,
-    /// IR ring model.
-    pub ir: IrModel,
-    /// Ultrasonic model.
-    pub us: UsModel,
+    /// The sensors every robot carries (the models; each robot keeps its own readings).
+    pub sensors: Suite,
     /// Static geometry.
     pub scene: Scene,
     /// The robots.
@@ -81,22 +73,6 @@ pub struct World {
     bodies: Vec<BodyState>,
     #[serde(skip)]
     others: Vec<Vector>,
-    #[serde(skip)]
-    near_others: Vec<Vector>,
-    #[serde(skip)]
-    near_shapes: Vec<usize>,
-    #[serde(skip, default = "ir_dirs")]
-    ir_dirs: [Vector; IR_COUNT],
-    #[serde(skip, default = "us_dirs")]
-    us_dirs: [Vector; US_COUNT],
-}
-
-fn ir_dirs() -> [Vector; IR_COUNT] {
-    IR_BEARINGS.map(unit)
-}
-
-fn us_dirs() -> [Vector; US_COUNT] {
-    US_BEARINGS.map(unit)
 }
 
 impl World {
@@ -114,17 +90,7 @@ impl World {
         );
         Self {
             drive,
-            ir: IrModel {
-                range: cfg.sensors.ir_range,
-                floor_value: cfg.sensors.ir_floor_value.bounds().0,
-                noise_sigma: cfg.sensors.ir_noise_sigma.bounds().0,
-            },
-            us: UsModel {
-                min_range: cfg.sensors.us_min_range,
-                max_range: cfg.sensors.us_max_range,
-                noise_sigma: cfg.sensors.us_noise_sigma.bounds().0,
-                enabled: cfg.sensors.us_enabled,
-            },
+            sensors: Suite::new(&cfg.sensors),
             scene,
             robots: vec![Robot::default(); n_robots],
             rng: ChaCha8Rng::seed_from_u64(0),
@@ -133,10 +99,6 @@ impl World {
             substeps: cfg.physics.substeps,
             bodies: Vec::with_capacity(n_robots),
             others: Vec::with_capacity(n_robots),
-            near_others: Vec::with_capacity(n_robots),
-            near_shapes: Vec::new(),
-            ir_dirs: ir_dirs(),
-            us_dirs: us_dirs(),
         }
     }
 
@@ -149,9 +111,7 @@ impl World {
         self.drive.axle_length = r.axle_length.sample(rng);
         self.drive.max_wheel_speed = r.max_wheel_speed.sample(rng);
         self.drive.wheel_accel_limit = r.wheel_accel_limit.sample(rng);
-        self.ir.floor_value = cfg.sensors.ir_floor_value.sample(rng);
-        self.ir.noise_sigma = cfg.sensors.ir_noise_sigma.sample(rng);
-        self.us.noise_sigma = cfg.sensors.us_noise_sigma.sample(rng);
+        self.sensors.randomise(&cfg.sensors, rng);
         if r.mass.is_random() {
             let mass = r.mass.sample(rng);
             self.physics.set_mass(mass);
@@ -294,65 +254,26 @@ impl World {
         }
     }
 
-    /// Reads every robot's IR ring and ultrasonic sensors (with noise from the world's stream).
+    /// Reads every robot's sensors (with noise from the world's stream), robot after robot.
     pub fn sense(&mut self) {
-        let radius = self.drive.radius;
-        let us_cast = self.us.max_range + 0.01;
-        // The IR rays are short: only obstacles and robots within reach of the rim can be hit.
-        let ir_reach = radius + self.ir.range;
         for i in 0..self.robots.len() {
-            let (pos, heading) = (self.robots[i].position, self.robots[i].heading);
             self.others.clear();
-            self.near_others.clear();
             for (j, other) in self.robots.iter().enumerate() {
                 if j != i {
                     self.others.push(other.position);
-                    if (other.position - pos).length() < ir_reach + radius {
-                        self.near_others.push(other.position);
-                    }
                 }
             }
-            self.near_shapes.clear();
-            for (k, shape) in self.scene.shapes.iter().enumerate() {
-                if (shape.center - pos).length() - shape.bound_radius < ir_reach {
-                    self.near_shapes.push(k);
-                }
-            }
-            let (s, c) = heading.sin_cos();
-            for k in 0..IR_COUNT {
-                let dir = rotate(self.ir_dirs[k], c, s);
-                let origin = pos + radius * dir;
-                let near = self.near_shapes.iter().map(|&n| &self.scene.shapes[n]);
-                let hit = self.scene.cast_among(
-                    origin,
-                    dir,
-                    self.ir.range,
-                    near,
-                    &self.near_others,
-                    radius,
-                );
-                self.robots[i].ir_raw[k] = self.ir.read(hit, &mut self.rng);
-                self.robots[i].ir_hit[k] = hit.unwrap_or(self.ir.range);
-            }
-            for k in 0..US_COUNT {
-                let dir = rotate(self.us_dirs[k], c, s);
-                let origin = pos + radius * dir;
-                let hit = self.scene.cast(origin, dir, us_cast, &self.others, radius);
-                self.robots[i].us_code[k] = self.us.read(k, hit, &mut self.rng);
-                self.robots[i].us_hit[k] = hit.unwrap_or(us_cast);
-            }
+            let robot = &mut self.robots[i];
+            let ctx = SenseContext {
+                scene: &self.scene,
+                position: robot.position,
+                sin_cos: robot.heading.sin_cos(),
+                radius: self.drive.radius,
+                others: &self.others,
+            };
+            self.sensors.read(&ctx, &mut self.rng, &mut robot.readings);
         }
     }
-}
-
-fn unit(angle: f32) -> Vector {
-    let (s, c) = angle.sin_cos();
-    Vector::new(c, s)
-}
-
-#[inline]
-fn rotate(v: Vector, c: f32, s: f32) -> Vector {
-    Vector::new(c * v.x - s * v.y, s * v.x + c * v.y)
 }
 
 /// Exact differential-drive motion over `h` seconds at constant forward speed `v` and yaw rate

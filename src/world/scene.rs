@@ -9,7 +9,6 @@ use rapier2d::math::{Pose, Vector};
 use rapier2d::parry::query::{PointQuery, Ray, RayCast};
 use rapier2d::parry::shape::{Ball, Cuboid, Segment, Shape};
 
-use crate::scenario::ObstacleSpec;
 
 /// One of the scene's shapes, as parry2d knows it, in its local frame.
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
@@ -63,20 +62,6 @@ impl SceneShape {
     /// A rectangle with half extents `half`, centred at `center`, rotated by `angle`.
     pub fn rect(center: Vector, half: Vector, angle: f32) -> Self {
         Self::new(Geometry::Box(Cuboid::new(half)), center, angle)
-    }
-
-    /// The shape of a scenario file's obstacle entry.
-    pub fn from_spec(spec: &ObstacleSpec) -> Self {
-        let v = |p: [f32; 2]| Vector::new(p[0], p[1]);
-        match *spec {
-            ObstacleSpec::Circle { center, radius } => Self::circle(v(center), radius),
-            ObstacleSpec::Box {
-                center,
-                half_extents,
-                angle,
-            } => Self::rect(v(center), v(half_extents), angle),
-            ObstacleSpec::Segment { a, b } => Self::segment(v(a), v(b)),
-        }
     }
 
     /// Free distance between this shape and `other` (0 when they touch or overlap).
@@ -197,14 +182,6 @@ impl Scene {
             wall_thickness: thickness,
             walled: true,
             shapes: Vec::new(),
-        }
-    }
-
-    /// The empty arena a scenario's `[arena]` table describes.
-    pub fn from_config(arena: &crate::scenario::ArenaConfig) -> Self {
-        Self {
-            walled: arena.walls,
-            ..Self::arena(arena.width, arena.height, arena.wall_thickness)
         }
     }
 

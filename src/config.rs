@@ -1,0 +1,471 @@
+//! Scenario schema machinery: how a table of settings is declared once (its keys, their defaults,
+//! units and comments), parsed, overlaid and validated. It knows nothing of robots or worlds; the
+//! tables themselves are declared by their owners (`robot.rs`, each sensor in `sensors/`, each
+//! task in `tasks/`, the world's in `scenario.rs`) with [`config_table!`].
+//!
+//! A table's defaults are TOML text written next to each key, so the same text is what
+//! `default_config(task)` prints, what every scenario file is overlaid on, and what
+//! `Default::default()` returns. Overlays are strict: a key that the defaults do not have is an
+//! error naming the file and the key, never a silently ignored setting.
+//!
+//! Units: whatever each key's comment says (SI throughout: m, s, rad, m/s, kg).
+
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+use toml::{Table, Value};
+
+use crate::error::{Error, Result};
+
+/// Name used in messages for keyword overrides.
+pub const OVERRIDE_ORIGIN: &str = "<override>";
+
+/// A number, or a `[low, high]` range from which a value is drawn at every reset (domain
+/// randomisation).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Param {
+    /// A fixed value.
+    Value(f32),
+    /// Uniform in [low, high].
+    Range([f32; 2]),
+}
+
+impl Param {
+    /// The value for an episode, drawn from `rng` when a range.
+    pub fn sample<R: rand::Rng>(&self, rng: &mut R) -> f32 {
+        match *self {
+            Param::Value(v) => v,
+            // Validation keeps ranges finite (`Param::check`); a range that is not (possible
+            // only by building a table by hand) gives its low end, never a panic.
+            Param::Range([lo, hi]) if hi > lo && (hi - lo).is_finite() => rng.random_range(lo..=hi),
+            Param::Range([lo, _]) => lo,
+        }
+    }
+
+    /// Smallest and largest possible values.
+    pub fn bounds(&self) -> (f32, f32) {
+        match *self {
+            Param::Value(v) => (v, v),
+            Param::Range([lo, hi]) => (lo, hi),
+        }
+    }
+
+    /// Largest possible value.
+    pub fn max(&self) -> f32 {
+        self.bounds().1
+    }
+
+    /// Whether the value changes between episodes.
+    pub fn is_random(&self) -> bool {
+        matches!(self, Param::Range([lo, hi]) if hi > lo)
+    }
+
+    /// Checks a finite value or range, `> 0` when `strictly`, else `>= 0`; the error names
+    /// `origin` and `key`.
+    pub fn check(&self, origin: &str, key: &str, strictly: bool) -> Result<()> {
+        let (lo, hi) = self.bounds();
+        if !lo.is_finite() || !hi.is_finite() || lo > hi {
+            return Err(Error::config(
+                origin,
+                key,
+                format!("must be a finite number or a [low, high] range, got {self:?}"),
+            ));
+        }
+        if lo < 0.0 || (strictly && lo <= 0.0) {
+            let op = if strictly { ">" } else { ">=" };
+            return Err(Error::config(
+                origin,
+                key,
+                format!("must be {op} 0, got {self:?}"),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One key of a declared table: its name, its default as TOML text and its comment (units,
+/// meaning, source).
+#[derive(Debug, Clone, Copy)]
+pub struct KeyDoc {
+    /// The key.
+    pub name: &'static str,
+    /// Its default value, as TOML text.
+    pub default: &'static str,
+    /// What it is, with units and source.
+    pub comment: &'static str,
+}
+
+/// A table of settings declared with [`config_table!`].
+pub trait ConfigTable: Clone + Serialize + DeserializeOwned {
+    /// Its keys in order, with defaults and comments.
+    const KEYS: &'static [KeyDoc];
+
+    /// The defaults as a TOML table (parsed from [`ConfigTable::KEYS`]).
+    fn defaults_table() -> Table {
+        keys_table(Self::KEYS)
+    }
+
+    /// Reads a table whose keys are all known (an overlay of the defaults).
+    fn from_table(table: &Table, origin: &str, section: &str) -> Result<Self> {
+        read_table(table, origin, section)
+    }
+}
+
+/// The defaults of `keys` as a TOML table. A default that is not valid TOML is a programming
+/// error in a declaration; it is caught by the tests of every table, so here it is skipped.
+pub fn keys_table(keys: &[KeyDoc]) -> Table {
+    let mut table = Table::new();
+    for key in keys {
+        if let Ok(parsed) = format!("value = {}", key.default).parse::<Table>() {
+            if let Some(value) = parsed.get("value") {
+                table.insert(key.name.to_string(), value.clone());
+            }
+        }
+    }
+    table
+}
+
+/// Deserialises a table (all of whose keys the type knows) into `T`; errors name `origin` and
+/// `section.key`.
+pub fn read_table<T: DeserializeOwned>(table: &Table, origin: &str, section: &str) -> Result<T> {
+    // Deserialise from text so that serde's errors carry a span we can map to a key.
+    let text = toml::to_string(table)
+        .map_err(|e| Error::config(origin, section, format!("cannot serialise: {e}")))?;
+    toml::from_str(&text).map_err(|e: toml::de::Error| {
+        let key = error_key(&e, &text);
+        let key = if key.starts_with("line ") || key.starts_with('<') {
+            section.to_string()
+        } else if section.is_empty() {
+            key
+        } else {
+            format!("{section}.{key}")
+        };
+        Error::config(origin, &key, e.message().trim().to_string())
+    })
+}
+
+/// Declares a table of settings: a struct with one public field per key, its defaults as TOML
+/// text, and its keys' comments, all written once.
+///
+/// ```ignore
+/// config_table! {
+///     /// `[robot]`: the Khepera IV's body and drive.
+///     pub struct RobotConfig {
+///         /// body radius (m): 140.8 mm diameter
+///         radius: f32 = 0.0704,
+///     }
+/// }
+/// ```
+/// Each default is TOML text (`inf`, `[0.04, 0.10]`, `"between"`, `[]` are all fine) and must
+/// deserialise into the field's type; `Default::default()` is that deserialisation.
+#[macro_export]
+macro_rules! config_table {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident {
+            $(
+                $(#[doc = $doc:literal])*
+                $field:ident : $ty:ty = $default:expr
+            ),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $name {
+            $(
+                $(#[doc = $doc])*
+                pub $field: $ty,
+            )*
+        }
+
+        impl $crate::config::ConfigTable for $name {
+            const KEYS: &'static [$crate::config::KeyDoc] = &[
+                $(
+                    $crate::config::KeyDoc {
+                        name: stringify!($field),
+                        default: stringify!($default),
+                        comment: concat!($($doc, " "),*),
+                    },
+                )*
+            ];
+        }
+
+        impl Default for $name {
+            fn default() -> Self {
+                let table = <Self as $crate::config::ConfigTable>::defaults_table();
+                // The declared defaults are checked by every table's tests: a failure here is a
+                // programming error in this declaration, never the user's input.
+                $crate::config::read_table(&table, "<defaults>", stringify!($name))
+                    .expect(concat!("the defaults of ", stringify!($name), " deserialise"))
+            }
+        }
+    };
+}
+
+/// Parses TOML text; errors name `origin` and the key (or line).
+pub fn parse(text: &str, origin: &str) -> Result<Table> {
+    text.parse::<Table>().map_err(|e| {
+        let key = error_key(&e, text);
+        Error::config(origin, &key, e.message().trim().to_string())
+    })
+}
+
+/// The dotted key a toml error is about: found from the error's span in `text` (the key on that
+/// line, under the last `[section]` header above it), else `line N`.
+pub fn error_key(e: &toml::de::Error, text: &str) -> String {
+    if let Some(start) = e.message().find("unknown field `") {
+        let rest = &e.message()[start + 15..];
+        if let Some(end) = rest.find('`') {
+            if let Some(section) = e.span().and_then(|s| section_at(text, s.start)) {
+                return format!("{section}.{}", &rest[..end]);
+            }
+            return rest[..end].to_string();
+        }
+    }
+    let Some(span) = e.span() else {
+        return "<syntax>".to_string();
+    };
+    let offset = span.start.min(text.len());
+    let line_start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
+    let line_end = text[offset..].find('\n').map_or(text.len(), |i| offset + i);
+    let line = &text[line_start..line_end];
+    let line_no = text[..offset].matches('\n').count() + 1;
+    match line.split_once('=') {
+        Some((key, _)) if !line.trim_start().starts_with('[') && is_plain_key(key.trim()) => {
+            let key = key.trim().trim_matches('"');
+            match section_at(text, offset) {
+                Some(section) => format!("{section}.{key}"),
+                None => key.to_string(),
+            }
+        }
+        _ => format!("line {line_no}"),
+    }
+}
+
+/// Whether `key` is a dotted key of bare words (`task.goal_radius`): the only keys a scenario
+/// has, so anything else in a message is better said as its line number.
+fn is_plain_key(key: &str) -> bool {
+    !key.is_empty()
+        && key.split('.').all(|part| {
+            let part = part.trim().trim_matches('"');
+            !part.is_empty()
+                && part
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        })
+}
+
+/// The name of the last `[section]` header at or before `offset`; for an array of tables
+/// (`[[obstacles.fixed]]`) the entry's index is appended (`obstacles.fixed[1]`).
+fn section_at(text: &str, offset: usize) -> Option<String> {
+    let offset = offset.min(text.len());
+    // A span on a header line itself belongs to that header.
+    let line_end = text[offset..].find('\n').map_or(text.len(), |i| offset + i);
+    let before = &text[..line_end];
+    let header = before
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('[') && l.ends_with(']'))?;
+    let name = header.trim_matches(|c| c == '[' || c == ']').trim();
+    if header.starts_with("[[") {
+        let index = before.lines().filter(|l| l.trim() == header).count() - 1;
+        Some(format!("{name}[{index}]"))
+    } else {
+        Some(name.to_string())
+    }
+}
+
+/// Overlays `over` on `base`. Every key of `over` must exist in `base` (so a typo is an error
+/// naming the key, not a silently ignored setting).
+pub fn overlay(base: &mut Table, over: &Table, prefix: &str, origin: &str) -> Result<()> {
+    for (key, value) in over {
+        let path = if prefix.is_empty() {
+            key.clone()
+        } else {
+            format!("{prefix}.{key}")
+        };
+        match base.get_mut(key) {
+            None => {
+                let known: Vec<&String> = base.keys().collect();
+                return Err(Error::config(
+                    origin,
+                    &path,
+                    format!("unknown key; known keys here: {known:?}"),
+                ));
+            }
+            Some(Value::Table(sub)) => match value {
+                Value::Table(over_sub) => overlay(sub, over_sub, &path, origin)?,
+                _ => {
+                    return Err(Error::config(
+                        origin,
+                        &path,
+                        "is a table of settings; give a table, not a single value",
+                    ))
+                }
+            },
+            Some(slot) => {
+                if matches!(value, Value::Table(_)) {
+                    return Err(Error::config(
+                        origin,
+                        &path,
+                        "is a single setting; give a value, not a table",
+                    ));
+                }
+                *slot = value.clone();
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Turns keyword overrides into a table shaped like `base`: `task.goal_radius = x` and leaf
+/// names that occur in exactly one section (`goal_radius = x`) become `[task] goal_radius`.
+pub fn expand_overrides(base: &Table, overrides: &Table) -> Result<Table> {
+    let mut out = Table::new();
+    for (key, value) in overrides {
+        let path: Vec<String> = if key.contains('.') {
+            key.split('.').map(str::to_string).collect()
+        } else if base.contains_key(key) {
+            vec![key.clone()]
+        } else {
+            let sections: Vec<&String> = base
+                .iter()
+                .filter(|(_, v)| matches!(v, Value::Table(t) if t.contains_key(key)))
+                .map(|(k, _)| k)
+                .collect();
+            match sections.as_slice() {
+                [one] => vec![(*one).clone(), key.clone()],
+                [] => {
+                    return Err(Error::config(
+                        OVERRIDE_ORIGIN,
+                        key,
+                        "unknown key: no scenario section has it".to_string(),
+                    ))
+                }
+                many => {
+                    return Err(Error::config(
+                        OVERRIDE_ORIGIN,
+                        key,
+                        format!("ambiguous: it is in sections {many:?}; write section.{key}"),
+                    ))
+                }
+            }
+        };
+        insert_path(&mut out, &path, value.clone());
+    }
+    Ok(out)
+}
+
+fn insert_path(table: &mut Table, path: &[String], value: Value) {
+    match path {
+        [] => {}
+        [last] => {
+            match (table.get_mut(last), value) {
+                (Some(Value::Table(existing)), Value::Table(new)) => {
+                    for (k, v) in new {
+                        existing.insert(k, v);
+                    }
+                }
+                (_, value) => {
+                    table.insert(last.clone(), value);
+                }
+            };
+        }
+        [first, rest @ ..] => {
+            let entry = table
+                .entry(first.clone())
+                .or_insert_with(|| Value::Table(Table::new()));
+            if !entry.is_table() {
+                *entry = Value::Table(Table::new());
+            }
+            if let Value::Table(sub) = entry {
+                insert_path(sub, rest, value);
+            }
+        }
+    }
+}
+
+/// Writes one section of a scenario file: `[name]`, then every key of `keys` with its value in
+/// `table` (and, with `comments`, its comment, aligned). Keys of `table` that `keys` does not
+/// list follow, bare.
+pub fn render_section(out: &mut String, name: &str, keys: &[KeyDoc], table: &Table, comments: bool) {
+    out.push_str(&format!("[{name}]\n"));
+    let mut lines: Vec<(String, &str)> = Vec::new();
+    for key in keys {
+        if let Some(value) = table.get(key.name) {
+            let comment = if comments { key.comment.trim() } else { "" };
+            lines.push((format!("{} = {}", key.name, value), comment));
+        }
+    }
+    for (name, value) in table {
+        if !keys.iter().any(|k| k.name == name) {
+            lines.push((format!("{name} = {value}"), ""));
+        }
+    }
+    let width = lines
+        .iter()
+        .map(|(l, _)| l.chars().count())
+        .filter(|n| *n <= 40)
+        .max()
+        .unwrap_or(0);
+    for (line, comment) in lines {
+        if comment.is_empty() {
+            out.push_str(&line);
+        } else {
+            let pad = width.saturating_sub(line.chars().count()) + 2;
+            out.push_str(&format!("{line}{}# {comment}", " ".repeat(pad)));
+        }
+        out.push('\n');
+    }
+    out.push('\n');
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    crate::config_table! {
+        /// A table for these tests.
+        pub struct Example {
+            /// a length (m)
+            length: f32 = 0.25,
+            /// an unbounded rate; inf = none
+            rate: Param = inf,
+            /// a list
+            names: Vec<String> = ["a", "b"],
+            /// a negative default
+            offset: f32 = -1.5,
+        }
+    }
+
+    #[test]
+    fn declared_defaults_parse_and_render() {
+        let d = Example::default();
+        assert_eq!(d.length, 0.25);
+        assert!(d.rate.max().is_infinite());
+        assert_eq!(d.names, vec!["a".to_string(), "b".to_string()]);
+        assert_eq!(d.offset, -1.5);
+        let mut text = String::new();
+        render_section(&mut text, "example", Example::KEYS, &Example::defaults_table(), true);
+        assert!(text.contains("length = 0.25"), "{text}");
+        assert!(text.contains("# a length (m)"), "{text}");
+        let back: Table = text.parse().expect("rendered text is TOML");
+        assert_eq!(back["example"]["offset"].as_float(), Some(-1.5));
+    }
+
+    #[test]
+    fn unknown_and_mistyped_keys_are_named() {
+        let mut base = Table::new();
+        base.insert("example".into(), Value::Table(Example::defaults_table()));
+        let over = parse("[example]\nlenght = 1.0\n", "f.toml").expect("toml");
+        let e = overlay(&mut base, &over, "", "f.toml").unwrap_err().to_string();
+        assert!(e.starts_with("f.toml: example.lenght: unknown key"), "{e}");
+        let mut table = Example::defaults_table();
+        table.insert("length".into(), Value::String("long".into()));
+        let e = Example::from_table(&table, "f.toml", "example")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("f.toml: example.length"), "{e}");
+    }
+}

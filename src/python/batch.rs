@@ -1,0 +1,620 @@
+//! The `Batch` class: N seeded worlds of one task in the Rust core, as Python sees them.
+//!
+//! Threading and copies: every method checks its inputs while holding the GIL, copies them into
+//! Rust-owned buffers, releases the GIL (`py.detach`) for the simulation, then copies results
+//! into freshly allocated NumPy arrays (never views of internal buffers). No Python object
+//! crosses into the released section.
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+
+use super::convert::{describe, dict_to_table, layout_slices, task_kind};
+use super::errors::{guard, raise, to_py};
+use crate::batch::Batch as CoreBatch;
+use crate::config::OVERRIDE_ORIGIN;
+use crate::error::Error;
+use crate::robot::{ActionType, PULSES_PER_WHEEL_TURN};
+use crate::scenario::Source;
+use crate::sensors::{ChannelValues, Readout};
+use crate::tasks::EpisodeStats;
+use crate::world::scene::Geometry;
+
+/// N independent seeded Khepera IV worlds of one task, stepped in parallel.
+#[pyclass(module = "khepera_gym._core")]
+pub struct Batch {
+    inner: CoreBatch,
+    actions: Vec<f32>,
+    /// Construction arguments not held by the core, for pickling.
+    action_type: String,
+    requested_threads: Option<usize>,
+    autoreset: bool,
+    trail_length: usize,
+}
+
+#[pymethods]
+impl Batch {
+    #[new]
+    #[pyo3(signature = (task, num_worlds, config_text=None, config_name="<built-in>", overrides=None, action_type="wheels", num_threads=None, autoreset=true))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        task: &str,
+        num_worlds: i64,
+        config_text: Option<String>,
+        config_name: &str,
+        overrides: Option<&Bound<'_, PyDict>>,
+        action_type: &str,
+        num_threads: Option<i64>,
+        autoreset: bool,
+    ) -> PyResult<Self> {
+        guard(py, || {
+            let kind = task_kind(py, task)?;
+            let overrides = match overrides {
+                Some(d) => dict_to_table(py, OVERRIDE_ORIGIN, d, None)?,
+                None => toml::Table::new(),
+            };
+            let source = Source {
+                file: config_text.as_deref().map(|t| (t, config_name)),
+                overrides,
+            };
+            let cfg = kind.scenario(&source).map_err(|e| to_py(py, e))?;
+            let action_type = ActionType::parse(action_type).ok_or_else(|| {
+                to_py(
+                    py,
+                    Error::config(
+                        "<batch>",
+                        "action_type",
+                        format!("must be \"wheels\" or \"unicycle\", got {action_type:?}"),
+                    ),
+                )
+            })?;
+            if num_worlds < 1 {
+                return Err(to_py(
+                    py,
+                    Error::config(
+                        "<batch>",
+                        "num_envs",
+                        format!("must be >= 1, got {num_worlds}"),
+                    ),
+                ));
+            }
+            let num_threads = match num_threads {
+                None => None,
+                Some(n) if n < 1 => {
+                    return Err(to_py(
+                        py,
+                        Error::config("<batch>", "num_threads", format!("must be >= 1, got {n}")),
+                    ))
+                }
+                Some(n) => Some(n as usize),
+            };
+            let inner = py
+                .detach(|| {
+                    CoreBatch::new(
+                        kind,
+                        cfg,
+                        num_worlds as usize,
+                        action_type,
+                        num_threads,
+                        autoreset,
+                    )
+                })
+                .map_err(|e| to_py(py, e))?;
+            let actions = vec![0.0; inner.len() * inner.act_dim()];
+            Ok(Self {
+                inner,
+                actions,
+                action_type: action_type.name().to_string(),
+                requested_threads: num_threads,
+                autoreset,
+                trail_length: 0,
+            })
+        })
+    }
+
+    /// Number of worlds.
+    #[getter]
+    fn num_worlds(&self) -> usize {
+        self.inner.len()
+    }
+
+    /// Observation length per world.
+    #[getter]
+    fn obs_dim(&self) -> usize {
+        self.inner.obs_dim()
+    }
+
+    /// Action length per world.
+    #[getter]
+    fn act_dim(&self) -> usize {
+        self.inner.act_dim()
+    }
+
+    /// Robots per world.
+    #[getter]
+    fn n_robots(&self) -> usize {
+        self.inner.envs()[0].world.robots.len()
+    }
+
+    /// Threads stepping the batch.
+    #[getter]
+    fn num_threads(&self) -> usize {
+        self.inner.num_threads()
+    }
+
+    /// Steps before truncation.
+    #[getter]
+    fn max_episode_steps(&self) -> u32 {
+        self.inner.scenario().task.max_steps
+    }
+
+    /// Joint observation layout of this batch's scenario: (name, start, stop) in order.
+    fn obs_layout(&self, py: Python<'_>) -> PyResult<Vec<(String, usize, usize)>> {
+        let env = &self.inner.envs()[0];
+        let layout = env.kind().obs_layout(&env.cfg).map_err(|e| to_py(py, e))?;
+        Ok(layout_slices(&layout))
+    }
+
+    /// The agents: (name, robot index, obs start, obs stop, [(name, start, stop) of its own
+    /// block]) in joint order; agent i's action is columns 2i, 2i+1.
+    #[allow(clippy::type_complexity)]
+    fn agents(
+        &self,
+        py: Python<'_>,
+    ) -> PyResult<Vec<(String, usize, usize, usize, Vec<(String, usize, usize)>)>> {
+        let env = &self.inner.envs()[0];
+        let agents = env.kind().agents(&env.cfg).map_err(|e| to_py(py, e))?;
+        let mut start = 0;
+        Ok(agents
+            .into_iter()
+            .map(|a| {
+                let n = a.layout.len();
+                let item = (a.name, a.robot, start, start + n, layout_slices(&a.layout));
+                start += n;
+                item
+            })
+            .collect())
+    }
+
+    /// Each agent's reward on the last step, shape (N, n_agents).
+    fn agent_rewards<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.per_agent(py, |e| &e.agent_rewards)
+    }
+
+    /// Each agent's termination on the last step, shape (N, n_agents).
+    fn agent_terminated<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.per_agent(py, |e| &e.agent_terminated)
+    }
+
+    /// Target points of the task other than goals (the followers' formation targets), shape
+    /// (N, K, 2) (K = 0 for tasks without any).
+    fn targets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let targets: Vec<Vec<_>> = self.inner.envs().iter().map(|e| e.targets()).collect();
+        let k = targets.first().map_or(0, Vec::len);
+        let data: Vec<f64> = targets
+            .iter()
+            .flatten()
+            .flat_map(|p| [p.x as f64, p.y as f64])
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), k, 2])?
+            .into_any())
+    }
+
+    /// The followers' formation targets (the task's targets), shape (N, K, 2).
+    fn formation_targets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.targets(py)
+    }
+
+    /// Name of the task.
+    #[getter]
+    fn task(&self) -> &'static str {
+        self.inner.envs()[0].kind().name()
+    }
+
+    /// (low, high) observation bounds.
+    #[allow(clippy::type_complexity)]
+    fn obs_bounds<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>)> {
+        let env = &self.inner.envs()[0];
+        let layout = env.kind().obs_layout(&env.cfg).map_err(|e| to_py(py, e))?;
+        let (low, high) = layout.bounds();
+        Ok((PyArray1::from_vec(py, low), PyArray1::from_vec(py, high)))
+    }
+
+    /// Resets every world (world i seeded with seed + i); returns observations (N, obs_dim).
+    #[pyo3(signature = (seed=None))]
+    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyAny>> {
+        guard(py, || {
+            let inner = &mut self.inner;
+            py.detach(|| inner.reset(seed));
+            self.obs_array(py)
+        })
+    }
+
+    /// Resets world `index` (seeded with `seed` when given); returns its observation.
+    #[pyo3(signature = (index, seed=None))]
+    fn reset_world<'py>(
+        &mut self,
+        py: Python<'py>,
+        index: usize,
+        seed: Option<u64>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        guard(py, || {
+            let obs = self
+                .inner
+                .reset_world(index, seed)
+                .map_err(|e| to_py(py, e))?;
+            Ok(PyArray1::from_slice(py, obs))
+        })
+    }
+
+    /// Steps all worlds with actions (N, act_dim) float32.
+    #[allow(clippy::type_complexity)]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: &Bound<'py, PyAny>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        Bound<'py, PyArray1<f32>>,
+        Bound<'py, PyArray1<bool>>,
+        Bound<'py, PyArray1<bool>>,
+    )> {
+        guard(py, || {
+            let (n, d) = (self.inner.len(), self.inner.act_dim());
+            let array: PyReadonlyArray2<f32> = actions.extract().map_err(|_| {
+                to_py(
+                    py,
+                    Error::Action(format!(
+                        "actions must be a float32 array of shape ({n}, {d}), got {}",
+                        describe(actions)
+                    )),
+                )
+            })?;
+            if array.shape() != [n, d] {
+                return Err(to_py(
+                    py,
+                    Error::Action(format!(
+                        "actions must have shape ({n}, {d}), got {:?}",
+                        array.shape()
+                    )),
+                ));
+            }
+            // as_slice() also accepts column-major data: only take it for C order.
+            match array.as_slice().ok().filter(|_| array.is_c_contiguous()) {
+                Some(s) => self.actions.copy_from_slice(s),
+                None => {
+                    for (dst, src) in self.actions.iter_mut().zip(array.as_array().iter()) {
+                        *dst = *src;
+                    }
+                }
+            }
+            let (inner, acts) = (&mut self.inner, &self.actions);
+            py.detach(|| inner.step(acts)).map_err(|e| to_py(py, e))?;
+            let outcomes = self.inner.outcomes();
+            let rewards: Vec<f32> = outcomes.iter().map(|o| o.reward).collect();
+            let terminated: Vec<bool> = outcomes.iter().map(|o| o.terminated).collect();
+            let truncated: Vec<bool> = outcomes.iter().map(|o| o.truncated).collect();
+            Ok((
+                self.obs_array(py)?,
+                PyArray1::from_vec(py, rewards),
+                PyArray1::from_vec(py, terminated),
+                PyArray1::from_vec(py, truncated),
+            ))
+        })
+    }
+
+    /// Statistics of the episodes that ended on the last step (valid where they ended).
+    fn episode_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let stats: Vec<_> = self.inner.episode_stats().copied().collect();
+        let d = PyDict::new(py);
+        let f32s = |f: fn(&EpisodeStats) -> f32| PyArray1::from_iter(py, stats.iter().map(f));
+        let i64s = |f: fn(&EpisodeStats) -> i64| PyArray1::from_iter(py, stats.iter().map(f));
+        d.set_item("return", f32s(|s| s.ret))?;
+        d.set_item("length", i64s(|s| s.length as i64))?;
+        d.set_item(
+            "success",
+            PyArray1::from_iter(py, stats.iter().map(|s| s.success)),
+        )?;
+        d.set_item("path_length", f32s(|s| s.path_length))?;
+        d.set_item("collisions", i64s(|s| s.collisions as i64))?;
+        let names = self.inner.envs()[0].kind().extra_stats();
+        for (k, name) in names.iter().enumerate() {
+            d.set_item(*name, PyArray1::from_iter(py, stats.iter().map(|s| s.extra[k])))?;
+        }
+        Ok(d)
+    }
+
+    /// Robot poses (N, n_robots, 3): x, y, theta.
+    fn poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let r = self.n_robots();
+        let data: Vec<f64> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| e.world.robots.iter())
+            .flat_map(|r| [r.position.x as f64, r.position.y as f64, r.heading as f64])
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), r, 3])?
+            .into_any())
+    }
+
+    /// Goal positions (N, n_goals, 2).
+    fn goals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let g = self.inner.envs()[0].goals().len();
+        let data: Vec<f64> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| e.goals())
+            .flat_map(|p| [p.x as f64, p.y as f64])
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), g, 2])?
+            .into_any())
+    }
+
+    /// Raw sensor readings of the last observation, in the real robot's units: each carried
+    /// sensor's channels (shape (N, n_robots, values) or (N, n_robots)), then the body's
+    /// "wheel_speeds" (m/s), "encoders" (pulses) and "gyro_z" (rad/s).
+    fn sensor_readings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (n, r) = (self.inner.len(), self.n_robots());
+        let robots = || self.inner.envs().iter().flat_map(|e| e.world.robots.iter());
+        let mut readout = Readout::default();
+        for env in self.inner.envs() {
+            for robot in &env.world.robots {
+                env.world.sensors.readout(&robot.readings, &mut readout);
+            }
+        }
+        let d = PyDict::new(py);
+        for channel in readout.channels {
+            let shape: Vec<usize> = if channel.per_robot == 0 {
+                vec![n, r]
+            } else {
+                vec![n, r, channel.per_robot]
+            };
+            match channel.values {
+                ChannelValues::Int(v) => {
+                    let v: Vec<i32> = v.into_iter().map(|x| x as i32).collect();
+                    d.set_item(channel.name, PyArray1::from_vec(py, v).reshape(shape)?)?;
+                }
+                ChannelValues::Real(v) => {
+                    d.set_item(channel.name, PyArray1::from_vec(py, v).reshape(shape)?)?;
+                }
+            }
+        }
+        let wheel_circumference =
+            2.0 * std::f64::consts::PI * self.inner.scenario().robot.wheel_radius as f64;
+        let wheels: Vec<f32> = robots().flat_map(|r| r.wheel_speeds).collect();
+        d.set_item(
+            "wheel_speeds",
+            PyArray1::from_vec(py, wheels).reshape([n, r, 2])?,
+        )?;
+        let encoders: Vec<i64> = robots()
+            .flat_map(|r| {
+                r.wheel_travel
+                    .map(|t| (t / wheel_circumference * PULSES_PER_WHEEL_TURN).round() as i64)
+            })
+            .collect();
+        d.set_item(
+            "encoders",
+            PyArray1::from_vec(py, encoders).reshape([n, r, 2])?,
+        )?;
+        let gyro: Vec<f32> = robots().map(|r| r.yaw_rate).collect();
+        d.set_item("gyro_z", PyArray1::from_vec(py, gyro).reshape([n, r])?)?;
+        Ok(d)
+    }
+
+    /// Geometry of world `index` for plots.
+    #[pyo3(signature = (index=0))]
+    fn scene<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
+        let env = self.inner.envs().get(index).ok_or_else(|| {
+            to_py(
+                py,
+                Error::State(format!(
+                    "world index {index} out of range 0..{}",
+                    self.inner.len()
+                )),
+            )
+        })?;
+        let scene = &env.world.scene;
+        let d = PyDict::new(py);
+        d.set_item("arena", scene.arena)?;
+        d.set_item("walls", scene.walled)?;
+        d.set_item("wall_thickness", scene.wall_thickness)?;
+        d.set_item("robot_radius", env.cfg.robot.radius)?;
+        d.set_item("goal_radius", env.cfg.task.goal_radius)?;
+        let obstacles = PyList::empty(py);
+        for shape in &scene.shapes {
+            let o = PyDict::new(py);
+            let c = (shape.center.x, shape.center.y);
+            match shape.geometry {
+                Geometry::Circle(b) => {
+                    o.set_item("kind", "circle")?;
+                    o.set_item("center", c)?;
+                    o.set_item("radius", b.radius)?;
+                }
+                Geometry::Box(b) => {
+                    o.set_item("kind", "box")?;
+                    o.set_item("center", c)?;
+                    o.set_item("half_extents", (b.half_extents.x, b.half_extents.y))?;
+                    o.set_item("angle", shape.angle)?;
+                }
+                Geometry::Segment(s) => {
+                    o.set_item("kind", "segment")?;
+                    o.set_item("a", (s.a.x + c.0, s.a.y + c.1))?;
+                    o.set_item("b", (s.b.x + c.0, s.b.y + c.1))?;
+                }
+            }
+            obstacles.append(o)?;
+        }
+        d.set_item("obstacles", obstacles)?;
+        Ok(d)
+    }
+
+    /// An RGB frame (height, width, 3) uint8 of world `index`, drawn without a display.
+    #[pyo3(signature = (index=0, width=480, height=480))]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        index: usize,
+        width: u32,
+        height: u32,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        guard(py, || {
+            let env = self.inner.envs().get(index).ok_or_else(|| {
+                to_py(
+                    py,
+                    Error::State(format!(
+                        "world index {index} out of range 0..{}",
+                        self.inner.len()
+                    )),
+                )
+            })?;
+            if !(16..=4096).contains(&width) || !(16..=4096).contains(&height) {
+                return Err(PyValueError::new_err(format!(
+                    "frame size must be 16..=4096 pixels a side, got {width}x{height}"
+                )));
+            }
+            let rgb = py.detach(|| crate::render::render(env, width, height));
+            Ok(PyArray1::from_vec(py, rgb)
+                .reshape([height as usize, width as usize, 3])?
+                .into_any())
+        })
+    }
+
+    /// Keeps the last `length` positions of every robot for the trails of `render` (0: off).
+    fn set_trail_length(&mut self, length: usize) {
+        self.trail_length = length.min(100_000);
+        self.inner.set_trail_length(self.trail_length);
+    }
+
+    /// Names of the task's extra episode statistics.
+    fn extra_stats(&self) -> Vec<&'static str> {
+        self.inner.envs()[0].kind().extra_stats().to_vec()
+    }
+
+    /// The resolved scenario as TOML text.
+    fn config_toml(&self) -> String {
+        self.inner.scenario().to_toml()
+    }
+
+    /// The state of every world (poses, velocities, contacts, random streams, step counters,
+    /// task state) and of the last outputs, as bytes for `set_state`.
+    fn get_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        guard(py, || {
+            let inner = &self.inner;
+            let bytes = py.detach(|| inner.save_state()).map_err(|e| to_py(py, e))?;
+            Ok(PyBytes::new(py, &bytes))
+        })
+    }
+
+    /// Pickling: the resolved scenario, the construction arguments and the state; unpickling
+    /// builds the same batch and restores the state (`_batch_from_state`).
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let py = slf.py();
+        let this = slf.borrow();
+        let state = this.get_state(py)?;
+        let rebuild = py
+            .import("khepera_gym._core")?
+            .getattr("_batch_from_state")?;
+        let args = (
+            this.inner.envs()[0].kind().name(),
+            this.inner.len(),
+            this.inner.scenario().to_toml(),
+            this.action_type.clone(),
+            this.requested_threads,
+            this.autoreset,
+            this.trail_length,
+            state,
+        )
+            .into_pyobject(py)?;
+        Ok((rebuild, args))
+    }
+
+    /// Restores a state from `get_state` of a batch of the same task, scenario and size.
+    fn set_state(&mut self, py: Python<'_>, state: &Bound<'_, PyAny>) -> PyResult<()> {
+        guard(py, || {
+            let bytes: Vec<u8> = match state.cast::<PyBytes>() {
+                Ok(b) => b.as_bytes().to_vec(),
+                Err(_) => {
+                    let kind = state.get_type().name()?;
+                    return Err(raise(
+                        py,
+                        "StateError",
+                        format!("a state is the bytes get_state() returned, got {kind}"),
+                    ));
+                }
+            };
+            let inner = &mut self.inner;
+            py.detach(|| inner.load_state(&bytes))
+                .map_err(|e| to_py(py, e))
+        })
+    }
+}
+
+impl Batch {
+    /// A per-agent field of every world as an (N, n_agents) array.
+    fn per_agent<'py, T: numpy::Element + Copy>(
+        &self,
+        py: Python<'py>,
+        field: impl Fn(&crate::tasks::Env) -> &Vec<T>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n_agents = field(&self.inner.envs()[0]).len();
+        let data: Vec<T> = self
+            .inner
+            .envs()
+            .iter()
+            .flat_map(|e| field(e).iter().copied())
+            .collect();
+        Ok(PyArray1::from_vec(py, data)
+            .reshape([self.inner.len(), n_agents])?
+            .into_any())
+    }
+
+    fn obs_array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        Ok(PyArray1::from_slice(py, self.inner.obs())
+            .reshape([self.inner.len(), self.inner.obs_dim()])?
+            .into_any())
+    }
+}
+
+
+/// Unpickles a `Batch` (see `Batch.__reduce__`).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub fn _batch_from_state(
+    py: Python<'_>,
+    task: &str,
+    num_worlds: i64,
+    config_text: String,
+    action_type: &str,
+    num_threads: Option<i64>,
+    autoreset: bool,
+    trail_length: usize,
+    state: &Bound<'_, PyAny>,
+) -> PyResult<Batch> {
+    let mut batch = Batch::new(
+        py,
+        task,
+        num_worlds,
+        Some(config_text),
+        "<pickled>",
+        None,
+        action_type,
+        num_threads,
+        autoreset,
+    )?;
+    batch.set_trail_length(trail_length);
+    batch.set_state(py, state)?;
+    Ok(batch)
+}
+

@@ -1,0 +1,154 @@
+//! Module-level functions of `_core`: what the core knows (tasks, controllers, scenarios,
+//! layouts) for the Python package to build on, and unit conversions.
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use super::convert::{layout_slices, task_kind, toml_to_py};
+use super::errors::{guard, to_py};
+use crate::controllers::Policy;
+use crate::error::Error;
+use crate::scenario::{self, Source};
+use crate::tasks::formation::FormationShape;
+use crate::tasks::TaskKind;
+
+/// The tasks, in registry order: (name, Gymnasium id without version or None, names of the
+/// extra episode statistics).
+#[pyfunction]
+pub fn tasks() -> Vec<(&'static str, Option<&'static str>, Vec<&'static str>)> {
+    TaskKind::ALL
+        .iter()
+        .map(|k| (k.name(), k.info().env_id, k.extra_stats().to_vec()))
+        .collect()
+}
+
+/// The controllers, in registry order: (name, the task whose observation it reads by default).
+#[pyfunction]
+pub fn controllers() -> Vec<(&'static str, &'static str)> {
+    crate::controllers::NAMES
+        .iter()
+        .map(|n| (*n, Policy::reads(n).unwrap_or("")))
+        .collect()
+}
+
+/// The parameters of controller `name`: (name, default value, comment), in order.
+#[pyfunction]
+pub fn controller_params<'py>(
+    py: Python<'py>,
+    name: &str,
+) -> PyResult<Vec<(&'static str, Bound<'py, PyAny>, &'static str)>> {
+    let keys = Policy::params(name).ok_or_else(|| {
+        to_py(
+            py,
+            Error::config(
+                "<policy>",
+                "controller",
+                format!(
+                    "unknown controller {name:?}; known: {:?}",
+                    crate::controllers::NAMES
+                ),
+            ),
+        )
+    })?;
+    let defaults = crate::config::keys_table(keys);
+    keys.iter()
+        .map(|k| {
+            let value = defaults
+                .get(k.name)
+                .map(|v| toml_to_py(py, v))
+                .transpose()?
+                .unwrap_or_else(|| py.None().into_bound(py));
+            Ok((k.name, value, k.comment.trim()))
+        })
+        .collect()
+}
+
+/// The followers' (r, β) offsets of a formation shape ("cross", "line", "wedge", "circle") of
+/// `n_followers` at `spacing` metres, as the scenarios' `formation.shape` computes them.
+#[pyfunction]
+pub fn formation_offsets(shape: &str, spacing: f32, n_followers: usize) -> PyResult<Vec<(f32, f32)>> {
+    let shape: FormationShape = toml::Value::String(shape.to_string())
+        .try_into()
+        .map_err(|_| PyValueError::new_err(format!("unknown formation shape {shape:?}")))?;
+    Ok(shape
+        .offsets(n_followers, spacing)
+        .into_iter()
+        .map(|[r, b]| (r, b))
+        .collect())
+}
+
+/// Observation layout of a task with its default scenario: (name, start, stop) in order.
+#[pyfunction]
+pub fn obs_layout(py: Python<'_>, task: &str) -> PyResult<Vec<(String, usize, usize)>> {
+    let kind = task_kind(py, task)?;
+    let cfg = kind.scenario(&Source::default()).map_err(|e| to_py(py, e))?;
+    let layout = kind.obs_layout(&cfg).map_err(|e| to_py(py, e))?;
+    Ok(layout_slices(&layout))
+}
+
+/// A built-in scenario file: a task's defaults (every key with its comment) or a scene.
+#[pyfunction]
+pub fn default_config(py: Python<'_>, name: &str) -> PyResult<String> {
+    if let Some(kind) = TaskKind::parse(name) {
+        return kind.default_config().map_err(|e| to_py(py, e));
+    }
+    scenario::scene(name).map(str::to_string).ok_or_else(|| {
+        to_py(
+            py,
+            Error::config(
+                "<built-in>",
+                "config",
+                format!("no built-in scenario {name:?}; known: {:?}", builtin_configs()),
+            ),
+        )
+    })
+}
+
+/// Names of the built-in scenarios: the tasks' defaults, then the scenes.
+#[pyfunction]
+pub fn builtin_configs() -> Vec<&'static str> {
+    TaskKind::ALL
+        .iter()
+        .map(|k| k.name())
+        .chain(scenario::SCENES.iter().map(|(n, _)| *n))
+        .collect()
+}
+
+/// Default weights of the Braitenberg block (m/s per unit proximity; rows left, right).
+#[pyfunction]
+pub fn braitenberg_weights(py: Python<'_>, name: &str) -> PyResult<Vec<Vec<f32>>> {
+    let w = crate::controllers::braitenberg::Weights::Named(name.to_string())
+        .matrix()
+        .map_err(|e| to_py(py, e))?;
+    Ok(w.iter().map(|r| r.to_vec()).collect())
+}
+
+/// Panics inside the binding's guard, for the test that a Rust panic surfaces as KheperaError
+/// (never as pyo3's PanicException, which escapes `except Exception`).
+#[pyfunction]
+pub fn _panic_for_test(py: Python<'_>) -> PyResult<()> {
+    guard(py, || {
+        let rows: Vec<u32> = Vec::new();
+        // An out-of-bounds index: the kind of bug the guard exists for.
+        let _ = rows[std::hint::black_box(3)];
+        Ok(())
+    })
+}
+
+/// A wheel speed in m/s as the real robot's `kh4_set_speed` units (0.678181 mm/s each).
+#[pyfunction]
+pub fn speed_to_units(speed: f32) -> PyResult<i32> {
+    if !speed.is_finite() || speed.abs() > 10.0 {
+        return Err(PyValueError::new_err(format!(
+            "speed must be finite, |v| <= 10 m/s, got {speed}"
+        )));
+    }
+    Ok(crate::robot::speed_to_units(speed))
+}
+
+/// The real robot's `kh4_set_speed` units as a wheel speed in m/s.
+#[pyfunction]
+pub fn units_to_speed(units: i32) -> f32 {
+    crate::robot::units_to_speed(units)
+}
+
