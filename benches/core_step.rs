@@ -7,6 +7,7 @@ use std::time::Instant;
 use _core::batch::Batch;
 use _core::robot::ActionType;
 use _core::scenario::{Scenario, Source};
+use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use rand::{Rng, SeedableRng};
 
@@ -40,7 +41,7 @@ fn main() {
         {
             continue;
         }
-        let cfg = Scenario::load(kind.name(), &Source::default()).expect("scenario");
+        let cfg = load_scenario(kind.name(), &Source::default()).expect("scenario");
         let robots = kind.n_robots(&cfg);
         let mut batch =
             Batch::new(kind, cfg, n, ActionType::Wheels, Some(threads), true).expect("batch");

@@ -4,27 +4,43 @@
 //! actions agree.
 
 use _core::batch::Batch;
-use _core::controllers::{Braitenberg, LeaderFollower, Policy, PositionControl, Vfh, WheelMap};
+use _core::controllers::Policy;
 use _core::robot::ActionType;
-use _core::scenario::{builtin, Scenario, Source};
+use _core::scenario::{self, Source};
+use _core::tasks::load_scenario;
 use _core::tasks::{EpisodeStats, TaskKind};
 
-fn position_control() -> PositionControl {
-    PositionControl {
-        vmax: 0.3,
-        wmax: 4.0,
-        kr: 0.15,
-        stop_radius: 0.02,
-    }
+/// Controller `name` with `params` (TOML), reading the first agent's observation of `task`'s
+/// default scenario.
+fn policy(name: &str, params: &str, task: TaskKind) -> Policy {
+    let cfg = task.scenario(&Source::default()).expect("scenario");
+    let layout = task.agents(&cfg).expect("agents").remove(0).layout;
+    Policy::new(name, &params.parse().expect("params"), &layout).expect("policy")
+}
+
+fn position_control() -> Policy {
+    policy(
+        "position_control",
+        "vmax = 0.3\nwmax = 4.0\nkr = 0.15\nstop_radius = 0.02",
+        TaskKind::Nav,
+    )
+}
+
+fn braitenberg() -> Policy {
+    policy("braitenberg", "", TaskKind::Nav)
+}
+
+fn vfh() -> Policy {
+    policy("vfh", "", TaskKind::Nav)
 }
 
 /// Runs `n` worlds (seeds `seed + i`) of `task` for one episode each under `policy`.
 fn episodes(task: TaskKind, scene: Option<&str>, policy: &Policy, n: usize) -> Vec<EpisodeStats> {
     let source = Source {
-        file: scene.map(|s| (builtin(s).expect("scene"), s)),
+        file: scene.map(|s| (scenario::scene(s).expect("scene"), s)),
         overrides: Default::default(),
     };
-    let cfg = Scenario::load(task.name(), &source).expect("scenario");
+    let cfg = load_scenario(task.name(), &source).expect("scenario");
     let mut batch = Batch::new(task, cfg, n, ActionType::Wheels, Some(2), true).expect("batch");
     batch.reset(Some(1000));
     let mut result: Vec<Option<EpisodeStats>> = vec![None; n];
@@ -53,8 +69,7 @@ fn success_rate(stats: &[EpisodeStats]) -> f64 {
 
 #[test]
 fn test_position_control_reaches_goal_in_nav() {
-    let policy = Policy::PositionControl(position_control(), WheelMap::default());
-    let stats = episodes(TaskKind::Nav, None, &policy, 200);
+    let stats = episodes(TaskKind::Nav, None, &position_control(), 200);
     assert!(
         success_rate(&stats) >= 0.99,
         "success {}",
@@ -64,13 +79,7 @@ fn test_position_control_reaches_goal_in_nav() {
 
 #[test]
 fn test_braitenberg_and_vfh_reach_target_past_fig6_wall_and_box() {
-    let braitenberg = Policy::Braitenberg(
-        position_control(),
-        Braitenberg::default(),
-        WheelMap::default(),
-    );
-    let vfh = Policy::Vfh(Vfh::default(), WheelMap::default());
-    let position_only = Policy::PositionControl(position_control(), WheelMap::default());
+    let (braitenberg, vfh, position_only) = (braitenberg(), vfh(), position_control());
     let b = episodes(TaskKind::Avoid, Some("paper_fig6"), &braitenberg, 1)[0];
     let p = episodes(TaskKind::Avoid, Some("paper_fig6"), &position_only, 1)[0];
     assert!(b.success, "Braitenberg {b:?}");
@@ -89,12 +98,7 @@ fn test_braitenberg_and_vfh_reach_target_past_fig6_wall_and_box() {
 
 #[test]
 fn test_braitenberg_succeeds_among_random_obstacles() {
-    let policy = Policy::Braitenberg(
-        position_control(),
-        Braitenberg::default(),
-        WheelMap::default(),
-    );
-    let stats = episodes(TaskKind::Avoid, None, &policy, 200);
+    let stats = episodes(TaskKind::Avoid, None, &braitenberg(), 200);
     assert!(
         success_rate(&stats) >= 0.9,
         "success {}",
@@ -104,34 +108,27 @@ fn test_braitenberg_succeeds_among_random_obstacles() {
 
 #[test]
 fn test_leader_follower_keeps_formation_error_small_without_obstacles() {
-    let follower = LeaderFollower {
-        offset: Some([0.5, 0.0]),
-        control: PositionControl {
-            vmax: 0.35,
-            wmax: 4.0,
-            kr: 0.08,
-            stop_radius: 0.005,
-        },
-        feedforward: true,
-        avoidance: Some(Braitenberg::default()),
-    };
     // Eq. 12 offsets of the default cross, computed by the controller from the leader's pose.
-    let followers = [0.0f32, 90.0, 180.0, 270.0]
-        .map(|b| LeaderFollower {
-            offset: Some([0.5, b.to_radians()]),
-            ..follower
-        })
-        .to_vec();
-    let policy = Policy::LeaderFollower {
-        followers,
-        leader: Box::new(Policy::PositionControl(
-            position_control(),
-            WheelMap::default(),
-        )),
-        wheels: WheelMap::default(),
-    };
+    let offsets = [0.0f32, 90.0, 180.0, 270.0]
+        .map(|b| format!("[0.5, {}]", b.to_radians()))
+        .join(", ");
+    let policy = policy(
+        "leader_follower",
+        &format!(
+            "offsets = [{offsets}]\nvmax = 0.35\nwmax = 4.0\nkr = 0.08\nstop_radius = 0.005\n\
+             feedforward = true\navoidance = true"
+        ),
+        TaskKind::Formation,
+    )
+    .with_leader(position_control())
+    .expect("leader");
     let stats = episodes(TaskKind::Formation, None, &policy, 50);
-    let mean = stats.iter().map(|s| s.formation_error_mean).sum::<f32>() / stats.len() as f32;
+    let at = TaskKind::Formation
+        .extra_stats()
+        .iter()
+        .position(|n| *n == "formation_error_mean")
+        .expect("formation_error_mean");
+    let mean = stats.iter().map(|s| s.extra[at]).sum::<f32>() / stats.len() as f32;
     assert!(mean < 0.1, "mean formation error {mean}");
     assert!(success_rate(&stats) >= 0.95);
 }
@@ -141,7 +138,7 @@ fn test_vfh_reaches_most_nav_goals_in_an_empty_arena() {
     let stats = episodes(
         TaskKind::Nav,
         None,
-        &Policy::Vfh(Vfh::default(), WheelMap::default()),
+        &vfh(),
         200,
     );
     assert!(
@@ -153,19 +150,11 @@ fn test_vfh_reaches_most_nav_goals_in_an_empty_arena() {
 
 #[test]
 fn test_batched_and_single_actions_agree() {
-    let cfg = Scenario::load("avoid", &Source::default()).expect("scenario");
+    let cfg = load_scenario("avoid", &Source::default()).expect("scenario");
     let mut batch =
         Batch::new(TaskKind::Avoid, cfg, 16, ActionType::Wheels, Some(1), true).expect("b");
     batch.reset(Some(4));
-    let policies = [
-        Policy::PositionControl(position_control(), WheelMap::default()),
-        Policy::Braitenberg(
-            position_control(),
-            Braitenberg::default(),
-            WheelMap::default(),
-        ),
-        Policy::Vfh(Vfh::default(), WheelMap::default()),
-    ];
+    let policies = [position_control(), braitenberg(), vfh()];
     for policy in &policies {
         let d = batch.obs_dim();
         let all = policy.act_batch(batch.obs(), d).expect("batched");

@@ -5,6 +5,7 @@
 use _core::batch::Batch;
 use _core::robot::ActionType;
 use _core::scenario::{Scenario, Source};
+use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use rand::{Rng, SeedableRng};
 
@@ -13,7 +14,7 @@ fn scenario() -> Scenario {
         file: None,
         overrides: "max_steps = 60".parse().expect("overrides"),
     };
-    Scenario::load("nav", &source).expect("scenario")
+    load_scenario("nav", &source).expect("scenario")
 }
 
 fn actions(n: usize, steps: usize) -> Vec<Vec<f32>> {

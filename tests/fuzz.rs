@@ -10,7 +10,8 @@
 use _core::batch::Batch;
 use _core::error::Error;
 use _core::robot::ActionType;
-use _core::scenario::{builtin, Scenario, Source};
+use _core::scenario::Source;
+use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use proptest::prelude::*;
 use proptest::test_runner::Config;
@@ -62,8 +63,10 @@ fn leaves(table: &Table, prefix: &str, out: &mut Vec<(String, Value)>) {
 }
 
 fn default_leaves(task: &str) -> Vec<(String, Value)> {
-    let table: Table = builtin(task)
+    let table: Table = TaskKind::parse(task)
         .expect("task")
+        .default_config()
+        .expect("defaults")
         .parse()
         .expect("defaults parse");
     let mut out = Vec::new();
@@ -255,7 +258,7 @@ fn check_scenario(task: &str, text: &str, seed: u64) -> Result<(), TestCaseError
         file: Some((text, "fuzz.toml")),
         overrides: Table::new(),
     };
-    let cfg = match Scenario::load(task, &source) {
+    let cfg = match load_scenario(task, &source) {
         Ok(cfg) => cfg,
         Err(Error::Config { .. }) => {
             count(&REFUSED, &LOADED, "scenarios refused");
@@ -303,7 +306,7 @@ fn with_batch<T>(task: &'static str, f: impl FnOnce(&mut Batch) -> T) -> T {
                 file: None,
                 overrides: "max_steps = 3".parse().expect("overrides"),
             };
-            let cfg = Scenario::load(task, &source).expect("scenario");
+            let cfg = load_scenario(task, &source).expect("scenario");
             let kind = TaskKind::parse(task).expect("task");
             let batch = Batch::new(kind, cfg, 2, ActionType::Wheels, Some(1), true).expect("batch");
             batches.push((task, batch));

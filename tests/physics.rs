@@ -4,7 +4,8 @@
 use std::sync::Arc;
 
 use _core::robot::ActionType;
-use _core::scenario::{Scenario, Source};
+use _core::scenario::Source;
+use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
 use rapier2d::math::Vector;
 
@@ -13,18 +14,18 @@ fn nav_env(overrides: &str) -> Env {
         file: None,
         overrides: overrides.parse().expect("overrides"),
     };
-    let cfg = Scenario::load("nav", &source).expect("scenario");
+    let cfg = load_scenario("nav", &source).expect("scenario");
     let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
     let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
     env.seed(7);
-    let mut obs = vec![0.0; _core::tasks::nav::OBS_DIM];
+    let mut obs = vec![0.0; env.obs_dim()];
     env.reset(&mut obs);
     env
 }
 
 /// Steps `env` with a constant action for `steps` control steps, ignoring episode ends.
 fn drive(env: &mut Env, action: [f32; 2], steps: usize, mut each: impl FnMut(&Env)) {
-    let mut obs = vec![0.0; _core::tasks::nav::OBS_DIM];
+    let mut obs = vec![0.0; env.obs_dim()];
     for _ in 0..steps {
         env.step(&action, &mut obs);
         env.done = false;

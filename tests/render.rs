@@ -5,12 +5,13 @@ use std::sync::Arc;
 
 use _core::render::render;
 use _core::robot::ActionType;
-use _core::scenario::{Scenario, Source};
+use _core::scenario::Source;
+use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
 use rapier2d::math::Vector;
 
 fn env() -> Env {
-    let cfg = Scenario::load("nav", &Source::default()).expect("scenario");
+    let cfg = load_scenario("nav", &Source::default()).expect("scenario");
     let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
     let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
     let mut obs = vec![0.0; 18];

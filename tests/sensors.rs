@@ -5,7 +5,8 @@
 use std::sync::Arc;
 
 use _core::robot::ActionType;
-use _core::scenario::{Scenario, Source};
+use _core::scenario::Source;
+use _core::tasks::load_scenario;
 use _core::sensors::{IR_BEARINGS, US_BEARINGS, US_DISABLED, US_NOTHING, US_TOO_CLOSE};
 use _core::tasks::{Env, TaskKind};
 use _core::world::SceneShape;
@@ -16,7 +17,7 @@ fn env_with(overrides: &str) -> Env {
         file: None,
         overrides: overrides.parse().expect("overrides"),
     };
-    let cfg = Scenario::load("nav", &source).expect("scenario");
+    let cfg = load_scenario("nav", &source).expect("scenario");
     let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
     let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
     env.seed(3);
@@ -54,13 +55,13 @@ fn test_each_ir_reads_response_curve_without_noise() {
     for (k, bearing) in IR_BEARINGS.iter().enumerate() {
         for (gap, raw) in CURVE {
             sense_wall(&mut env, *bearing, gap);
-            let got = env.world.robots[0].ir_raw[k] as f32;
+            let got = env.world.robots[0].readings.ir.raw[k] as f32;
             assert!(
                 (got - raw).abs() <= 1.0,
                 "sensor {k} at {gap} m: {got} != {raw}"
             );
             // The other sensors see less (the slab is narrow) or the floor.
-            for (j, other) in env.world.robots[0].ir_raw.iter().enumerate() {
+            for (j, other) in env.world.robots[0].readings.ir.raw.iter().enumerate() {
                 if j != k {
                     assert!((*other as f32) < raw, "sensor {j} sees {other} >= {raw}");
                 }
@@ -75,7 +76,7 @@ fn test_ir_noise_is_gaussian_around_curve() {
     let (mut sum, mut sum2, n) = (0.0f64, 0.0f64, 2000);
     for _ in 0..n {
         sense_wall(&mut env, 0.0, 0.06);
-        let v = env.world.robots[0].ir_raw[3] as f64;
+        let v = env.world.robots[0].readings.ir.raw[3] as f64;
         sum += v;
         sum2 += v * v;
     }
@@ -90,7 +91,7 @@ fn test_nothing_in_range_reads_floor_value() {
     let mut env = env_with("ir_noise_sigma = 0.0\nir_floor_value = 100.0");
     env.world.place_robot(0, Vector::ZERO, 0.3);
     env.world.sense();
-    assert_eq!(env.world.robots[0].ir_raw, [100; 8]);
+    assert_eq!(env.world.robots[0].readings.ir.raw, [100; 8]);
 }
 
 #[test]
@@ -98,10 +99,10 @@ fn test_ultrasonic_centimetres_and_codes() {
     let mut env = env_with("us_noise_sigma = 0.0");
     // Front sensor (index 2): a slab at 1.234 m from the rim.
     sense_wall(&mut env, US_BEARINGS[2], 1.234);
-    assert_eq!(env.world.robots[0].us_code[2], 123);
+    assert_eq!(env.world.robots[0].readings.us.code[2], 123);
     // Too close.
     sense_wall(&mut env, US_BEARINGS[2], 0.10);
-    assert_eq!(env.world.robots[0].us_code[2], US_TOO_CLOSE);
+    assert_eq!(env.world.robots[0].readings.us.code[2], US_TOO_CLOSE);
     // Arena is 2 m: from the centre, the side walls are ~0.93 m away, so move the robot into a
     // 5 m arena to have nothing in range.
     let mut big = env_with("us_noise_sigma = 0.0\nwidth = 5.0\nheight = 5.0");
@@ -109,12 +110,12 @@ fn test_ultrasonic_centimetres_and_codes() {
         .set_scene(_core::world::Scene::arena(5.0, 5.0, 0.05));
     big.world.place_robot(0, Vector::ZERO, 0.0);
     big.world.sense();
-    assert_eq!(big.world.robots[0].us_code, [US_NOTHING; 5]);
+    assert_eq!(big.world.robots[0].readings.us.code, [US_NOTHING; 5]);
     // Disabled sensors.
     let mut off = env_with("us_enabled = [true, false, true, true, false]");
     off.world.place_robot(0, Vector::ZERO, 0.0);
     off.world.sense();
-    assert_eq!(off.world.robots[0].us_code[1], US_DISABLED);
-    assert_eq!(off.world.robots[0].us_code[4], US_DISABLED);
-    assert!(off.world.robots[0].us_code[2] > 80 && off.world.robots[0].us_code[2] < 100);
+    assert_eq!(off.world.robots[0].readings.us.code[1], US_DISABLED);
+    assert_eq!(off.world.robots[0].readings.us.code[4], US_DISABLED);
+    assert!(off.world.robots[0].readings.us.code[2] > 80 && off.world.robots[0].readings.us.code[2] < 100);
 }

@@ -6,7 +6,8 @@
 use _core::batch::Batch;
 use _core::error::Error;
 use _core::robot::ActionType;
-use _core::scenario::{Scenario, Source};
+use _core::scenario::Source;
+use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use rand::{Rng, SeedableRng};
 
@@ -15,7 +16,7 @@ fn batch(task: &str, overrides: &str, n: usize) -> Batch {
         file: None,
         overrides: overrides.parse().expect("overrides"),
     };
-    let cfg = Scenario::load(task, &source).expect("scenario");
+    let cfg = load_scenario(task, &source).expect("scenario");
     let kind = TaskKind::parse(task).expect("task");
     Batch::new(kind, cfg, n, ActionType::Wheels, Some(2), true).expect("batch")
 }

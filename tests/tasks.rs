@@ -8,17 +8,18 @@ use _core::batch::Batch;
 use _core::controllers::position::twist_to_wheels;
 use _core::controllers::PositionControl;
 use _core::robot::ActionType;
-use _core::scenario::{builtin, Scenario, Source};
+use _core::scenario::{Scenario, Source};
+use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
 use rand::{Rng, SeedableRng};
 use rapier2d::math::Vector;
 
 fn scenario(task: &str, scene: Option<&str>, overrides: &str) -> Scenario {
     let source = Source {
-        file: scene.map(|s| (builtin(s).expect("built-in scene"), s)),
+        file: scene.map(|s| (_core::scenario::scene(s).expect("built-in scene"), s)),
         overrides: overrides.parse().expect("overrides"),
     };
-    Scenario::load(task, &source).expect("scenario")
+    load_scenario(task, &source).expect("scenario")
 }
 
 fn random_actions(len: usize, steps: usize, seed: u64) -> Vec<Vec<f32>> {
@@ -153,7 +154,7 @@ fn test_random_obstacles_keep_start_and_goal_clear_and_reachable() {
     let cfg = Arc::new(scenario("avoid", None, ""));
     let spawner = Arc::new(Env::spawner(TaskKind::Avoid, &cfg).expect("spawner"));
     let mut env = Env::new(TaskKind::Avoid, cfg.clone(), spawner, ActionType::Wheels).expect("env");
-    let mut obs = vec![0.0; env.kind().obs_dim(&cfg)];
+    let mut obs = vec![0.0; env.obs_dim()];
     let mut full = 0;
     for seed in 0..100 {
         env.seed(seed);
@@ -195,7 +196,7 @@ fn test_paper_fig7_places_five_robots_in_a_cross() {
         ActionType::Wheels,
     )
     .expect("env");
-    let mut obs = vec![0.0; env.kind().obs_dim(&cfg)];
+    let mut obs = vec![0.0; env.obs_dim()];
     env.reset(&mut obs);
     let p: Vec<Vector> = env.world.robots.iter().map(|r| r.position).collect();
     let leader = Vector::new(-0.85, 0.0);
@@ -209,7 +210,7 @@ fn test_paper_fig7_places_five_robots_in_a_cross() {
     for (got, want) in p.iter().zip(expected) {
         assert!((*got - want).length() < 1e-5, "{got:?} != {want:?}");
     }
-    for (k, target) in env.formation_targets().iter().enumerate() {
+    for (k, target) in env.targets().iter().enumerate() {
         assert!((*target - p[k + 1]).length() < 1e-5);
     }
 }
@@ -244,7 +245,7 @@ fn test_scripted_leader_reaches_goal_and_followers_hold_formation() {
             ActionType::Wheels,
         )
         .expect("env");
-        let mut obs = vec![0.0; env.kind().obs_dim(&cfg)];
+        let mut obs = vec![0.0; env.obs_dim()];
         let mut successes = 0;
         for seed in 0..10 {
             env.seed(seed);
@@ -258,10 +259,11 @@ fn test_scripted_leader_reaches_goal_and_followers_hold_formation() {
             }
             let stats = env.last_episode;
             successes += stats.success as usize;
+            let (_, error_mean) = env.extra_stats(&stats)[0];
+            assert_eq!(TaskKind::Formation.extra_stats()[0], "formation_error_mean");
             assert!(
-                stats.formation_error_mean < bound,
-                "{scene:?} seed {seed}: mean formation error {}",
-                stats.formation_error_mean
+                error_mean < bound,
+                "{scene:?} seed {seed}: mean formation error {error_mean}"
             );
         }
         assert!(

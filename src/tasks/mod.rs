@@ -369,6 +369,7 @@ pub struct Env {
     task: TaskState,
     action_type: ActionType,
     agent_robots: Vec<usize>,
+    obs_dim: usize,
     /// Each agent's reward on the last step.
     pub agent_rewards: Vec<f32>,
     /// Each agent's termination on the last step (multinav: its robot arrived).
@@ -395,7 +396,9 @@ impl Env {
     ) -> Result<Self> {
         let world = World::new(&cfg, spawner.base.clone(), spawner.n_robots());
         let task = kind.new_state(&cfg)?;
-        let agent_robots: Vec<usize> = kind.agents(&cfg)?.iter().map(|a| a.robot).collect();
+        let agents = kind.agents(&cfg)?;
+        let obs_dim = agents.iter().map(|a| a.layout.len()).sum();
+        let agent_robots: Vec<usize> = agents.iter().map(|a| a.robot).collect();
         let n_agents = agent_robots.len();
         Ok(Self {
             world,
@@ -404,6 +407,7 @@ impl Env {
             task,
             action_type,
             agent_robots,
+            obs_dim,
             agent_rewards: vec![0.0; n_agents],
             agent_terminated: vec![false; n_agents],
             stats: EpisodeStats::default(),
@@ -418,6 +422,11 @@ impl Env {
     /// checks that its layouts are feasible, naming the scenario's origin in errors.
     pub fn spawner(kind: TaskKind, cfg: &Scenario) -> Result<Spawner> {
         Spawner::new(cfg, kind.spawn(cfg)?, &cfg.origin)
+    }
+
+    /// Length of the joint observation.
+    pub fn obs_dim(&self) -> usize {
+        self.obs_dim
     }
 
     /// The task.
