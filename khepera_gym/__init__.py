@@ -9,7 +9,7 @@ Importing the package registers the environments with Gymnasium::
     envs = gym.make_vec("KheperaIV-Nav-v0", num_envs=1024)  # native Rust batch
 
 Registered ids (``gym.make("KheperaIV-Nav")`` picks the latest version, with Gymnasium's warning
-that it did so):
+that it did so), made from the task list the Rust core exports (:mod:`khepera_gym.registration`):
 
 * ``KheperaIV-Nav-v0``: :class:`khepera_gym.envs.NavEnv`, vector env
   :class:`khepera_gym.vector.NavVectorEnv`;
@@ -28,10 +28,9 @@ on top; to change the episode length of the simulator itself pass ``max_steps=k`
 
 from __future__ import annotations
 
-import gymnasium
-
 from khepera_gym import _core, errors
 from khepera_gym.layout import obs_layout
+from khepera_gym.registration import register_envs
 
 #: Real-robot speed units (``kh4_set_speed``, 0.678181 mm/s each) to and from m/s.
 speed_to_units = _core.speed_to_units
@@ -39,30 +38,6 @@ units_to_speed = _core.units_to_speed
 
 __version__: str = _core.__version__
 
-#: (id, single-env entry point, vector entry point) of every registered environment.
-_REGISTRATIONS = (
-    ("KheperaIV-Nav-v0", "khepera_gym.envs:NavEnv", "khepera_gym.vector:NavVectorEnv"),
-    ("KheperaIV-Avoid-v0", "khepera_gym.envs:AvoidEnv", "khepera_gym.vector:AvoidVectorEnv"),
-    (
-        "KheperaIV-Formation-v0",
-        "khepera_gym.envs:FormationEnv",
-        "khepera_gym.vector:FormationVectorEnv",
-    ),
-)
-
-
-def _register_envs() -> None:
-    """Registers the environments with Gymnasium; a re-import registers nothing twice."""
-    for env_id, entry_point, vector_entry_point in _REGISTRATIONS:
-        if env_id in gymnasium.registry:
-            continue
-        gymnasium.register(
-            id=env_id,
-            entry_point=entry_point,
-            vector_entry_point=vector_entry_point,
-        )
-
-
-_register_envs()
+register_envs()
 
 __all__ = ["__version__", "errors", "obs_layout", "speed_to_units", "units_to_speed"]

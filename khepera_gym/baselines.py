@@ -73,7 +73,9 @@ def parameters(controller: str) -> list[tuple[str, Any, str]]:
     Returns:
         ``(name, default, comment)`` per parameter, in order; the comment gives units and source.
     """
-    return [(name, default, comment) for name, default, comment in _core.controller_params(controller)]
+    return [
+        (name, default, comment) for name, default, comment in _core.controller_params(controller)
+    ]
 
 
 def _layout_triples(layout: Layout | None) -> list[tuple[str, int, int]] | None:
@@ -128,14 +130,21 @@ class BaselinePolicy:
         if "__init__" not in cls.__dict__:
             cls.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
                 [
-                    inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default)
+                    inspect.Parameter(
+                        name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default
+                    )
                     for name, default, _ in cls.PARAMETERS
                 ]
                 + [inspect.Parameter("layout", inspect.Parameter.KEYWORD_ONLY, default=None)]
             )
-        lines = [f"    {name}: {comment} (default {default!r})." for name, default, comment in cls.PARAMETERS]
+        lines = [
+            f"    {name}: {comment} (default {default!r})."
+            for name, default, comment in cls.PARAMETERS
+        ]
         cls.__doc__ = (cls.__doc__ or "").rstrip() + (
-            f"\n\n    Parameters of the Rust controller ``{cls.CONTROLLER}``:\n\n" + "\n".join(lines) + "\n"
+            f"\n\n    Parameters of the Rust controller ``{cls.CONTROLLER}``:\n\n"
+            + "\n".join(lines)
+            + "\n"
         )
 
     def __init__(self, *args: Any, layout: Layout | None = None, **params: Any) -> None:

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, compare, render, train
+from khepera_gym import bench, compare, record, train
 
 #: Episodes per policy of each comparison of the demo.
 DEMO_EPISODES = 50
@@ -64,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     render_parser = commands.add_parser(
         "render", help="record a seeded episode of a policy to a GIF or MP4"
     )
-    render.add_arguments(render_parser)
+    record.add_arguments(render_parser)
 
     bench_parser = commands.add_parser("bench", help="env-steps/s and memory per world")
     bench.add_arguments(bench_parser)
@@ -83,7 +83,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "train":
         return train.run_from_args(args)
     if args.command == "render":
-        return render.run_from_args(args)
+        return record.run_from_args(args)
     return bench.run_from_args(args)
 
 

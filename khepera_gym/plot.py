@@ -1,8 +1,9 @@
 """Trajectory plots with matplotlib: arena walls, obstacles, goals, robot discs and paths.
 
 The counterpart of the KH4VREP library's ``plot`` (the paper's Table 1): :func:`record_rollout`
-runs one seeded episode with a policy and keeps the poses of every step, the goals, the scene
-and the episode statistics (a :class:`Rollout`); :func:`plot_rollouts` draws one or several
+(:mod:`khepera_gym.rollout`, re-exported here) runs one seeded episode with a policy and keeps
+the poses of every step, the goals, the scene and the episode statistics (a :class:`Rollout`);
+:func:`plot_rollouts` draws one or several
 rollouts side by side (e.g. the paper's Fig. 6, Braitenberg vs VFH); :func:`plot_trajectories`
 draws paths into one axes: one or several robots per episode (a formation: the leader and its
 followers, each with its trace), optionally the formation's target points and snapshots of the
@@ -15,20 +16,18 @@ x right, y up, metres, arena centred at the origin.
 
 from __future__ import annotations
 
-import json
 import textwrap
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, ClassVar
+from collections.abc import Mapping, Sequence
+from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
+
+from khepera_gym.rollout import Rollout, control_step, record_rollout, rollout_summary
 
 #: Colour of walls and obstacles.
 _WALL_COLOUR = "0.25"
@@ -291,226 +290,6 @@ def _draw_targets(
     for time in (*times, len(targets) - 1):
         for follower, (x, y) in enumerate(targets[time]):
             ax.scatter(x, y, marker="x", s=30, color=colour_of(episode, follower + 1), zorder=7)
-
-
-@dataclass
-class Rollout:
-    """One recorded episode: what :func:`plot_rollouts` draws and the comparison tool saves.
-
-    Attributes:
-        poses: Ground-truth poses at reset and after every step, shape (T + 1, R, 3): x, y (m),
-            θ (rad), robots in the env's order (a formation's leader first).
-        goals: Goal positions of the episode, shape (n_goals, 2) (m).
-        scene: The world's geometry (``env.unwrapped.scene()``) at reset.
-        stats: The episode's ``episode_stats`` ("success", "length", "path_length", ...); empty
-            if the recording stopped before the episode ended.
-        targets: A formation's follower targets (eq. 12) at reset and after every step,
-            shape (T + 1, K, 2), or None for other tasks.
-        dt: Control step (s), so that step t is at time t · dt.
-        label: What produced it, e.g. the policy's name (used as a panel title).
-        seed: The reset seed, if known.
-        actions: The action of every step, shape (T, A), when recorded.
-        rewards: The reward of every step, shape (T,), when recorded.
-        ir_raw: Raw IR readings (0..1023) at reset and after every step, (T + 1, R, 8).
-        us_cm: Ultrasonic readings (cm or codes 0/1000/2000), (T + 1, R, 5).
-        env_id: The environment's id, when known.
-        config: The resolved scenario (TOML text), when known.
-
-    :meth:`save` writes all of it to one compressed ``.npz`` file and :meth:`load` reads it back,
-    so a run can be replayed or plotted later without simulating it again.
-    """
-
-    poses: np.ndarray
-    goals: np.ndarray
-    scene: dict[str, Any]
-    stats: dict[str, Any] = field(default_factory=dict)
-    targets: np.ndarray | None = None
-    dt: float = 0.05
-    label: str = ""
-    seed: int | None = None
-    actions: np.ndarray | None = None
-    rewards: np.ndarray | None = None
-    ir_raw: np.ndarray | None = None
-    us_cm: np.ndarray | None = None
-    env_id: str = ""
-    config: str = ""
-
-    _ARRAYS: ClassVar[tuple[str, ...]] = (
-        "poses",
-        "goals",
-        "targets",
-        "actions",
-        "rewards",
-        "ir_raw",
-        "us_cm",
-    )
-
-    def save(self, path: str | Path) -> Path:
-        """Writes the rollout to a compressed ``.npz`` (arrays, plus scene, stats and metadata
-        as JSON)."""
-        path = Path(path)
-        arrays = {
-            name: getattr(self, name) for name in self._ARRAYS if getattr(self, name) is not None
-        }
-        meta = {
-            "scene": self.scene,
-            "stats": {k: (v.item() if hasattr(v, "item") else v) for k, v in self.stats.items()},
-            "dt": self.dt,
-            "label": self.label,
-            "seed": self.seed,
-            "env_id": self.env_id,
-            "config": self.config,
-        }
-        np.savez_compressed(path, meta=np.array(json.dumps(meta)), **arrays)
-        return path if path.suffix == ".npz" else path.with_suffix(path.suffix + ".npz")
-
-    @classmethod
-    def load(cls, path: str | Path) -> Rollout:
-        """Reads a rollout written by :meth:`save`."""
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            arrays = {name: data[name] for name in cls._ARRAYS if name in data.files}
-        return cls(
-            scene=meta["scene"],
-            stats=meta["stats"],
-            dt=meta["dt"],
-            label=meta["label"],
-            seed=meta["seed"],
-            env_id=meta["env_id"],
-            config=meta["config"],
-            **arrays,
-        )
-
-    @property
-    def n_robots(self) -> int:
-        """Number of robots R."""
-        return int(self.poses.shape[1])
-
-    @property
-    def duration(self) -> float:
-        """Simulated time of the recording (s)."""
-        return (len(self.poses) - 1) * self.dt
-
-    def turning(self, robot: int = 0, deadband: float = 0.01) -> tuple[float, int]:
-        """How much a robot turned: (total heading change in rad, turn-direction reversals).
-
-        A reversal is a step whose heading change has the opposite sign of the previous step
-        that turned by more than ``deadband`` rad (0.01 rad per 0.05 s step = 0.2 rad/s); a
-        zigzagging robot has many, a smooth path few.
-        """
-        change = np.diff(np.unwrap(self.poses[:, robot, 2]))
-        signs = np.sign(change[np.abs(change) > deadband])
-        return float(np.abs(change).sum()), int(np.count_nonzero(np.diff(signs)))
-
-
-def control_step(env: Any) -> float:
-    """The scenario's ``physics.dt`` (s) of an env (0.05 s if it cannot be read)."""
-    try:
-        import tomllib
-
-        return float(tomllib.loads(env.unwrapped.config_toml())["physics"]["dt"])
-    except (ImportError, AttributeError, KeyError, TypeError, ValueError):
-        return 0.05
-
-
-def record_rollout(
-    env_id_or_env: str | gym.Env,
-    policy: Callable[[np.ndarray], Any],
-    seed: int,
-    config: Any = None,
-    max_steps: int | None = None,
-    *,
-    label: str = "",
-    **overrides: Any,
-) -> Rollout:
-    """Runs one seeded episode and records the poses after every step.
-
-    Args:
-        env_id_or_env: A registered id (e.g. ``"KheperaIV-Avoid-v0"``), made with
-            ``gym.make(id, config=config, max_steps=max_steps, **overrides)`` and closed
-            afterwards, or a single-world env (not closed).
-        policy: Maps one observation to one action (a baseline of
-            :mod:`khepera_gym.baselines`, a function, ...).
-        seed: ``reset(seed=seed)``: world i of a vector env reset with seed s is this episode
-            for seed s + i.
-        config: Scenario name or TOML path (only with an id).
-        max_steps: With an id, the scenario's ``task.max_steps`` (the core truncates there);
-            with an env, the recording stops after that many steps (``stats`` stays empty if
-            the episode has not ended).
-        label: Stored in :attr:`Rollout.label`.
-        **overrides: Further scenario keys (only with an id).
-
-    Returns:
-        The :class:`Rollout`.
-
-    Raises:
-        ValueError: ``config`` or overrides given with an env instance.
-    """
-    if isinstance(env_id_or_env, str):
-        if max_steps is not None:
-            overrides["max_steps"] = max_steps
-        env = gym.make(env_id_or_env, config=config, **overrides)
-        try:
-            return record_rollout(env, policy, seed, label=label)
-        finally:
-            env.close()
-    if config is not None or overrides:
-        raise ValueError("config and scenario overrides need an env id, not an env instance")
-    env = env_id_or_env
-    unwrapped = env.unwrapped
-    observation, _ = env.reset(seed=seed)
-    has_targets = hasattr(unwrapped, "formation_targets")
-    poses = [unwrapped.poses()]
-    targets = [unwrapped.formation_targets()] if has_targets else []
-    goals, scene = unwrapped.goals(), unwrapped.scene()
-    stats: dict[str, Any] = {}
-    steps = 0
-    actions, rewards = [], []
-    readings = [unwrapped.sensor_readings()]
-    while max_steps is None or steps < max_steps:
-        action = np.asarray(policy(observation), dtype=np.float32)
-        observation, reward, terminated, truncated, info = env.step(action)
-        actions.append(action)
-        rewards.append(float(reward))
-        readings.append(unwrapped.sensor_readings())
-        steps += 1
-        poses.append(unwrapped.poses())
-        if has_targets:
-            targets.append(unwrapped.formation_targets())
-        if terminated or truncated:
-            stats = dict(info.get("episode_stats", {}))
-            break
-    return Rollout(
-        poses=np.array(poses),
-        goals=np.asarray(goals),
-        scene=scene,
-        stats=stats,
-        targets=np.array(targets) if has_targets else None,
-        dt=control_step(env),
-        label=label,
-        seed=seed,
-        actions=np.array(actions, dtype=np.float32).reshape(steps, -1),
-        rewards=np.array(rewards, dtype=np.float32),
-        ir_raw=np.array([r["ir_raw"] for r in readings]),
-        us_cm=np.array([r["us_cm"] for r in readings]),
-        env_id=env.spec.id if env.spec is not None else "",
-        config=unwrapped.config_toml(),
-    )
-
-
-def rollout_summary(rollout: Rollout) -> str:
-    """One line on how a rollout ended, e.g. "reached in 11.2 s, path 1.74 m, no contact"."""
-    stats = rollout.stats
-    if not stats:
-        return f"{rollout.duration:.1f} s recorded"
-    outcome = "reached" if stats.get("success") else "not reached"
-    text = f"{outcome} in {stats['length'] * rollout.dt:.1f} s"
-    if rollout.n_robots == 1 and "path_length" in stats:
-        text += f", path {stats['path_length']:.2f} m"
-    if "formation_error_mean" in stats:
-        text += f", formation error {stats['formation_error_mean'] * 100:.1f} cm"
-    contacts = int(stats.get("collisions", 0))
-    return text + (f", {contacts} steps in contact" if contacts else ", no contact")
 
 
 def _draw_timed_snapshots(ax: Axes, rollout: Rollout, period: float) -> None:

@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -32,14 +31,13 @@ from gymnasium.vector.utils import batch_space
 
 from khepera_gym._inputs import as_action_array, check_seed, check_world_seeds
 from khepera_gym.config import ConfigArg, make_batch
-from khepera_gym.envs import _SEED_BOUND, _check_render_mode
+from khepera_gym.envs import ENV_CLASSES, KheperaEnv
 from khepera_gym.errors import ConfigError
-from khepera_gym.layout import layout_dict
+from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
-from khepera_gym.state import StateMixin
 
 
-class KheperaVectorEnv(StateMixin, VectorEnv):
+class KheperaVectorEnv(BatchFace, VectorEnv):
     """N seeded Khepera IV worlds of one task, stepped in parallel by the Rust core.
 
     Args:
@@ -61,6 +59,7 @@ class KheperaVectorEnv(StateMixin, VectorEnv):
         "render_fps": 20,
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
+    _WORLD: ClassVar[int | None] = None
 
     def __init__(
         self,
@@ -75,7 +74,7 @@ class KheperaVectorEnv(StateMixin, VectorEnv):
         render_worlds: int = 4,
         **overrides: Any,
     ) -> None:
-        _check_render_mode(render_mode, self.metadata["render_modes"])
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self._batch = make_batch(
             task,
             num_envs,
@@ -91,13 +90,8 @@ class KheperaVectorEnv(StateMixin, VectorEnv):
         self.render_mode = render_mode
         self.action_type = action_type
 
-        low, high = self._batch.obs_bounds()
-        self.single_observation_space = gym.spaces.Box(
-            low.astype(np.float32), high.astype(np.float32), dtype=np.float32
-        )
-        self.single_action_space = gym.spaces.Box(
-            -1.0, 1.0, shape=(self._batch.act_dim,), dtype=np.float32
-        )
+        self.single_observation_space = self._row_observation_space()
+        self.single_action_space = self._row_action_space()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._action_shape = (self.num_envs, self._batch.act_dim)
@@ -115,21 +109,6 @@ class KheperaVectorEnv(StateMixin, VectorEnv):
         """A mosaic of the first ``render_worlds`` worlds' frames (rgb_array), or shown in a
         window (human, returns None); None without a render mode."""
         return self._renderer.render(self._render_worlds)
-
-    @property
-    def num_threads(self) -> int:
-        """Threads of the batch's rayon pool."""
-        return self._batch.num_threads
-
-    @property
-    def max_episode_steps(self) -> int:
-        """Steps after which the Rust core truncates an episode (the scenario's ``max_steps``)."""
-        return self._batch.max_episode_steps
-
-    @property
-    def n_robots(self) -> int:
-        """Number of robots per world."""
-        return self._batch.n_robots
 
     def reset(
         self,
@@ -152,7 +131,7 @@ class KheperaVectorEnv(StateMixin, VectorEnv):
             seed = check_seed(seed)
             super().reset(seed=seed)
             if seed is None and not self._has_reset:
-                seed = int(self.np_random.integers(_SEED_BOUND))
+                seed = first_seed(self.np_random)
             observations = self._batch.reset(seed)
         else:
             observations = self._reset_each(seed)
@@ -163,7 +142,7 @@ class KheperaVectorEnv(StateMixin, VectorEnv):
         seeds = check_world_seeds(seeds, self.num_envs)
         if not self._has_reset:
             # Worlds given None still need a first seed: draw it as an int seed would be.
-            base = int(self.np_random.integers(_SEED_BOUND))
+            base = first_seed(self.np_random)
             seeds = [base + index if s is None else s for index, s in enumerate(seeds)]
         observations = np.empty((self.num_envs, *self.single_observation_space.shape), np.float32)
         for index, world_seed in enumerate(seeds):
@@ -194,48 +173,17 @@ class KheperaVectorEnv(StateMixin, VectorEnv):
         observations, rewards, terminations, truncations = self._batch.step(action_array)
         # count_nonzero is several times cheaper than ndarray.any() on small arrays (hot path).
         if np.count_nonzero(terminations) or np.count_nonzero(truncations):
-            infos = self._episode_infos(terminations | truncations)
+            infos = self._vector_episode_info(terminations | truncations)
         else:
             infos = {}
         return observations, rewards, terminations, truncations, infos
 
-    def _episode_infos(self, ended: npt.NDArray[np.bool_]) -> dict[str, Any]:
-        not_ended = ~ended
-        episode: dict[str, Any] = {}
-        for name, values in self._batch.episode_stats().items():
-            values[not_ended] = 0
-            episode[name] = values
-            episode[f"_{name}"] = ended.copy()
-        return {"episode_stats": episode, "_episode_stats": ended}
-
-    def obs_layout(self) -> dict[str, slice]:
-        """Observation layout of this env's scenario, name → slice (with agent prefixes such as
-        "follower_0/ir" when there are several robots)."""
-        return layout_dict(self._batch.obs_layout())
-
-    def poses(self) -> npt.NDArray[np.float64]:
-        """Ground-truth robot poses, shape (N, n_robots, 3): x, y (m), θ (rad, (-π, π])."""
-        return self._batch.poses()
-
-    def goals(self) -> npt.NDArray[np.float64]:
-        """Goal positions, shape (N, n_goals, 2), in metres."""
-        return self._batch.goals()
-
-    def sensor_readings(self) -> dict[str, npt.NDArray[Any]]:
-        """Raw sensor values of the last observations (see ``_core.Batch.sensor_readings``)."""
-        return self._batch.sensor_readings()
-
-    def scene(self, index: int = 0) -> dict[str, Any]:
-        """Geometry of world ``index`` for plots: arena size, robot radius, obstacles, goal."""
-        return self._batch.scene(index)
-
-    def config_toml(self) -> str:
-        """The fully resolved scenario (defaults + file + overrides) as TOML text."""
-        return self._batch.config_toml()
-
     def close_extras(self, **kwargs: Any) -> None:
-        """Closes the render window, if any (the Rust batch is freed with the env)."""
-        self._renderer.close()
+        """Closes the render window, if any (the Rust batch is freed with the env). Safe on an
+        env whose construction failed (Gymnasium may close it when it is collected)."""
+        renderer = getattr(self, "_renderer", None)
+        if renderer is not None:
+            renderer.close()
 
 
 class _TaskVectorEnv(KheperaVectorEnv):
@@ -253,43 +201,41 @@ class _TaskVectorEnv(KheperaVectorEnv):
         super().__init__(num_envs, task=self.TASK, **kwargs)
 
 
-class NavVectorEnv(_TaskVectorEnv):
-    """``KheperaIV-Nav`` as a native vector env (the ``vector_entry_point`` of its registration).
+def vector_env_class(env_class: type[KheperaEnv]) -> type[KheperaVectorEnv]:
+    """The native vector env of a single-world env class: ``NavEnv`` → ``NavVectorEnv``, with
+    the task's extra methods (such as ``formation_targets``) carried over."""
+    name = env_class.__name__.removesuffix("Env") + "VectorEnv"
+    extras = {
+        attr: value
+        for attr, value in vars(env_class).items()
+        if callable(value) and not attr.startswith("_") and not hasattr(KheperaVectorEnv, attr)
+    }
+    doc = (
+        f"``{env_class.__name__}``'s task ({env_class.TASK!r}) as a native vector env (the "
+        "``vector_entry_point`` of its registration).\n\n    Takes the arguments of "
+        ":class:`KheperaVectorEnv` except ``task``; accessors keep the world axis first."
+    )
+    return type(
+        name,
+        (_TaskVectorEnv,),
+        {"TASK": env_class.TASK, "__doc__": doc, "__module__": __name__, **extras},
+    )
 
-    Takes the arguments of :class:`KheperaVectorEnv` except ``task``, fixed to "nav".
-    """
 
-    TASK: ClassVar[str] = "nav"
-
-
-class AvoidVectorEnv(_TaskVectorEnv):
-    """``KheperaIV-Avoid`` as a native vector env (the ``vector_entry_point`` of its registration).
-
-    Takes the arguments of :class:`KheperaVectorEnv` except ``task``, fixed to "avoid".
-    ``scene(i)`` lists world i's obstacles of the current episode.
-    """
-
-    TASK: ClassVar[str] = "avoid"
-
-
-class FormationVectorEnv(_TaskVectorEnv):
-    """``KheperaIV-Formation`` as a native vector env (its registration's ``vector_entry_point``).
-
-    Takes the arguments of :class:`KheperaVectorEnv` except ``task``, fixed to "formation".
-    ``poses()`` has the leader first, shape (N, K + 1, 3); episode statistics add
-    "formation_error_mean" and "formation_error_max" (m).
-    """
-
-    TASK: ClassVar[str] = "formation"
-
-    def formation_targets(self) -> npt.NDArray[np.float64]:
-        """The followers' target points (eq. 12), shape (N, K, 2), in metres."""
-        return self._batch.formation_targets()
-
+#: The vector env class of each task, by the Rust core's task name.
+VECTOR_ENV_CLASSES: dict[str, type[KheperaVectorEnv]] = {
+    task: vector_env_class(env_class) for task, env_class in ENV_CLASSES.items()
+}
+globals().update({cls.__name__: cls for cls in VECTOR_ENV_CLASSES.values()})
+NavVectorEnv = VECTOR_ENV_CLASSES["nav"]
+AvoidVectorEnv = VECTOR_ENV_CLASSES["avoid"]
+FormationVectorEnv = VECTOR_ENV_CLASSES["formation"]
 
 __all__ = [
+    "VECTOR_ENV_CLASSES",
     "AvoidVectorEnv",
     "FormationVectorEnv",
     "KheperaVectorEnv",
     "NavVectorEnv",
+    "vector_env_class",
 ]

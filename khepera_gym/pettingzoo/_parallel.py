@@ -23,8 +23,8 @@ from pettingzoo import ParallelEnv
 
 from khepera_gym._inputs import as_action_array, check_seed
 from khepera_gym.config import ConfigArg, make_batch
-from khepera_gym.envs import _SEED_BOUND, _check_render_mode
 from khepera_gym.errors import ActionError, KheperaError
+from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
@@ -35,7 +35,7 @@ AgentObs = npt.NDArray[np.float32]
 AgentAction = npt.NDArray[np.float32]
 
 
-class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
+class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
     """Base of the multi-agent Khepera IV environments; subclasses set :attr:`TASK`.
 
     Args:
@@ -60,6 +60,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
     }
     #: Task name in the Rust core.
     TASK: ClassVar[str] = ""
+    _WORLD: ClassVar[int | None] = 0
 
     def __init__(
         self,
@@ -71,7 +72,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
         **overrides: Any,
     ) -> None:
-        _check_render_mode(render_mode, self.metadata["render_modes"])
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.action_type = action_type
         self._batch = make_batch(
@@ -91,8 +92,8 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
             fps=self.metadata["render_fps"],
             title=f"khepera_gym {self.metadata['name']}",
         )
-        low, high = self._batch.obs_bounds()
-        low, high = low.astype(np.float32), high.astype(np.float32)
+        joint_space = self._row_observation_space()
+        low, high = joint_space.low, joint_space.high
         agent_specs = self._batch.agents()
         self.possible_agents: list[str] = [name for name, *_ in agent_specs]
         #: Each agent's column in agent_rewards()/agent_terminated() (action columns 2i, 2i + 1).
@@ -110,7 +111,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
             for name in self.possible_agents
         }
         #: The joint observation's space (``state()``), for centralised critics.
-        self.state_space = gymnasium.spaces.Box(low, high, dtype=np.float32)
+        self.state_space = joint_space
         #: Steps after which every remaining agent is truncated. PettingZoo's tests assign it: a
         #: value above the scenario's ``max_steps`` changes nothing (the core truncates first); a
         #: lower one truncates earlier, but then the infos carry no "episode_stats" (the core's
@@ -153,7 +154,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         """
         seed = check_seed(seed)
         if seed is None and not self._has_reset:
-            seed = int(np.random.default_rng().integers(_SEED_BOUND))
+            seed = first_seed()
         self._observation = self._batch.reset(seed)[0]
         self._has_reset = True
         self._steps = 0
@@ -205,7 +206,7 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
         terminated: dict[str, bool] = {}
         truncated: dict[str, bool] = {}
         infos: dict[str, dict[str, Any]] = {}
-        stats = self._episode_stats() if episode_over else None
+        stats = self._world_episode_stats(0) if episode_over else None
         for agent in live:
             index = self._agent_index[agent]
             observation_dict[agent] = self._observation[self._obs_slices[agent]]
@@ -245,34 +246,15 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
             column = ACTION_DIM * self._agent_index[agent]
             joint[0, column : column + ACTION_DIM] = action_array
 
-    def _episode_stats(self) -> dict[str, Any]:
-        return {name: values[0].item() for name, values in self._batch.episode_stats().items()}
-
     # --- ground truth and the rest of the API --------------------------------------------------
 
     def state(self) -> npt.NDArray[np.float32]:
         """The joint observation of every possible agent (a copy), in ``state_space``."""
         return self._observation.copy()
 
-    def poses(self) -> npt.NDArray[np.float64]:
-        """Ground-truth robot poses, shape (n_robots, 3): x, y (m), θ (rad, (-π, π])."""
-        return self._batch.poses()[0]
-
-    def goals(self) -> npt.NDArray[np.float64]:
-        """Goal positions, shape (n_goals, 2), in metres."""
-        return self._batch.goals()[0]
-
     def agent_robot(self, agent: str) -> int:
         """The index of ``agent``'s robot in ``poses()``."""
         return self._agent_robots[agent]
-
-    def scene(self) -> dict[str, Any]:
-        """Geometry of the world for plots: arena, walls, obstacles, robot and goal radius."""
-        return self._batch.scene(0)
-
-    def config_toml(self) -> str:
-        """The fully resolved scenario (defaults + file + overrides) as TOML text."""
-        return self._batch.config_toml()
 
     def render(self) -> npt.NDArray[np.uint8] | None:
         """The frame (height, width, 3) uint8 for ``render_mode="rgb_array"``; shown in a window
@@ -281,8 +263,10 @@ class KheperaParallelEnv(ParallelEnv[str, AgentObs, AgentAction]):
 
     def close(self) -> None:
         """Closes the render window, if any (the Rust world is freed with the env); safe to call
-        twice."""
-        self._renderer.close()
+        twice, and on an env whose construction failed."""
+        renderer = getattr(self, "_renderer", None)
+        if renderer is not None:
+            renderer.close()
 
 
 __all__ = ["ACTION_DIM", "KheperaParallelEnv"]

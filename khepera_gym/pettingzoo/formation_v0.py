@@ -85,7 +85,7 @@ class FormationParallelEnv(KheperaParallelEnv):
 
     def formation_targets(self) -> npt.NDArray[np.float64]:
         """The followers' target points (eq. 12), shape (K, 2), in metres."""
-        return self._batch.formation_targets()[0]
+        return self.targets()
 
 
 def parallel_env(**kwargs: Any) -> FormationParallelEnv:

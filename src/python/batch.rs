@@ -138,6 +138,13 @@ impl Batch {
         self.inner.envs()[0].world.robots.len()
     }
 
+    /// Whether a world whose episode ended is reset by the next step (Gymnasium NEXT_STEP);
+    /// without it, stepping a finished world raises until it is reset.
+    #[getter]
+    fn autoreset(&self) -> bool {
+        self.autoreset
+    }
+
     /// Threads stepping the batch.
     #[getter]
     fn num_threads(&self) -> usize {

@@ -3,111 +3,34 @@
 :func:`make_vec_env` gives an SB3 ``VecEnv`` whose rows are the N worlds of one ``_core.Batch``
 (``KheperaIV-Nav``, ``-Avoid`` or ``-Formation``); :func:`make_formation_vec_env` one whose rows
 are the (world, follower) pairs of a Formation batch, so one policy drives every follower
-(parameter sharing). :func:`load_policy` loads a model saved by ``khepera-gym train``.
-
-SB3 semantics, and how they are met on a batch that autoresets on the *next* step:
-
-* the batch is built without autoreset; when world i ends at step t (terminated or truncated),
-  ``step_wait`` reads its statistics and calls ``batch.reset_world(i)`` at once, so step t
-  returns the first observation of the new episode, with ``dones[i] = True`` and in
-  ``infos[i]``: ``"terminal_observation"`` (the episode's true last observation),
-  ``"TimeLimit.truncated"`` (truncated and not terminated), ``"is_success"`` and
-  ``"episode_stats"`` (the Gymnasium env's statistics as Python scalars). Rows that did not end
-  get an empty dict;
-* ``reset_world(i)`` without a seed continues world i's own random stream, exactly as a single
-  env's ``reset()`` after an episode does: with the same actions, row i of
-  ``make_vec_env(id, n, seed=s)`` replays ``gym.make(id)`` reset with seed ``s + i`` and then
-  reset without a seed after each episode, bit for bit, whatever ``num_threads``;
-* ``seed(s)`` (SB3's convention) seeds world i with ``s + i`` at the next ``reset()`` only; a
-  ``reset()`` without a pending seed continues every stream (the very first one draws a base
-  seed from the operating system's entropy).
+(parameter sharing). Ground truth and saved state come from :class:`khepera_gym.face.BatchFace`;
+the SB3 semantics are in the package docstring (:mod:`khepera_gym.sb3`).
 
 Threading and copies: ``step_wait`` and ``reset`` release the GIL inside the Rust core, which
 steps the worlds on its own pool of ``num_threads`` threads; every returned array is fresh.
-Units and frames are those of the envs (SI, robot frame x forward, y left). With
-``render_mode="rgb_array"``, ``get_images()`` draws one frame per world in software (no display).
 """
 
 from __future__ import annotations
 
-import json
-import pickle
-import time
-import zipfile
 from collections.abc import Sequence
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
-
-try:
-    from stable_baselines3.common.base_class import BaseAlgorithm
-    from stable_baselines3.common.callbacks import BaseCallback
-    from stable_baselines3.common.vec_env import VecEnv, VecNormalize
-    from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices
-except ImportError as error:  # pragma: no cover - exercised only without the extra
-    raise ImportError(
-        "khepera_gym.sb3 needs stable-baselines3: pip install 'khepera-gym[sb3]'"
-    ) from error
+from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices
 
 from khepera_gym._inputs import as_action_array, check_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ConfigError, KheperaError
+from khepera_gym.face import BatchFace, first_seed
 from khepera_gym.layout import layout_dict
+from khepera_gym.registration import resolve_env_id, task_of
 from khepera_gym.render import DEFAULT_FRAME_SIZE, TRAIL_LENGTH, check_frame_size, mosaic
 
-#: Seeds drawn when none is given lie in [0, this) (SB3 draws uint32 seeds too).
-_SEED_BOUND = 2**32
-#: File next to a saved model holding its ``VecNormalize`` statistics (``khepera-gym train``).
-VECNORMALIZE_FILE = "vecnormalize.pkl"
-#: SB3 algorithms that :func:`load_policy` recognises in a saved zip: (class name, an attribute
-#: that only its saved ``data`` has), tried in order.
-_ALGORITHM_MARKERS = (
-    ("PPO", "clip_range"),
-    ("SAC", "target_entropy"),
-    ("TD3", "target_policy_noise"),
-    ("A2C", "gae_lambda"),
-)
-_ALGORITHMS = tuple(name for name, _ in _ALGORITHM_MARKERS)
 
-
-def resolve_env_id(env_id: str) -> str:
-    """The registered id of a khepera_gym env: ``"KheperaIV-Nav"`` → ``"KheperaIV-Nav-v0"``.
-
-    An unversioned id resolves to the latest version, without Gymnasium's warning.
-
-    Raises:
-        ConfigError: ``env_id`` is not a registered khepera_gym environment.
-    """
-    import khepera_gym  # noqa: F401  (registers the environments)
-
-    ours = sorted(
-        env_spec.id
-        for env_spec in gym.registry.values()
-        if env_spec.vector_entry_point is not None
-        and str(env_spec.vector_entry_point).startswith("khepera_gym.")
-    )
-    if env_id in ours:
-        return env_id
-    versions = [
-        candidate for candidate in ours if candidate.rsplit("-v", 1)[0] == env_id.rstrip("-")
-    ]
-    if not versions:
-        raise ConfigError(f"unknown environment {env_id!r}; khepera_gym registers {ours}")
-    return max(versions, key=lambda candidate: int(candidate.rsplit("-v", 1)[1]))
-
-
-def task_of(env_id: str) -> str:
-    """The Rust core's task name ("nav", "avoid", "formation") of a khepera_gym env id."""
-    env_spec = gym.spec(resolve_env_id(env_id))
-    vector_class = gym.envs.registration.load_env_creator(str(env_spec.vector_entry_point))
-    return str(vector_class.TASK)
-
-
-class KheperaSB3VecEnv(VecEnv):
+class KheperaSB3VecEnv(BatchFace, VecEnv):
     """An SB3 ``VecEnv`` over N worlds of one task in a ``_core.Batch``; row i is world i.
 
     Args:
@@ -131,6 +54,7 @@ class KheperaSB3VecEnv(VecEnv):
     construction: build a new env with other overrides instead).
     """
 
+    _WORLD: ClassVar[int | None] = None
     #: Attributes of a single env that are the same for every world, for ``get_attr``.
     SHARED_ATTRIBUTES: ClassVar[tuple[str, ...]] = (
         "render_mode",
@@ -149,6 +73,7 @@ class KheperaSB3VecEnv(VecEnv):
         "scene",
         "sensor_readings",
         "formation_targets",
+        "targets",
         "obs_layout",
         "config_toml",
     )
@@ -207,22 +132,15 @@ class KheperaSB3VecEnv(VecEnv):
         #: Rows (SB3 envs) per world.
         self.rows_per_world = 1
 
-    def _row_observation_space(self) -> gym.spaces.Box:
-        low, high = self._batch.obs_bounds()
-        return gym.spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
-
-    def _row_action_space(self) -> gym.spaces.Box:
-        return gym.spaces.Box(-1.0, 1.0, shape=(self._batch.act_dim,), dtype=np.float32)
-
-    def _row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         """Rows of observations from joint observations of shape (worlds, obs_dim)."""
         return joint
 
-    def _row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         """Rows of rewards of the last step (read before any world is reset)."""
         return rewards
 
-    def _joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         """Joint actions (worlds, act_dim) from row actions (num_envs, row action)."""
         return actions
 
@@ -239,7 +157,7 @@ class KheperaSB3VecEnv(VecEnv):
         """
         seed = check_seed(seed)
         if seed is None:
-            seed = int(np.random.default_rng().integers(_SEED_BOUND))
+            seed = first_seed()
         self._seeds = [seed + row // self.rows_per_world for row in range(self.num_envs)]
         return list(self._seeds)
 
@@ -252,7 +170,7 @@ class KheperaSB3VecEnv(VecEnv):
         self._check_open()
         world_seeds: list[int | None] = list(self._seeds[:: self.rows_per_world])
         if not self._has_reset and None in world_seeds:
-            base = int(np.random.default_rng().integers(_SEED_BOUND))
+            base = first_seed()
             world_seeds = [base + w if s is None else s for w, s in enumerate(world_seeds)]
         first = world_seeds[0]
         if all(s is None for s in world_seeds):
@@ -270,7 +188,7 @@ class KheperaSB3VecEnv(VecEnv):
         self._reset_options()
         self._has_reset = True
         self._actions = None
-        return self._row_observations(joint)
+        return self.row_observations(joint)
 
     def step_async(self, actions: npt.ArrayLike) -> None:
         """Stores the actions of every row, shape (num_envs, 2 or act_dim), for ``step_wait``.
@@ -282,7 +200,7 @@ class KheperaSB3VecEnv(VecEnv):
         self._check_open()
         expected = (self.num_envs, *self.action_space.shape)
         action_array = as_action_array(actions, expected, "actions")
-        self._actions = np.ascontiguousarray(self._joint_actions(action_array))
+        self._actions = np.ascontiguousarray(self.joint_actions(action_array))
 
     def step_wait(
         self,
@@ -310,18 +228,17 @@ class KheperaSB3VecEnv(VecEnv):
             raise KheperaError("step() before reset(): call reset() first")
         actions, self._actions = self._actions, None
         joint, rewards, terminated, truncated = self._batch.step(actions)
-        row_rewards = self._row_rewards(rewards)
-        observations = self._row_observations(joint)
+        row_rewards = self.row_rewards(rewards)
+        observations = self.row_observations(joint)
         ended = terminated | truncated
         rows = self.rows_per_world
         dones = np.repeat(ended, rows) if rows > 1 else ended
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         if np.count_nonzero(ended):
-            stats = self._batch.episode_stats()
             for world in np.flatnonzero(ended):
-                world_stats = {name: values[world].item() for name, values in stats.items()}
+                world_stats = self._world_episode_stats(int(world))
                 time_limit = bool(truncated[world] and not terminated[world])
-                first_rows = self._row_observations(self._batch.reset_world(int(world))[None])
+                first_rows = self.row_observations(self._batch.reset_world(int(world))[None])
                 for offset in range(rows):
                     row = world * rows + offset
                     infos[row] = {
@@ -410,17 +327,17 @@ class KheperaSB3VecEnv(VecEnv):
         if method_args or method_kwargs:
             raise TypeError(f"{method_name}() takes no arguments")
         worlds = [row // self.rows_per_world for row in self._row_indices(indices)]
-        batch = self._batch
         if method_name == "scene":
-            return [batch.scene(world) for world in worlds]
-        if method_name == "obs_layout":
-            return [layout_dict(batch.obs_layout()) for _ in worlds]
-        if method_name == "config_toml":
-            return [batch.config_toml() for _ in worlds]
+            return [self.scene(world) for world in worlds]
+        if method_name in ("obs_layout", "config_toml"):
+            return [getattr(self, method_name)() for _ in worlds]
         if method_name == "sensor_readings":
-            readings = batch.sensor_readings()
+            readings = self.sensor_readings()
             return [{name: values[world] for name, values in readings.items()} for world in worlds]
-        arrays = getattr(batch, method_name)()
+        # formation_targets is the formation task's name for its targets.
+        arrays = (
+            self.targets() if method_name == "formation_targets" else getattr(self, method_name)()
+        )
         return [arrays[world].copy() for world in worlds]
 
     def env_is_wrapped(
@@ -430,34 +347,7 @@ class KheperaSB3VecEnv(VecEnv):
         SB3's ``VecMonitor`` rather than ``Monitor``)."""
         return [False for _ in self._row_indices(indices)]
 
-    # --- ground truth and helpers --------------------------------------------------------------
-
-    @property
-    def max_episode_steps(self) -> int:
-        """Steps after which the Rust core truncates an episode (the scenario's ``max_steps``)."""
-        return self._batch.max_episode_steps
-
-    @property
-    def n_robots(self) -> int:
-        """Number of robots per world."""
-        return self._batch.n_robots
-
-    @property
-    def num_threads(self) -> int:
-        """Threads of the batch's rayon pool."""
-        return self._batch.num_threads
-
-    def poses(self) -> npt.NDArray[np.float64]:
-        """Ground-truth robot poses of every world, shape (num_worlds, n_robots, 3)."""
-        return self._batch.poses()
-
-    def goals(self) -> npt.NDArray[np.float64]:
-        """Goal positions of every world, shape (num_worlds, n_goals, 2), in metres."""
-        return self._batch.goals()
-
-    def config_toml(self) -> str:
-        """The fully resolved scenario (defaults + file + overrides) as TOML text."""
-        return self._batch.config_toml()
+    # --- helpers -------------------------------------------------------------------------------
 
     def _row_indices(self, indices: VecEnvIndices) -> list[int]:
         if indices is None:
@@ -526,18 +416,18 @@ class FormationFollowersVecEnv(KheperaSB3VecEnv):
     def _row_action_space(self) -> gym.spaces.Box:
         return gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
 
-    def _row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         return joint.reshape(-1, self.follower_obs_dim)
 
-    def _row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         return self._batch.agent_rewards().reshape(-1)
 
-    def _joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    def joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         return actions.reshape(self.num_worlds, -1)
 
     def formation_targets(self) -> npt.NDArray[np.float64]:
         """The followers' target points (eq. 12) of every world, shape (num_worlds, K, 2)."""
-        return self._batch.formation_targets()
+        return self.targets()
 
 
 def make_vec_env(
@@ -593,259 +483,9 @@ def make_formation_vec_env(
 # --- loading trained models ------------------------------------------------------------------
 
 
-class Predictor(Protocol):
-    """What :func:`load_policy` returns: SB3's ``predict`` on raw env observations."""
-
-    observation_space: gym.spaces.Space[Any]
-    action_space: gym.spaces.Space[Any]
-
-    def predict(
-        self,
-        observation: npt.NDArray[np.float32],
-        state: tuple[npt.NDArray[Any], ...] | None = None,
-        episode_start: npt.NDArray[np.bool_] | None = None,
-        deterministic: bool = False,
-    ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]: ...
-
-
-class NormalizedPolicy:
-    """A model trained under ``VecNormalize``, applying its saved observation statistics.
-
-    ``predict(obs)`` normalises raw env observations with the training statistics (frozen) and
-    calls the model's ``predict``, so it takes what the env gives, like an unnormalised model.
-
-    Args:
-        model: The loaded SB3 model.
-        normalizer: The ``VecNormalize`` whose ``obs_rms`` the model was trained with.
-    """
-
-    def __init__(self, model: BaseAlgorithm, normalizer: VecNormalize) -> None:
-        self.model = model
-        self.normalizer = normalizer
-        self.observation_space = model.observation_space
-        self.action_space = model.action_space
-
-    def predict(
-        self,
-        observation: npt.NDArray[np.float32],
-        state: tuple[npt.NDArray[Any], ...] | None = None,
-        episode_start: npt.NDArray[np.bool_] | None = None,
-        deterministic: bool = False,
-    ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]:
-        """Actions for raw observations of shape (obs_dim,) or (N, obs_dim)."""
-        normalized = self.normalizer.normalize_obs(np.asarray(observation, dtype=np.float32))
-        return self.model.predict(normalized, state, episode_start, deterministic)  # type: ignore[arg-type]
-
-
-def algorithm_of(path: str | Path) -> str:
-    """The SB3 algorithm class name ("PPO", "SAC", ...) that saved the zip at ``path``.
-
-    Raises:
-        KheperaError: The file is not an SB3 zip of a known algorithm.
-    """
-    try:
-        with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data"))
-    except (OSError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as error:
-        raise KheperaError(f"{path}: not a stable-baselines3 model zip ({error})") from error
-    # The saved attributes tell the algorithms apart (PPO and A2C share their policy class).
-    for name, attribute in _ALGORITHM_MARKERS:
-        if attribute in data:
-            return name
-    raise KheperaError(f"{path}: cannot tell which algorithm saved it (known: {_ALGORITHMS})")
-
-
-def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
-    """Loads a model saved by ``khepera-gym train`` (or any SB3 ``model.save``) for inference.
-
-    The algorithm is read from the zip. When a ``vecnormalize.pkl`` lies next to it (training
-    with ``normalize = true``), the result normalises raw observations with those statistics
-    (:class:`NormalizedPolicy`); otherwise it is the SB3 model itself. Either way
-    ``predict(obs, deterministic=True)`` takes raw env observations, single or batched.
-
-    Args:
-        path: The model's ``.zip``.
-        device: Torch device for the network ("cpu" by default: these MLPs gain nothing on GPU).
-
-    Raises:
-        KheperaError: The file is not an SB3 zip of a known algorithm.
-    """
-    import stable_baselines3
-
-    path = Path(path)
-    algorithm = getattr(stable_baselines3, algorithm_of(path))
-    model: BaseAlgorithm = algorithm.load(path, device=device)
-    stats_path = path.parent / VECNORMALIZE_FILE
-    if stats_path.exists():
-        with stats_path.open("rb") as stats_file:
-            normalizer: VecNormalize = pickle.load(stats_file)
-        normalizer.training = False
-        return NormalizedPolicy(model, normalizer)
-    return model
-
-
-def first_episode_stats(
-    policy: Predictor,
-    env: KheperaSB3VecEnv,
-    seed: int,
-    deterministic: bool = True,
-) -> dict[str, npt.NDArray[Any]]:
-    """Runs one seeded episode in every world of ``env`` with ``policy``; returns its statistics.
-
-    World w starts from seed ``seed + w``, so ``env`` with N worlds evaluates the N episodes
-    seeded ``seed .. seed + N - 1`` (the same ones as single envs reset with those seeds).
-    Worlds that finish early keep running (their later episodes are ignored) until all are done.
-
-    Returns:
-        ``episode_stats`` keys ("return", "length", "success", ...) → arrays of one value per
-        world; for :class:`FormationFollowersVecEnv` one value per world as well.
-    """
-    env.seed(seed)
-    observations = env.reset()
-    rows = env.rows_per_world
-    finished = np.zeros(env.num_worlds, dtype=bool)
-    results: dict[str, list[Any]] = {}
-    collected: list[dict[str, Any] | None] = [None] * env.num_worlds
-    while not finished.all():
-        actions, _ = policy.predict(observations, deterministic=deterministic)
-        observations, _, dones, infos = env.step(actions)
-        for world in np.flatnonzero(dones[::rows]):
-            if not finished[world]:
-                finished[world] = True
-                collected[world] = infos[world * rows]["episode_stats"]
-    for stats in collected:
-        assert stats is not None
-        for name, value in stats.items():
-            results.setdefault(name, []).append(value)
-    return {name: np.asarray(values) for name, values in results.items()}
-
-
-@dataclass
-class Evaluation:
-    """One evaluation of :class:`SuccessEvalCallback` (or ``khepera-gym train``'s final one)."""
-
-    #: Environment steps of training done when it ran.
-    timesteps: int
-    #: Episodes evaluated (one per seeded world).
-    episodes: int
-    #: Fraction of them that reached the goal.
-    success_rate: float
-    #: Mean undiscounted return.
-    mean_return: float
-    #: Mean episode length (steps).
-    mean_length: float
-    #: Mean number of steps in contact per episode.
-    mean_collisions: float
-    #: Wall time of the evaluation (s).
-    seconds: float
-
-
-def evaluate_episodes(
-    policy: Predictor, env: KheperaSB3VecEnv, seed: int, timesteps: int = 0
-) -> Evaluation:
-    """Success rate and means over one seeded episode per world of ``env`` (deterministic).
-
-    World w plays the episode seeded ``seed + w``; see :func:`first_episode_stats`.
-    """
-    start = time.perf_counter()
-    stats = first_episode_stats(policy, env, seed, deterministic=True)
-    return Evaluation(
-        timesteps=timesteps,
-        episodes=len(stats["success"]),
-        success_rate=float(np.mean(stats["success"])),
-        mean_return=float(np.mean(stats["return"])),
-        mean_length=float(np.mean(stats["length"])),
-        mean_collisions=float(np.mean(stats["collisions"])),
-        seconds=time.perf_counter() - start,
-    )
-
-
-class SuccessEvalCallback(BaseCallback):
-    """Evaluates the model every ``eval_freq`` environment steps on the same seeded episodes.
-
-    Like SB3's ``EvalCallback`` but batched and reproducible: each evaluation plays one episode
-    in every world of ``eval_env`` (world w seeded ``seed + w``), deterministically, and logs
-    ``eval/success_rate``, ``eval/mean_return``, ``eval/mean_length`` and
-    ``eval/mean_collisions`` (then dumps the logger, so TensorBoard and progress.csv get a
-    point per evaluation). When the training env is under ``VecNormalize``, observations are
-    normalised with its current statistics. The best model (by success rate, then return) is
-    saved to ``best_model_path`` when given.
-
-    Args:
-        eval_env: The evaluation env; its number of worlds is the number of episodes.
-        eval_freq: Environment steps (summed over worlds) between evaluations; also evaluates
-            at the end of training.
-        seed: Seed of world 0's episode.
-        best_model_path: Where to save the best model (a ``.zip`` path), or None.
-        verbose: 1 prints one line per evaluation.
-    """
-
-    def __init__(
-        self,
-        eval_env: KheperaSB3VecEnv,
-        eval_freq: int,
-        seed: int,
-        best_model_path: str | Path | None = None,
-        verbose: int = 1,
-    ) -> None:
-        super().__init__(verbose)
-        if eval_freq < 1:
-            raise ConfigError(f"eval_freq must be >= 1 environment steps, got {eval_freq}")
-        self.eval_env = eval_env
-        self.eval_freq = eval_freq
-        self.seed = seed
-        self.best_model_path = None if best_model_path is None else Path(best_model_path)
-        #: Every evaluation so far, in order.
-        self.history: list[Evaluation] = []
-        self._last_eval_timesteps = 0
-        self._best: tuple[float, float] | None = None
-
-    def _on_step(self) -> bool:
-        if self.num_timesteps - self._last_eval_timesteps >= self.eval_freq:
-            self.evaluate()
-        return True
-
-    def _on_training_end(self) -> None:
-        if not self.history or self.history[-1].timesteps != self.num_timesteps:
-            self.evaluate()
-
-    def evaluate(self) -> Evaluation:
-        """Runs one evaluation now, logs it and keeps the best model."""
-        self._last_eval_timesteps = self.num_timesteps
-        normalizer = self.model.get_vec_normalize_env()
-        policy: Predictor = (
-            self.model if normalizer is None else NormalizedPolicy(self.model, normalizer)
-        )
-        result = evaluate_episodes(policy, self.eval_env, self.seed, self.num_timesteps)
-        self.history.append(result)
-        for name in ("success_rate", "mean_return", "mean_length", "mean_collisions"):
-            self.logger.record(f"eval/{name}", getattr(result, name))
-        self.logger.dump(self.num_timesteps)
-        if self.verbose:
-            print(
-                f"step {self.num_timesteps:>9,}: success {100 * result.success_rate:5.1f} % of "
-                f"{result.episodes}, return {result.mean_return:7.2f}, "
-                f"length {result.mean_length:5.1f}, collisions {result.mean_collisions:5.1f}"
-            )
-        score = (result.success_rate, result.mean_return)
-        if self.best_model_path is not None and (self._best is None or score > self._best):
-            self._best = score
-            self.model.save(self.best_model_path)
-        return result
-
-
 __all__ = [
-    "VECNORMALIZE_FILE",
-    "Evaluation",
     "FormationFollowersVecEnv",
     "KheperaSB3VecEnv",
-    "NormalizedPolicy",
-    "Predictor",
-    "SuccessEvalCallback",
-    "algorithm_of",
-    "evaluate_episodes",
-    "first_episode_stats",
-    "load_policy",
     "make_formation_vec_env",
     "make_vec_env",
     "resolve_env_id",

@@ -1,214 +1,20 @@
-"""Single-world Gymnasium environments over the Rust core, and heuristic policies that solve them.
+"""KheperaIV-Nav and KheperaIV-Avoid: drive to a goal, in an empty arena or among obstacles; and
+the heuristics that solve them (the paper's controllers of :mod:`khepera_gym.baselines`).
 
-:class:`NavEnv` (drive to a goal), :class:`AvoidEnv` (the same among random obstacles) and
-:class:`FormationEnv` (followers holding a formation around a leader) share :class:`KheperaEnv`;
-their heuristics are :func:`nav_heuristic`, :func:`avoid_heuristic` and :func:`formation_heuristic`,
-thin wrappers of the paper's controllers in :mod:`khepera_gym.baselines` (computed in Rust).
-
-Each env owns a ``_core.Batch`` of one world without autoreset: the Rust core simulates, observes,
-rewards and ends episodes; this layer only validates actions, converts outputs to Python scalars
-and builds ``info``. Units are SI (m, s, rad); the world frame has x right, y up, angles
-counter-clockwise; the robot frame has x forward, y left.
-
-Threading and copies: ``step`` and ``reset`` release the GIL inside the Rust core while simulating;
-every returned array is freshly allocated, so callers may keep or mutate observations.
+The manuals are the classes' docstrings (Gymnasium's sections, plus Robot model, Sensors and
+Scenario file). Units are SI (m, s, rad); robot frame x forward, y left.
 """
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, SupportsFloat
+from typing import ClassVar
 
-import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import _core
-from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed
-from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
-from khepera_gym.config import ACTION_TYPES, ConfigArg, make_batch
-from khepera_gym.errors import ConfigError
-from khepera_gym.layout import layout_dict
-from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
-from khepera_gym.state import StateMixin
-
-#: Largest seed drawn from ``np_random`` on a first ``reset()`` without a seed (exclusive).
-_SEED_BOUND = 2**62
-
-
-def _check_render_mode(render_mode: str | None, render_modes: list[str]) -> None:
-    if render_mode is not None and render_mode not in render_modes:
-        raise ConfigError(
-            f"render_mode={render_mode!r} is not supported (supported: {[None, *render_modes]})"
-        )
-
-
-class KheperaEnv(StateMixin, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.float32]]):
-    """Base of the single-world Khepera IV environments; subclasses set :attr:`TASK`.
-
-    Args:
-        render_mode: None, "rgb_array" (``render()`` returns the frame) or "human" (a pygame
-            window refreshed after every step; ``pip install khepera-gym[render]``).
-        config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
-        action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
-        frame_size: (width, height) of rendered frames in pixels.
-        **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1`` or
-            ``task={"max_steps": 100}`` (see the task's docstring, section Scenario file).
-    """
-
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
-    #: Task name in the Rust core.
-    TASK: ClassVar[str] = ""
-
-    def __init__(
-        self,
-        render_mode: str | None = None,
-        config: ConfigArg = None,
-        action_type: str = "wheels",
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
-        **overrides: Any,
-    ) -> None:
-        _check_render_mode(render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
-        self.action_type = action_type
-        self._batch = make_batch(
-            self.TASK,
-            1,
-            config,
-            overrides,
-            action_type=action_type,
-            num_threads=1,
-            autoreset=False,
-        )
-        low, high = self._batch.obs_bounds()
-        self.observation_space = gym.spaces.Box(
-            low.astype(np.float32), high.astype(np.float32), dtype=np.float32
-        )
-        self.action_space = gym.spaces.Box(
-            -1.0, 1.0, shape=(self._batch.act_dim,), dtype=np.float32
-        )
-        self._action_shape = (self._batch.act_dim,)
-        # Reused input buffer of shape (1, act_dim): the Rust core copies actions on entry.
-        self._action_buffer = np.zeros((1, self._batch.act_dim), dtype=np.float32)
-        self._has_reset = False
-        self._renderer = Renderer(
-            self._batch,
-            render_mode,
-            frame_size,
-            fps=self.metadata["render_fps"],
-            title=f"khepera_gym {self.TASK}",
-        )
-
-    def render(self) -> npt.NDArray[np.uint8] | None:
-        """The current frame, drawn in software without a display: (height, width, 3) uint8 for
-        ``render_mode="rgb_array"``; for ``"human"`` it is shown in a pygame window (also after
-        every step) and None is returned; None without a render mode.
-
-        The frame shows the arena, obstacles, goal(s), formation targets, the robots' fading
-        trails, IR rays (green, turning red as an obstacle nears) and ultrasonic rays (blue, to
-        the echo), and each robot with its heading (red rim while in contact).
-        """
-        return self._renderer.render()
-
-    @property
-    def max_episode_steps(self) -> int:
-        """Steps after which the Rust core truncates an episode (the scenario's ``max_steps``)."""
-        return self._batch.max_episode_steps
-
-    @property
-    def n_robots(self) -> int:
-        """Number of robots in the world."""
-        return self._batch.n_robots
-
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
-        """Start a new episode.
-
-        Args:
-            seed: Seeds the world's random stream; None continues it (the very first reset without
-                a seed draws one from ``self.np_random``).
-            options: Unused; accepted for API compatibility.
-
-        Returns:
-            The first observation and an empty info dict.
-        """
-        if isinstance(seed, int) and seed >= SEED_LIMIT:  # Gymnasium checks the rest
-            check_seed(seed)
-        super().reset(seed=seed)
-        if seed is None and not self._has_reset:
-            seed = int(self.np_random.integers(_SEED_BOUND))
-        observations = self._batch.reset(seed)
-        self._has_reset = True
-        if self.render_mode == "human":
-            self.render()
-        return observations[0], {}
-
-    def step(
-        self, action: npt.ArrayLike
-    ) -> tuple[npt.NDArray[np.float32], SupportsFloat, bool, bool, dict[str, Any]]:
-        """Apply one control step (0.05 s by default) of wheel commands.
-
-        Args:
-            action: Shape ``(2,)``, normalised to [-1, 1]; finite values outside are clipped.
-
-        Returns:
-            ``(observation, reward, terminated, truncated, info)``; ``info`` is empty during an
-            episode and holds ``"episode_stats"`` statistics and ``"is_success"`` at its last step.
-
-        Raises:
-            ActionError: The action is not numeric, has the wrong shape, or is NaN/inf.
-            KheperaError: ``step`` after the episode ended without ``reset``.
-        """
-        buffer = self._action_buffer
-        buffer[0] = as_action_array(action, self._action_shape, "action")
-        observations, rewards, terminations, truncations = self._batch.step(buffer)
-        terminated = bool(terminations[0])
-        truncated = bool(truncations[0])
-        info = self._episode_info() if terminated or truncated else {}
-        if self.render_mode == "human":
-            self.render()
-        return observations[0], float(rewards[0]), terminated, truncated, info
-
-    def _episode_info(self) -> dict[str, Any]:
-        # .item() gives Python float/int/bool of the same value for every statistic the task has.
-        stats = {name: values[0].item() for name, values in self._batch.episode_stats().items()}
-        return {"episode_stats": stats, "is_success": stats["success"]}
-
-    def obs_layout(self) -> dict[str, slice]:
-        """Observation layout of this env's scenario, name → slice (with agent prefixes such as
-        "follower_0/ir" when there are several robots)."""
-        return layout_dict(self._batch.obs_layout())
-
-    def poses(self) -> npt.NDArray[np.float64]:
-        """Ground-truth robot poses, shape (n_robots, 3): x, y (m), θ (rad, (-π, π])."""
-        return self._batch.poses()[0]
-
-    def goals(self) -> npt.NDArray[np.float64]:
-        """Goal positions, shape (n_goals, 2), in metres."""
-        return self._batch.goals()[0]
-
-    def sensor_readings(self) -> dict[str, npt.NDArray[Any]]:
-        """Raw sensor values of the last observation in the real robot's units.
-
-        Keys as ``_core.Batch.sensor_readings`` without the world axis: "ir_raw" (n_robots, 8)
-        0..1023, "us_cm" (n_robots, 5), "wheel_speeds" (n_robots, 2) m/s, "encoders"
-        (n_robots, 2) pulses, "gyro_z" (n_robots,) rad/s.
-        """
-        return {name: values[0] for name, values in self._batch.sensor_readings().items()}
-
-    def scene(self) -> dict[str, Any]:
-        """Geometry of the world for plots: arena size, robot radius, obstacles, goal radius."""
-        return self._batch.scene(0)
-
-    def config_toml(self) -> str:
-        """The fully resolved scenario (defaults + file + overrides) as TOML text."""
-        return self._batch.config_toml()
-
-    def close(self) -> None:
-        """Closes the render window, if any (the Rust world is freed with the env); safe to call
-        twice."""
-        self._renderer.close()
-        super().close()
+from khepera_gym.baselines import Braitenberg, PositionControl
+from khepera_gym.envs.base import KheperaEnv
 
 
 class NavEnv(KheperaEnv):
@@ -402,6 +208,9 @@ class NavEnv(KheperaEnv):
     | `sensors.us_max_range`        | 2.0     | m; farther reads code 1000                   |
     | `sensors.us_noise_sigma`      | 0.01    | m, Gaussian                                  |
     | `sensors.us_enabled`          | 5×true  | per sensor; a disabled one reads code 2000   |
+    | `sensors.carry`               | ir, us  | sensors each robot has (others cost nothing) |
+    | `sensors.observe`             | ir, us  | carried sensors whose blocks the observation |
+    |                               |         | holds (in this order whatever the list's)    |
     | `task.goal_radius`            | 0.05    | success distance (m)                         |
     | `task.max_steps`              | 400     | steps before truncation                      |
     | `task.progress_weight`        | 10.0    | reward per metre of progress                 |
@@ -500,6 +309,7 @@ class AvoidEnv(KheperaEnv):
     ## Arguments
 
     ```python
+    >>> import gymnasium as gym
     >>> env = gym.make("KheperaIV-Avoid-v0", config="paper_fig6", max_steps=300)
     >>> obs, info = env.reset(seed=0)
     >>> [obstacle["kind"] for obstacle in env.unwrapped.scene()["obstacles"]]
@@ -570,196 +380,6 @@ class AvoidEnv(KheperaEnv):
     TASK: ClassVar[str] = "avoid"
 
 
-class FormationEnv(KheperaEnv):
-    r"""Keep K Khepera IV followers in formation around a leader driving to a goal.
-
-    ## Description
-
-    The leader-follower exercise of the KH4VREP paper (Farias et al., IFAC 2017, §3.5, Fig. 7).
-    Robot 0, the leader, drives to a goal; by default it is scripted in Rust: the paper's position
-    controller (eqs. 1-4, on its true pose, at `formation.leader_vmax` = 0.15 m/s) followed by its
-    Braitenberg avoidance block (eqs. 5-7) on its own IR ring. The K followers (4 by default),
-    robots 1..K, are driven jointly by this env's action; follower k must hold the point at
-    offset (r_k, β_k) from the leader's pose (paper eq. 12):
-    `x_k = x_L + r_k cos(β_k + θ_L)`, `y_k = y_L + r_k sin(β_k + θ_L)`. Shapes: `"cross"`
-    (Fig. 7: ahead, left, behind, right at `formation.spacing` = 0.5 m), `"line"` (abreast),
-    `"wedge"` (a V behind), `"circle"` and `"custom"` (`formation.offsets`). The arena is
-    3 m × 3 m with walls and, by default, no obstacles; robots are obstacles to one another
-    (contacts and sensor rays). `config="paper_fig7"` loads the paper's scene (the cross past four
-    obstacles). With `leader="agent"` the leader is driven by the action too, with the Nav
-    observation and reward. :func:`formation_heuristic` (the paper's leader-follower control,
-    :class:`khepera_gym.baselines.LeaderFollower`, toward each follower's `target_offset`)
-    keeps the default formation within a centimetre on average.
-
-    ## Action Space
-
-    `Box(-1, 1, (2K,), float32)` (8 for the default K = 4): follower k's normalised (left, right)
-    wheel speeds, 1 = 0.813 m/s, at indices 2k and 2k + 1. With `leader="agent"` the leader's
-    pair comes first: shape (2 + 2K,). `action_type="unicycle"` makes every pair a normalised
-    (v, ω), as in :class:`NavEnv`. Out-of-range values are clipped; NaN/inf or a wrong shape raise
-    `khepera_gym.errors.ActionError`.
-
-    ## Observation Space
-
-    `Box(low, high, (23K,), float32)` (92 for K = 4): one block of 23 values per follower, in
-    follower order; with `leader="agent"` the leader's Nav block (18 values, the table of
-    :class:`NavEnv`) comes first, shape (18 + 23K,). `khepera_gym.obs_layout("formation")` names
-    the slices of the default scenario ("follower_0/ir", "follower_0/us", ...). Every follower's
-    block has the same bounds, so one policy can serve them all (parameter sharing). Block of
-    follower k, in its own robot frame (x forward, y left):
-
-    | Index | Name            | Observation                                        | Min   | Max  |
-    |-------|-----------------|----------------------------------------------------|-------|------|
-    | 0-7   | ir              | IR proximity, K-Team order back-left ... back      | 0     | 1    |
-    | 8-12  | us              | ultrasonic left, front-left, front, front-right,   | 0     | 1    |
-    |       |                 | right                                              |       |      |
-    | 13-14 | target_offset   | x, y of its target point (eq. 12) in its robot     | -4.24 | 4.24 |
-    |       |                 | frame (m)                                          |       |      |
-    | 15-16 | leader_offset   | x, y of the leader in its robot frame (m)          | -4.24 | 4.24 |
-    | 17-18 | leader_heading  | sin, cos of the leader's heading minus its own     | -1    | 1    |
-    | 19-20 | leader_velocity | the leader's v / 0.813 m/s and ω / 15.4 rad/s      | -1    | 1    |
-    | 21-22 | wheel_speeds    | its left, right wheel speed / 0.813 m/s            | -1    | 1    |
-
-    IR and ultrasonic as in :class:`NavEnv` (other robots are seen too). `target_offset` and
-    `leader_offset` are clipped to the arena diagonal (4.24 m by default); a target offset of
-    (0, 0) means the follower is on its target. With `leader_offset` and `leader_heading` a
-    controller can compute eq. 12 targets of its own (`khepera_gym.baselines.LeaderFollower`).
-    `leader_velocity` is the leader's forward speed and yaw rate, normalised by the largest wheel
-    speed and the largest yaw rate 2 · 0.813 / 0.1054 ≈ 15.4 rad/s. Follower k's block starts at
-    index 23k (18 + 23k with an agent leader).
-
-    ## Rewards
-
-    Each follower k earns `-error_weight · e_k - collision_penalty · [k in contact]
-    - team_weight · mean_j e_j` per step, with e_k its distance to its target after the step (m),
-    `formation.error_weight` = 1, `task.collision_penalty` = 0.1 and `formation.team_weight` = 0.
-    An agent leader earns the Nav reward. The reward returned by `step` is the mean over the
-    agents (followers, plus the leader when it is an agent); `env.unwrapped.agent_rewards()` gives
-    each agent's.
-
-    ## Starting State
-
-    The leader's start position is uniform in the arena shrunk by the robot radius and
-    `spawn.wall_margin`, its goal uniform at least `spawn.min_goal_distance` (1.5 m) away and
-    reachable, and the leader faces its goal (so the formation does not swing round at the
-    start); both are redrawn until the whole formation fits at the start and at the goal (every
-    follower on its target, clear of walls and obstacles). The robots start at rest, in
-    formation, with the leader's heading. `spawn.start` ([x, y, heading]) and `spawn.goal` fix the
-    leader's. `reset(seed=s)` reproduces all of it; `reset()` continues the stream.
-
-    ## Episode End
-
-    1. Termination: the leader's centre is within `task.goal_radius` (0.05 m) of its goal
-       (success; the scripted leader stops there).
-    2. Termination: any robot in contact with something, only if
-       `task.terminate_on_collision = true`.
-    3. Truncation: `task.max_steps` (800) steps have passed, i.e. 40 s at dt = 0.05 s.
-
-    At the last step `info["episode_stats"]` holds `"return"`, `"length"`, `"success"` (the
-    leader arrived), `"path_length"` (m, summed over the robots), `"collisions"` (steps in which
-    some robot was in contact), and `"formation_error_mean"` and `"formation_error_max"` (m: the
-    followers' distance to their targets, averaged over followers and steps, and its maximum);
-    `info["is_success"]` as in :class:`NavEnv`.
-
-    ## Arguments
-
-    ```python
-    >>> env = gym.make("KheperaIV-Formation-v0", config="paper_fig7")
-    >>> env.action_space.shape, env.observation_space.shape
-    ((8,), (92,))
-    >>> obs, info = env.reset(seed=0)
-    >>> env.unwrapped.poses().shape, env.unwrapped.formation_targets().shape
-    ((5, 3), (4, 2))
-    >>> gym.make("KheperaIV-Formation-v0", leader="agent", n_followers=2).action_space.shape
-    (6,)
-
-    ```
-
-    The parameters are those of :class:`NavEnv` (`render_mode`, `config`, `action_type`,
-    `**overrides`). The `[formation]` keys are overrides like any other, by leaf
-    (`shape="wedge"`, `n_followers=3`, `leader="agent"`) or by section
-    (`formation={"leader": "agent"}`). `env.unwrapped.formation_targets()` gives the followers'
-    target points, shape (K, 2); `poses()` is (K + 1, 3) with the leader first; `goals()` (1, 2)
-    is the leader's goal.
-
-    ## Vectorized environment
-
-    `gym.make_vec("KheperaIV-Formation-v0", num_envs=N, num_threads=None)` returns the native
-    :class:`khepera_gym.vector.FormationVectorEnv` (NEXT_STEP autoreset, episode statistics with
-    masks, world i reset with seed s ≡ this env reset with seed s + i); its
-    `formation_targets()` has shape (N, K, 2).
-
-    ```python
-    >>> envs = gym.make_vec("KheperaIV-Formation-v0", num_envs=8)
-    >>> obs, infos = envs.reset(seed=0)
-    >>> obs.shape, envs.formation_targets().shape
-    ((8, 92), (8, 4, 2))
-
-    ```
-
-    For one agent per follower use the PettingZoo environment
-    :mod:`khepera_gym.pettingzoo.formation_v0`.
-
-    ## Robot model
-
-    As :class:`NavEnv`, for each of the K + 1 robots: Khepera IV discs (radius 0.0704 m, wheels
-    0.1054 m apart, ±0.813 m/s) as dynamic rapier2d bodies; contacts between robots are resolved
-    like any other.
-
-    ## Sensors
-
-    As :class:`NavEnv`, per robot: 8 IR and 5 ultrasonic sensors; the other robots block their
-    rays. `env.unwrapped.sensor_readings()` gives raw values with a robot axis (K + 1, ...).
-
-    ## Scenario file
-
-    The keys of :class:`NavEnv` (its Scenario file section tables them) plus a `[formation]`
-    table; `khepera_gym._core.default_config("formation")` is the resolved default file.
-    `spawn.start` and `spawn.goal` are the leader's. Defaults that differ from Nav, and the
-    `[formation]` keys:
-
-    | Key                      | Default  | Meaning                                           |
-    |--------------------------|----------|---------------------------------------------------|
-    | `arena.width`            | 3.0      | m, room for a formation to travel                 |
-    | `arena.height`           | 3.0      | m                                                 |
-    | `spawn.min_goal_distance`| 1.5      | least leader start-goal distance (m)              |
-    | `task.max_steps`         | 800      | steps before truncation (40 s)                    |
-    | `formation.shape`        | cross    | cross, line, wedge, circle or custom              |
-    | `formation.n_followers`  | 4        | K followers, 1..16 (ignored by "custom")          |
-    | `formation.spacing`      | 0.5      | r (m) of the nearest followers; further ones at   |
-    |                          |          | 2r, 3r, ... along the same directions             |
-    | `formation.offsets`      | []       | custom shape: [[r, beta], ...] (m, rad CCW from   |
-    |                          |          | the leader's heading), 1 to 16 of them            |
-    | `formation.leader`       | scripted | "scripted" (position control + Braitenberg in     |
-    |                          |          | Rust) or "agent" (driven by the action)           |
-    | `formation.leader_vmax`  | 0.15     | m/s, scripted leader's speed (eq. 3)              |
-    | `formation.leader_wmax`  | 1.0      | rad/s, scripted leader's turn-rate limit (eq. 4)  |
-    | `formation.leader_kr`    | 0.15     | m, scripted leader's slow-down radius (eq. 3)     |
-    | `formation.error_weight` | 1.0      | reward per metre of a follower's own error        |
-    | `formation.team_weight`  | 0.0      | reward per metre of the followers' mean error     |
-
-    Shapes: "cross" puts follower i at β = i · 90° (ahead, left, behind, right); "line" at
-    ±90° (left, right alternately); "wedge" at ±135°; "circle" evenly at r. Robots in formation
-    closer than a diameter + 1 cm raise `khepera_gym.errors.ConfigError` (`formation.spacing`
-    or `formation.offsets`).
-
-    ## Version History
-
-    * v0: Initial version.
-    """
-
-    TASK: ClassVar[str] = "formation"
-
-    def formation_targets(self) -> npt.NDArray[np.float64]:
-        """The followers' target points (eq. 12) for the current leader pose, shape (K, 2), m."""
-        return self._batch.formation_targets()[0]
-
-    def agent_rewards(self) -> npt.NDArray[np.float32]:
-        """Each agent's reward on the last step, shape (n_agents,): followers in order, after
-        the leader when it is an agent; ``step`` returns their mean."""
-        return self._batch.agent_rewards()[0]
-
-
 # --- heuristic policies: the paper's controllers of khepera_gym.baselines ------------------------
 
 #: Default Braitenberg weights (m/s per unit of IR proximity; paper eqs. 5-7), as the Rust core
@@ -767,9 +387,8 @@ class FormationEnv(KheperaEnv):
 BRAITENBERG_WEIGHTS = np.array(_core.braitenberg_weights("default"), dtype=np.float32)
 
 #: The heuristics' controllers, with their defaults (immutable and stateless: safe to share).
-_NAV_POLICY = PositionControl()
-_AVOID_POLICY = Braitenberg()
-_FORMATION_POLICY = LeaderFollower(shape=None, leader=_AVOID_POLICY)
+NAV_POLICY = PositionControl()
+AVOID_POLICY = Braitenberg()
 
 
 def nav_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
@@ -789,7 +408,7 @@ def nav_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
     Raises:
         ActionError: Wrong length or NaN/inf in the observation.
     """
-    return _NAV_POLICY(observation)
+    return NAV_POLICY(observation)
 
 
 def avoid_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
@@ -811,57 +430,7 @@ def avoid_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
     Raises:
         ActionError: Wrong length or NaN/inf in the observation.
     """
-    return _AVOID_POLICY(observation)
+    return AVOID_POLICY(observation)
 
 
-def formation_follower_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
-    """Leader-follower control (paper eq. 12) of follower blocks, toward their own targets.
-
-    :class:`khepera_gym.baselines.LeaderFollower` with ``shape=None``: each follower drives
-    to the target of its observation (``target_offset``, eq. 12 as the scenario defines it)
-    with position control (v_max 0.35 m/s, ω_max 4 rad/s, k_r 0.08 m), plus the leader's speed
-    along its heading (feed-forward), then Braitenberg avoidance. Fits any shape and number of
-    followers, and a PettingZoo follower's own observation.
-
-    Args:
-        observation: One follower block of shape (23,), or any batch of them (..., 23).
-
-    Returns:
-        Wheel actions of shape (..., 2), float32, for ``action_type="wheels"``.
-
-    Raises:
-        ActionError: Wrong length or NaN/inf in the observation.
-    """
-    return _FORMATION_POLICY(observation)
-
-
-def formation_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
-    """Joint action of :class:`FormationEnv` from its joint observation.
-
-    Every follower block gets :func:`formation_follower_heuristic`; an agent leader's Nav block
-    (present when the observation length is 18 + 23K) gets :func:`avoid_heuristic`.
-
-    Args:
-        observation: One Formation observation of shape (obs_dim,) or a batch (N, obs_dim).
-
-    Returns:
-        Actions of shape (act_dim,) or (N, act_dim), float32, for ``action_type="wheels"``.
-
-    Raises:
-        ActionError: The length is neither 23K nor 18 + 23K (a ``ValueError``), or NaN/inf.
-    """
-    return _FORMATION_POLICY(observation)
-
-
-__all__ = [
-    "ACTION_TYPES",
-    "BRAITENBERG_WEIGHTS",
-    "AvoidEnv",
-    "FormationEnv",
-    "KheperaEnv",
-    "NavEnv",
-    "avoid_heuristic",
-    "formation_follower_heuristic",
-    "formation_heuristic",
-    "nav_heuristic",
-]
+__all__ = ["BRAITENBERG_WEIGHTS", "AvoidEnv", "NavEnv", "avoid_heuristic", "nav_heuristic"]

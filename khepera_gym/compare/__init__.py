@@ -1,0 +1,96 @@
+"""Comparison of policies on the same seeded episodes: the ``khepera-gym compare`` command.
+
+For one task or scenario and several policies, :func:`compare` runs N episodes per policy on the
+native vector env: N worlds reset once with ``reset(seed=s)`` (world i seeded s + i), each
+running exactly one episode (the episode that follows its autoreset is discarded), so every
+policy meets the same start poses, goals and obstacles. It summarises, per policy, with 95%
+confidence intervals:
+
+* success rate (Wilson score interval);
+* mean and 95th percentile of the time to the goal (s, successful episodes only), mean path
+  length (m, successful episodes only), mean number of steps in contact per episode, the
+  share of episodes with any contact (Wilson), and for formations the mean formation error (m);
+  the intervals of means and percentiles are percentile bootstraps with a fixed seed, so a
+  comparison is deterministic.
+
+It writes the per-episode results as CSV and JSON and draws the first worlds' trajectories
+side by side, one panel per policy, in the style of the paper's Figs. 6 and 7
+(:func:`khepera_gym.plot.plot_rollouts`). Policies are named:
+
+* ``position_control``, ``braitenberg``, ``braitenberg_kteam`` (K-Team's weights), ``vfh``:
+  :mod:`khepera_gym.baselines` on Nav/Avoid observations;
+* ``leader_follower``: :class:`khepera_gym.baselines.LeaderFollower` with the scenario's
+  formation (Formation task);
+* ``random``: uniform actions in [-1, 1] from a generator seeded with the comparison's seed;
+* ``sb3:path/to/model.zip``: a stable-baselines3 model, loaded with ``--algo``'s class or by
+  trying PPO, SAC, TD3, A2C and DQN in turn, acting deterministically (needs the ``sb3`` extra).
+
+Command line (``khepera-gym compare --help``)::
+
+    khepera-gym compare --task avoid --policy braitenberg vfh --episodes 200 --out results/
+    khepera-gym compare --task avoid --config paper_fig6 --policy braitenberg vfh --episodes 20
+
+``khepera-gym demo`` (:func:`demo`) runs it on the paper's scenes and the three tasks.
+
+Units: seconds and metres (formation errors in the table in cm). Threading: the vector env
+steps its worlds on its own rayon pool (``--num-threads``, all cores by default) with the GIL
+released; policies run in the calling thread between steps.
+"""
+
+from khepera_gym.compare.command import DEMO_RUNS, add_arguments, demo, run_from_args
+from khepera_gym.compare.policies import (
+    DEFAULT_POLICIES,
+    POLICY_NAMES,
+    SB3_ALGORITHMS,
+    SB3_PREFIX,
+    RandomPolicy,
+    SB3Policy,
+    load_sb3_policy,
+    make_policy,
+)
+from khepera_gym.compare.report import format_table, plot_comparison, report, write_results
+from khepera_gym.compare.run import (
+    Comparison,
+    EpisodeResult,
+    PolicySummary,
+    compare,
+    resolve_env_id,
+    run_policy,
+    summarize,
+)
+from khepera_gym.compare.stats import CONFIDENCE, Estimate, bootstrap_interval, wilson_interval
+from khepera_gym.registration import latest_ids
+
+#: Registered id (latest version) of each task name of ``--task``.
+TASK_IDS = latest_ids()
+
+__all__ = [
+    "CONFIDENCE",
+    "DEFAULT_POLICIES",
+    "DEMO_RUNS",
+    "POLICY_NAMES",
+    "SB3_ALGORITHMS",
+    "SB3_PREFIX",
+    "TASK_IDS",
+    "Comparison",
+    "EpisodeResult",
+    "Estimate",
+    "PolicySummary",
+    "RandomPolicy",
+    "SB3Policy",
+    "add_arguments",
+    "bootstrap_interval",
+    "compare",
+    "demo",
+    "format_table",
+    "load_sb3_policy",
+    "make_policy",
+    "plot_comparison",
+    "report",
+    "resolve_env_id",
+    "run_from_args",
+    "run_policy",
+    "summarize",
+    "wilson_interval",
+    "write_results",
+]

@@ -1,0 +1,156 @@
+"""The ``khepera-gym compare`` command and ``khepera-gym demo``: arguments, and the demo's
+comparisons on the paper's scenes and the tasks.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from khepera_gym.compare.policies import DEFAULT_POLICIES, POLICY_NAMES
+from khepera_gym.compare.report import report
+from khepera_gym.compare.run import compare, resolve_env_id
+from khepera_gym.errors import KheperaError
+from khepera_gym.registration import latest_ids
+
+#: Registered id (latest version) of each task name of ``--task``.
+TASK_IDS = latest_ids()
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the options of ``khepera-gym compare`` to a parser."""
+    target = parser.add_mutually_exclusive_group(required=True)
+    target.add_argument("--task", choices=sorted(TASK_IDS), help="nav, avoid or formation")
+    target.add_argument("--env", help="a registered id, e.g. KheperaIV-Avoid-v0")
+    parser.add_argument("--config", help="built-in scenario (e.g. paper_fig6) or TOML path")
+    parser.add_argument(
+        "--policy",
+        nargs="+",
+        action="extend",
+        metavar="NAME",
+        help=f"policies to compare: {', '.join(POLICY_NAMES)} or sb3:path/to/model.zip "
+        "(default: those that fit the task)",
+    )
+    parser.add_argument("--algo", help="stable-baselines3 algorithm of sb3: models (PPO, SAC, ...)")
+    parser.add_argument("--episodes", type=int, default=100, help="episodes per policy (100)")
+    parser.add_argument("--seed", type=int, default=0, help="world i is reset with seed + i (0)")
+    parser.add_argument(
+        "--out", type=Path, default=Path("compare_out"), help="output folder (compare_out/)"
+    )
+    parser.add_argument("--num-threads", type=int, default=None, help="threads (all cores)")
+    parser.add_argument(
+        "--plot", action=argparse.BooleanOptionalAction, default=True, help="save trajectories"
+    )
+    parser.add_argument(
+        "--plot-worlds", type=int, default=1, help="worlds drawn per policy (first ones, 1)"
+    )
+    parser.add_argument(
+        "--progress", action=argparse.BooleanOptionalAction, default=True, help="progress bars"
+    )
+
+
+def run_from_args(args: argparse.Namespace) -> int:
+    """Runs ``khepera-gym compare`` from parsed arguments.
+
+    Raises:
+        SystemExit: With a message naming the problem (unknown policy, missing extra, ...).
+    """
+    try:
+        env_id = resolve_env_id(args.task, args.env)
+        task = next((t for t, i in TASK_IDS.items() if i == env_id), None)
+        policies = args.policy or list(DEFAULT_POLICIES.get(task or "", ("random",)))
+        comparison = compare(
+            env_id,
+            policies,
+            episodes=args.episodes,
+            seed=args.seed,
+            config=args.config,
+            num_threads=args.num_threads,
+            record_worlds=args.plot_worlds if args.plot else 0,
+            progress=args.progress,
+            algo=args.algo,
+        )
+    except (ValueError, ImportError, OSError, KheperaError) as error:
+        raise SystemExit(f"khepera-gym compare: {error}") from error
+    report(comparison, args.out, plot=args.plot)
+    return 0
+
+
+#: The demo's comparisons: (title, env id, config, policies, episodes cap, recorded worlds).
+DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], ...] = (
+    (
+        "Paper Fig. 6: Braitenberg vs VFH past a wall and an obstacle",
+        TASK_IDS["avoid"],
+        "paper_fig6",
+        ("braitenberg", "vfh", "position_control"),
+        None,
+        1,
+    ),
+    (
+        "Paper Fig. 7: cross formation of four LeaderFollower followers past obstacles",
+        TASK_IDS["formation"],
+        "paper_fig7",
+        ("leader_follower",),
+        None,
+        1,
+    ),
+    (
+        "Nav: drive to a goal in an empty arena",
+        TASK_IDS["nav"],
+        None,
+        DEFAULT_POLICIES["nav"],
+        None,
+        1,
+    ),
+    (
+        "Avoid: 10 random obstacles, new every episode",
+        TASK_IDS["avoid"],
+        None,
+        DEFAULT_POLICIES["avoid"],
+        None,
+        2,
+    ),
+    (
+        "Formation: cross of four followers, obstacle-free arena",
+        TASK_IDS["formation"],
+        None,
+        DEFAULT_POLICIES["formation"],
+        None,
+        1,
+    ),
+)
+
+
+def demo(episodes: int = 50, out_dir: Path = Path("demo_out"), progress: bool = True) -> int:
+    """Runs the comparison on the paper's scenes and the three tasks; prints the tables.
+
+    Args:
+        episodes: Episodes per policy and comparison.
+        out_dir: Where the CSV, JSON and PNG files go.
+        progress: Show progress bars.
+
+    Returns:
+        0.
+    """
+    saved: list[Path] = []
+    for title, env_id, config, policies, cap, worlds in DEMO_RUNS:
+        print(f"\n== {title}\n")
+        comparison = compare(
+            env_id,
+            policies,
+            episodes=episodes if cap is None else min(episodes, cap),
+            config=config,
+            record_worlds=worlds,
+            progress=progress,
+        )
+        saved += report(comparison, out_dir)
+    print(
+        f"\nplots (trajectories of the first worlds, one panel per policy) in {out_dir.resolve()}:"
+    )
+    for path in saved:
+        if path.suffix == ".png":
+            print(f"  {path.resolve()}")
+    return 0
+
+
+__all__ = ["DEMO_RUNS", "add_arguments", "demo", "run_from_args"]

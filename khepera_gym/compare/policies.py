@@ -1,0 +1,202 @@
+"""The policies the comparison tool knows by name: the paper's controllers, uniform random
+actions, and stable-baselines3 models (``sb3:path.zip``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+
+from khepera_gym import baselines
+from khepera_gym.errors import KheperaError
+
+#: Policies acting on Nav/Avoid observations (one robot, goal distance and bearing).
+NAV_POLICIES = ("position_control", "braitenberg", "braitenberg_kteam", "vfh")
+#: Policies acting on Formation observations (followers' blocks).
+FORMATION_POLICIES = ("leader_follower",)
+#: Every policy name (besides ``sb3:path.zip``).
+POLICY_NAMES = (*NAV_POLICIES, *FORMATION_POLICIES, "random")
+#: Prefix of a stable-baselines3 model file among the policies.
+SB3_PREFIX = "sb3:"
+#: stable-baselines3 algorithms tried in turn to load a model without ``--algo``.
+SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DQN")
+#: Policies compared when none is given.
+DEFAULT_POLICIES = {
+    "nav": ("position_control", "braitenberg", "vfh", "random"),
+    "avoid": ("position_control", "braitenberg", "braitenberg_kteam", "vfh", "random"),
+    "formation": ("leader_follower", "random"),
+}
+
+Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]
+
+
+class RandomPolicy:
+    """Uniform actions in [-1, 1] from a seeded generator (a reproducible lower baseline).
+
+    Args:
+        act_dim: Action length per observation.
+        seed: Seed of the generator.
+    """
+
+    def __init__(self, act_dim: int, seed: int) -> None:
+        self.act_dim = int(act_dim)
+        self._rng = np.random.default_rng(seed)
+
+    def __call__(self, observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
+        """Actions of shape (N, act_dim) for observations (N, D), or (act_dim,) for (D,)."""
+        shape = np.shape(observation)[:-1]
+        return self._rng.uniform(-1.0, 1.0, (*shape, self.act_dim)).astype(np.float32)
+
+
+class SB3Policy:
+    """A stable-baselines3 model as a policy: ``model.predict(obs, deterministic=True)``.
+
+    A model whose observation is one follower's block (parameter sharing, e.g. trained on
+    ``khepera_gym.sb3.make_formation_vec_env``) acts on a joint Formation observation of K
+    blocks one block at a time, its actions joined in follower order.
+
+    Args:
+        model: Anything with SB3's ``predict`` (a model, or ``khepera_gym.sb3.load_policy``'s
+            result, which normalises observations when the model was trained under
+            ``VecNormalize``).
+        path: The model file, for messages.
+    """
+
+    def __init__(self, model: Any, path: str) -> None:
+        self.model = model
+        self.path = path
+        space = getattr(model, "observation_space", None)
+        shape = getattr(space, "shape", None)
+        #: Observation length the model takes (None if it does not say).
+        self.obs_dim: int | None = int(shape[0]) if shape and len(shape) == 1 else None
+
+    def __call__(self, observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
+        """The model's deterministic actions for observations (N, D) (or one (D,))."""
+        array = np.asarray(observation, dtype=np.float32)
+        dim = self.obs_dim
+        if dim is not None and array.shape[-1] != dim and array.shape[-1] % dim == 0:
+            blocks = array.reshape(-1, dim)  # world-major, then follower
+            action, _ = self.model.predict(blocks, deterministic=True)
+            return np.asarray(action, dtype=np.float32).reshape(*array.shape[:-1], -1)
+        action, _ = self.model.predict(array, deterministic=True)
+        return np.asarray(action, dtype=np.float32)
+
+
+def load_sb3_policy(path: str | Path, algo: str | None = None) -> SB3Policy:
+    """Loads a stable-baselines3 model file as a policy (on the CPU).
+
+    Without ``algo`` the model is loaded by ``khepera_gym.sb3.load_policy`` (which reads the
+    algorithm from the zip and applies the ``VecNormalize`` statistics saved next to it by
+    ``khepera-gym train``); if that cannot tell the algorithm, PPO, SAC, TD3, A2C and DQN are
+    tried in turn. With ``algo`` that class's ``load`` is used on the bare model.
+
+    Args:
+        path: The ``.zip`` saved by ``model.save`` or ``khepera-gym train``.
+        algo: The algorithm class ("PPO", "SAC", ...), or None.
+
+    Returns:
+        The policy (deterministic actions).
+
+    Raises:
+        ImportError: stable-baselines3 is not installed (``pip install khepera-gym[sb3]``).
+        FileNotFoundError: No such file.
+        ValueError: Unknown ``algo``, or no algorithm could load the file.
+    """
+    try:
+        import stable_baselines3
+    except ImportError as error:
+        raise ImportError(
+            f"policy '{SB3_PREFIX}{path}' needs stable-baselines3, which is not installed: "
+            "pip install khepera-gym[sb3]"
+        ) from error
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"policy '{SB3_PREFIX}{path}': no such model file")
+    failures = []
+    if algo is None:
+        try:
+            from khepera_gym.sb3 import load_policy
+        except ImportError as error:
+            failures.append(f"khepera_gym.sb3: {error}")
+        else:
+            try:
+                return SB3Policy(load_policy(path), str(path))
+            except KheperaError as error:
+                failures.append(str(error))
+    names = SB3_ALGORITHMS if algo is None else (algo.upper(),)
+    for name in names:
+        algorithm = getattr(stable_baselines3, name, None)
+        if algorithm is None:
+            raise ValueError(
+                f"unknown stable-baselines3 algorithm {algo!r}; known: {SB3_ALGORITHMS}"
+            )
+        try:
+            model = algorithm.load(str(path), device="cpu")
+        except Exception as error:  # any failure means "not this algorithm"
+            failures.append(f"{name}: {type(error).__name__}: {error}")
+            continue
+        return SB3Policy(model, str(path))
+    raise ValueError(f"cannot load {path} as a stable-baselines3 model: " + "; ".join(failures))
+
+
+def make_policy(
+    name: str, env: gym.vector.VectorEnv, seed: int = 0, algo: str | None = None
+) -> Policy:
+    """The policy of a name for an environment (see the module docstring for the names).
+
+    Args:
+        name: A policy name or ``sb3:path.zip``.
+        env: The (vector) environment it will drive: its task decides which names fit, a
+            formation's shape is read from its scenario, the random policy's action length
+            from its action space.
+        seed: Seed of the ``random`` policy.
+        algo: stable-baselines3 algorithm of an ``sb3:`` model (None: try them in turn).
+
+    Returns:
+        A callable mapping a batch of observations (N, D) to actions (N, A).
+
+    Raises:
+        ValueError: Unknown name, or a policy that does not fit the task.
+        ImportError: ``sb3:`` without stable-baselines3 installed.
+    """
+    task = getattr(env.unwrapped, "task", None)
+    if name.startswith(SB3_PREFIX):
+        return load_sb3_policy(name[len(SB3_PREFIX) :], algo)
+    if name not in POLICY_NAMES:
+        raise ValueError(
+            f"unknown policy {name!r}; known: {', '.join(POLICY_NAMES)} or sb3:path/to/model.zip"
+        )
+    if name == "random":
+        return RandomPolicy(env.single_action_space.shape[0], seed)
+    fits = FORMATION_POLICIES if task == "formation" else NAV_POLICIES
+    if name not in fits:
+        raise ValueError(
+            f"policy {name!r} does not act on {task!r} observations; for this task use one of "
+            f"{', '.join((*fits, 'random'))} or sb3:path/to/model.zip"
+        )
+    if name == "leader_follower":
+        # An agent leader (formation.leader = "agent") drives like the scripted one.
+        return baselines.LeaderFollower.for_env(env, leader=baselines.Braitenberg())
+    return {
+        "position_control": baselines.PositionControl,
+        "braitenberg": baselines.Braitenberg,
+        "braitenberg_kteam": lambda: baselines.Braitenberg(weights="kteam"),
+        "vfh": baselines.VFH,
+    }[name]()
+
+
+__all__ = [
+    "DEFAULT_POLICIES",
+    "POLICY_NAMES",
+    "SB3_ALGORITHMS",
+    "SB3_PREFIX",
+    "Policy",
+    "RandomPolicy",
+    "SB3Policy",
+    "load_sb3_policy",
+    "make_policy",
+]

@@ -1,0 +1,323 @@
+"""Running the comparison: every policy on the same N seeded episodes of a native vector env (one
+episode per world, run by :func:`khepera_gym.rollout.run_episodes`), the first worlds recorded for
+plots, summarised per policy with intervals.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+from khepera_gym.compare.policies import Policy, make_policy
+from khepera_gym.compare.stats import Estimate, bootstrap_interval, wilson_interval
+from khepera_gym.plot import Rollout, control_step
+from khepera_gym.registration import latest_ids
+from khepera_gym.rollout import run_episodes
+
+#: Percentile of the time to goal in the table.
+TIME_PERCENTILE = 95.0
+
+
+@dataclasses.dataclass
+class EpisodeResult:
+    """One episode of one policy (a row of the CSV file).
+
+    Attributes:
+        policy: The policy's name.
+        world: Index of the world in the batch.
+        seed: The world's seed (the comparison's seed + world): a single env reset with it
+            replays the episode.
+        success: The goal was reached (formation: the leader's).
+        length: Steps.
+        time_to_goal: ``length · dt`` (s) for a success, else None.
+        episode_return: Sum of rewards.
+        path_length: Distance driven (m; formation: summed over the robots).
+        collisions: Steps in contact with something.
+        formation_error_mean: Followers' mean distance to their targets (m), formation only.
+        formation_error_max: Its largest value (m), formation only.
+    """
+
+    policy: str
+    world: int
+    seed: int
+    success: bool
+    length: int
+    time_to_goal: float | None
+    episode_return: float
+    path_length: float
+    collisions: int
+    formation_error_mean: float | None = None
+    formation_error_max: float | None = None
+
+
+@dataclasses.dataclass
+class PolicySummary:
+    """A policy's statistics over its episodes, each with its 95% confidence interval."""
+
+    policy: str
+    episodes: int
+    success_rate: Estimate
+    time_to_goal_mean: Estimate
+    time_to_goal_p95: Estimate
+    path_length_mean: Estimate
+    contact_steps_mean: Estimate
+    contact_rate: Estimate
+    formation_error_mean: Estimate | None
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-ready dict."""
+        return {
+            name: value.to_json() if isinstance(value, Estimate) else value
+            for name, value in ((f.name, getattr(self, f.name)) for f in dataclasses.fields(self))
+        }
+
+
+def summarize(policy: str, results: Sequence[EpisodeResult]) -> PolicySummary:
+    """The statistics of one policy's episodes (see the module docstring)."""
+    successes = [r for r in results if r.success]
+    times = [r.time_to_goal for r in successes]
+    formation = [r.formation_error_mean for r in results if r.formation_error_mean is not None]
+    return PolicySummary(
+        policy=policy,
+        episodes=len(results),
+        success_rate=wilson_interval(len(successes), len(results)),
+        time_to_goal_mean=bootstrap_interval(times, "mean"),
+        time_to_goal_p95=bootstrap_interval(times, f"p{TIME_PERCENTILE:g}"),
+        path_length_mean=bootstrap_interval([r.path_length for r in successes], "mean"),
+        contact_steps_mean=bootstrap_interval([r.collisions for r in results], "mean"),
+        contact_rate=wilson_interval(sum(r.collisions > 0 for r in results), len(results)),
+        formation_error_mean=bootstrap_interval(formation, "mean") if formation else None,
+    )
+
+
+def run_policy(
+    env: gym.vector.VectorEnv,
+    name: str,
+    policy: Policy,
+    seed: int,
+    record_worlds: int = 1,
+    progress: bool = True,
+    description: str = "",
+) -> tuple[list[EpisodeResult], list[Rollout]]:
+    """One episode in every world of a vector env: reset with ``seed``, step until all ended.
+
+    Args:
+        env: A native vector env (``gym.make_vec``) of N worlds.
+        name: The policy's name (stored in the results).
+        policy: Maps observations (N, D) to actions (N, A).
+        seed: World i is reset with seed + i.
+        record_worlds: The first worlds whose poses are recorded after every step.
+        progress: Show a tqdm progress bar of finished episodes.
+        description: Progress bar label.
+
+    Returns:
+        One result per world in world order, and one :class:`Rollout` per recorded world.
+    """
+    unwrapped = env.unwrapped
+    batch = unwrapped._batch
+    n = batch.num_worlds
+    record = max(0, min(record_worlds, n))
+    dt = control_step(env)
+    ended_at = np.zeros(n, dtype=np.int64)
+    poses: list[np.ndarray] = []
+    targets: list[np.ndarray] = []
+    bar = tqdm(total=n, desc=description or name, unit="episode", disable=not progress, leave=False)
+
+    def on_step(step: int, _obs: Any, _rewards: Any, ended: Any, done: Any) -> None:
+        if record and not done[:record].all():
+            poses.append(unwrapped.poses()[:record])
+            targets.append(unwrapped.targets()[:record])
+        ended_at[ended] = step
+        bar.update(int(np.count_nonzero(ended)))
+
+    goals: list[np.ndarray] = []
+    scenes: list[dict[str, Any]] = []
+
+    def on_reset(_obs: Any) -> None:
+        goals.extend(unwrapped.goals()[:record])
+        scenes.extend(unwrapped.scene(i) for i in range(record))
+        poses.append(unwrapped.poses()[:record])
+        targets.append(unwrapped.targets()[:record])
+
+    with bar:
+        stats = run_episodes(batch, policy, seed, on_reset=on_reset, on_step=on_step)
+    pose_array = np.array(poses)
+    target_array = np.array(targets)
+    has_targets = target_array.ndim == 4 and target_array.shape[2] > 0
+    rollouts = [
+        Rollout(
+            poses=pose_array[: ended_at[i] + 1, i],
+            goals=np.asarray(goals[i]),
+            scene=scenes[i],
+            stats=dict(stats[i] or {}),
+            targets=target_array[: ended_at[i] + 1, i] if has_targets else None,
+            dt=dt,
+            label=name,
+            seed=seed + i,
+        )
+        for i in range(record)
+    ]
+    results = [
+        _episode_result(name, world, seed, episode, dt)
+        for world, episode in enumerate(stats)
+        if episode is not None
+    ]
+    return results, rollouts
+
+
+def _episode_result(
+    name: str, world: int, seed: int, episode: dict[str, Any], dt: float
+) -> EpisodeResult:
+    success = bool(episode["success"])
+    return EpisodeResult(
+        policy=name,
+        world=world,
+        seed=seed + world,
+        success=success,
+        length=int(episode["length"]),
+        time_to_goal=round(episode["length"] * dt, 6) if success else None,
+        episode_return=float(episode["return"]),
+        path_length=float(episode["path_length"]),
+        collisions=int(episode["collisions"]),
+        formation_error_mean=episode.get("formation_error_mean"),
+        formation_error_max=episode.get("formation_error_max"),
+    )
+
+
+# --- the comparison ---------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class Comparison:
+    """Results of :func:`compare`: per-episode results, summaries and recorded rollouts."""
+
+    env_id: str
+    config: str | None
+    label: str
+    seed: int
+    episodes: int
+    dt: float
+    results: dict[str, list[EpisodeResult]]
+    summaries: list[PolicySummary]
+    rollouts: dict[str, list[Rollout]]
+
+    @property
+    def is_formation(self) -> bool:
+        """Whether the results have formation errors."""
+        return any(s.formation_error_mean is not None for s in self.summaries)
+
+
+def resolve_env_id(task: str | None = None, env_id: str | None = None) -> str:
+    """The registered id of ``--task`` or ``--env`` (an unversioned id gets its latest version).
+
+    Raises:
+        ValueError: Neither or both given, an unknown task, or an id that is not registered.
+    """
+    if (task is None) == (env_id is None):
+        raise ValueError("give either a task (nav, avoid, formation) or an env id, not both")
+    if task is not None:
+        task_ids = latest_ids()
+        if task not in task_ids:
+            raise ValueError(f"unknown task {task!r}; known: {', '.join(task_ids)}")
+        return task_ids[task]
+    assert env_id is not None
+    if env_id in gym.registry:
+        return env_id
+    versions = sorted(
+        (spec.version, spec.id)
+        for spec in gym.registry.values()
+        if spec.name == env_id and spec.namespace is None and spec.version is not None
+    )
+    if not versions:
+        known = ", ".join(sorted(i for i in gym.registry if i.startswith("KheperaIV-")))
+        raise ValueError(f"environment {env_id!r} is not registered; known: {known}")
+    return versions[-1][1]
+
+
+def _label(env_id: str, config: str | None) -> str:
+    """File-name label: the config's name (a path's stem) or the task's short name."""
+    if config is not None:
+        return Path(str(config)).stem
+    return env_id.split("-")[1].lower() if env_id.count("-") >= 2 else env_id
+
+
+def compare(
+    env_id: str,
+    policies: Sequence[str],
+    episodes: int = 100,
+    seed: int = 0,
+    config: str | None = None,
+    num_threads: int | None = None,
+    record_worlds: int = 1,
+    progress: bool = True,
+    algo: str | None = None,
+) -> Comparison:
+    """Runs every policy on the same N seeded episodes and summarises them.
+
+    Args:
+        env_id: Registered id (e.g. ``"KheperaIV-Avoid-v0"``).
+        policies: Policy names (see the module docstring) or ``sb3:path.zip``.
+        episodes: N, the number of worlds (one episode each) per policy.
+        seed: World i is reset with seed + i, for every policy.
+        config: Scenario name or TOML path (e.g. ``"paper_fig6"``).
+        num_threads: Threads of the vector env (None: all cores).
+        record_worlds: How many of the first worlds to record for plots.
+        progress: Show progress bars.
+        algo: stable-baselines3 algorithm of ``sb3:`` policies.
+
+    Returns:
+        The :class:`Comparison`.
+
+    Raises:
+        ValueError: No policies, N < 1, duplicate or unknown policies, or a policy that does
+            not fit the task.
+        ImportError: An ``sb3:`` policy without stable-baselines3.
+        KheperaError: A bad scenario (ConfigError) or a policy error.
+    """
+    if not policies:
+        raise ValueError("give at least one policy")
+    if len(set(policies)) != len(policies):
+        raise ValueError(f"a policy is listed twice: {list(policies)}")
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    env = gym.make_vec(env_id, num_envs=episodes, config=config, num_threads=num_threads)
+    try:
+        # Every policy is built (sb3 models loaded) before anything runs: errors come first.
+        built = {name: make_policy(name, env, seed, algo) for name in policies}
+        results, rollouts = {}, {}
+        for name, policy in built.items():
+            results[name], rollouts[name] = run_policy(
+                env, name, policy, seed, record_worlds, progress, f"{_label(env_id, config)} {name}"
+            )
+        dt = control_step(env)
+    finally:
+        env.close()
+    return Comparison(
+        env_id=env_id,
+        config=None if config is None else str(config),
+        label=_label(env_id, config),
+        seed=seed,
+        episodes=episodes,
+        dt=dt,
+        results=results,
+        summaries=[summarize(name, results[name]) for name in policies],
+        rollouts=rollouts,
+    )
+
+
+__all__ = [
+    "TIME_PERCENTILE",
+    "Comparison",
+    "EpisodeResult",
+    "PolicySummary",
+    "compare",
+    "resolve_env_id",
+    "run_policy",
+    "summarize",
+]

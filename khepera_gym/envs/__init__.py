@@ -1,0 +1,43 @@
+"""Single-world Gymnasium environments over the Rust core, and heuristic policies that solve them.
+
+:class:`NavEnv` (drive to a goal), :class:`AvoidEnv` (the same among random obstacles) and
+:class:`FormationEnv` (followers holding a formation around a leader) share :class:`KheperaEnv`
+(:mod:`khepera_gym.envs.base`); each task's module holds its manual (the class docstring) and its
+heuristic: :func:`nav_heuristic`, :func:`avoid_heuristic` and :func:`formation_heuristic`, thin
+wrappers of the paper's controllers in :mod:`khepera_gym.baselines` (computed in Rust).
+
+A new task adds a module here with its env class (``TASK`` = the Rust task's name) and imports it
+below; registration with Gymnasium comes from the task list the Rust core exports.
+"""
+
+from khepera_gym.config import ACTION_TYPES
+from khepera_gym.envs.base import ENV_CLASSES, KheperaEnv
+from khepera_gym.envs.formation import (
+    FormationEnv,
+    formation_follower_heuristic,
+    formation_heuristic,
+)
+from khepera_gym.envs.nav import (
+    BRAITENBERG_WEIGHTS,
+    AvoidEnv,
+    NavEnv,
+    avoid_heuristic,
+    nav_heuristic,
+)
+
+# The manuals' examples live in the task modules: doctest.testmod(khepera_gym.envs) runs them.
+__test__ = {"NavEnv": NavEnv, "AvoidEnv": AvoidEnv, "FormationEnv": FormationEnv}
+
+__all__ = [
+    "ACTION_TYPES",
+    "BRAITENBERG_WEIGHTS",
+    "ENV_CLASSES",
+    "AvoidEnv",
+    "FormationEnv",
+    "KheperaEnv",
+    "NavEnv",
+    "avoid_heuristic",
+    "formation_follower_heuristic",
+    "formation_heuristic",
+    "nav_heuristic",
+]

@@ -1,0 +1,80 @@
+"""Registration of the environments with Gymnasium, from the task list the Rust core exports.
+
+For every task that the core exports with a Gymnasium id (``_core.tasks()``: the ``env_id`` of
+its ``TaskInfo``) and that has an env class (:data:`khepera_gym.envs.ENV_CLASSES`, filled by the
+classes themselves), each version the class declares in ``VERSIONS`` is registered as
+``<id>-v<version>`` with its single-env entry point, its native vector entry point and the
+version's scenario keyword defaults; ``gym.make("<id>")`` resolves to the latest. Nothing here
+lists tasks by hand.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+
+from khepera_gym import _core
+from khepera_gym.envs import ENV_CLASSES
+from khepera_gym.errors import ConfigError
+from khepera_gym.vector import VECTOR_ENV_CLASSES
+
+
+def registered_ids() -> dict[str, list[str]]:
+    """Every registered id of each task with a Gymnasium env, oldest version first."""
+    ids: dict[str, list[str]] = {}
+    for task, env_id, _ in _core.tasks():
+        env_class = ENV_CLASSES.get(task)
+        if env_id is None or env_class is None:
+            continue
+        ids[task] = [f"{env_id}-v{version}" for version in sorted(env_class.VERSIONS)]
+    return ids
+
+
+def latest_ids() -> dict[str, str]:
+    """The latest id of each task with a Gymnasium env: ``{"nav": "KheperaIV-Nav-v0", ...}``."""
+    return {task: ids[-1] for task, ids in registered_ids().items()}
+
+
+def _entry_point(cls: type, package: str) -> str:
+    """``package:Name`` when the package exports the class (its public path), else its module."""
+    module = package if cls.__module__.startswith(package) else cls.__module__
+    return f"{module}:{cls.__name__}"
+
+
+def register_envs() -> None:
+    """Registers every version of every task's env; a second call registers nothing twice."""
+    for task, ids in registered_ids().items():
+        env_class = ENV_CLASSES[task]
+        vector_class = VECTOR_ENV_CLASSES[task]
+        for env_id, version in zip(ids, sorted(env_class.VERSIONS), strict=True):
+            if env_id in gymnasium.registry:
+                continue
+            gymnasium.register(
+                id=env_id,
+                entry_point=_entry_point(env_class, "khepera_gym.envs"),
+                vector_entry_point=_entry_point(vector_class, "khepera_gym.vector"),
+                kwargs=dict(env_class.VERSIONS[version]),
+            )
+
+
+def resolve_env_id(env_id: str) -> str:
+    """The registered id of a khepera_gym env: ``"KheperaIV-Nav"`` → its latest version.
+
+    Raises:
+        ConfigError: ``env_id`` is not a registered khepera_gym environment.
+    """
+    ours = [i for ids in registered_ids().values() for i in ids]
+    if env_id in ours:
+        return env_id
+    versions = [i for i in ours if i.rsplit("-v", 1)[0] == env_id.rstrip("-")]
+    if not versions:
+        raise ConfigError(f"unknown environment {env_id!r}; khepera_gym registers {sorted(ours)}")
+    return max(versions, key=lambda i: int(i.rsplit("-v", 1)[1]))
+
+
+def task_of(env_id: str) -> str:
+    """The Rust core's task name ("nav", "avoid", "formation") of a khepera_gym env id."""
+    resolved = resolve_env_id(env_id)
+    return next(task for task, ids in registered_ids().items() if resolved in ids)
+
+
+__all__ = ["latest_ids", "register_envs", "registered_ids", "resolve_env_id", "task_of"]
