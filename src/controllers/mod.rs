@@ -232,7 +232,7 @@ fn read_params<T: ConfigTable>(controller: &str, given: &Table) -> Result<T> {
         let Some(default) = table.get(key) else {
             let known: Vec<&str> = T::KEYS.iter().map(|k| k.name).collect();
             return Err(Error::Param(format!(
-                "{controller}: unknown parameter {key:?}; its parameters are {known:?}"
+                "{controller}: unknown parameter '{key}'; its parameters are {known:?}"
             )));
         };
         let value = match (default, value) {
