@@ -35,6 +35,7 @@ class Batch:
     n_robots: int
     num_threads: int
     max_episode_steps: int
+    autoreset: bool
     task: str
     def __init__(
         self,
@@ -61,8 +62,14 @@ class Batch:
     def agent_terminated(self) -> npt.NDArray[np.bool_]:
         """Each agent's termination on the last step, shape (N, n_agents) (multinav: its robot
         reached its goal and parks; all True when the episode terminated)."""
+    def targets(self) -> npt.NDArray[np.float64]:
+        """The task's target points other than goals (formation: the followers' eq. 12 targets),
+        shape (N, K, 2); K = 0 for tasks without any."""
     def formation_targets(self) -> npt.NDArray[np.float64]:
-        """Followers' target points (eq. 12), shape (N, K, 2); K = 0 for other tasks."""
+        """``targets()`` under the formation task's name."""
+    def extra_stats(self) -> list[str]:
+        """Names of the task's own episode statistics (formation: "formation_error_mean",
+        "formation_error_max")."""
     def obs_bounds(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
         """(low, high), each of shape (obs_dim,)."""
     def reset(self, seed: int | None = None) -> npt.NDArray[np.float32]:
@@ -88,16 +95,17 @@ class Batch:
     def episode_stats(self) -> dict[str, npt.NDArray[Any]]:
         """Statistics of the episodes that ended on the last step() (valid where
         terminated | truncated): "return" f32, "length" i64, "success" bool, "path_length" f32 (m),
-        "collisions" i64 (steps in contact), each of shape (N,); formation adds
-        "formation_error_mean" and "formation_error_max" f32 (m)."""
+        "collisions" i64 (steps in contact), each of shape (N,); then the task's own
+        (``extra_stats()``; formation: "formation_error_mean", "formation_error_max" f32, m)."""
     def poses(self) -> npt.NDArray[np.float64]:
         """Ground-truth robot poses, shape (N, n_robots, 3): x, y (m), theta (rad, (-pi, pi])."""
     def goals(self) -> npt.NDArray[np.float64]:
         """Goal positions, shape (N, n_goals, 2) in metres."""
     def sensor_readings(self) -> dict[str, npt.NDArray[Any]]:
-        """Raw sensor values of the last observation, in the real robot's units:
-        "ir_raw" (N, n_robots, 8) int32 0..1023 in K-Team order; "us_cm" (N, n_robots, 5) int32
-        with codes 0 (closer than 25 cm), 1000 (nothing in range), 2000 (disabled);
+        """Raw sensor values of the last observation, in the real robot's units: each carried
+        sensor's channels, e.g. "ir_raw" (N, n_robots, 8) int32 0..1023 in K-Team order;
+        "us_cm" (N, n_robots, 5) int32 with codes 0 (closer than 25 cm), 1000 (nothing in
+        range), 2000 (disabled); then the body's
         "wheel_speeds" (N, n_robots, 2) float32 m/s; "encoders" (N, n_robots, 2) int64 pulses;
         "gyro_z" (N, n_robots) float32 rad/s."""
     def scene(self, index: int = 0) -> dict[str, Any]:
@@ -125,61 +133,43 @@ def obs_layout(task: str) -> list[tuple[str, int, int]]:
     """Observation layout of a task: (name, start, stop) slices, in order."""
 
 class Policy:
-    """A baseline controller of the paper acting on observations (src/controllers/), batched.
+    """A baseline controller of ``src/controllers/`` acting on observations, batched.
 
-    Built by the static constructors; ``act`` maps observations (N, obs_dim) float32 to
-    normalised wheel actions (N, act_dim) float32 (ActionError on NaN or a wrong layout)."""
+    Args:
+        name: The controller ("position_control", "braitenberg", "vfh", "leader_follower";
+            ``controllers()`` lists them).
+        params: Its parameters by name (``controller_params(name)`` lists them with defaults);
+            missing ones take their defaults; unknown or impossible ones raise ConfigError.
+        layout: (name, start, stop) blocks of the observations it reads (for leader_follower:
+            of one follower's block); None: the first agent's of its task's default scenario.
+        leader: leader_follower only: the policy of a leader block.
 
-    @staticmethod
-    def position_control(
-        vmax: float,
-        wmax: float,
-        kr: float,
-        stop_radius: float,
-        axle_length: float,
-        max_wheel_speed: float,
-    ) -> Policy: ...
-    @staticmethod
-    def braitenberg(
-        weights: list[list[float]],
-        threshold: float,
-        vmax: float,
-        wmax: float,
-        kr: float,
-        stop_radius: float,
-        axle_length: float,
-        max_wheel_speed: float,
-    ) -> Policy: ...
-    @staticmethod
-    def vfh(
-        sectors: int,
-        threshold: float,
-        hm: float,
-        vmax: float,
-        wmax: float,
-        kr: float,
-        stop_radius: float,
-        us_range: float,
-        beam_width: float,
-        min_valley: float,
-        axle_length: float,
-        max_wheel_speed: float,
-    ) -> Policy: ...
-    @staticmethod
-    def leader_follower(
-        offsets: list[tuple[float, float]] | None,
-        vmax: float,
-        wmax: float,
-        kr: float,
-        stop_radius: float,
-        feedforward: bool,
-        weights: list[list[float]] | None,
-        threshold: float,
-        leader: Policy,
-        axle_length: float,
-        max_wheel_speed: float,
-    ) -> Policy: ...
+    ``act`` maps observations (N, obs_dim) float32 to normalised wheel actions (N, act_dim)
+    float32 (ActionError on NaN or a wrong length)."""
+
+    name: str
+    obs_dim: int
+    def __init__(
+        self,
+        name: str,
+        params: dict[str, Any] | None = None,
+        layout: list[tuple[str, int, int]] | None = None,
+        leader: Policy | None = None,
+    ) -> None: ...
     def act(self, obs: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]: ...
+
+def tasks() -> list[tuple[str, str | None, list[str]]]:
+    """The tasks, in registry order: (name, Gymnasium id without version or None, names of its
+    extra episode statistics)."""
+
+def controllers() -> list[tuple[str, str]]:
+    """The controllers: (name, the task whose default observation it reads)."""
+
+def controller_params(name: str) -> list[tuple[str, Any, str]]:
+    """A controller's parameters in order: (name, default, comment with units and source)."""
+
+def formation_offsets(shape: str, spacing: float, n_followers: int) -> list[tuple[float, float]]:
+    """(r, beta) offsets of a formation shape, as the scenarios' ``formation.shape`` computes."""
 
 def braitenberg_weights(name: str) -> list[list[float]]:
     """Weight matrices of the Braitenberg block: "default" or "kteam" (m/s per unit proximity)."""

@@ -161,6 +161,16 @@ class BaselinePolicy:
         self._given = dict(params)
         self._policy = _core.Policy(self.CONTROLLER, params, _layout_triples(layout))
 
+    @classmethod
+    def for_env(cls, env: Any, **params: Any) -> BaselinePolicy:
+        """The policy reading the observations of ``env`` (a single, vector or PettingZoo env
+        of one agent), found by name in its layout.
+
+        Raises:
+            ConfigError: The env's observation lacks a block the controller reads.
+        """
+        return cls(layout=env, **params)
+
     @property
     def params(self) -> dict[str, Any]:
         """Every parameter's value: the given ones, the defaults for the others."""
@@ -499,12 +509,13 @@ class LeaderFollower(BaselinePolicy):
         return values
 
     @classmethod
-    def for_env(cls, env: Any, **kwargs: Any) -> LeaderFollower:
+    def for_env(cls, env: Any, **kwargs: Any) -> LeaderFollower:  # type: ignore[override]
         """A LeaderFollower with the formation of an environment's scenario.
 
         Reads ``formation.shape``, ``n_followers``, ``spacing`` and ``offsets`` from
         ``env.unwrapped.config_toml()`` (a single, vector or PettingZoo Formation env), so the
-        followers compute the same eq. 12 targets as the environment. Without ``tomllib``
+        followers compute the same eq. 12 targets as the environment, and reads its followers'
+        blocks by the env's own layout. Without ``tomllib``
         (Python 3.10) it follows the observation's ``target_offset`` (``shape=None``).
 
         Args:
@@ -514,7 +525,11 @@ class LeaderFollower(BaselinePolicy):
         Raises:
             ValueError: The environment has no ``[formation]`` table.
         """
-        config_toml = getattr(env, "unwrapped", env).config_toml()
+        unwrapped = getattr(env, "unwrapped", env)
+        config_toml = unwrapped.config_toml()
+        followers = [a for a in unwrapped.agent_layouts() if a.startswith("follower_")]
+        if followers and "layout" not in kwargs:
+            kwargs["layout"] = unwrapped.agent_layouts()[followers[0]]
         if tomllib is None:  # pragma: no cover - Python 3.10
             return cls(shape=None, **kwargs)
         formation = tomllib.loads(config_toml).get("formation")

@@ -9,12 +9,12 @@ import gc
 import inspect
 import pickle
 import sys
-import tomllib
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
+import tomllib
 from conftest import AVOID_ID, FORMATION_ID, NAV_ID
 
 import khepera_gym
@@ -47,9 +47,7 @@ def test_default_config_lists_every_key_with_a_comment_and_loads_back() -> None:
     for name, _, _ in _core.tasks():
         text = _core.default_config(name)
         table = tomllib.loads(text)
-        key_lines = [
-            line for line in text.splitlines() if "=" in line and not line.startswith("#")
-        ]
+        key_lines = [line for line in text.splitlines() if "=" in line and not line.startswith("#")]
         assert len(key_lines) == sum(len(section) for section in table.values())
         assert all(" # " in line for line in key_lines), f"{name}: a key without its comment"
         # The printed file is a scenario file: loaded over the task's own defaults it changes
@@ -114,7 +112,7 @@ def test_a_sensor_not_carried_is_not_read() -> None:
         "encoders",
         "gyro_z",
     }
-    with pytest.raises(ConfigError, match="sensors.observe"):
+    with pytest.raises(ConfigError, match=r"sensors\.observe"):
         gym.make(NAV_ID, carry=["ir"])  # observes us, which it does not carry
     with pytest.raises(ConfigError, match='unknown sensor "lidar"'):
         gym.make(NAV_ID, observe=["lidar"])

@@ -13,14 +13,21 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import baselines
-from khepera_gym.errors import KheperaError
+from khepera_gym.errors import ConfigError, KheperaError
 
-#: Policies acting on Nav/Avoid observations (one robot, goal distance and bearing).
-NAV_POLICIES = ("position_control", "braitenberg", "braitenberg_kteam", "vfh")
-#: Policies acting on Formation observations (followers' blocks).
-FORMATION_POLICIES = ("leader_follower",)
+#: The baselines by their controller's name (``position_control``, ``braitenberg``, ``vfh``,
+#: ``leader_follower``, and any controller added to the core with its class in baselines).
+BASELINES: dict[str, type[baselines.BaselinePolicy]] = {
+    cls.CONTROLLER: cls for cls in baselines.BaselinePolicy.__subclasses__() if cls.CONTROLLER
+}
+#: Named variants of the baselines: parameters other than the defaults.
+VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "braitenberg_kteam": ("braitenberg", {"weights": "kteam"}),
+    # An agent leader (formation.leader = "agent") drives like the scripted one.
+    "leader_follower": ("leader_follower", {"leader": baselines.Braitenberg()}),
+}
 #: Every policy name (besides ``sb3:path.zip``).
-POLICY_NAMES = (*NAV_POLICIES, *FORMATION_POLICIES, "random")
+POLICY_NAMES = tuple(dict.fromkeys((*BASELINES, *VARIANTS, "random")))
 #: Prefix of a stable-baselines3 model file among the policies.
 SB3_PREFIX = "sb3:"
 #: stable-baselines3 algorithms tried in turn to load a model without ``--algo``.
@@ -172,21 +179,15 @@ def make_policy(
         )
     if name == "random":
         return RandomPolicy(env.single_action_space.shape[0], seed)
-    fits = FORMATION_POLICIES if task == "formation" else NAV_POLICIES
-    if name not in fits:
+    controller, params = VARIANTS.get(name, (name, {}))
+    try:
+        # A baseline fits the task if it finds the observation blocks it reads by name.
+        return BASELINES[controller].for_env(env, **params)
+    except ConfigError as error:
         raise ValueError(
-            f"policy {name!r} does not act on {task!r} observations; for this task use one of "
-            f"{', '.join((*fits, 'random'))} or sb3:path/to/model.zip"
-        )
-    if name == "leader_follower":
-        # An agent leader (formation.leader = "agent") drives like the scripted one.
-        return baselines.LeaderFollower.for_env(env, leader=baselines.Braitenberg())
-    return {
-        "position_control": baselines.PositionControl,
-        "braitenberg": baselines.Braitenberg,
-        "braitenberg_kteam": lambda: baselines.Braitenberg(weights="kteam"),
-        "vfh": baselines.VFH,
-    }[name]()
+            f"policy {name!r} does not act on {task!r} observations ({error}); for this task "
+            "use one that does, random, or sb3:path/to/model.zip"
+        ) from error
 
 
 __all__ = [
