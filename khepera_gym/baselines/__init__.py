@@ -1,0 +1,57 @@
+"""The KH4VREP paper's classical controllers as baseline policies on observations.
+
+Farias et al., "A Khepera IV library for robotic control education using V-REP" (IFAC 2017),
+§3.3-3.5: :class:`PositionControl` (eqs. 1-4), :class:`Braitenberg` avoidance after it (eqs. 5-7,
+Fig. 5), :class:`VFH` (eqs. 8-11) and :class:`LeaderFollower` formation control (eq. 12). Each is
+a drop-in policy for the environments created with ``action_type="wheels"``::
+
+    from khepera_gym.baselines import Braitenberg
+
+    policy = Braitenberg(weights="kteam")
+    action = policy(obs)                          # one (18,) observation or a batch (N, 18)
+    action, state = policy.predict(obs)           # stable-baselines3's signature
+
+All the maths lives in the Rust core (src/controllers/, the code the scripted formation leader
+runs inside the simulator), and so do the controllers' parameters: their names (as in the
+papers), defaults, units and checks are declared once in Rust, and each class here takes them as
+keywords (see ``help(Braitenberg)`` or ``inspect.signature``; :func:`parameters` lists them).
+A policy reads the observation of its task's default scenario; for another (other sensors
+observed), give ``layout=env.unwrapped.obs_layout()`` and it finds its blocks by name. Units:
+metres, seconds, radians; robot frame x forward, y left, angles counter-clockwise. Actions are
+normalised (left, right) wheel speeds in [-1, 1]: wheel speeds ``v ∓ ω · axle_length / 2``
+divided by ``max_wheel_speed`` and clipped.
+
+Adding a controller: a Rust file in src/controllers/ and a short class in a module of this
+package (by domain: navigation, formation) that names it
+(``CONTROLLER = "..."``) and says in its docstring what it does.
+
+Threading and copies: a call copies the observations into Rust, releases the GIL while acting
+and returns a fresh float32 array. Policies are immutable and hold no state between calls, so one
+instance may serve several environments (``predict`` returns ``state`` unchanged).
+"""
+
+from khepera_gym.baselines.base import (
+    BRAITENBERG_WEIGHT_SETS,
+    FORMATION_SHAPES,
+    KHEPERA_AXLE_LENGTH,
+    KHEPERA_MAX_WHEEL_SPEED,
+    BaselinePolicy,
+    parameters,
+)
+from khepera_gym.baselines.formation import LeaderFollower, formation_offsets
+from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, braitenberg_weights
+
+__all__ = [
+    "BRAITENBERG_WEIGHT_SETS",
+    "FORMATION_SHAPES",
+    "KHEPERA_AXLE_LENGTH",
+    "KHEPERA_MAX_WHEEL_SPEED",
+    "VFH",
+    "BaselinePolicy",
+    "Braitenberg",
+    "LeaderFollower",
+    "PositionControl",
+    "braitenberg_weights",
+    "formation_offsets",
+    "parameters",
+]
