@@ -389,7 +389,13 @@ fn insert_path(table: &mut Table, path: &[String], value: Value) {
 /// Writes one section of a scenario file: `[name]`, then every key of `keys` with its value in
 /// `table` (and, with `comments`, its comment, aligned). Keys of `table` that `keys` does not
 /// list follow, bare.
-pub fn render_section(out: &mut String, name: &str, keys: &[KeyDoc], table: &Table, comments: bool) {
+pub fn render_section(
+    out: &mut String,
+    name: &str,
+    keys: &[KeyDoc],
+    table: &Table,
+    comments: bool,
+) {
     out.push_str(&format!("[{name}]\n"));
     let mut lines: Vec<(String, &str)> = Vec::new();
     for key in keys {
@@ -447,7 +453,13 @@ mod tests {
         assert_eq!(d.names, vec!["a".to_string(), "b".to_string()]);
         assert_eq!(d.offset, -1.5);
         let mut text = String::new();
-        render_section(&mut text, "example", Example::KEYS, &Example::defaults_table(), true);
+        render_section(
+            &mut text,
+            "example",
+            Example::KEYS,
+            &Example::defaults_table(),
+            true,
+        );
         assert!(text.contains("length = 0.25"), "{text}");
         assert!(text.contains("# a length (m)"), "{text}");
         let back: Table = text.parse().expect("rendered text is TOML");
@@ -459,7 +471,9 @@ mod tests {
         let mut base = Table::new();
         base.insert("example".into(), Value::Table(Example::defaults_table()));
         let over = parse("[example]\nlenght = 1.0\n", "f.toml").expect("toml");
-        let e = overlay(&mut base, &over, "", "f.toml").unwrap_err().to_string();
+        let e = overlay(&mut base, &over, "", "f.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("f.toml: example.lenght: unknown key"), "{e}");
         let mut table = Example::defaults_table();
         table.insert("length".into(), Value::String("long".into()));

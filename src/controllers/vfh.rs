@@ -213,7 +213,11 @@ impl Controller for VfhPolicy {
         let us = &obs[self.us..self.us + US_COUNT];
         let wheels = &obs[self.wheel_speeds..self.wheel_speeds + 2];
         let (v, w) = self.vfh.twist(ir, us, d, bearing, wheels[1] - wheels[0]);
-        out.copy_from_slice(&self.wheels.action(twist_to_wheels(v, w, self.wheels.axle_length)));
+        out.copy_from_slice(
+            &self
+                .wheels
+                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
+        );
     }
 }
 

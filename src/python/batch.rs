@@ -325,7 +325,10 @@ impl Batch {
         d.set_item("collisions", i64s(|s| s.collisions as i64))?;
         let names = self.inner.envs()[0].kind().extra_stats();
         for (k, name) in names.iter().enumerate() {
-            d.set_item(*name, PyArray1::from_iter(py, stats.iter().map(|s| s.extra[k])))?;
+            d.set_item(
+                *name,
+                PyArray1::from_iter(py, stats.iter().map(|s| s.extra[k])),
+            )?;
         }
         Ok(d)
     }
@@ -587,7 +590,6 @@ impl Batch {
     }
 }
 
-
 /// Unpickles a `Batch` (see `Batch.__reduce__`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
@@ -617,4 +619,3 @@ pub fn _batch_from_state(
     batch.set_state(py, state)?;
     Ok(batch)
 }
-

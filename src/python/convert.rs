@@ -144,7 +144,12 @@ pub fn layout_from_slices(slices: &[(String, usize, usize)]) -> Result<ObsLayout
                  (blocks are contiguous from 0)"
             )));
         }
-        blocks.push(Block::new(name, stop - start, f32::NEG_INFINITY, f32::INFINITY));
+        blocks.push(Block::new(
+            name,
+            stop - start,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+        ));
         at = *stop;
     }
     Ok(ObsLayout::new(blocks))

@@ -537,7 +537,11 @@ impl Env {
     fn observe(&self, obs: &mut [f32]) {
         let mut out = ObsWriter::new(obs);
         self.task.observe(&self.world, &self.cfg, &mut out);
-        debug_assert_eq!(out.position(), obs.len(), "observation layout and writer disagree");
+        debug_assert_eq!(
+            out.position(),
+            obs.len(),
+            "observation layout and writer disagree"
+        );
     }
 
     /// A fresh env of the same task, scenario, action type and trail length (its state to be
