@@ -6,6 +6,8 @@
 //!
 //! [`PositionControl`] is the law; [`PositionPolicy`] the controller reading a Nav-like
 //! observation (`goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`).
+//!
+//! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.
 
 use super::{goal_of, non_negative, positive, Controller, GoalBlocks, WheelMap};
 use crate::error::Result;

@@ -30,6 +30,9 @@
 //! spacing (`beam_width` < 45°) the histogram also has blind zones between sensors that look
 //! free; the default closes them for the IR ring, and `beam_width = 10°` shows the paper's
 //! blind-zone behaviour at its worst.
+//!
+//! Units: metres, m/s, radians, rad/s; sector bearings in the robot frame (x forward, y left,
+//! CCW).
 
 use std::f32::consts::PI;
 

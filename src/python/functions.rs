@@ -1,5 +1,10 @@
 //! Module-level functions of `_core`: what the core knows (tasks, controllers, scenarios,
 //! layouts) for the Python package to build on, and unit conversions.
+//!
+//! Units: wheel speeds in m/s or the robot's `kh4_set_speed` units; formation offsets in metres
+//! and radians. Threading and copies: every function runs with the GIL held (none simulates, so
+//! none releases it) and returns fresh Python values (lists, tuples, strings, numbers) built from
+//! the core's declarations; nothing keeps a Python object.
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
