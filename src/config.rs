@@ -1,7 +1,7 @@
 //! Scenario schema machinery: how a table of settings is declared once (its keys, their defaults,
 //! units and comments), parsed, overlaid and validated. It knows nothing of robots or worlds; the
 //! tables themselves are declared by their owners (`robot.rs`, each sensor in `sensors/`, each
-//! task in `tasks/`, the world's in `scenario/sections.rs`) with [`config_table!`].
+//! task in `tasks/`, the world's in `scenario/sections.rs`) with [`crate::config_table!`].
 //!
 //! A table's defaults are TOML text written next to each key, so the same text is what
 //! `default_config(task)` prints, what every scenario file is overlaid on, and what
@@ -94,7 +94,7 @@ pub struct KeyDoc {
     pub comment: &'static str,
 }
 
-/// A table of settings declared with [`config_table!`].
+/// A table of settings declared with [`crate::config_table!`].
 pub trait ConfigTable: Clone + Serialize + DeserializeOwned {
     /// Its keys in order, with defaults and comments.
     const KEYS: &'static [KeyDoc];

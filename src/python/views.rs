@@ -96,9 +96,10 @@ pub fn sensor_readings<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Boun
     Ok(d)
 }
 
-/// Geometry of one world for plots: the arena ("arena": inner (width, height), "walls" whether
-/// walled, "wall_thickness"), the robot and goal radii, and every obstacle as a dict ("circle": center, radius; "box": center,
-/// half_extents, angle; "segment": end points a, b), in metres and radians.
+/// Geometry of one world for plots: the arena ("arena": inner (width, height), "walls":
+/// whether walled, "wall_thickness"), "robot_radius", "goal_radius", and "obstacles": a list of
+/// dicts ("circle": center, radius; "box": center, half_extents, angle; "segment": end points
+/// a, b), in metres and radians.
 pub fn scene<'py>(py: Python<'py>, env: &Env) -> PyResult<Bound<'py, PyDict>> {
     let scene = &env.world.scene;
     let d = PyDict::new(py);
