@@ -50,9 +50,11 @@ demo: develop
 bench: develop
 	$(PYTHON) examples/benchmark.py
 
+# Clippy runs twice: the binding (src/python/) is compiled only with the `python` feature.
 lint: develop
 	cargo fmt --check
 	cargo clippy --release -- -D warnings
+	cargo clippy --release --features python -- -D warnings
 	$(VENV)/bin/ruff check khepera_gym tests examples
 	$(VENV)/bin/ruff format --check khepera_gym tests examples
 

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use _core::batch::Batch;
 use _core::robot::ActionType;
-use _core::scenario::{Scenario, Source};
+use _core::scenario::Source;
 use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use rand::{Rng, SeedableRng};
@@ -42,9 +42,9 @@ fn main() {
             continue;
         }
         let cfg = load_scenario(kind.name(), &Source::default()).expect("scenario");
-        let robots = kind.n_robots(&cfg);
         let mut batch =
             Batch::new(kind, cfg, n, ActionType::Wheels, Some(threads), true).expect("batch");
+        let robots = batch.envs()[0].world.robots.len();
         batch.reset(Some(0));
         let actions: Vec<Vec<f32>> = (0..64)
             .map(|_| {

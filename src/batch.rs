@@ -7,6 +7,9 @@
 //! thread count. Seeding: `reset(Some(s))` seeds world i with `s + i` (Gymnasium's convention),
 //! `reset(None)` continues every stream. Autoreset (Gymnasium NEXT_STEP): a world whose episode
 //! ended on the previous step is reset instead of stepped, with reward 0 and both flags false.
+//!
+//! Units: actions normalised to [-1, 1], two per agent; rewards per step; the rest is the
+//! worlds' (metres, seconds, radians, world frame).
 
 use std::sync::Arc;
 

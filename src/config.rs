@@ -1,7 +1,7 @@
 //! Scenario schema machinery: how a table of settings is declared once (its keys, their defaults,
 //! units and comments), parsed, overlaid and validated. It knows nothing of robots or worlds; the
 //! tables themselves are declared by their owners (`robot.rs`, each sensor in `sensors/`, each
-//! task in `tasks/`, the world's in `scenario.rs`) with [`config_table!`].
+//! task in `tasks/`, the world's in `scenario/sections.rs`) with [`crate::config_table!`].
 //!
 //! A table's defaults are TOML text written next to each key, so the same text is what
 //! `default_config(task)` prints, what every scenario file is overlaid on, and what
@@ -94,7 +94,7 @@ pub struct KeyDoc {
     pub comment: &'static str,
 }
 
-/// A table of settings declared with [`config_table!`].
+/// A table of settings declared with [`crate::config_table!`].
 pub trait ConfigTable: Clone + Serialize + DeserializeOwned {
     /// Its keys in order, with defaults and comments.
     const KEYS: &'static [KeyDoc];
@@ -146,17 +146,40 @@ pub fn read_table<T: DeserializeOwned>(table: &Table, origin: &str, section: &st
 /// Declares a table of settings: a struct with one public field per key, its defaults as TOML
 /// text, and its keys' comments, all written once.
 ///
-/// ```ignore
-/// config_table! {
-///     /// `[robot]`: the Khepera IV's body and drive.
-///     pub struct RobotConfig {
-///         /// body radius (m): 140.8 mm diameter
-///         radius: f32 = 0.0704,
+/// ```
+/// use _core::config::{ConfigTable, Param};
+///
+/// _core::config_table! {
+///     /// `[wheels]`: an example table.
+///     pub struct WheelsConfig {
+///         /// wheel radius (m): 42 mm diameter
+///         radius: f32 = 0.021,
+///         /// wheel mass (kg), a number or a [low, high] range drawn at every reset
+///         mass: Param = [0.010, 0.012],
+///         /// upper speed limit (m/s); inf = none
+///         max_speed: f32 = inf,
+///         /// names of the wheels
+///         names: Vec<String> = ["left", "right"],
 ///     }
 /// }
+///
+/// // `Default::default()` is the declared defaults, read as TOML.
+/// let wheels = WheelsConfig::default();
+/// assert_eq!(wheels.radius, 0.021);
+/// assert_eq!(wheels.mass, Param::Range([0.010, 0.012]));
+/// assert!(wheels.max_speed.is_infinite());
+/// assert_eq!(wheels.names, ["left", "right"]);
+///
+/// // `KEYS`: every key in order, with its default as written and its comment.
+/// let keys = WheelsConfig::KEYS;
+/// let names: Vec<&str> = keys.iter().map(|k| k.name).collect();
+/// assert_eq!(names, ["radius", "mass", "max_speed", "names"]);
+/// assert_eq!(keys[0].default, "0.021");
+/// assert_eq!(keys[0].comment.trim(), "wheel radius (m): 42 mm diameter");
 /// ```
 /// Each default is TOML text (`inf`, `[0.04, 0.10]`, `"between"`, `[]` are all fine) and must
-/// deserialise into the field's type; `Default::default()` is that deserialisation.
+/// deserialise into the field's type; `Default::default()` is that deserialisation. The
+/// expansion names `serde`, which the declaring crate must depend on (with `derive`).
 #[macro_export]
 macro_rules! config_table {
     (
@@ -389,7 +412,13 @@ fn insert_path(table: &mut Table, path: &[String], value: Value) {
 /// Writes one section of a scenario file: `[name]`, then every key of `keys` with its value in
 /// `table` (and, with `comments`, its comment, aligned). Keys of `table` that `keys` does not
 /// list follow, bare.
-pub fn render_section(out: &mut String, name: &str, keys: &[KeyDoc], table: &Table, comments: bool) {
+pub fn render_section(
+    out: &mut String,
+    name: &str,
+    keys: &[KeyDoc],
+    table: &Table,
+    comments: bool,
+) {
     out.push_str(&format!("[{name}]\n"));
     let mut lines: Vec<(String, &str)> = Vec::new();
     for key in keys {
@@ -447,7 +476,13 @@ mod tests {
         assert_eq!(d.names, vec!["a".to_string(), "b".to_string()]);
         assert_eq!(d.offset, -1.5);
         let mut text = String::new();
-        render_section(&mut text, "example", Example::KEYS, &Example::defaults_table(), true);
+        render_section(
+            &mut text,
+            "example",
+            Example::KEYS,
+            &Example::defaults_table(),
+            true,
+        );
         assert!(text.contains("length = 0.25"), "{text}");
         assert!(text.contains("# a length (m)"), "{text}");
         let back: Table = text.parse().expect("rendered text is TOML");
@@ -459,7 +494,9 @@ mod tests {
         let mut base = Table::new();
         base.insert("example".into(), Value::Table(Example::defaults_table()));
         let over = parse("[example]\nlenght = 1.0\n", "f.toml").expect("toml");
-        let e = overlay(&mut base, &over, "", "f.toml").unwrap_err().to_string();
+        let e = overlay(&mut base, &over, "", "f.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("f.toml: example.lenght: unknown key"), "{e}");
         let mut table = Example::defaults_table();
         table.insert("length".into(), Value::String("long".into()));

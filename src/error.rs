@@ -1,5 +1,5 @@
 //! The core's error type. Every fallible public function returns [`Result`]; the Python binding
-//! maps each variant to one class of `khepera_gym.errors` (see src/python/mod.rs), so no user
+//! maps each variant to one class of `khepera_gym.errors` (see src/python/errors.rs), so no user
 //! input can end in a panic.
 
 /// An error the simulator reports to its caller.

@@ -181,7 +181,13 @@ fn draw_mark(pixmap: &mut Pixmap, mark: &Mark, transform: Transform) {
             width,
         } => {
             if let Some(l) = line(*from, *to) {
-                pixmap.stroke_path(&l, &paint(*colour, *alpha), &stroke(*width), transform, None);
+                pixmap.stroke_path(
+                    &l,
+                    &paint(*colour, *alpha),
+                    &stroke(*width),
+                    transform,
+                    None,
+                );
             }
         }
         Mark::Path {
@@ -202,7 +208,13 @@ fn draw_mark(pixmap: &mut Pixmap, mark: &Mark, transform: Transform) {
                 }
             }
             if let Some(path) = pb.finish() {
-                pixmap.stroke_path(&path, &paint(*colour, *alpha), &stroke(*width), transform, None);
+                pixmap.stroke_path(
+                    &path,
+                    &paint(*colour, *alpha),
+                    &stroke(*width),
+                    transform,
+                    None,
+                );
             }
         }
     }

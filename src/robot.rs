@@ -55,7 +55,8 @@ impl RobotConfig {
             }
         }
         self.axle_length.check(origin, "robot.axle_length", true)?;
-        self.max_wheel_speed.check(origin, "robot.max_wheel_speed", true)?;
+        self.max_wheel_speed
+            .check(origin, "robot.max_wheel_speed", true)?;
         self.mass.check(origin, "robot.mass", true)?;
         let (alo, ahi) = self.wheel_accel_limit.bounds();
         let infinite_range = self.wheel_accel_limit.is_random() && !ahi.is_finite();

@@ -135,12 +135,7 @@ fn test_leader_follower_keeps_formation_error_small_without_obstacles() {
 
 #[test]
 fn test_vfh_reaches_most_nav_goals_in_an_empty_arena() {
-    let stats = episodes(
-        TaskKind::Nav,
-        None,
-        &vfh(),
-        200,
-    );
+    let stats = episodes(TaskKind::Nav, None, &vfh(), 200);
     assert!(
         success_rate(&stats) >= 0.85,
         "success {}",

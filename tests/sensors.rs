@@ -6,8 +6,8 @@ use std::sync::Arc;
 
 use _core::robot::ActionType;
 use _core::scenario::Source;
-use _core::tasks::load_scenario;
 use _core::sensors::{IR_BEARINGS, US_BEARINGS, US_DISABLED, US_NOTHING, US_TOO_CLOSE};
+use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
 use _core::world::SceneShape;
 use rapier2d::math::Vector;
@@ -117,5 +117,8 @@ fn test_ultrasonic_centimetres_and_codes() {
     off.world.sense();
     assert_eq!(off.world.robots[0].readings.us.code[1], US_DISABLED);
     assert_eq!(off.world.robots[0].readings.us.code[4], US_DISABLED);
-    assert!(off.world.robots[0].readings.us.code[2] > 80 && off.world.robots[0].readings.us.code[2] < 100);
+    assert!(
+        off.world.robots[0].readings.us.code[2] > 80
+            && off.world.robots[0].readings.us.code[2] < 100
+    );
 }

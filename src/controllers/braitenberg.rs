@@ -7,6 +7,9 @@
 //!
 //! [`Braitenberg`] is the avoidance block; [`BraitenbergPolicy`] the controller of the paper's
 //! Fig. 5: position control to the goal of a Nav-like observation, then the block on its `ir`.
+//!
+//! Units: W in m/s per unit of proximity, wheel speeds in m/s until they are normalised to
+//! actions; robot frame x forward, y left, angles CCW.
 
 use super::position::{twist_to_wheels, PositionControl, PositionParams};
 use super::{goal_of, positive, Controller, GoalBlocks, WheelMap};

@@ -10,6 +10,8 @@
 //!
 //! A joint observation is K follower blocks, or a leader's block then K follower blocks; the
 //! leader's block is driven by another policy (`with_leader`).
+//!
+//! Units: metres, m/s, radians, rad/s; each follower's frame x forward, y left, angles CCW.
 
 use super::braitenberg::{Braitenberg, Weights};
 use super::position::{twist_to_wheels, PositionControl, PositionParams};

@@ -6,8 +6,10 @@
 //!
 //! [`PositionControl`] is the law; [`PositionPolicy`] the controller reading a Nav-like
 //! observation (`goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`).
+//!
+//! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.
 
-use super::{goal_of, positive, non_negative, Controller, GoalBlocks, WheelMap};
+use super::{goal_of, non_negative, positive, Controller, GoalBlocks, WheelMap};
 use crate::error::Result;
 use crate::obs::ObsLayout;
 
@@ -77,7 +79,11 @@ impl Controller for PositionPolicy {
     fn act(&self, obs: &[f32], out: &mut [f32]) {
         let (d, bearing) = goal_of(obs, self.goal);
         let (v, w) = self.law.twist(d, bearing);
-        out.copy_from_slice(&self.wheels.action(twist_to_wheels(v, w, self.wheels.axle_length)));
+        out.copy_from_slice(
+            &self
+                .wheels
+                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
+        );
     }
 }
 

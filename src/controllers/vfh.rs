@@ -30,6 +30,9 @@
 //! spacing (`beam_width` < 45°) the histogram also has blind zones between sensors that look
 //! free; the default closes them for the IR ring, and `beam_width = 10°` shows the paper's
 //! blind-zone behaviour at its worst.
+//!
+//! Units: metres, m/s, radians, rad/s; sector bearings in the robot frame (x forward, y left,
+//! CCW).
 
 use std::f32::consts::PI;
 
@@ -213,7 +216,11 @@ impl Controller for VfhPolicy {
         let us = &obs[self.us..self.us + US_COUNT];
         let wheels = &obs[self.wheel_speeds..self.wheel_speeds + 2];
         let (v, w) = self.vfh.twist(ir, us, d, bearing, wheels[1] - wheels[0]);
-        out.copy_from_slice(&self.wheels.action(twist_to_wheels(v, w, self.wheels.axle_length)));
+        out.copy_from_slice(
+            &self
+                .wheels
+                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
+        );
     }
 }
 

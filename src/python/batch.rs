@@ -1,4 +1,10 @@
-//! The `Batch` class: N seeded worlds of one task in the Rust core, as Python sees them.
+//! The `Batch` class: N seeded worlds of one task in the Rust core, as Python sees them: its
+//! construction, the simulation (reset, step, render, saved states and pickling) and small
+//! accessors; the dicts of sensor readings, scene geometry and episode statistics are built in
+//! `views.rs`.
+//!
+//! Units: actions normalised to [-1, 1] (two per agent), observations as the layout says,
+//! poses and goals in metres and radians in the world frame (arena centred at the origin).
 //!
 //! Threading and copies: every method checks its inputs while holding the GIL, copies them into
 //! Rust-owned buffers, releases the GIL (`py.detach`) for the simulation, then copies results
@@ -8,18 +14,16 @@
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+use pyo3::types::{PyBytes, PyDict, PyTuple};
 
 use super::convert::{describe, dict_to_table, layout_slices, task_kind};
 use super::errors::{guard, raise, to_py};
+use super::views;
 use crate::batch::Batch as CoreBatch;
 use crate::config::OVERRIDE_ORIGIN;
 use crate::error::Error;
-use crate::robot::{ActionType, PULSES_PER_WHEEL_TURN};
+use crate::robot::ActionType;
 use crate::scenario::Source;
-use crate::sensors::{ChannelValues, Readout};
-use crate::tasks::EpisodeStats;
-use crate::world::scene::Geometry;
 
 /// N independent seeded Khepera IV worlds of one task, stepped in parallel.
 #[pyclass(module = "khepera_gym._core")]
@@ -318,23 +322,7 @@ impl Batch {
 
     /// Statistics of the episodes that ended on the last step (valid where they ended).
     fn episode_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let stats: Vec<_> = self.inner.episode_stats().copied().collect();
-        let d = PyDict::new(py);
-        let f32s = |f: fn(&EpisodeStats) -> f32| PyArray1::from_iter(py, stats.iter().map(f));
-        let i64s = |f: fn(&EpisodeStats) -> i64| PyArray1::from_iter(py, stats.iter().map(f));
-        d.set_item("return", f32s(|s| s.ret))?;
-        d.set_item("length", i64s(|s| s.length as i64))?;
-        d.set_item(
-            "success",
-            PyArray1::from_iter(py, stats.iter().map(|s| s.success)),
-        )?;
-        d.set_item("path_length", f32s(|s| s.path_length))?;
-        d.set_item("collisions", i64s(|s| s.collisions as i64))?;
-        let names = self.inner.envs()[0].kind().extra_stats();
-        for (k, name) in names.iter().enumerate() {
-            d.set_item(*name, PyArray1::from_iter(py, stats.iter().map(|s| s.extra[k])))?;
-        }
-        Ok(d)
+        views::episode_stats(py, &self.inner)
     }
 
     /// Robot poses (N, n_robots, 3): x, y, theta.
@@ -371,51 +359,7 @@ impl Batch {
     /// sensor's channels (shape (N, n_robots, values) or (N, n_robots)), then the body's
     /// "wheel_speeds" (m/s), "encoders" (pulses) and "gyro_z" (rad/s).
     fn sensor_readings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let (n, r) = (self.inner.len(), self.n_robots());
-        let robots = || self.inner.envs().iter().flat_map(|e| e.world.robots.iter());
-        let mut readout = Readout::default();
-        for env in self.inner.envs() {
-            for robot in &env.world.robots {
-                env.world.sensors.readout(&robot.readings, &mut readout);
-            }
-        }
-        let d = PyDict::new(py);
-        for channel in readout.channels {
-            let shape: Vec<usize> = if channel.per_robot == 0 {
-                vec![n, r]
-            } else {
-                vec![n, r, channel.per_robot]
-            };
-            match channel.values {
-                ChannelValues::Int(v) => {
-                    let v: Vec<i32> = v.into_iter().map(|x| x as i32).collect();
-                    d.set_item(channel.name, PyArray1::from_vec(py, v).reshape(shape)?)?;
-                }
-                ChannelValues::Real(v) => {
-                    d.set_item(channel.name, PyArray1::from_vec(py, v).reshape(shape)?)?;
-                }
-            }
-        }
-        let wheel_circumference =
-            2.0 * std::f64::consts::PI * self.inner.scenario().robot.wheel_radius as f64;
-        let wheels: Vec<f32> = robots().flat_map(|r| r.wheel_speeds).collect();
-        d.set_item(
-            "wheel_speeds",
-            PyArray1::from_vec(py, wheels).reshape([n, r, 2])?,
-        )?;
-        let encoders: Vec<i64> = robots()
-            .flat_map(|r| {
-                r.wheel_travel
-                    .map(|t| (t / wheel_circumference * PULSES_PER_WHEEL_TURN).round() as i64)
-            })
-            .collect();
-        d.set_item(
-            "encoders",
-            PyArray1::from_vec(py, encoders).reshape([n, r, 2])?,
-        )?;
-        let gyro: Vec<f32> = robots().map(|r| r.yaw_rate).collect();
-        d.set_item("gyro_z", PyArray1::from_vec(py, gyro).reshape([n, r])?)?;
-        Ok(d)
+        views::sensor_readings(py, &self.inner)
     }
 
     /// Geometry of world `index` for plots.
@@ -430,39 +374,7 @@ impl Batch {
                 )),
             )
         })?;
-        let scene = &env.world.scene;
-        let d = PyDict::new(py);
-        d.set_item("arena", scene.arena)?;
-        d.set_item("walls", scene.walled)?;
-        d.set_item("wall_thickness", scene.wall_thickness)?;
-        d.set_item("robot_radius", env.cfg.robot.radius)?;
-        d.set_item("goal_radius", env.cfg.task.goal_radius)?;
-        let obstacles = PyList::empty(py);
-        for shape in &scene.shapes {
-            let o = PyDict::new(py);
-            let c = (shape.center.x, shape.center.y);
-            match shape.geometry {
-                Geometry::Circle(b) => {
-                    o.set_item("kind", "circle")?;
-                    o.set_item("center", c)?;
-                    o.set_item("radius", b.radius)?;
-                }
-                Geometry::Box(b) => {
-                    o.set_item("kind", "box")?;
-                    o.set_item("center", c)?;
-                    o.set_item("half_extents", (b.half_extents.x, b.half_extents.y))?;
-                    o.set_item("angle", shape.angle)?;
-                }
-                Geometry::Segment(s) => {
-                    o.set_item("kind", "segment")?;
-                    o.set_item("a", (s.a.x + c.0, s.a.y + c.1))?;
-                    o.set_item("b", (s.b.x + c.0, s.b.y + c.1))?;
-                }
-            }
-            obstacles.append(o)?;
-        }
-        d.set_item("obstacles", obstacles)?;
-        Ok(d)
+        views::scene(py, env)
     }
 
     /// An RGB frame (height, width, 3) uint8 of world `index`, drawn without a display.
@@ -594,7 +506,6 @@ impl Batch {
     }
 }
 
-
 /// Unpickles a `Batch` (see `Batch.__reduce__`).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
@@ -624,4 +535,3 @@ pub fn _batch_from_state(
     batch.set_state(py, state)?;
     Ok(batch)
 }
-

@@ -1,6 +1,9 @@
 //! Conversions of Python values into the core's: keyword overrides and controller parameters
 //! into TOML tables, task names into [`TaskKind`], layouts into (name, start, stop) triples.
-//! Called with the GIL held; nothing here keeps a Python object.
+//!
+//! Threading and copies: called with the GIL held, before any simulation; every value is copied
+//! into Rust-owned TOML (or the other way, into fresh Python objects), and nothing here keeps a
+//! Python object.
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
@@ -144,7 +147,12 @@ pub fn layout_from_slices(slices: &[(String, usize, usize)]) -> Result<ObsLayout
                  (blocks are contiguous from 0)"
             )));
         }
-        blocks.push(Block::new(name, stop - start, f32::NEG_INFINITY, f32::INFINITY));
+        blocks.push(Block::new(
+            name,
+            stop - start,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+        ));
         at = *stop;
     }
     Ok(ObsLayout::new(blocks))

@@ -1,6 +1,11 @@
 //! Errors across the boundary: core errors become `khepera_gym.errors` classes (ConfigError,
 //! ActionError, StateError, KheperaError), and a Rust panic is caught here and raised as
 //! KheperaError, never as pyo3's PanicException (which escapes `except Exception`).
+//!
+//! Threading: called with the GIL held. [`guard`] wraps a whole method body, including the parts
+//! that release the GIL (`py.detach`), so a panic in the simulation is caught once it is back on
+//! the calling thread (rayon re-raises its workers' panics there). Errors carry messages only,
+//! no Python objects and no copies of data.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 

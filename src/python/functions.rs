@@ -1,5 +1,10 @@
 //! Module-level functions of `_core`: what the core knows (tasks, controllers, scenarios,
 //! layouts) for the Python package to build on, and unit conversions.
+//!
+//! Units: wheel speeds in m/s or the robot's `kh4_set_speed` units; formation offsets in metres
+//! and radians. Threading and copies: every function runs with the GIL held (none simulates, so
+//! none releases it) and returns fresh Python values (lists, tuples, strings, numbers) built from
+//! the core's declarations; nothing keeps a Python object.
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -66,7 +71,11 @@ pub fn controller_params<'py>(
 /// The followers' (r, β) offsets of a formation shape ("cross", "line", "wedge", "circle") of
 /// `n_followers` at `spacing` metres, as the scenarios' `formation.shape` computes them.
 #[pyfunction]
-pub fn formation_offsets(shape: &str, spacing: f32, n_followers: usize) -> PyResult<Vec<(f32, f32)>> {
+pub fn formation_offsets(
+    shape: &str,
+    spacing: f32,
+    n_followers: usize,
+) -> PyResult<Vec<(f32, f32)>> {
     let shape: FormationShape = toml::Value::String(shape.to_string())
         .try_into()
         .map_err(|_| PyValueError::new_err(format!("unknown formation shape {shape:?}")))?;
@@ -81,7 +90,9 @@ pub fn formation_offsets(shape: &str, spacing: f32, n_followers: usize) -> PyRes
 #[pyfunction]
 pub fn obs_layout(py: Python<'_>, task: &str) -> PyResult<Vec<(String, usize, usize)>> {
     let kind = task_kind(py, task)?;
-    let cfg = kind.scenario(&Source::default()).map_err(|e| to_py(py, e))?;
+    let cfg = kind
+        .scenario(&Source::default())
+        .map_err(|e| to_py(py, e))?;
     let layout = kind.obs_layout(&cfg).map_err(|e| to_py(py, e))?;
     Ok(layout_slices(&layout))
 }
@@ -98,7 +109,10 @@ pub fn default_config(py: Python<'_>, name: &str) -> PyResult<String> {
             Error::config(
                 "<built-in>",
                 "config",
-                format!("no built-in scenario {name:?}; known: {:?}", builtin_configs()),
+                format!(
+                    "no built-in scenario {name:?}; known: {:?}",
+                    builtin_configs()
+                ),
             ),
         )
     })
@@ -151,4 +165,3 @@ pub fn speed_to_units(speed: f32) -> PyResult<i32> {
 pub fn units_to_speed(units: i32) -> f32 {
     crate::robot::units_to_speed(units)
 }
-

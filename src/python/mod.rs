@@ -1,7 +1,8 @@
 //! The `khepera_gym._core` Python module: the `Batch` and `Policy` classes and the functions
 //! the Python package builds on. The only place pyo3 appears; each file has one job:
 //! `errors` (exceptions and the panic guard), `convert` (Python values into the core's),
-//! `batch` (the Batch class), `policy` (the Policy class), `functions` (module functions).
+//! `batch` (the Batch class), `views` (the core's data as Python dicts of arrays, for the
+//! Batch's inspection methods), `policy` (the Policy class), `functions` (module functions).
 //!
 //! Threading and copies: every call checks its inputs while holding the GIL, copies them into
 //! Rust-owned buffers, releases the GIL (`py.detach`) for the simulation, then copies results
@@ -12,6 +13,7 @@ mod convert;
 mod errors;
 mod functions;
 mod policy;
+mod views;
 
 use pyo3::prelude::*;
 

@@ -359,10 +359,7 @@ impl Task for Formation {
         let axle = world.drive.axle_length;
         let mut proximity = [0.0f32; crate::sensors::IR_COUNT];
         if let Some(ir) = &world.sensors.ir {
-            for (p, raw) in proximity
-                .iter_mut()
-                .zip(world.robots[0].readings.ir.raw)
-            {
+            for (p, raw) in proximity.iter_mut().zip(world.robots[0].readings.ir.raw) {
                 *p = ir.sensor.model.normalise(raw);
             }
         }

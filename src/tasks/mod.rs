@@ -1,34 +1,35 @@
 //! Tasks: what a world is for. Each task is one file here implementing the [`Task`] contract
 //! (its scenario defaults and table, spawn rule, agents and their observation blocks, reset,
 //! per-step hook, rewards and termination, extra episode statistics, what it draws) and one line
-//! in `task_registry!` below. [`Env`] joins a task to a world and keeps the episode's bookkeeping
-//! (layout at reset, step counter, termination, statistics, trails) in one place; the batch,
-//! the world, the renderer and the binding never look at which task they hold.
+//! in `task_registry!` below. [`Env`] (`env.rs`) joins a task to a world and keeps the episode's
+//! bookkeeping (layout at reset, step counter, termination, statistics, trails) in one place;
+//! the batch, the world, the renderer and the binding never look at which task they hold.
 //!
 //! Agents: a task has one or more agents, each acting on one robot with two normalised numbers
 //! and observing one block of the joint observation. The joint action is the agents' actions
 //! in order; the joint reward is the mean of the agents' rewards.
 //!
-//! Dispatch is static: the registry generates an enum of the tasks' states and matches on it.
+//! Dispatch is static: the registry generates an enum of the tasks' states and matches on it;
+//! that enum is private to this module and `env.rs`.
+//!
+//! Units: metres, seconds, radians; observations in each block's units (see the task's file).
 
+mod env;
 pub mod formation;
 pub mod multinav;
 pub mod nav;
 
-use std::sync::Arc;
-
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 use serde::{de::DeserializeOwned, Serialize};
 
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::{Block, ObsLayout, ObsWriter};
-use crate::robot::ActionType;
 use crate::scenario::{Scenario, Source, TaskSchema};
-use crate::world::layout::{Layout, Spawn, Spawner};
+use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
+
+pub use env::{Env, EpisodeStats, StepOutcome};
 
 /// What a task is, beyond its code: its Gymnasium id, a summary, and its scenario schema.
 #[derive(Debug, Clone, Copy)]
@@ -303,332 +304,4 @@ pub fn load_scenario(task: &str, source: &Source) -> Result<Scenario> {
         )
     })?;
     kind.scenario(source)
-}
-
-/// Statistics of one episode.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct EpisodeStats {
-    /// Sum of (joint) rewards.
-    pub ret: f32,
-    /// Steps taken.
-    pub length: u32,
-    /// Whether the task succeeded (goal reached; formation: the leader's; multinav: every one).
-    pub success: bool,
-    /// Distance travelled by the robots (m, summed over robots).
-    pub path_length: f32,
-    /// Steps in which a robot was in contact with something.
-    pub collisions: u32,
-    /// The task's extra statistics, in the order of its `EXTRA_STATS`.
-    pub extra: [f32; MAX_EXTRA_STATS],
-}
-
-/// What a step returns besides the observation.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct StepOutcome {
-    /// Joint reward of the step (mean over agents).
-    pub reward: f32,
-    /// The episode ended by the task's rules (success, or collision when configured).
-    pub terminated: bool,
-    /// The episode hit its step limit.
-    pub truncated: bool,
-}
-
-/// What [`Env::save_state`] writes, borrowed from the env.
-#[derive(serde::Serialize)]
-struct EnvStateRef<'a> {
-    world: &'a World,
-    task: &'a TaskState,
-    agent_rewards: &'a [f32],
-    agent_terminated: &'a [bool],
-    stats: &'a EpisodeStats,
-    last_episode: &'a EpisodeStats,
-    done: bool,
-    trails: &'a [Vec<Vector>],
-}
-
-/// What [`Env::load_state`] reads (the owned twin of [`EnvStateRef`]).
-#[derive(serde::Deserialize)]
-struct EnvState {
-    world: World,
-    task: TaskState,
-    agent_rewards: Vec<f32>,
-    agent_terminated: Vec<bool>,
-    stats: EpisodeStats,
-    last_episode: EpisodeStats,
-    done: bool,
-    trails: Vec<Vec<Vector>>,
-}
-
-/// One environment: a world, its task and the episode's bookkeeping.
-pub struct Env {
-    /// The simulated world.
-    pub world: World,
-    /// The scenario it was built from.
-    pub cfg: Arc<Scenario>,
-    spawner: Arc<Spawner>,
-    task: TaskState,
-    action_type: ActionType,
-    agent_robots: Vec<usize>,
-    obs_dim: usize,
-    /// Each agent's reward on the last step.
-    pub agent_rewards: Vec<f32>,
-    /// Each agent's termination on the last step (multinav: its robot arrived).
-    pub agent_terminated: Vec<bool>,
-    /// Statistics of the running episode.
-    pub stats: EpisodeStats,
-    /// Statistics of the episode that ended on the last step.
-    pub last_episode: EpisodeStats,
-    /// The episode has ended; the next step must be a reset.
-    pub done: bool,
-    /// Positions of each robot over the last `trail_length` steps (for rendering; empty and
-    /// free when `trail_length` is 0).
-    trails: Vec<Vec<Vector>>,
-    trail_length: usize,
-}
-
-impl Env {
-    /// An environment of `kind` built from `cfg`, seeded with 0 until [`Env::seed`].
-    pub fn new(
-        kind: TaskKind,
-        cfg: Arc<Scenario>,
-        spawner: Arc<Spawner>,
-        action_type: ActionType,
-    ) -> Result<Self> {
-        let world = World::new(&cfg, spawner.base.clone(), spawner.n_robots());
-        let task = kind.new_state(&cfg)?;
-        let agents = kind.agents(&cfg)?;
-        let obs_dim = agents.iter().map(|a| a.layout.len()).sum();
-        let agent_robots: Vec<usize> = agents.iter().map(|a| a.robot).collect();
-        let n_agents = agent_robots.len();
-        Ok(Self {
-            world,
-            cfg,
-            spawner,
-            task,
-            action_type,
-            agent_robots,
-            obs_dim,
-            agent_rewards: vec![0.0; n_agents],
-            agent_terminated: vec![false; n_agents],
-            stats: EpisodeStats::default(),
-            last_episode: EpisodeStats::default(),
-            done: true,
-            trails: Vec::new(),
-            trail_length: 0,
-        })
-    }
-
-    /// The spawner of a scenario for `kind` (built once and shared by every world of a batch);
-    /// checks that its layouts are feasible, naming the scenario's origin in errors.
-    pub fn spawner(kind: TaskKind, cfg: &Scenario) -> Result<Spawner> {
-        Spawner::new(cfg, kind.spawn(cfg)?, &cfg.origin)
-    }
-
-    /// Length of the joint observation.
-    pub fn obs_dim(&self) -> usize {
-        self.obs_dim
-    }
-
-    /// The task.
-    pub fn kind(&self) -> TaskKind {
-        self.task.kind()
-    }
-
-    /// Restarts the world's random stream from `seed`.
-    pub fn seed(&mut self, seed: u64) {
-        self.world.rng = ChaCha8Rng::seed_from_u64(seed);
-    }
-
-    /// Starts a new episode (continuing the random stream) and writes its first observation.
-    pub fn reset(&mut self, obs: &mut [f32]) {
-        self.stats = EpisodeStats::default();
-        self.done = false;
-        self.agent_rewards.fill(0.0);
-        self.agent_terminated.fill(false);
-        self.world.randomise(&self.cfg);
-        let layout = self.spawner.generate(&self.cfg, &mut self.world.rng);
-        if self.cfg.obstacles.count > 0 {
-            // New random obstacles: the fixed scene plus this episode's.
-            let mut scene = self.spawner.base.clone();
-            scene.shapes.extend(layout.obstacles.iter().copied());
-            self.world.set_scene(scene);
-        }
-        for (i, (position, heading)) in layout.poses.iter().enumerate() {
-            self.world.place_robot(i, *position, *heading);
-        }
-        self.task.reset(&self.world, &layout);
-        self.world.sense();
-        self.observe(obs);
-        self.trails.clear();
-        self.record_trail();
-    }
-
-    /// Keeps the last `length` positions of every robot for rendering (0: none, the default).
-    pub fn set_trail_length(&mut self, length: usize) {
-        self.trail_length = length;
-        self.trails.clear();
-        self.record_trail();
-    }
-
-    /// Robot positions over the last steps, oldest first, per robot.
-    pub fn trails(&self) -> &[Vec<Vector>] {
-        &self.trails
-    }
-
-    fn record_trail(&mut self) {
-        if self.trail_length == 0 {
-            return;
-        }
-        self.trails.resize(self.world.robots.len(), Vec::new());
-        for (trail, robot) in self.trails.iter_mut().zip(&self.world.robots) {
-            if trail.len() >= self.trail_length {
-                trail.remove(0);
-            }
-            trail.push(robot.position);
-        }
-    }
-
-    /// Applies `action` (normalised, two numbers per agent, already checked finite), advances
-    /// one control step and writes the next observation.
-    pub fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
-        for (robot, pair) in self.agent_robots.iter().zip(action.chunks_exact(2)) {
-            let command = self
-                .world
-                .drive
-                .wheel_command([pair[0], pair[1]], self.action_type);
-            self.world.robots[*robot].wheel_command = command;
-        }
-        self.task.before_step(&mut self.world);
-        self.world.advance();
-        self.world.sense();
-        let success = self.task.judge(
-            &self.world,
-            &self.cfg,
-            &mut self.agent_rewards,
-            &mut self.agent_terminated,
-        );
-        let reward = self.agent_rewards.iter().sum::<f32>() / self.agent_rewards.len() as f32;
-        let collided = self.world.robots.iter().any(|r| r.in_contact);
-        let stats = &mut self.stats;
-        stats.ret += reward;
-        stats.length += 1;
-        stats.success |= success;
-        stats.path_length += self.world.robots.iter().map(|r| r.step_travel).sum::<f32>();
-        stats.collisions += collided as u32;
-        self.task.extra_stats(&mut stats.extra);
-        let terminated = success || (collided && self.cfg.task.terminate_on_collision);
-        let truncated = !terminated && stats.length >= self.cfg.task.max_steps;
-        if terminated {
-            self.agent_terminated.fill(true);
-        }
-        if terminated || truncated {
-            self.done = true;
-            self.last_episode = *stats;
-        }
-        self.observe(obs);
-        self.record_trail();
-        StepOutcome {
-            reward,
-            terminated,
-            truncated,
-        }
-    }
-
-    fn observe(&self, obs: &mut [f32]) {
-        let mut out = ObsWriter::new(obs);
-        self.task.observe(&self.world, &self.cfg, &mut out);
-        debug_assert_eq!(out.position(), obs.len(), "observation layout and writer disagree");
-    }
-
-    /// A fresh env of the same task, scenario, action type and trail length (its state to be
-    /// loaded).
-    pub fn empty_twin(&self) -> Result<Self> {
-        let mut twin = Self::new(
-            self.kind(),
-            self.cfg.clone(),
-            self.spawner.clone(),
-            self.action_type,
-        )?;
-        twin.trail_length = self.trail_length;
-        Ok(twin)
-    }
-
-    /// Appends this env's state (world, physics, random stream, task and episode bookkeeping,
-    /// trails) to `out`. The scenario, task and action type are not part of it: they are fixed at
-    /// construction, and [`crate::batch::Batch::load_state`] checks that they match.
-    pub fn save_state(&self, out: &mut Vec<u8>) -> Result<()> {
-        let state = EnvStateRef {
-            world: &self.world,
-            task: &self.task,
-            agent_rewards: &self.agent_rewards,
-            agent_terminated: &self.agent_terminated,
-            stats: &self.stats,
-            last_episode: &self.last_episode,
-            done: self.done,
-            trails: &self.trails,
-        };
-        let bytes = postcard::to_extend(&state, std::mem::take(out))
-            .map_err(|e| Error::State(format!("cannot encode the env state: {e}")))?;
-        *out = bytes;
-        Ok(())
-    }
-
-    /// Restores a state written by [`Env::save_state`] from the front of `bytes`, returning the
-    /// rest. On error `self` is unchanged.
-    pub fn load_state<'a>(&mut self, bytes: &'a [u8]) -> Result<&'a [u8]> {
-        let (state, rest): (EnvState, _) = postcard::take_from_bytes(bytes)
-            .map_err(|e| Error::SavedState(format!("corrupt env state: {e}")))?;
-        let n_robots = self.world.robots.len();
-        let n_agents = self.agent_robots.len();
-        if state.world.robots.len() != n_robots
-            || state.agent_rewards.len() != n_agents
-            || state.agent_terminated.len() != n_agents
-            || !state.task.fits(&self.task)
-        {
-            return Err(Error::SavedState(
-                "the state does not fit this env (other task or number of robots)".into(),
-            ));
-        }
-        self.world = state.world;
-        self.task = state.task;
-        self.agent_rewards = state.agent_rewards;
-        self.agent_terminated = state.agent_terminated;
-        self.stats = state.stats;
-        self.last_episode = state.last_episode;
-        self.done = state.done;
-        self.trails = state.trails;
-        if self.trail_length == 0 {
-            self.trails.clear();
-        }
-        for trail in &mut self.trails {
-            let excess = trail.len().saturating_sub(self.trail_length);
-            trail.drain(..excess);
-        }
-        Ok(rest)
-    }
-
-    /// Goal positions (m).
-    pub fn goals(&self) -> Vec<Vector> {
-        self.task.goals()
-    }
-
-    /// Target points of the task other than goals (the followers' formation targets), m.
-    pub fn targets(&self) -> Vec<Vector> {
-        self.task.targets(&self.world)
-    }
-
-    /// What the renderer draws for the task (goals, targets).
-    pub fn task_marks(&self, marks: &mut Vec<Mark>) {
-        self.task.draw(&self.world, &self.cfg, marks);
-    }
-
-    /// The task's extra statistics of an episode, by name.
-    pub fn extra_stats(&self, stats: &EpisodeStats) -> Vec<(&'static str, f32)> {
-        self.kind()
-            .extra_stats()
-            .iter()
-            .zip(stats.extra)
-            .map(|(n, v)| (*n, v))
-            .collect()
-    }
 }

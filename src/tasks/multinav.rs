@@ -3,6 +3,9 @@
 //! their contacts). Each robot is an agent with the Nav observation and reward; a robot that
 //! reaches its goal is terminated as an agent and parks there (its actions are ignored), still
 //! an obstacle for the others. The episode terminates when every robot has arrived.
+//!
+//! Units: metres, seconds, radians; observations in the robot frame (x forward, y left), as
+//! Nav's.
 
 use rapier2d::math::Vector;
 use toml::Table;

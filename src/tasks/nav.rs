@@ -174,9 +174,7 @@ pub fn wheel_obs(world: &World, i: usize) -> [f32; 2] {
 
 /// Writes robot `i`'s navigation observation ([`nav_blocks`]) toward `goal`.
 pub fn observe_robot(world: &World, i: usize, goal: Vector, cfg: &Scenario, out: &mut ObsWriter) {
-    world
-        .sensors
-        .observe(&world.robots[i].readings, out);
+    world.sensors.observe(&world.robots[i].readings, out);
     let local = to_robot_frame(world, i, goal);
     let distance = local.length();
     let (bs, bc) = if distance > 0.0 {

@@ -5,6 +5,8 @@
 //! contacts (a robot pushed into a wall stops or slides). The world is built once and bodies
 //! are teleported (set_position) rather than rebuilt. Gravity is zero (the plane is the floor);
 //! sleeping and CCD are off, so a step depends only on the state we set.
+//!
+//! Units: metres, seconds, radians, m/s, rad/s; world frame, arena centred at the origin.
 
 use rapier2d::math::{Pose, Vector};
 use rapier2d::prelude::{

@@ -9,7 +9,6 @@ use rapier2d::math::{Pose, Vector};
 use rapier2d::parry::query::{PointQuery, Ray, RayCast};
 use rapier2d::parry::shape::{Ball, Cuboid, Segment, Shape};
 
-
 /// One of the scene's shapes, as parry2d knows it, in its local frame.
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub enum Geometry {

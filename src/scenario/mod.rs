@@ -4,186 +4,41 @@
 //! came from (file, `<override>`) and its key.
 //!
 //! Sections and their owners: `[robot]` (`robot.rs`), `[sensors]` (each sensor in `sensors/`),
-//! `[arena]`, `[obstacles]`, `[spawn]`, `[task]`, `[physics]` (here), and the task's own table
-//! when it has one (`[formation]`, `[multinav]`: the task's file in `tasks/`). This module never
-//! calls into the world: whether layouts fit is checked once, when a batch builds its spawner.
+//! `[arena]`, `[obstacles]`, `[spawn]`, `[task]`, `[physics]` (`sections.rs`, re-exported
+//! here), and the task's own table when it has one (`[formation]`, `[multinav]`: the task's file
+//! in `tasks/`). This file holds the [`Scenario`] they make up, the [`TaskSchema`] a task adds,
+//! loading, TOML output, and the checks that relate several sections. It never calls into the
+//! world: whether layouts fit is checked once, when a batch builds its spawner.
 //!
-//! Units: metres, seconds, radians, m/s, raw sensor counts where stated.
+//! Units: metres, seconds, radians, m/s, raw sensor counts where stated. Frame: the world frame,
+//! arena centred at the origin.
 
-use serde::{Deserialize, Serialize};
+mod sections;
+
+use serde::Serialize;
 use toml::{Table, Value};
 
 use crate::config::{self, ConfigTable, KeyDoc, OVERRIDE_ORIGIN};
 use crate::error::{Error, Result};
 use crate::robot::RobotConfig;
 use crate::sensors::SensorsConfig;
-use crate::world::scene::{Scene, SceneShape};
 
 pub use crate::config::Param;
+pub use sections::{
+    ArenaConfig, ObstacleConfig, ObstacleKind, ObstacleSpec, PhysicsConfig, Placement, SpawnConfig,
+    TaskConfig,
+};
 
 /// Built-in scenes: scenario files overlaid on a task's defaults like a user's file, embedded so
 /// an installed wheel has them: (name, text).
 pub const SCENES: &[(&str, &str)] = &[
-    ("paper_fig6", include_str!("../configs/paper_fig6.toml")),
-    ("paper_fig7", include_str!("../configs/paper_fig7.toml")),
+    ("paper_fig6", include_str!("../../configs/paper_fig6.toml")),
+    ("paper_fig7", include_str!("../../configs/paper_fig7.toml")),
 ];
 
 /// The text of a built-in scene.
 pub fn scene(name: &str) -> Option<&'static str> {
     SCENES.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
-}
-
-crate::config_table! {
-    /// `[arena]`: the rectangle, centred at the origin, walled or open.
-    pub struct ArenaConfig {
-        /// m, inner size along x (arena centred at the origin)
-        width: f32 = 2.0,
-        /// m, inner size along y
-        height: f32 = 2.0,
-        /// m, walls lie outside the inner rectangle
-        wall_thickness: f32 = 0.05,
-        /// false: an open floor (the size then only bounds spawning)
-        walls: bool = true,
-    }
-}
-
-impl ArenaConfig {
-    /// The empty arena this table describes.
-    pub fn scene(&self) -> Scene {
-        Scene {
-            walled: self.walls,
-            ..Scene::arena(self.width, self.height, self.wall_thickness)
-        }
-    }
-}
-
-/// A fixed obstacle of a scenario file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
-pub enum ObstacleSpec {
-    /// A disc.
-    Circle { center: [f32; 2], radius: f32 },
-    /// A rectangle rotated by `angle` (rad).
-    Box {
-        center: [f32; 2],
-        half_extents: [f32; 2],
-        #[serde(default)]
-        angle: f32,
-    },
-    /// A thin wall from `a` to `b`.
-    Segment { a: [f32; 2], b: [f32; 2] },
-}
-
-impl ObstacleSpec {
-    /// The obstacle as a scene shape.
-    pub fn shape(&self) -> SceneShape {
-        let v = |p: [f32; 2]| rapier2d::math::Vector::new(p[0], p[1]);
-        match *self {
-            ObstacleSpec::Circle { center, radius } => SceneShape::circle(v(center), radius),
-            ObstacleSpec::Box {
-                center,
-                half_extents,
-                angle,
-            } => SceneShape::rect(v(center), v(half_extents), angle),
-            ObstacleSpec::Segment { a, b } => SceneShape::segment(v(a), v(b)),
-        }
-    }
-}
-
-/// Shapes the random obstacle generator draws from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ObstacleKind {
-    Circle,
-    Box,
-    Segment,
-}
-
-/// Where random obstacles go.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Placement {
-    /// Centred in a corridor along the start–goal segment.
-    Between,
-    /// Anywhere in the arena.
-    Anywhere,
-}
-
-crate::config_table! {
-    /// `[obstacles]`: a fixed list and/or a random generator run at every reset. Fixed ones are
-    /// e.g. `{kind = "circle", center = [0.3, 0.0], radius = 0.1}`,
-    /// `{kind = "box", center = [x, y], half_extents = [hx, hy], angle = 0.0}`,
-    /// `{kind = "segment", a = [x0, y0], b = [x1, y1]}`.
-    pub struct ObstacleConfig {
-        /// fixed obstacles: circle {center, radius}, box {center, half_extents, angle}, segment {a, b}
-        fixed: Vec<ObstacleSpec> = [],
-        /// random obstacles drawn at every reset
-        count: u32 = 0,
-        /// shapes the random ones are drawn from
-        kinds: Vec<ObstacleKind> = ["circle", "box", "segment"],
-        /// m, range of random circle radii
-        circle_radius: [f32; 2] = [0.04, 0.10],
-        /// m, range of random box half sides
-        box_half_extent: [f32; 2] = [0.03, 0.10],
-        /// m, range of random wall-segment lengths
-        segment_length: [f32; 2] = [0.20, 0.45],
-        /// "between" start and goal, or "anywhere"
-        placement: Placement = "between",
-        /// m, width of the band around start->goal used by "between"
-        corridor_width: f32 = 0.8,
-        /// m, free gap between random obstacles, walls and fixed obstacles (>= robot diameter + 1 cm keeps every goal reachable)
-        min_gap: f32 = 0.16,
-        /// m, free gap between obstacles and robots at their start and goals
-        spawn_clearance: f32 = 0.05,
-    }
-}
-
-crate::config_table! {
-    /// `[spawn]`: where robots start and goals lie.
-    pub struct SpawnConfig {
-        /// m, gap between a spawned robot (or goal) and the walls
-        wall_margin: f32 = 0.05,
-        /// m, start-goal distance at reset is at least this
-        min_goal_distance: f32 = 0.5,
-        /// [] random, or [x, y, heading] (m, m, rad) to fix it
-        start: Vec<f32> = [],
-        /// [] random, or [x, y] (m) to fix it
-        goal: Vec<f32> = [],
-    }
-}
-
-crate::config_table! {
-    /// `[task]`: goal, reward weights, episode length.
-    pub struct TaskConfig {
-        /// m, success when the robot centre is this close to the goal
-        goal_radius: f32 = 0.05,
-        /// control steps before truncation (20 s at dt = 0.05)
-        max_steps: u32 = 400,
-        /// reward per metre of progress toward the goal
-        progress_weight: f32 = 10.0,
-        /// reward subtracted every step
-        time_cost: f32 = 0.01,
-        /// reward on reaching the goal
-        success_bonus: f32 = 10.0,
-        /// reward subtracted per step in contact with a wall or obstacle
-        collision_penalty: f32 = 0.1,
-        /// end the episode at the first contact
-        terminate_on_collision: bool = false,
-    }
-}
-
-crate::config_table! {
-    /// `[physics]`: control step and rapier settings.
-    pub struct PhysicsConfig {
-        /// s per control step (V-REP's default)
-        dt: f32 = 0.05,
-        /// physics substeps per control step
-        substeps: u32 = 4,
-        /// rapier solver iterations for contact steps
-        solver_iterations: u32 = 4,
-        /// robot-wall friction: 0 lets a robot slide along a wall
-        friction: f32 = 0.0,
-    }
 }
 
 /// What a task adds to the shared schema: its own defaults and its own table.
@@ -297,7 +152,8 @@ impl TaskSchema {
     /// validated; layouts are checked when a batch builds its spawner.
     pub fn load(&self, source: &Source) -> Result<Scenario> {
         let mut table = self.defaults_table()?;
-        let mut scenario = Scenario::from_table(&table, self, &format!("<built-in:{}>", self.name))?;
+        let mut scenario =
+            Scenario::from_table(&table, self, &format!("<built-in:{}>", self.name))?;
         if let Some((text, name)) = source.file {
             let file = config::parse(text, name)?;
             config::overlay(&mut table, &file, "", name)?;
@@ -320,14 +176,10 @@ impl Scenario {
                 _ => Table::new(),
             }
         };
-        // Entries of `obstacles.fixed` are checked one by one first: serde's errors inside a
-        // tagged list entry carry no position, and the message should say which entry.
+        // Entries of `obstacles.fixed` are checked one by one first, so that a message says
+        // which entry.
         if let Some(Value::Array(fixed)) = table.get("obstacles").and_then(|o| o.get("fixed")) {
-            for (i, entry) in fixed.iter().enumerate() {
-                entry.clone().try_into::<ObstacleSpec>().map_err(|e| {
-                    Error::config(origin, &format!("obstacles.fixed[{i}]"), e.message().trim())
-                })?;
-            }
+            ObstacleConfig::check_fixed_entries(fixed, origin)?;
         }
         let scenario = Scenario {
             robot: RobotConfig::from_table(&section("robot"), origin, "robot")?,
@@ -375,7 +227,11 @@ impl Scenario {
             ("spawn", SpawnConfig::KEYS.to_vec(), as_table(&self.spawn)),
             ("sensors", SensorsConfig::keys(), self.sensors.to_table()),
             ("task", TaskConfig::KEYS.to_vec(), as_table(&self.task)),
-            ("physics", PhysicsConfig::KEYS.to_vec(), as_table(&self.physics)),
+            (
+                "physics",
+                PhysicsConfig::KEYS.to_vec(),
+                as_table(&self.physics),
+            ),
         ];
         if let Some((name, table)) = &self.own {
             sections.push((name.as_str(), Vec::new(), table.clone()));
@@ -479,81 +335,7 @@ impl Scenario {
                 ),
             );
         }
-        self.validate_obstacles(origin)
-    }
-
-    fn validate_obstacles(&self, origin: &str) -> Result<()> {
-        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        let o = &self.obstacles;
-        for (i, spec) in o.fixed.iter().enumerate() {
-            let key = format!("obstacles.fixed[{i}]");
-            let sizes: Vec<f32> = match spec {
-                ObstacleSpec::Circle { center, radius } => vec![center[0], center[1], *radius],
-                ObstacleSpec::Box {
-                    center,
-                    half_extents,
-                    angle,
-                } => {
-                    vec![
-                        center[0],
-                        center[1],
-                        half_extents[0],
-                        half_extents[1],
-                        angle + 1.0,
-                    ]
-                }
-                ObstacleSpec::Segment { a, b } => {
-                    let length = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
-                    vec![a[0], a[1], b[0], b[1], length]
-                }
-            };
-            if sizes.iter().any(|v| !v.is_finite()) {
-                return bad(&key, format!("has a non-finite number: {spec:?}"));
-            }
-            let size_ok = match spec {
-                ObstacleSpec::Circle { radius, .. } => *radius > 0.0,
-                ObstacleSpec::Box { half_extents, .. } => half_extents.iter().all(|h| *h > 0.0),
-                ObstacleSpec::Segment { .. } => sizes[4] > 0.0,
-            };
-            if !size_ok {
-                return bad(&key, format!("sizes must be > 0: {spec:?}"));
-            }
-        }
-        if o.count > 64 {
-            return bad("obstacles.count", format!("must be <= 64, got {}", o.count));
-        }
-        for (key, [lo, hi]) in [
-            ("obstacles.circle_radius", o.circle_radius),
-            ("obstacles.box_half_extent", o.box_half_extent),
-            ("obstacles.segment_length", o.segment_length),
-        ] {
-            if !(lo.is_finite() && hi.is_finite()) || lo <= 0.0 || lo > hi {
-                return bad(
-                    key,
-                    format!("must be a range [low, high] with 0 < low <= high, got [{lo}, {hi}]"),
-                );
-            }
-        }
-        if o.count > 0 {
-            if o.kinds.is_empty() {
-                return bad(
-                    "obstacles.kinds",
-                    "must name at least one shape when count > 0".into(),
-                );
-            }
-            let needed = 2.0 * self.robot.radius + 0.01;
-            if o.min_gap < needed {
-                return bad(
-                    "obstacles.min_gap",
-                    format!(
-                        "must be >= the robot's diameter + 1 cm ({needed:.3} m) so that random \
-                         obstacles never wall off a goal, got {}",
-                        o.min_gap
-                    ),
-                );
-            }
-        }
-        Ok(())
+        self.obstacles.validate(origin, self.robot.radius)
     }
 
     /// Half extents of the region where robot centres and goals are spawned.
@@ -647,7 +429,10 @@ mod tests {
             overrides: Table::new(),
         };
         let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.starts_with("s.toml: sensors.ir_rnage: unknown key"), "{e}");
+        assert!(
+            e.starts_with("s.toml: sensors.ir_rnage: unknown key"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -1,0 +1,259 @@
+//! The shared sections of a scenario that belong to no other module: `[arena]`, `[obstacles]`,
+//! `[spawn]`, `[task]` and `[physics]`, each declared once with [`crate::config_table!`] (key,
+//! default, units, comment), and the checks of `[obstacles]`. The other shared sections are
+//! declared by their owners (`[robot]` in `robot.rs`, `[sensors]` by each sensor in `sensors/`);
+//! the checks that relate several sections are in `scenario/mod.rs`.
+//!
+//! Units: metres, seconds, radians, m/s. Frame: the world frame, origin at the arena's centre,
+//! x right, y up, angles CCW from +x.
+
+use serde::{Deserialize, Serialize};
+use toml::Value;
+
+use crate::error::{Error, Result};
+use crate::world::scene::{Scene, SceneShape};
+
+crate::config_table! {
+    /// `[arena]`: the rectangle, centred at the origin, walled or open.
+    pub struct ArenaConfig {
+        /// m, inner size along x (arena centred at the origin)
+        width: f32 = 2.0,
+        /// m, inner size along y
+        height: f32 = 2.0,
+        /// m, walls lie outside the inner rectangle
+        wall_thickness: f32 = 0.05,
+        /// false: an open floor (the size then only bounds spawning)
+        walls: bool = true,
+    }
+}
+
+impl ArenaConfig {
+    /// The empty arena this table describes.
+    pub fn scene(&self) -> Scene {
+        Scene {
+            walled: self.walls,
+            ..Scene::arena(self.width, self.height, self.wall_thickness)
+        }
+    }
+}
+
+/// A fixed obstacle of a scenario file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum ObstacleSpec {
+    /// A disc.
+    Circle { center: [f32; 2], radius: f32 },
+    /// A rectangle rotated by `angle` (rad).
+    Box {
+        center: [f32; 2],
+        half_extents: [f32; 2],
+        #[serde(default)]
+        angle: f32,
+    },
+    /// A thin wall from `a` to `b`.
+    Segment { a: [f32; 2], b: [f32; 2] },
+}
+
+impl ObstacleSpec {
+    /// The obstacle as a scene shape.
+    pub fn shape(&self) -> SceneShape {
+        let v = |p: [f32; 2]| rapier2d::math::Vector::new(p[0], p[1]);
+        match *self {
+            ObstacleSpec::Circle { center, radius } => SceneShape::circle(v(center), radius),
+            ObstacleSpec::Box {
+                center,
+                half_extents,
+                angle,
+            } => SceneShape::rect(v(center), v(half_extents), angle),
+            ObstacleSpec::Segment { a, b } => SceneShape::segment(v(a), v(b)),
+        }
+    }
+}
+
+/// Shapes the random obstacle generator draws from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ObstacleKind {
+    Circle,
+    Box,
+    Segment,
+}
+
+/// Where random obstacles go.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Placement {
+    /// Centred in a corridor along the start–goal segment.
+    Between,
+    /// Anywhere in the arena.
+    Anywhere,
+}
+
+crate::config_table! {
+    /// `[obstacles]`: a fixed list and/or a random generator run at every reset. Fixed ones are
+    /// e.g. `{kind = "circle", center = [0.3, 0.0], radius = 0.1}`,
+    /// `{kind = "box", center = [x, y], half_extents = [hx, hy], angle = 0.0}`,
+    /// `{kind = "segment", a = [x0, y0], b = [x1, y1]}`.
+    pub struct ObstacleConfig {
+        /// fixed obstacles: circle {center, radius}, box {center, half_extents, angle}, segment {a, b}
+        fixed: Vec<ObstacleSpec> = [],
+        /// random obstacles drawn at every reset
+        count: u32 = 0,
+        /// shapes the random ones are drawn from
+        kinds: Vec<ObstacleKind> = ["circle", "box", "segment"],
+        /// m, range of random circle radii
+        circle_radius: [f32; 2] = [0.04, 0.10],
+        /// m, range of random box half sides
+        box_half_extent: [f32; 2] = [0.03, 0.10],
+        /// m, range of random wall-segment lengths
+        segment_length: [f32; 2] = [0.20, 0.45],
+        /// "between" start and goal, or "anywhere"
+        placement: Placement = "between",
+        /// m, width of the band around start->goal used by "between"
+        corridor_width: f32 = 0.8,
+        /// m, free gap between random obstacles, walls and fixed obstacles (>= robot diameter + 1 cm keeps every goal reachable)
+        min_gap: f32 = 0.16,
+        /// m, free gap between obstacles and robots at their start and goals
+        spawn_clearance: f32 = 0.05,
+    }
+}
+
+impl ObstacleConfig {
+    /// Checks the entries of the raw `obstacles.fixed` list one by one, before the table is read
+    /// whole: serde's errors inside a tagged list entry carry no position, and the message should
+    /// say which entry.
+    pub(super) fn check_fixed_entries(fixed: &[Value], origin: &str) -> Result<()> {
+        for (i, entry) in fixed.iter().enumerate() {
+            entry.clone().try_into::<ObstacleSpec>().map_err(|e| {
+                Error::config(origin, &format!("obstacles.fixed[{i}]"), e.message().trim())
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Checks the values of `[obstacles]` (the fixed obstacles' numbers and sizes, the
+    /// generator's count, size ranges, shapes and gap); the error names the first offending key.
+    /// `robot_radius` (m) bounds `min_gap` from below, so that random obstacles never wall off a
+    /// goal. Whether layouts fit is checked by `world::layout::Spawner::new`.
+    pub fn validate(&self, origin: &str, robot_radius: f32) -> Result<()> {
+        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
+        let o = self;
+        for (i, spec) in o.fixed.iter().enumerate() {
+            let key = format!("obstacles.fixed[{i}]");
+            let sizes: Vec<f32> = match spec {
+                ObstacleSpec::Circle { center, radius } => vec![center[0], center[1], *radius],
+                ObstacleSpec::Box {
+                    center,
+                    half_extents,
+                    angle,
+                } => {
+                    vec![
+                        center[0],
+                        center[1],
+                        half_extents[0],
+                        half_extents[1],
+                        angle + 1.0,
+                    ]
+                }
+                ObstacleSpec::Segment { a, b } => {
+                    let length = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+                    vec![a[0], a[1], b[0], b[1], length]
+                }
+            };
+            if sizes.iter().any(|v| !v.is_finite()) {
+                return bad(&key, format!("has a non-finite number: {spec:?}"));
+            }
+            let size_ok = match spec {
+                ObstacleSpec::Circle { radius, .. } => *radius > 0.0,
+                ObstacleSpec::Box { half_extents, .. } => half_extents.iter().all(|h| *h > 0.0),
+                ObstacleSpec::Segment { .. } => sizes[4] > 0.0,
+            };
+            if !size_ok {
+                return bad(&key, format!("sizes must be > 0: {spec:?}"));
+            }
+        }
+        if o.count > 64 {
+            return bad("obstacles.count", format!("must be <= 64, got {}", o.count));
+        }
+        for (key, [lo, hi]) in [
+            ("obstacles.circle_radius", o.circle_radius),
+            ("obstacles.box_half_extent", o.box_half_extent),
+            ("obstacles.segment_length", o.segment_length),
+        ] {
+            if !(lo.is_finite() && hi.is_finite()) || lo <= 0.0 || lo > hi {
+                return bad(
+                    key,
+                    format!("must be a range [low, high] with 0 < low <= high, got [{lo}, {hi}]"),
+                );
+            }
+        }
+        if o.count > 0 {
+            if o.kinds.is_empty() {
+                return bad(
+                    "obstacles.kinds",
+                    "must name at least one shape when count > 0".into(),
+                );
+            }
+            let needed = 2.0 * robot_radius + 0.01;
+            if o.min_gap < needed {
+                return bad(
+                    "obstacles.min_gap",
+                    format!(
+                        "must be >= the robot's diameter + 1 cm ({needed:.3} m) so that random \
+                         obstacles never wall off a goal, got {}",
+                        o.min_gap
+                    ),
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+crate::config_table! {
+    /// `[spawn]`: where robots start and goals lie.
+    pub struct SpawnConfig {
+        /// m, gap between a spawned robot (or goal) and the walls
+        wall_margin: f32 = 0.05,
+        /// m, start-goal distance at reset is at least this
+        min_goal_distance: f32 = 0.5,
+        /// [] random, or [x, y, heading] (m, m, rad) to fix it
+        start: Vec<f32> = [],
+        /// [] random, or [x, y] (m) to fix it
+        goal: Vec<f32> = [],
+    }
+}
+
+crate::config_table! {
+    /// `[task]`: goal, reward weights, episode length.
+    pub struct TaskConfig {
+        /// m, success when the robot centre is this close to the goal
+        goal_radius: f32 = 0.05,
+        /// control steps before truncation (20 s at dt = 0.05)
+        max_steps: u32 = 400,
+        /// reward per metre of progress toward the goal
+        progress_weight: f32 = 10.0,
+        /// reward subtracted every step
+        time_cost: f32 = 0.01,
+        /// reward on reaching the goal
+        success_bonus: f32 = 10.0,
+        /// reward subtracted per step in contact with a wall or obstacle
+        collision_penalty: f32 = 0.1,
+        /// end the episode at the first contact
+        terminate_on_collision: bool = false,
+    }
+}
+
+crate::config_table! {
+    /// `[physics]`: control step and rapier settings.
+    pub struct PhysicsConfig {
+        /// s per control step (V-REP's default)
+        dt: f32 = 0.05,
+        /// physics substeps per control step
+        substeps: u32 = 4,
+        /// rapier solver iterations for contact steps
+        solver_iterations: u32 = 4,
+        /// robot-wall friction: 0 lets a robot slide along a wall
+        friction: f32 = 0.0,
+    }
+}
