@@ -101,6 +101,7 @@ impl IrModel {
     }
 
     /// Normalised proximity in [0, 1]: 0 at the floor value (nothing seen), 1 at 1023.
+    #[inline]
     pub fn normalise(&self, raw: u16) -> f32 {
         ((raw as f32 - self.floor_value) / (IR_MAX_RAW - self.floor_value)).clamp(0.0, 1.0)
     }
@@ -230,6 +231,7 @@ impl Sensor for IrRing {
         IR_COUNT
     }
 
+    #[inline]
     fn observe(&self, reading: &IrReading, out: &mut [f32]) {
         for (o, raw) in out.iter_mut().zip(reading.raw) {
             *o = self.model.normalise(raw);

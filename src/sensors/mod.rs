@@ -346,6 +346,7 @@ macro_rules! sensor_registry {
             }
 
             /// Reads every carried sensor of one robot.
+            #[inline]
             pub fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, readings: &mut Readings) {
                 $(
                     if let Some(c) = &mut self.$field {
@@ -368,6 +369,7 @@ macro_rules! sensor_registry {
             }
 
             /// Writes one robot's observed sensor blocks.
+            #[inline]
             pub fn observe(&self, readings: &Readings, out: &mut ObsWriter) {
                 $(
                     if let Some(c) = &self.$field {

@@ -83,6 +83,7 @@ impl UsModel {
 
     /// Normalised reading in [0, 1]: distance / max range; 0 when too close, 1 when nothing is
     /// in range or the sensor is disabled.
+    #[inline]
     pub fn normalise(&self, code: i32) -> f32 {
         match code {
             US_TOO_CLOSE => 0.0,
@@ -185,6 +186,7 @@ impl Sensor for Ultrasonic {
         US_COUNT
     }
 
+    #[inline]
     fn observe(&self, reading: &UsReading, out: &mut [f32]) {
         for (o, code) in out.iter_mut().zip(reading.code) {
             *o = self.model.normalise(code);

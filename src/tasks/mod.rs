@@ -190,6 +190,7 @@ macro_rules! task_registry {
                 }
             }
 
+            #[inline]
             fn judge(
                 &mut self,
                 world: &World,
@@ -208,6 +209,7 @@ macro_rules! task_registry {
                 }
             }
 
+            #[inline]
             fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
                 match self {
                     $(TaskState::$variant(t) => t.observe(world, cfg, out),)*

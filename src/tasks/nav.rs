@@ -135,6 +135,7 @@ pub fn nav_blocks(cfg: &Scenario, sensors: &[Block]) -> ObsLayout {
 }
 
 /// Reward and success of robot `i` heading for `goal`; updates its previous distance.
+#[inline]
 pub fn judge_robot(
     world: &World,
     i: usize,
@@ -173,6 +174,7 @@ pub fn wheel_obs(world: &World, i: usize) -> [f32; 2] {
 }
 
 /// Writes robot `i`'s navigation observation ([`nav_blocks`]) toward `goal`.
+#[inline]
 pub fn observe_robot(world: &World, i: usize, goal: Vector, cfg: &Scenario, out: &mut ObsWriter) {
     world.sensors.observe(&world.robots[i].readings, out);
     let local = to_robot_frame(world, i, goal);

@@ -201,6 +201,7 @@ impl Scene {
 
     /// Nearest hit along the unit ray (`origin`, `dir`) within `max` metres, against the walls,
     /// the obstacles and the discs of radius `disc_radius` at `discs` (other robots).
+    #[inline]
     pub fn cast(
         &self,
         origin: Vector,
@@ -213,6 +214,7 @@ impl Scene {
     }
 
     /// Like [`Scene::cast`], against only the obstacles `shapes` (a pre-culled subset).
+    #[inline]
     pub fn cast_among<'a>(
         &self,
         origin: Vector,
