@@ -114,6 +114,26 @@ ACTION_TYPES = ("wheels", "unicycle")
 #: Scenario key of the episode length (Gymnasium's ``max_episode_steps``, PettingZoo's
 #: ``max_cycles``).
 MAX_STEPS_KEY = "max_steps"
+#: The keyword (not a scenario key) that picks a behaviour version's defaults: the registered
+#: ``KheperaIV-Nav-v0`` passes ``version=0``; None or absent: the latest.
+VERSION_KEY = "version"
+
+
+def check_version(version: object) -> int | None:
+    """``version`` as an int in ``0..=_core.LATEST_VERSION``, or None (the latest).
+
+    Raises:
+        ConfigError: Not an int, or no such version.
+    """
+    if version is None:
+        return None
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise ConfigError(f"version must be an int, got {type(version).__name__}")
+    if not 0 <= version <= _core.LATEST_VERSION:
+        raise ConfigError(
+            f"behaviour version {version} does not exist; versions are 0..{_core.LATEST_VERSION}"
+        )
+    return version
 
 
 def make_batch(
@@ -126,6 +146,7 @@ def make_batch(
     num_threads: int | None = None,
     autoreset: bool = True,
     episode_steps: tuple[str, int | None] | None = None,
+    version: int | None = None,
 ) -> _core.Batch:
     """The ``_core.Batch`` every env class builds on: checks the action type, merges an
     episode-length argument into the overrides, resolves ``config`` and builds the batch.
@@ -140,6 +161,9 @@ def make_batch(
         autoreset: Gymnasium NEXT_STEP autoreset (vector env) or none (single env, SB3, PettingZoo).
         episode_steps: (argument name, value) of an episode-length argument such as
             ``("max_episode_steps", 200)``, merged as ``max_steps``; None or a None value: none.
+        version: Behaviour version whose defaults apply (None: the latest); a ``version``
+            entry in ``overrides`` (how registered ids pass it through every env class) takes
+            precedence.
 
     Raises:
         ConfigError: Unknown action type, both the argument and ``max_steps`` given, or any
@@ -148,6 +172,7 @@ def make_batch(
     if action_type not in ACTION_TYPES:
         raise ConfigError(f"action_type must be one of {ACTION_TYPES}, got {action_type!r}")
     overrides = dict(overrides)
+    version = check_version(overrides.pop(VERSION_KEY, version))
     if episode_steps is not None and episode_steps[1] is not None:
         name, value = episode_steps
         if MAX_STEPS_KEY in overrides:
@@ -166,4 +191,5 @@ def make_batch(
         action_type=action_type,
         num_threads=num_threads,
         autoreset=autoreset,
+        version=version,
     )

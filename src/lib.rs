@@ -6,7 +6,8 @@
 //! Layers, each using only those above it (docs/extending.md walks through them):
 //! * `error`, `config` (how scenario tables are declared and overlaid), `obs` (observation
 //!   layouts by name), `draw` (what tasks and sensors ask the renderer to draw);
-//! * `robot` (body, drive, units, `[robot]`), `world::scene` (geometry and ray casts);
+//! * `robot` (body, drive, units, `[robot]`), `odometry` (dead reckoning), `world::scene`
+//!   (geometry and ray casts);
 //! * `sensors` (one file a sensor, behind the `Sensor` contract);
 //! * `scenario` (the scenario: shared sections, loading, validation);
 //! * `world` (the robots, their sensors and rapier physics; spawning);
@@ -20,6 +21,7 @@ pub mod controllers;
 pub mod draw;
 pub mod error;
 pub mod obs;
+pub mod odometry;
 pub mod render;
 pub mod robot;
 pub mod scenario;

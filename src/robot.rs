@@ -35,10 +35,16 @@ crate::config_table! {
         max_wheel_speed: Param = 0.813,
         /// m/s; smaller commands give 0 (the real PID's floor, manual §4.14.1)
         min_wheel_speed: f32 = 0.003,
-        /// m/s^2 per wheel; inf = none (Webots motor model: 2.74); may be a finite range
-        wheel_accel_limit: Param = inf,
+        /// m/s^2 per wheel: K-Team's default speed profile, Acc_Inc 3 speed units (0.678 mm/s each) per 10 ms = 0.203 m/s^2 (manual §4.14.2-3, spec §1); the Braitenberg demo's Acc_Inc 10 gives 0.678, Webots' motor 2.74; inf = none; may be a finite range
+        wheel_accel_limit: Param = 0.2034543,
+        /// s, first-order lag of each wheel after the speed profile (0 = none) [E]
+        motor_time_constant: f32 = 0.0,
         /// kg [E]: K-Team's usual figure; Webots uses 0.606; may be a range
         mass: Param = 0.54,
+        /// tyre-floor friction coefficient, each wheel carrying half the weight (the ball casters little) [E: Webots' default contact friction 1]; may be a range
+        tyre_friction: Param = 1.0,
+        /// infrared reflectance of the shell relative to white paper (1 = K-Team's curve) [E]
+        shell_reflectance: f32 = 1.0,
     }
 }
 
@@ -68,6 +74,15 @@ impl RobotConfig {
                     self.wheel_accel_limit
                 ),
             );
+        }
+        self.tyre_friction.check(origin, "robot.tyre_friction", false)?;
+        for (key, v) in [
+            ("robot.motor_time_constant", self.motor_time_constant),
+            ("robot.shell_reflectance", self.shell_reflectance),
+        ] {
+            if !v.is_finite() || v < 0.0 {
+                return bad(key, format!("must be a finite number >= 0, got {v}"));
+            }
         }
         if !self.min_wheel_speed.is_finite() || self.min_wheel_speed < 0.0 {
             return bad(
@@ -132,6 +147,9 @@ pub struct Drive {
     pub min_wheel_speed: f32,
     /// Wheel acceleration limit (m/s²); infinite for none.
     pub wheel_accel_limit: f32,
+    /// Time constant (s) of each wheel's first-order lag behind its speed profile; 0 for none.
+    #[serde(default)]
+    pub motor_time_constant: f32,
 }
 
 impl Drive {
@@ -145,6 +163,7 @@ impl Drive {
             max_wheel_speed: cfg.max_wheel_speed.bounds().0,
             min_wheel_speed: cfg.min_wheel_speed,
             wheel_accel_limit: cfg.wheel_accel_limit.bounds().0,
+            motor_time_constant: cfg.motor_time_constant,
         }
     }
 
@@ -197,6 +216,31 @@ impl Drive {
         ]
     }
 
+    /// One substep of `h` seconds of the motors: the speed profile moves the setpoints toward
+    /// the commands within the acceleration limit, and the wheels follow their setpoints with
+    /// the first-order lag `motor_time_constant` (at once when it is 0). Returns the new
+    /// (setpoints, wheel speeds).
+    pub fn motors(
+        &self,
+        setpoint: [f32; 2],
+        wheels: [f32; 2],
+        command: [f32; 2],
+        h: f32,
+    ) -> ([f32; 2], [f32; 2]) {
+        let setpoint = self.ramp(setpoint, command, h);
+        if self.motor_time_constant <= 0.0 {
+            return (setpoint, setpoint);
+        }
+        let k = 1.0 - (-h / self.motor_time_constant).exp();
+        (
+            setpoint,
+            [
+                wheels[0] + k * (setpoint[0] - wheels[0]),
+                wheels[1] + k * (setpoint[1] - wheels[1]),
+            ],
+        )
+    }
+
     /// Body twist (v forward m/s, ω rad/s CCW) of wheel speeds (left, right).
     pub fn twist(&self, wheels: [f32; 2]) -> (f32, f32) {
         (
@@ -240,6 +284,7 @@ mod tests {
             max_wheel_speed: MAX_WHEEL_SPEED,
             min_wheel_speed: MIN_WHEEL_SPEED,
             wheel_accel_limit: f32::INFINITY,
+            motor_time_constant: 0.0,
         }
     }
 

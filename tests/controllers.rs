@@ -39,6 +39,7 @@ fn episodes(task: TaskKind, scene: Option<&str>, policy: &Policy, n: usize) -> V
     let source = Source {
         file: scene.map(|s| (scenario::scene(s).expect("scene"), s)),
         overrides: Default::default(),
+        ..Default::default()
     };
     let cfg = load_scenario(task.name(), &source).expect("scenario");
     let mut batch = Batch::new(task, cfg, n, ActionType::Wheels, Some(2), true).expect("batch");

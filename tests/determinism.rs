@@ -13,6 +13,7 @@ fn scenario() -> Scenario {
     let source = Source {
         file: None,
         overrides: "max_steps = 60".parse().expect("overrides"),
+        ..Default::default()
     };
     load_scenario("nav", &source).expect("scenario")
 }

@@ -65,7 +65,7 @@ fn leaves(table: &Table, prefix: &str, out: &mut Vec<(String, Value)>) {
 fn default_leaves(task: &str) -> Vec<(String, Value)> {
     let table: Table = TaskKind::parse(task)
         .expect("task")
-        .default_config()
+        .default_config(None)
         .expect("defaults")
         .parse()
         .expect("defaults parse");
@@ -257,6 +257,7 @@ fn check_scenario(task: &str, text: &str, seed: u64) -> Result<(), TestCaseError
     let source = Source {
         file: Some((text, "fuzz.toml")),
         overrides: Table::new(),
+        ..Default::default()
     };
     let cfg = match load_scenario(task, &source) {
         Ok(cfg) => cfg,
@@ -305,6 +306,7 @@ fn with_batch<T>(task: &'static str, f: impl FnOnce(&mut Batch) -> T) -> T {
             let source = Source {
                 file: None,
                 overrides: "max_steps = 3".parse().expect("overrides"),
+                ..Default::default()
             };
             let cfg = load_scenario(task, &source).expect("scenario");
             let kind = TaskKind::parse(task).expect("task");

@@ -13,6 +13,7 @@ fn nav_env(overrides: &str) -> Env {
     let source = Source {
         file: None,
         overrides: overrides.parse().expect("overrides"),
+        ..Default::default()
     };
     let cfg = load_scenario("nav", &source).expect("scenario");
     let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));

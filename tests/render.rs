@@ -47,10 +47,10 @@ fn test_frames_have_the_requested_size_and_are_reproducible() {
 fn test_robot_pixels_follow_the_robot() {
     let mut env = env();
     env.world.place_robot(0, Vector::new(-0.5, -0.5), 0.0);
-    env.world.sense();
+    env.world.sense(true);
     let (x0, y0) = robot_pixel(&render(&env, 400, 400), 400);
     env.world.place_robot(0, Vector::new(0.5, 0.5), 0.0);
-    env.world.sense();
+    env.world.sense(true);
     let (x1, y1) = robot_pixel(&render(&env, 400, 400), 400);
     // 1 m right and 1 m up: ~190 px at 400 px for a 2.1 m wide view; y grows downwards.
     assert!((x1 - x0 - 190.0).abs() < 6.0, "dx {}", x1 - x0);

@@ -16,6 +16,7 @@ fn env_with(overrides: &str) -> Env {
     let source = Source {
         file: None,
         overrides: overrides.parse().expect("overrides"),
+        ..Default::default()
     };
     let cfg = load_scenario("nav", &source).expect("scenario");
     let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
@@ -36,7 +37,7 @@ fn sense_wall(env: &mut Env, bearing: f32, gap: f32) {
         .push(SceneShape::rect(centre, Vector::new(0.05, 0.3), bearing));
     env.world.set_scene(scene);
     env.world.place_robot(0, Vector::ZERO, 0.0);
-    env.world.sense();
+    env.world.sense(true);
 }
 
 /// Response curve points (m, raw) from the spec's table.
@@ -90,7 +91,7 @@ fn test_ir_noise_is_gaussian_around_curve() {
 fn test_nothing_in_range_reads_floor_value() {
     let mut env = env_with("ir_noise_sigma = 0.0\nir_floor_value = 100.0");
     env.world.place_robot(0, Vector::ZERO, 0.3);
-    env.world.sense();
+    env.world.sense(true);
     assert_eq!(env.world.robots[0].readings.ir.raw, [100; 8]);
 }
 
@@ -109,12 +110,12 @@ fn test_ultrasonic_centimetres_and_codes() {
     big.world
         .set_scene(_core::world::Scene::arena(5.0, 5.0, 0.05));
     big.world.place_robot(0, Vector::ZERO, 0.0);
-    big.world.sense();
+    big.world.sense(true);
     assert_eq!(big.world.robots[0].readings.us.code, [US_NOTHING; 5]);
     // Disabled sensors.
     let mut off = env_with("us_enabled = [true, false, true, true, false]");
     off.world.place_robot(0, Vector::ZERO, 0.0);
-    off.world.sense();
+    off.world.sense(true);
     assert_eq!(off.world.robots[0].readings.us.code[1], US_DISABLED);
     assert_eq!(off.world.robots[0].readings.us.code[4], US_DISABLED);
     assert!(

@@ -15,6 +15,7 @@ fn batch(task: &str, overrides: &str, n: usize) -> Batch {
     let source = Source {
         file: None,
         overrides: overrides.parse().expect("overrides"),
+        ..Default::default()
     };
     let cfg = load_scenario(task, &source).expect("scenario");
     let kind = TaskKind::parse(task).expect("task");

@@ -18,6 +18,7 @@ fn scenario(task: &str, scene: Option<&str>, overrides: &str) -> Scenario {
     let source = Source {
         file: scene.map(|s| (_core::scenario::scene(s).expect("built-in scene"), s)),
         overrides: overrides.parse().expect("overrides"),
+        ..Default::default()
     };
     load_scenario(task, &source).expect("scenario")
 }

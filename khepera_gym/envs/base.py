@@ -22,7 +22,8 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed
-from khepera_gym.config import ConfigArg, make_batch
+from khepera_gym import _core
+from khepera_gym.config import VERSION_KEY, ConfigArg, make_batch
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
@@ -40,7 +41,9 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
         frame_size: (width, height) of rendered frames in pixels.
         **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1`` or
-            ``task={"max_steps": 100}`` (see the task's docstring, section Scenario file).
+            ``task={"max_steps": 100}`` (see the task's docstring, section Scenario file), and
+            ``version``: the behaviour version whose defaults apply (registered ids pass it;
+            None: the latest; see the manual's Version History).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array", "human"], "render_fps": 20}
@@ -48,7 +51,9 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
     TASK: ClassVar[str] = ""
     #: Registered versions (``KheperaIV-<Task>-v<n>``) and the scenario keywords each one
     #: passes, so that an older version keeps its behaviour (see the manual's Version History).
-    VERSIONS: ClassVar[dict[int, dict[str, Any]]] = {0: {}}
+    VERSIONS: ClassVar[dict[int, dict[str, Any]]] = {
+        version: {VERSION_KEY: version} for version in range(_core.LATEST_VERSION + 1)
+    }
     _WORLD: ClassVar[int | None] = 0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:

@@ -40,7 +40,7 @@ pub struct Batch {
 #[pymethods]
 impl Batch {
     #[new]
-    #[pyo3(signature = (task, num_worlds, config_text=None, config_name="<built-in>", overrides=None, action_type="wheels", num_threads=None, autoreset=true))]
+    #[pyo3(signature = (task, num_worlds, config_text=None, config_name="<built-in>", overrides=None, action_type="wheels", num_threads=None, autoreset=true, version=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -52,6 +52,7 @@ impl Batch {
         action_type: &str,
         num_threads: Option<i64>,
         autoreset: bool,
+        version: Option<u32>,
     ) -> PyResult<Self> {
         guard(py, || {
             let kind = task_kind(py, task)?;
@@ -62,6 +63,7 @@ impl Batch {
             let source = Source {
                 file: config_text.as_deref().map(|t| (t, config_name)),
                 overrides,
+                version,
             };
             let cfg = kind.scenario(&source).map_err(|e| to_py(py, e))?;
             let action_type = ActionType::parse(action_type).ok_or_else(|| {
@@ -530,6 +532,7 @@ pub fn _batch_from_state(
         action_type,
         num_threads,
         autoreset,
+        None,
     )?;
     batch.set_trail_length(trail_length);
     batch.set_state(py, state)?;

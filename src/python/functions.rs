@@ -97,11 +97,13 @@ pub fn obs_layout(py: Python<'_>, task: &str) -> PyResult<Vec<(String, usize, us
     Ok(layout_slices(&layout))
 }
 
-/// A built-in scenario file: a task's defaults (every key with its comment) or a scene.
+/// A built-in scenario file: a task's defaults for behaviour `version` (None: the latest;
+/// every key with its comment) or a scene.
 #[pyfunction]
-pub fn default_config(py: Python<'_>, name: &str) -> PyResult<String> {
+#[pyo3(signature = (name, version=None))]
+pub fn default_config(py: Python<'_>, name: &str, version: Option<u32>) -> PyResult<String> {
     if let Some(kind) = TaskKind::parse(name) {
-        return kind.default_config().map_err(|e| to_py(py, e));
+        return kind.default_config(version).map_err(|e| to_py(py, e));
     }
     scenario::scene(name).map(str::to_string).ok_or_else(|| {
         to_py(

@@ -91,8 +91,11 @@ pub fn sensor_readings<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Boun
         "encoders",
         PyArray1::from_vec(py, encoders).reshape([n, r, 2])?,
     )?;
-    let gyro: Vec<f32> = robots().map(|r| r.yaw_rate).collect();
-    d.set_item("gyro_z", PyArray1::from_vec(py, gyro).reshape([n, r])?)?;
+    if !d.contains("gyro_z")? {
+        // Without a gyroscope model carried (v0), the body's exact yaw rate over the step.
+        let gyro: Vec<f32> = robots().map(|r| r.yaw_rate).collect();
+        d.set_item("gyro_z", PyArray1::from_vec(py, gyro).reshape([n, r])?)?;
+    }
     Ok(d)
 }
 

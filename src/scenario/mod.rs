@@ -20,13 +20,14 @@ use toml::{Table, Value};
 
 use crate::config::{self, ConfigTable, KeyDoc, OVERRIDE_ORIGIN};
 use crate::error::{Error, Result};
+use crate::odometry::OdometryConfig;
 use crate::robot::RobotConfig;
 use crate::sensors::SensorsConfig;
 
 pub use crate::config::Param;
 pub use sections::{
-    ArenaConfig, ObstacleConfig, ObstacleKind, ObstacleSpec, PhysicsConfig, Placement, SpawnConfig,
-    TaskConfig,
+    ArenaConfig, DriveModel, Localization, ObstacleConfig, ObstacleKind, ObstacleSpec,
+    PhysicsConfig, Placement, SpawnConfig, TaskConfig,
 };
 
 /// Built-in scenes: scenario files overlaid on a task's defaults like a user's file, embedded so
@@ -75,6 +76,7 @@ pub struct Scenario {
     pub sensors: SensorsConfig,
     pub task: TaskConfig,
     pub physics: PhysicsConfig,
+    pub odometry: OdometryConfig,
     /// The task's own table (name, checked values), if it has one.
     pub own: Option<(String, Table)>,
     /// Where the last part of the scenario came from (a file's name, `<override>` or
@@ -90,7 +92,32 @@ pub struct Source<'a> {
     /// Keyword overrides: leaf names (`goal_radius`), dotted names (`task.goal_radius`) or
     /// section tables (`task = {goal_radius = 0.1}`).
     pub overrides: Table,
+    /// The behaviour version whose defaults apply (`KheperaIV-Nav-v0` → 0); None: the latest.
+    pub version: Option<u32>,
 }
+
+/// The behaviour version of the current defaults (the `-v1` environments).
+pub const LATEST_VERSION: u32 = 1;
+
+/// What an earlier behaviour version's defaults were, as an overlay on the next version's:
+/// (version, TOML). Applied, newest first, down to the version asked for, after a task's own
+/// defaults, so that `KheperaIV-*-v0` keeps the behaviour its published numbers came from.
+pub const VERSION_DEFAULTS: &[(u32, &str)] = &[(
+    0,
+    r#"
+[robot]
+wheel_accel_limit = inf      # v0: wheels reached any commanded speed within one step
+
+[physics]
+drive = "kinematic"          # v0: velocity imposed on the body, no tyre model
+friction = 0.0               # v0: frictionless shell: robots slid along walls
+
+[sensors]
+carry = ["ir", "us"]         # v0: no gyroscope model (sensor_readings' gyro_z is exact)
+us_period = 0.0              # v0: the sonars refreshed at every control step
+us_acceptance = 1.5707963267948966 # v0: an echo from any incidence angle
+"#,
+)];
 
 /// Largest arena side (m): positions are float32 metres, which keep millimetre precision well
 /// beyond this; far larger arenas overflow distances to infinity.
@@ -106,6 +133,7 @@ fn shared_sections() -> Vec<(&'static str, Vec<KeyDoc>)> {
         ("sensors", SensorsConfig::keys()),
         ("task", TaskConfig::KEYS.to_vec()),
         ("physics", PhysicsConfig::KEYS.to_vec()),
+        ("odometry", OdometryConfig::KEYS.to_vec()),
     ]
 }
 
@@ -121,7 +149,7 @@ impl TaskSchema {
 
     /// Every key of the task's scenario with its default: the shared defaults, the task's own
     /// table, then the task's defaults overlaid.
-    pub fn defaults_table(&self) -> Result<Table> {
+    pub fn defaults_table(&self, version: Option<u32>) -> Result<Table> {
         let mut table = Table::new();
         for (name, keys) in self.sections() {
             table.insert(name.to_string(), Value::Table(config::keys_table(&keys)));
@@ -129,12 +157,26 @@ impl TaskSchema {
         let origin = format!("<built-in:{}>", self.name);
         let own = config::parse(self.defaults, &origin)?;
         config::overlay(&mut table, &own, "", &origin)?;
+        let version = version.unwrap_or(LATEST_VERSION);
+        if version > LATEST_VERSION {
+            return Err(Error::config(
+                "<built-in>",
+                "version",
+                format!("behaviour version {version} does not exist; the latest is {LATEST_VERSION}"),
+            ));
+        }
+        for (v, text) in VERSION_DEFAULTS.iter().rev() {
+            if *v >= version {
+                let origin = format!("<built-in:v{v}>");
+                config::overlay(&mut table, &config::parse(text, &origin)?, "", &origin)?;
+            }
+        }
         Ok(table)
     }
 
     /// The task's default scenario file: every key with its default and comment.
-    pub fn render_defaults(&self, header: &str) -> Result<String> {
-        let table = self.defaults_table()?;
+    pub fn render_defaults(&self, header: &str, version: Option<u32>) -> Result<String> {
+        let table = self.defaults_table(version)?;
         let mut out = String::new();
         for line in header.lines() {
             out.push_str(&format!("# {line}\n").replace("# \n", "#\n"));
@@ -151,7 +193,7 @@ impl TaskSchema {
     /// Loads the task's scenario: its defaults, then the file, then the overrides. Values are
     /// validated; layouts are checked when a batch builds its spawner.
     pub fn load(&self, source: &Source) -> Result<Scenario> {
-        let mut table = self.defaults_table()?;
+        let mut table = self.defaults_table(source.version)?;
         let mut scenario =
             Scenario::from_table(&table, self, &format!("<built-in:{}>", self.name))?;
         if let Some((text, name)) = source.file {
@@ -189,6 +231,7 @@ impl Scenario {
             sensors: SensorsConfig::from_table(&section("sensors"), origin)?,
             task: TaskConfig::from_table(&section("task"), origin, "task")?,
             physics: PhysicsConfig::from_table(&section("physics"), origin, "physics")?,
+            odometry: OdometryConfig::from_table(&section("odometry"), origin, "odometry")?,
             own: schema
                 .section
                 .map(|s| (s.name.to_string(), section(s.name))),
@@ -231,6 +274,11 @@ impl Scenario {
                 "physics",
                 PhysicsConfig::KEYS.to_vec(),
                 as_table(&self.physics),
+            ),
+            (
+                "odometry",
+                OdometryConfig::KEYS.to_vec(),
+                as_table(&self.odometry),
             ),
         ];
         if let Some((name, table)) = &self.own {
@@ -284,13 +332,19 @@ impl Scenario {
             ("task.success_bonus", self.task.success_bonus),
             ("task.collision_penalty", self.task.collision_penalty),
             ("task.progress_weight", self.task.progress_weight),
-            ("physics.friction", self.physics.friction),
         ];
         for (key, v) in non_negative {
             if !v.is_finite() || v < 0.0 {
                 return bad(key, format!("must be a finite number >= 0, got {v}"));
             }
         }
+        self.physics
+            .friction
+            .check(origin, "physics.friction", false)?;
+        self.physics
+            .robot_friction
+            .check(origin, "physics.robot_friction", false)?;
+        self.odometry.validate(origin)?;
         if self.task.max_steps == 0 {
             return bad("task.max_steps", "must be >= 1, got 0".into());
         }
@@ -375,19 +429,39 @@ mod tests {
 
     #[test]
     fn defaults_load_render_and_round_trip() {
+        let v0 = NAV
+            .load(&Source {
+                version: Some(0),
+                ..Default::default()
+            })
+            .expect("nav v0");
+        assert_eq!(v0.task.max_steps, 400);
+        assert!(v0.robot.wheel_accel_limit.max().is_infinite());
+        assert_eq!(v0.physics.drive, DriveModel::Kinematic);
         let s = NAV.load(&Source::default()).expect("nav");
         assert_eq!(s.task.max_steps, 400);
-        assert!(s.robot.wheel_accel_limit.max().is_infinite());
+        // v1: the K-Team firmware's speed profile, 3 units per 10 ms (spec §3).
+        assert!((s.robot.wheel_accel_limit.max() - 0.2034543).abs() < 1e-6);
+        assert_eq!(s.physics.drive, DriveModel::Traction);
+        let e = NAV
+            .load(&Source {
+                version: Some(LATEST_VERSION + 1),
+                ..Default::default()
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("version 2 does not exist"), "{e}");
         let text = s.to_toml();
         assert!(text.contains("radius = 0.0704\n"), "{text}");
         let back = NAV
             .load(&Source {
                 file: Some((&text, "resolved.toml")),
                 overrides: Table::new(),
+                ..Default::default()
             })
             .expect("round trip");
         assert_eq!(back.to_toml(), text);
-        let file = NAV.render_defaults("KheperaIV-Nav").expect("render");
+        let file = NAV.render_defaults("KheperaIV-Nav", None).expect("render");
         assert!(file.contains("# body radius (m)"), "{file}");
         assert!(file.parse::<Table>().is_ok(), "{file}");
     }
@@ -399,6 +473,7 @@ mod tests {
             overrides: overrides(
                 "goal_radius = 0.1\n\"robot.mass\" = 0.6\nphysics = { substeps = 2 }",
             ),
+            ..Default::default()
         };
         let s = NAV.load(&src).expect("overrides");
         assert_eq!(s.task.goal_radius, 0.1);
@@ -412,6 +487,7 @@ mod tests {
         let src = Source {
             file: Some(("[task]\ngoal_radios = 0.1\n", "my.toml")),
             overrides: Table::new(),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(
@@ -421,12 +497,14 @@ mod tests {
         let src = Source {
             file: None,
             overrides: overrides("goal_radios = 0.1"),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("<override>: goal_radios"), "{e}");
         let src = Source {
             file: Some(("[sensors]\nir_rnage = 0.3\n", "s.toml")),
             overrides: Table::new(),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(
@@ -440,30 +518,35 @@ mod tests {
         let src = Source {
             file: Some(("[robot]\nradius = \"big\"\n", "f.toml")),
             overrides: Table::new(),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.starts_with("f.toml: robot.radius"), "{e}");
         let src = Source {
             file: None,
             overrides: overrides("radius = -1.0"),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("robot.radius: must be"), "{e}");
         let src = Source {
             file: None,
             overrides: overrides("min_goal_distance = 5.0"),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("spawn.min_goal_distance"), "{e}");
         let src = Source {
             file: Some(("[task\n", "broken.toml")),
             overrides: Table::new(),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.starts_with("broken.toml: "), "{e}");
         let src = Source {
             file: None,
             overrides: overrides("ir_noise_sigma = \"loud\""),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.starts_with("<override>: sensors.ir_noise_sigma"), "{e}");
@@ -474,12 +557,14 @@ mod tests {
         let src = Source {
             file: None,
             overrides: overrides("mass = [0.5, 0.6]\nir_noise_sigma = [0.0, 20.0]"),
+            ..Default::default()
         };
         let s = NAV.load(&src).expect("ranges");
         assert_eq!(s.robot.mass, Param::Range([0.5, 0.6]));
         let src = Source {
             file: None,
             overrides: overrides("mass = [0.6, 0.5]"),
+            ..Default::default()
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("robot.mass"), "{e}");

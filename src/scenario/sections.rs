@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 use toml::Value;
 
+use crate::config::Param;
 use crate::error::{Error, Result};
 use crate::world::scene::{Scene, SceneShape};
 
@@ -24,6 +25,8 @@ crate::config_table! {
         wall_thickness: f32 = 0.05,
         /// false: an open floor (the size then only bounds spawning)
         walls: bool = true,
+        /// infrared reflectance of the walls relative to white paper (1 = K-Team's curve) [E]
+        wall_reflectance: f32 = 1.0,
     }
 }
 
@@ -32,6 +35,7 @@ impl ArenaConfig {
     pub fn scene(&self) -> Scene {
         Scene {
             walled: self.walls,
+            wall_reflectance: self.wall_reflectance,
             ..Scene::arena(self.width, self.height, self.wall_thickness)
         }
     }
@@ -42,16 +46,37 @@ impl ArenaConfig {
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum ObstacleSpec {
     /// A disc.
-    Circle { center: [f32; 2], radius: f32 },
+    Circle {
+        center: [f32; 2],
+        radius: f32,
+        #[serde(default = "white", skip_serializing_if = "is_white")]
+        reflectance: f32,
+    },
     /// A rectangle rotated by `angle` (rad).
     Box {
         center: [f32; 2],
         half_extents: [f32; 2],
         #[serde(default)]
         angle: f32,
+        #[serde(default = "white", skip_serializing_if = "is_white")]
+        reflectance: f32,
     },
     /// A thin wall from `a` to `b`.
-    Segment { a: [f32; 2], b: [f32; 2] },
+    Segment {
+        a: [f32; 2],
+        b: [f32; 2],
+        #[serde(default = "white", skip_serializing_if = "is_white")]
+        reflectance: f32,
+    },
+}
+
+/// The infrared reflectance of white paper, the surface of K-Team's response curve.
+fn white() -> f32 {
+    1.0
+}
+
+fn is_white(reflectance: &f32) -> bool {
+    *reflectance == 1.0
 }
 
 impl ObstacleSpec {
@@ -59,13 +84,20 @@ impl ObstacleSpec {
     pub fn shape(&self) -> SceneShape {
         let v = |p: [f32; 2]| rapier2d::math::Vector::new(p[0], p[1]);
         match *self {
-            ObstacleSpec::Circle { center, radius } => SceneShape::circle(v(center), radius),
+            ObstacleSpec::Circle {
+                center,
+                radius,
+                reflectance,
+            } => SceneShape::circle(v(center), radius).with_reflectance(reflectance),
             ObstacleSpec::Box {
                 center,
                 half_extents,
                 angle,
-            } => SceneShape::rect(v(center), v(half_extents), angle),
-            ObstacleSpec::Segment { a, b } => SceneShape::segment(v(a), v(b)),
+                reflectance,
+            } => SceneShape::rect(v(center), v(half_extents), angle).with_reflectance(reflectance),
+            ObstacleSpec::Segment { a, b, reflectance } => {
+                SceneShape::segment(v(a), v(b)).with_reflectance(reflectance)
+            }
         }
     }
 }
@@ -141,11 +173,12 @@ impl ObstacleConfig {
         for (i, spec) in o.fixed.iter().enumerate() {
             let key = format!("obstacles.fixed[{i}]");
             let sizes: Vec<f32> = match spec {
-                ObstacleSpec::Circle { center, radius } => vec![center[0], center[1], *radius],
+                ObstacleSpec::Circle { center, radius, .. } => vec![center[0], center[1], *radius],
                 ObstacleSpec::Box {
                     center,
                     half_extents,
                     angle,
+                    ..
                 } => {
                     vec![
                         center[0],
@@ -155,7 +188,7 @@ impl ObstacleConfig {
                         angle + 1.0,
                     ]
                 }
-                ObstacleSpec::Segment { a, b } => {
+                ObstacleSpec::Segment { a, b, .. } => {
                     let length = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
                     vec![a[0], a[1], b[0], b[1], length]
                 }
@@ -170,6 +203,17 @@ impl ObstacleConfig {
             };
             if !size_ok {
                 return bad(&key, format!("sizes must be > 0: {spec:?}"));
+            }
+            let reflectance = match spec {
+                ObstacleSpec::Circle { reflectance, .. }
+                | ObstacleSpec::Box { reflectance, .. }
+                | ObstacleSpec::Segment { reflectance, .. } => *reflectance,
+            };
+            if !reflectance.is_finite() || reflectance < 0.0 {
+                return bad(
+                    &key,
+                    format!("reflectance must be a finite number >= 0, got {reflectance}"),
+                );
             }
         }
         if o.count > 64 {
@@ -241,7 +285,23 @@ crate::config_table! {
         collision_penalty: f32 = 0.1,
         /// end the episode at the first contact
         terminate_on_collision: bool = false,
+        /// where the goal's distance and bearing come from: "ground_truth" (an external tracker) or "odometry" (the robot's dead reckoning from its encoders and gyroscope, what it can compute on board)
+        localization: Localization = "ground_truth",
+        /// control steps between an action and the wheels receiving it (0 = none)
+        action_delay: u32 = 0,
+        /// control steps between the world and the observation showing it (0 = none)
+        observation_delay: u32 = 0,
     }
+}
+
+/// Where a robot's idea of its own pose comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Localization {
+    /// The true pose (an external tracker, as in the KH4VREP paper's V-REP scenes).
+    GroundTruth,
+    /// Dead reckoning from the wheel encoders and the gyroscope, with calibration errors.
+    Odometry,
 }
 
 crate::config_table! {
@@ -253,7 +313,21 @@ crate::config_table! {
         substeps: u32 = 4,
         /// rapier solver iterations for contact steps
         solver_iterations: u32 = 4,
-        /// robot-wall friction: 0 lets a robot slide along a wall
-        friction: f32 = 0.0,
+        /// "traction": the body is driven by its tyres' grip (bounded force) and resisted by friction in contacts; "kinematic": its velocity is imposed (v0)
+        drive: DriveModel = "traction",
+        /// shell-wall and shell-obstacle friction coefficient [S: ARGoS's Khepera IV model, 0.7]; 0 lets a robot slide along walls; may be a range
+        friction: Param = 0.7,
+        /// shell-shell friction coefficient between robots [S: ARGoS, 0.7]; may be a range
+        robot_friction: Param = 0.7,
     }
+}
+
+/// How the drive moves a robot's body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DriveModel {
+    /// Wheels grip the floor with bounded force; contacts push back with friction.
+    Traction,
+    /// The body's velocity is set from the wheels every substep (the v0 model).
+    Kinematic,
 }

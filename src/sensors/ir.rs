@@ -94,8 +94,21 @@ impl IrModel {
     /// A raw reading (integer count 0..1023) with noise drawn from `rng`. The noise draw happens
     /// whatever the distance, so the random stream does not depend on the scene.
     pub fn read<R: Rng>(&self, distance: Option<f32>, rng: &mut R) -> u16 {
+        self.read_surface(distance, 1.0, rng)
+    }
+
+    /// Like [`IrModel::read`] for a surface of infrared `reflectance` relative to white paper:
+    /// the reading rises above the floor value in proportion to it [E] (a dark obstacle reads
+    /// lower than a white one at the same distance; Webots likewise scales by a reflectance).
+    pub fn read_surface<R: Rng>(&self, distance: Option<f32>, reflectance: f32, rng: &mut R) -> u16 {
         let noise: f32 = rng.sample(StandardNormal);
-        let raw = self.mean_raw(distance) + self.noise_sigma * noise;
+        let white = self.mean_raw(distance);
+        let mean = if reflectance == 1.0 {
+            white
+        } else {
+            self.floor_value + reflectance * (white - self.floor_value)
+        };
+        let raw = mean + self.noise_sigma * noise;
         // Round half up; the value is clamped non-negative first (avoids a libm call).
         (raw.clamp(0.0, IR_MAX_RAW) + 0.5) as u16
     }
@@ -210,7 +223,7 @@ impl Sensor for IrRing {
             let dir = rotate(self.dirs[k], c, s);
             let origin = pos + radius * dir;
             let near = self.near_shapes.iter().map(|&n| &ctx.scene.shapes[n]);
-            let hit = ctx.scene.cast_among(
+            let hit = ctx.scene.cast_hit(
                 origin,
                 dir,
                 self.model.range,
@@ -218,8 +231,10 @@ impl Sensor for IrRing {
                 &self.near_others,
                 radius,
             );
-            reading.raw[k] = self.model.read(hit, rng);
-            reading.hit[k] = hit.unwrap_or(self.model.range);
+            let reflectance = hit.map_or(1.0, |h| h.reflectance(ctx.scene, ctx.robot_reflectance));
+            let distance = hit.map(|h| h.distance);
+            reading.raw[k] = self.model.read_surface(distance, reflectance, rng);
+            reading.hit[k] = distance.unwrap_or(self.model.range);
         }
     }
 

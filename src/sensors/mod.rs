@@ -15,6 +15,7 @@
 //! from that world's random stream only, robot after robot and, for each robot, sensor after
 //! sensor in registry order (so a world's results do not depend on the thread count).
 
+pub mod gyro;
 pub mod ir;
 pub mod ultrasonic;
 
@@ -29,6 +30,7 @@ use crate::error::{Error, Result};
 use crate::obs::{Block, ObsWriter};
 use crate::world::scene::Scene;
 
+pub use gyro::Gyro;
 pub use ir::{IrRing, IR_BEARINGS, IR_COUNT};
 pub use ultrasonic::{Ultrasonic, US_BEARINGS, US_COUNT, US_DISABLED, US_NOTHING, US_TOO_CLOSE};
 
@@ -44,6 +46,14 @@ pub struct SenseContext<'a> {
     pub radius: f32,
     /// Centres of the other robots of the world (m), in robot order.
     pub others: &'a [Vector],
+    /// Infrared reflectance of the robots' shells (relative to white paper).
+    pub robot_reflectance: f32,
+    /// The robot's yaw rate over the last step (rad/s).
+    pub yaw_rate: f32,
+    /// The control step (s): the time since the sensors were last read.
+    pub dt: f32,
+    /// A new episode: every sensor takes a new reading, whatever its refresh period.
+    pub fresh: bool,
 }
 
 impl SenseContext<'_> {
@@ -178,8 +188,8 @@ pub struct Carried<S> {
 const SUITE_KEYS: &[KeyDoc] = &[
     KeyDoc {
         name: "carry",
-        default: "[\"ir\", \"us\"]",
-        comment: "sensors each robot has (ir, us); others cost nothing",
+        default: "[\"ir\", \"us\", \"gyro\"]",
+        comment: "sensors each robot has (ir, us, gyro); others cost nothing",
     },
     KeyDoc {
         name: "observe",
@@ -405,6 +415,7 @@ macro_rules! sensor_registry {
 sensor_registry! {
     ir: IrRing,
     us: Ultrasonic,
+    gyro: Gyro,
 }
 
 fn strings(list: &[String]) -> Value {
@@ -428,9 +439,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn defaults_carry_and_observe_the_ring_and_the_sonars() {
+    fn defaults_carry_the_gyro_and_observe_the_ring_and_the_sonars() {
         let cfg = SensorsConfig::from_table(&SensorsConfig::defaults_table(), "t").expect("cfg");
-        assert_eq!(cfg.carry, vec!["ir", "us"]);
+        // v1 carries the gyroscope (for odometry); observations keep the ring and sonars.
+        assert_eq!(cfg.carry, vec!["ir", "us", "gyro"]);
         cfg.validate("t").expect("valid");
         let suite = Suite::new(&cfg);
         let names: Vec<String> = suite.blocks().into_iter().map(|b| b.name).collect();

@@ -45,6 +45,10 @@ crate::config_table! {
         us_noise_sigma: Param = 0.01,
         /// left, front-left, front, front-right, right; off reads 2000
         us_enabled: [bool; 5] = [true, true, true, true, true],
+        /// s between two readings of the five sensors: 20 ms each, 100 ms for all five (K-Team manual §4.2); a reading holds until the next (0 = every step)
+        us_period: f32 = 0.1,
+        /// rad, largest angle between the beam and a surface's normal that still echoes [S: Webots' sonar model, 22.5°]; pi/2 = any
+        us_acceptance: f32 = 0.39269908169872414,
     }
 }
 
@@ -100,6 +104,8 @@ pub struct UsReading {
     pub code: [i32; US_COUNT],
     /// True distance (m) each ray travelled before a hit, for drawing.
     pub hit: [f32; US_COUNT],
+    /// Time (s) since these readings were taken.
+    pub age: f32,
 }
 
 /// The five ultrasonic sensors as a [`Sensor`].
@@ -107,6 +113,10 @@ pub struct UsReading {
 pub struct Ultrasonic {
     /// Ranges, noise, enabled sensors.
     pub model: UsModel,
+    /// Time (s) between two readings.
+    pub period: f32,
+    /// Cosine of the largest incidence angle that echoes (0: any).
+    pub acceptance_cos: f32,
     #[serde(skip, default = "us_dirs")]
     dirs: [Vector; US_COUNT],
 }
@@ -128,6 +138,12 @@ impl Sensor for Ultrasonic {
                 noise_sigma: cfg.us_noise_sigma.bounds().0,
                 enabled: cfg.us_enabled,
             },
+            period: cfg.us_period,
+            acceptance_cos: if cfg.us_acceptance >= std::f32::consts::FRAC_PI_2 {
+                0.0
+            } else {
+                cfg.us_acceptance.cos()
+            },
             dirs: us_dirs(),
         }
     }
@@ -147,6 +163,20 @@ impl Sensor for Ultrasonic {
         }
         cfg.us_noise_sigma
             .check(origin, "sensors.us_noise_sigma", false)?;
+        if !cfg.us_period.is_finite() || !(0.0..=10.0).contains(&cfg.us_period) {
+            return Err(Error::config(
+                origin,
+                "sensors.us_period",
+                format!("must be in [0, 10] s, got {}", cfg.us_period),
+            ));
+        }
+        if !(cfg.us_acceptance > 0.0 && cfg.us_acceptance <= std::f32::consts::FRAC_PI_2) {
+            return Err(Error::config(
+                origin,
+                "sensors.us_acceptance",
+                format!("must be in (0, pi/2] rad, got {}", cfg.us_acceptance),
+            ));
+        }
         if cfg.us_min_range >= cfg.us_max_range {
             return Err(Error::config(
                 origin,
@@ -165,16 +195,33 @@ impl Sensor for Ultrasonic {
     }
 
     fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut UsReading) {
+        // The five readings hold until the sweep comes round again.
+        reading.age += ctx.dt;
+        if !ctx.fresh && reading.age < self.period - 1e-6 {
+            return;
+        }
+        reading.age = 0.0;
         let cast_range = self.model.max_range + 0.01;
         let (s, c) = ctx.sin_cos;
         for k in 0..US_COUNT {
             let dir = rotate(self.dirs[k], c, s);
             let origin = ctx.position + ctx.radius * dir;
-            let hit = ctx
-                .scene
-                .cast(origin, dir, cast_range, ctx.others, ctx.radius);
-            reading.code[k] = self.model.read(k, hit, rng);
-            reading.hit[k] = hit.unwrap_or(cast_range);
+            let hit = ctx.scene.cast_hit(
+                origin,
+                dir,
+                cast_range,
+                ctx.scene.shapes.iter(),
+                ctx.others,
+                ctx.radius,
+            );
+            // A surface hit at a grazing angle reflects the ping away: no echo from it.
+            let hit = hit.filter(|h| {
+                self.acceptance_cos <= 0.0
+                    || h.incidence_cos(ctx.scene, ctx.radius) >= self.acceptance_cos
+            });
+            let distance = hit.map(|h| h.distance);
+            reading.code[k] = self.model.read(k, distance, rng);
+            reading.hit[k] = distance.unwrap_or(cast_range);
         }
     }
 

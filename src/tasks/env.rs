@@ -8,6 +8,7 @@
 //! agent. Frame: the world frame (arena centred at the origin). Threading: an env is stepped by
 //! one thread at a time and draws only from its world's random stream.
 
+use std::collections::VecDeque;
 use std::sync::Arc;
 
 use rand::SeedableRng;
@@ -62,6 +63,8 @@ struct EnvStateRef<'a> {
     last_episode: &'a EpisodeStats,
     done: bool,
     trails: &'a [Vec<Vector>],
+    pending_actions: &'a VecDeque<Vec<[f32; 2]>>,
+    pending_obs: &'a VecDeque<Vec<f32>>,
 }
 
 /// What [`Env::load_state`] reads (the owned twin of [`EnvStateRef`]).
@@ -75,6 +78,8 @@ struct EnvState {
     last_episode: EpisodeStats,
     done: bool,
     trails: Vec<Vec<Vector>>,
+    pending_actions: VecDeque<Vec<[f32; 2]>>,
+    pending_obs: VecDeque<Vec<f32>>,
 }
 
 /// One environment: a world, its task and the episode's bookkeeping.
@@ -102,6 +107,11 @@ pub struct Env {
     /// free when `trail_length` is 0).
     trails: Vec<Vec<Vector>>,
     trail_length: usize,
+    /// Wheel commands sent but not yet received, oldest first (`task.action_delay` of them).
+    pending_actions: VecDeque<Vec<[f32; 2]>>,
+    /// Observations made but not yet delivered, oldest first (`task.observation_delay` of
+    /// them).
+    pending_obs: VecDeque<Vec<f32>>,
 }
 
 impl Env {
@@ -133,6 +143,8 @@ impl Env {
             done: true,
             trails: Vec::new(),
             trail_length: 0,
+            pending_actions: VecDeque::new(),
+            pending_obs: VecDeque::new(),
         })
     }
 
@@ -174,9 +186,19 @@ impl Env {
         for (i, (position, heading)) in layout.poses.iter().enumerate() {
             self.world.place_robot(i, *position, *heading);
         }
+        self.world.start_odometry(&self.cfg);
         self.task.reset(&self.world, &layout);
-        self.world.sense();
+        self.world.sense(true);
         self.observe(obs);
+        // Delays start full: the wheels keep still and the first observations repeat the
+        // reset's until the real ones arrive.
+        let n_agents = self.agent_robots.len();
+        self.pending_actions.clear();
+        self.pending_actions
+            .extend((0..self.cfg.task.action_delay).map(|_| vec![[0.0; 2]; n_agents]));
+        self.pending_obs.clear();
+        self.pending_obs
+            .extend((0..self.cfg.task.observation_delay).map(|_| obs.to_vec()));
         self.trails.clear();
         self.record_trail();
     }
@@ -209,16 +231,29 @@ impl Env {
     /// Applies `action` (normalised, two numbers per agent, already checked finite), advances
     /// one control step and writes the next observation.
     pub fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
-        for (robot, pair) in self.agent_robots.iter().zip(action.chunks_exact(2)) {
-            let command = self
-                .world
-                .drive
-                .wheel_command([pair[0], pair[1]], self.action_type);
-            self.world.robots[*robot].wheel_command = command;
+        if self.cfg.task.action_delay == 0 {
+            for (robot, pair) in self.agent_robots.iter().zip(action.chunks_exact(2)) {
+                let command = self
+                    .world
+                    .drive
+                    .wheel_command([pair[0], pair[1]], self.action_type);
+                self.world.robots[*robot].wheel_command = command;
+            }
+        } else {
+            // The command sent now arrives `action_delay` steps later; the oldest arrives now.
+            let sent = action.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+            self.pending_actions.push_back(sent);
+            if let Some(arrived) = self.pending_actions.pop_front() {
+                for (robot, pair) in self.agent_robots.iter().zip(arrived) {
+                    let command = self.world.drive.wheel_command(pair, self.action_type);
+                    self.world.robots[*robot].wheel_command = command;
+                }
+            }
         }
         self.task.before_step(&mut self.world);
         self.world.advance();
-        self.world.sense();
+        self.world.sense(false);
+        self.world.update_odometry(&self.cfg);
         let success = self.task.judge(
             &self.world,
             &self.cfg,
@@ -244,6 +279,11 @@ impl Env {
             self.last_episode = *stats;
         }
         self.observe(obs);
+        // Deliver the observation made `observation_delay` steps ago and keep this one.
+        if let Some(mut oldest) = self.pending_obs.pop_front() {
+            oldest.swap_with_slice(obs);
+            self.pending_obs.push_back(oldest);
+        }
         self.record_trail();
         StepOutcome {
             reward,
@@ -288,6 +328,8 @@ impl Env {
             last_episode: &self.last_episode,
             done: self.done,
             trails: &self.trails,
+            pending_actions: &self.pending_actions,
+            pending_obs: &self.pending_obs,
         };
         let bytes = postcard::to_extend(&state, std::mem::take(out))
             .map_err(|e| Error::State(format!("cannot encode the env state: {e}")))?;
@@ -306,9 +348,13 @@ impl Env {
             || state.agent_rewards.len() != n_agents
             || state.agent_terminated.len() != n_agents
             || !state.task.fits(&self.task)
+            || state.pending_actions.len() != self.cfg.task.action_delay as usize
+            || state.pending_actions.iter().any(|a| a.len() != n_agents)
+            || state.pending_obs.len() != self.cfg.task.observation_delay as usize
+            || state.pending_obs.iter().any(|o| o.len() != self.obs_dim)
         {
             return Err(Error::SavedState(
-                "the state does not fit this env (other task or number of robots)".into(),
+                "the state does not fit this env (other task, number of robots or delays)".into(),
             ));
         }
         self.world = state.world;
@@ -319,6 +365,8 @@ impl Env {
         self.last_episode = state.last_episode;
         self.done = state.done;
         self.trails = state.trails;
+        self.pending_actions = state.pending_actions;
+        self.pending_obs = state.pending_obs;
         if self.trail_length == 0 {
             self.trails.clear();
         }

@@ -426,7 +426,7 @@ impl Task for Formation {
             let leader = nav::to_robot_frame(world, i, world.robots[0].position);
             out.put(leader.x.clamp(-reach, reach));
             out.put(leader.y.clamp(-reach, reach));
-            let relative = world.robots[0].heading - world.robots[i].heading;
+            let relative = world.robots[0].heading - world.believed_pose(i).1;
             out.put(relative.sin());
             out.put(relative.cos());
             out.put(leader_velocity[0]);

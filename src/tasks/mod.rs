@@ -268,8 +268,9 @@ impl TaskKind {
         self.info().schema.load(source)
     }
 
-    /// The task's default scenario file: every key with its default and comment.
-    pub fn default_config(self) -> Result<String> {
+    /// The task's default scenario file for behaviour `version` (None: the latest): every key
+    /// with its default and comment.
+    pub fn default_config(self, version: Option<u32>) -> Result<String> {
         let info = self.info();
         let title = info.env_id.unwrap_or(info.schema.name);
         let header = format!(
@@ -278,7 +279,7 @@ impl TaskKind {
              radians, m/s. [E] marks an estimate (spec §11).",
             info.summary
         );
-        info.schema.render_defaults(&header)
+        info.schema.render_defaults(&header, version)
     }
 
     /// The joint observation layout: the agents' blocks in order; with several agents each

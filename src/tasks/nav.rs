@@ -157,11 +157,15 @@ pub fn judge_robot(
     Judgement { reward, success }
 }
 
-/// `point` in robot `i`'s frame (x forward, y left), metres.
+/// `point` in robot `i`'s frame (x forward, y left), metres, as the robot sees it: from the
+/// pose it believes it has ([`World::believed_pose`]: its odometry with `localization =
+/// "odometry"`, else its true pose). `point` itself is in the world frame (a goal, or another
+/// robot's true position as an external tracker reports it).
+#[inline]
 pub fn to_robot_frame(world: &World, i: usize, point: Vector) -> Vector {
-    let robot = &world.robots[i];
-    let d = point - robot.position;
-    let (s, c) = robot.heading.sin_cos();
+    let (position, heading) = world.believed_pose(i);
+    let d = point - position;
+    let (s, c) = heading.sin_cos();
     Vector::new(c * d.x + s * d.y, -s * d.x + c * d.y)
 }
 

@@ -9,6 +9,7 @@
 //! Units: metres, seconds, radians; world frame with the arena centred at the origin.
 
 pub mod layout;
+mod motion;
 pub mod physics;
 pub mod scene;
 
@@ -16,16 +17,13 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
+use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
-use crate::scenario::Scenario;
+use crate::scenario::{DriveModel, Localization, Scenario};
 use crate::sensors::{Readings, SenseContext, Suite};
-use physics::{BodyState, Physics};
+use physics::{BodyState, Physics, PhysicsParams, TractionBody};
+pub use motion::integrate_arc;
 pub use scene::{Scene, SceneShape};
-
-/// Extra clearance (m) kept before deciding a robot cannot touch anything this substep.
-const CONTACT_MARGIN: f32 = 0.002;
-/// A robot whose clearance falls below this (m) after a substep is in contact.
-const CONTACT_TOLERANCE: f32 = 0.001;
 
 /// State of one robot.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
@@ -38,8 +36,17 @@ pub struct Robot {
     pub wheel_speeds: [f32; 2],
     /// Commanded wheel speeds (left, right), m/s.
     pub wheel_command: [f32; 2],
-    /// Distance rolled by each wheel since reset (m), for the encoders.
+    /// Setpoints of the wheels' speed profile (left, right), m/s (traction model).
+    pub wheel_setpoint: [f32; 2],
+    /// Distance rolled by each wheel since reset (m), for the encoders: what the wheels turned,
+    /// slip included.
     pub wheel_travel: [f64; 2],
+    /// Velocity of the centre (m/s, world frame; traction model).
+    pub velocity: Vector,
+    /// Yaw rate of the body (rad/s; traction model).
+    pub spin: f32,
+    /// The robot's own estimate of its pose, by dead reckoning (`localization = "odometry"`).
+    pub odometry: Odometry,
     /// Yaw rate over the last step (rad/s), as the gyro reads it.
     pub yaw_rate: f32,
     /// Distance the centre moved during the last step (m).
@@ -68,9 +75,18 @@ pub struct World {
     physics: Physics,
     dt: f32,
     substeps: u32,
+    drive_model: DriveModel,
+    /// Tyre–floor friction coefficient of this episode (traction model).
+    tyre_friction: f32,
+    /// Infrared reflectance of the robots' shells.
+    robot_reflectance: f32,
+    /// Whether robots keep an odometry estimate (`localization = "odometry"`).
+    odometry: bool,
     // Scratch buffers and constants: not state.
     #[serde(skip)]
     bodies: Vec<BodyState>,
+    #[serde(skip)]
+    traction: Vec<TractionBody>,
     #[serde(skip)]
     others: Vec<Vector>,
 }
@@ -81,12 +97,16 @@ impl World {
         let drive = Drive::from_config(&cfg.robot);
         let physics = Physics::new(
             &scene,
-            n_robots,
-            drive.radius,
-            cfg.robot.mass.bounds().0,
-            cfg.physics.friction,
-            cfg.physics.dt / cfg.physics.substeps as f32,
-            cfg.physics.solver_iterations as usize,
+            PhysicsParams {
+                n_robots,
+                radius: drive.radius,
+                mass: cfg.robot.mass.bounds().0,
+                friction: cfg.physics.friction.bounds().0,
+                robot_friction: cfg.physics.robot_friction.bounds().0,
+                substep_dt: cfg.physics.dt / cfg.physics.substeps as f32,
+                solver_iterations: cfg.physics.solver_iterations as usize,
+                traction: cfg.physics.drive == DriveModel::Traction,
+            },
         );
         Self {
             drive,
@@ -97,7 +117,12 @@ impl World {
             physics,
             dt: cfg.physics.dt,
             substeps: cfg.physics.substeps,
+            drive_model: cfg.physics.drive,
+            tyre_friction: cfg.robot.tyre_friction.bounds().0,
+            robot_reflectance: cfg.robot.shell_reflectance,
+            odometry: cfg.task.localization == Localization::Odometry,
             bodies: Vec::with_capacity(n_robots),
+            traction: Vec::with_capacity(n_robots),
             others: Vec::with_capacity(n_robots),
         }
     }
@@ -116,6 +141,13 @@ impl World {
             let mass = r.mass.sample(rng);
             self.physics.set_mass(mass);
         }
+        if self.drive_model == DriveModel::Traction {
+            // Drawn only by the traction model, so that v0 scenarios keep their random streams.
+            self.tyre_friction = r.tyre_friction.sample(rng);
+            let wall = cfg.physics.friction.sample(rng);
+            let robot = cfg.physics.robot_friction.sample(rng);
+            self.physics.set_friction(wall, robot);
+        }
     }
 
     /// Replaces the static geometry (rebuilds the fixed colliders).
@@ -131,6 +163,43 @@ impl World {
             heading: wrap_angle(heading),
             ..Robot::default()
         };
+    }
+
+    /// Starts every robot's dead reckoning from its true pose, with this episode's calibration
+    /// errors (drawn from the world's stream only when the scenario uses odometry).
+    pub fn start_odometry(&mut self, cfg: &Scenario) {
+        if !self.odometry {
+            return;
+        }
+        let axle = self.drive.axle_length;
+        for r in &mut self.robots {
+            r.odometry = Odometry::start(r.position, r.heading, axle, &cfg.odometry, &mut self.rng);
+        }
+    }
+
+    /// Advances every robot's dead reckoning by the last step: its encoders' travel and, when
+    /// it carries one, its gyroscope's reading.
+    pub fn update_odometry(&mut self, cfg: &Scenario) {
+        if !self.odometry {
+            return;
+        }
+        for r in &mut self.robots {
+            let gyro = self.sensors.gyro.as_ref().map(|_| r.readings.gyro.rate);
+            r.odometry
+                .update(r.wheel_travel, gyro, self.dt, &cfg.odometry, &mut self.rng);
+        }
+    }
+
+    /// Where robot `i` believes it is (centre, heading): its dead reckoning with
+    /// `localization = "odometry"`, else its true pose (an external tracker).
+    #[inline]
+    pub fn believed_pose(&self, i: usize) -> (Vector, f32) {
+        let r = &self.robots[i];
+        if self.odometry {
+            (r.odometry.position, r.odometry.heading)
+        } else {
+            (r.position, r.heading)
+        }
     }
 
     /// Control step length (s).
@@ -150,112 +219,9 @@ impl World {
         gap
     }
 
-    /// Whether some robot could touch the scene or another robot within `duration` seconds.
-    /// A robot's centre moves no faster than its fastest wheel, and a ramping wheel never
-    /// exceeds the larger of its current and commanded speeds.
-    fn contact_possible(&self, duration: f32) -> bool {
-        let speed = |r: &Robot| {
-            r.wheel_speeds
-                .iter()
-                .chain(&r.wheel_command)
-                .fold(0.0f32, |m, w| m.max(w.abs()))
-        };
-        let radius = self.drive.radius;
-        for (i, r) in self.robots.iter().enumerate() {
-            let reach = speed(r) * duration + CONTACT_MARGIN;
-            if self.scene.clearance(r.position) - radius <= reach {
-                return true;
-            }
-            for other in &self.robots[i + 1..] {
-                let gap = (other.position - r.position).length() - 2.0 * radius;
-                if gap <= reach + speed(other) * duration {
-                    return true;
-                }
-            }
-        }
-        false
-    }
-
-    /// Advances every robot by one control step toward its `wheel_command`.
-    pub fn advance(&mut self) {
-        let h = self.dt / self.substeps as f32;
-        for r in &mut self.robots {
-            r.step_travel = 0.0;
-            r.in_contact = false;
-            r.step_start_heading = r.heading;
-        }
-        let far = !self.contact_possible(self.dt);
-        let steady = !self.drive.wheel_accel_limit.is_finite()
-            || self
-                .robots
-                .iter()
-                .all(|r| r.wheel_speeds == r.wheel_command);
-        if far && steady {
-            // Nothing can be touched and the wheels keep their speed: the substeps compose into
-            // one exact arc over the whole step.
-            for r in &mut self.robots {
-                r.wheel_speeds = r.wheel_command;
-                r.wheel_travel[0] += (r.wheel_speeds[0] * self.dt) as f64;
-                r.wheel_travel[1] += (r.wheel_speeds[1] * self.dt) as f64;
-                let (v, w) = self.drive.twist(r.wheel_speeds);
-                integrate_arc(&mut r.position, &mut r.heading, v, w, self.dt);
-                r.step_travel = v.abs() * self.dt;
-            }
-            self.finish_step();
-            return;
-        }
-        for _ in 0..self.substeps {
-            for r in &mut self.robots {
-                r.wheel_speeds = self.drive.ramp(r.wheel_speeds, r.wheel_command, h);
-                r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
-                r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
-            }
-            if !far && self.contact_possible(h) {
-                self.physics_substep();
-            } else {
-                for r in &mut self.robots {
-                    let (v, w) = self.drive.twist(r.wheel_speeds);
-                    integrate_arc(&mut r.position, &mut r.heading, v, w, h);
-                    r.step_travel += v.abs() * h;
-                }
-            }
-        }
-        self.finish_step();
-    }
-
-    fn finish_step(&mut self) {
-        for r in &mut self.robots {
-            r.heading = wrap_angle(r.heading);
-            r.yaw_rate = wrap_angle(r.heading - r.step_start_heading) / self.dt;
-        }
-    }
-
-    fn physics_substep(&mut self) {
-        self.bodies.clear();
-        for r in &self.robots {
-            self.bodies.push(BodyState {
-                position: r.position,
-                heading: r.heading,
-                twist: self.drive.twist(r.wheel_speeds),
-            });
-        }
-        self.physics.step(&mut self.bodies);
-        for i in 0..self.robots.len() {
-            let state = self.bodies[i];
-            let r = &mut self.robots[i];
-            r.step_travel += (state.position - r.position).length();
-            r.position = state.position;
-            r.heading = wrap_angle(state.heading);
-        }
-        for i in 0..self.robots.len() {
-            if self.clearance(i) < CONTACT_TOLERANCE {
-                self.robots[i].in_contact = true;
-            }
-        }
-    }
-
     /// Reads every robot's sensors (with noise from the world's stream), robot after robot.
-    pub fn sense(&mut self) {
+    /// `fresh` (at reset) makes every sensor take a new reading, whatever its refresh period.
+    pub fn sense(&mut self, fresh: bool) {
         for i in 0..self.robots.len() {
             self.others.clear();
             for (j, other) in self.robots.iter().enumerate() {
@@ -270,26 +236,12 @@ impl World {
                 sin_cos: robot.heading.sin_cos(),
                 radius: self.drive.radius,
                 others: &self.others,
+                robot_reflectance: self.robot_reflectance,
+                yaw_rate: robot.yaw_rate,
+                dt: self.dt,
+                fresh,
             };
             self.sensors.read(&ctx, &mut self.rng, &mut robot.readings);
         }
-    }
-}
-
-/// Exact differential-drive motion over `h` seconds at constant forward speed `v` and yaw rate
-/// `w` (a circular arc; a straight line when `w` is ~0).
-#[inline]
-pub fn integrate_arc(position: &mut Vector, heading: &mut f32, v: f32, w: f32, h: f32) {
-    let theta = *heading;
-    if (w * h).abs() < 1e-6 {
-        let (s, c) = theta.sin_cos();
-        *position += Vector::new(v * h * c, v * h * s);
-    } else {
-        let next = theta + w * h;
-        let r = v / w;
-        let (s0, c0) = theta.sin_cos();
-        let (s1, c1) = next.sin_cos();
-        *position += Vector::new(r * (s1 - s0), -r * (c1 - c0));
-        *heading = next;
     }
 }

@@ -1,16 +1,23 @@
 //! The rapier2d side of a world: fixed colliders for the scene, one dynamic disc per robot.
 //!
-//! Robots are dynamic bodies whose planar velocity is set from the wheel commands before each
-//! rapier step; rapier's solver then resolves robot–wall, robot–obstacle and robot–robot
-//! contacts (a robot pushed into a wall stops or slides). The world is built once and bodies
-//! are teleported (set_position) rather than rebuilt. Gravity is zero (the plane is the floor);
-//! sleeping and CCD are off, so a step depends only on the state we set.
+//! Two drive models. `kinematic` (v0): each robot's planar velocity is set from its wheels
+//! before each rapier step, and the solver resolves the contacts (a robot pushed into a wall
+//! stops or slides). `traction` (v1): each wheel grips the floor with a bounded impulse — the one
+//! that would cancel the wheel's slip, clamped to the tyre's friction circle μ_t·N·h with N half
+//! the robot's weight — so the drive force is finite; rapier then resolves the contacts with
+//! Coulomb friction (shell–wall and shell–shell coefficients set per pair by a contact hook).
+//! Pushing into a wall slows the robot by friction and turns it, a blocked robot's wheels slip,
+//! a robot at rest resists being shoved with its tyres' grip. The world is built once and bodies
+//! are teleported (set_position) rather than rebuilt. Gravity is zero (the plane is the floor;
+//! the weight only sets the tyres' grip); sleeping and CCD are off, so a step depends only on
+//! the state we set.
 //!
 //! Units: metres, seconds, radians, m/s, rad/s; world frame, arena centred at the origin.
 
 use rapier2d::math::{Pose, Vector};
 use rapier2d::prelude::{
-    ColliderBuilder, ColliderHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
+    ActiveHooks, ColliderBuilder, ColliderHandle, ContactModificationContext, PhysicsHooks,
+    PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
 
 use super::scene::{Geometry, Scene};
@@ -26,14 +33,68 @@ pub struct Physics {
     params: PhysicsParams,
 }
 
+/// Standard gravity (m/s²): the robots' weight presses the tyres on the floor.
+pub const GRAVITY: f32 = 9.81;
+
+/// What a world's rapier side is built with.
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
-struct PhysicsParams {
-    n_robots: usize,
-    radius: f32,
-    mass: f32,
-    friction: f32,
-    substep_dt: f32,
-    solver_iterations: usize,
+pub struct PhysicsParams {
+    /// Robots in the world.
+    pub n_robots: usize,
+    /// Body radius (m).
+    pub radius: f32,
+    /// Robot mass (kg).
+    pub mass: f32,
+    /// Shell–wall and shell–obstacle friction coefficient.
+    pub friction: f32,
+    /// Shell–shell friction coefficient (traction model).
+    pub robot_friction: f32,
+    /// Substep length (s).
+    pub substep_dt: f32,
+    /// Solver iterations per substep.
+    pub solver_iterations: usize,
+    /// The traction model (else the kinematic one).
+    pub traction: bool,
+}
+
+/// Sets each contact's friction by what touches: another robot, or a wall or obstacle.
+struct PairFriction {
+    wall: f32,
+    robot: f32,
+}
+
+impl PhysicsHooks for PairFriction {
+    fn modify_solver_contacts(&self, context: &mut ContactModificationContext) {
+        // Robots are the only bodies: a pair of two bodies is two robots.
+        let robots = context.rigid_body1.is_some() && context.rigid_body2.is_some();
+        if let Some(manifold) = context.rigid_mut() {
+            *manifold.friction = if robots { self.robot } else { self.wall };
+        }
+    }
+}
+
+/// A robot as the traction substep sees it: its planar state and its wheels' speeds.
+#[derive(Debug, Clone, Copy)]
+pub struct TractionBody {
+    /// Centre (m).
+    pub position: Vector,
+    /// Heading (rad).
+    pub heading: f32,
+    /// Velocity of the centre (m/s, world frame).
+    pub velocity: Vector,
+    /// Yaw rate (rad/s).
+    pub spin: f32,
+    /// Wheel speeds (left, right; m/s at the tyre).
+    pub wheels: [f32; 2],
+}
+
+/// The tyres' grip.
+#[derive(Debug, Clone, Copy)]
+pub struct Grip {
+    /// Wheel separation (m).
+    pub axle: f32,
+    /// Tyre–floor friction coefficient.
+    pub tyre_friction: f32,
 }
 
 /// A robot's planar state as the physics step sees it.
@@ -48,27 +109,9 @@ pub struct BodyState {
 }
 
 impl Physics {
-    /// Builds the rapier world for `scene` with `n_robots` discs of `radius` and `mass`.
-    pub fn new(
-        scene: &Scene,
-        n_robots: usize,
-        radius: f32,
-        mass: f32,
-        friction: f32,
-        substep_dt: f32,
-        solver_iterations: usize,
-    ) -> Self {
-        Self::build(
-            scene,
-            PhysicsParams {
-                n_robots,
-                radius,
-                mass,
-                friction,
-                substep_dt,
-                solver_iterations,
-            },
-        )
+    /// Builds the rapier world for `scene` with `params.n_robots` discs.
+    pub fn new(scene: &Scene, params: PhysicsParams) -> Self {
+        Self::build(scene, params)
     }
 
     fn build(scene: &Scene, params: PhysicsParams) -> Self {
@@ -84,10 +127,13 @@ impl Physics {
                     .translation(Vector::new(i as f32, 0.0))
                     .can_sleep(false)
                     .ccd_enabled(false);
-                let collider = ColliderBuilder::ball(params.radius)
+                let mut collider = ColliderBuilder::ball(params.radius)
                     .mass(params.mass)
                     .friction(params.friction)
                     .restitution(0.0);
+                if params.traction {
+                    collider = collider.active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
+                }
                 world.insert(body, collider).0
             })
             .collect();
@@ -128,6 +174,17 @@ impl Physics {
         }
     }
 
+    /// Sets the shell friction coefficients of this episode (traction model).
+    pub fn set_friction(&mut self, wall: f32, robot: f32) {
+        self.params.friction = wall;
+        self.params.robot_friction = robot;
+    }
+
+    /// Robot mass of this episode (kg).
+    pub fn mass(&self) -> f32 {
+        self.params.mass
+    }
+
     /// Replaces the fixed colliders with `scene`'s shapes. The rapier world is built anew (robots
     /// included; the caller places them): removing and inserting colliders in place left rapier's
     /// pending-removal lists and broad phase growing by ~35 bytes per episode, since the removals
@@ -156,5 +213,114 @@ impl Physics {
                 state.heading = pose.rotation.angle();
             }
         }
+    }
+
+    /// One traction substep: each wheel's grip impulse (the one cancelling its slip, clamped to
+    /// the tyre's friction circle), then a rapier step resolving contacts with friction; writes
+    /// the resulting poses and velocities back into `bodies`.
+    pub fn step_traction(&mut self, bodies: &mut [TractionBody], grip: Grip) {
+        let mass = self.params.mass;
+        // A uniform disc [E]: the body's mass spread over the shell's footprint.
+        let inertia = 0.5 * mass * self.params.radius * self.params.radius;
+        let h = self.params.substep_dt;
+        let cap = grip.tyre_friction * 0.5 * mass * GRAVITY * h;
+        for (state, handle) in bodies.iter_mut().zip(&self.robots) {
+            let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
+            if let Some(body) = self.world.bodies.get_mut(*handle) {
+                body.set_position(Pose::new(state.position, state.heading), true);
+                body.set_linvel(state.velocity + dv, true);
+                body.set_angvel(state.spin + dw, true);
+            }
+        }
+        let hooks = PairFriction {
+            wall: self.params.friction,
+            robot: self.params.robot_friction,
+        };
+        self.world.step_with_events(&hooks, &());
+        for (state, handle) in bodies.iter_mut().zip(&self.robots) {
+            if let Some(body) = self.world.bodies.get(*handle) {
+                let pose = body.position();
+                state.position = pose.translation;
+                state.heading = pose.rotation.angle();
+                state.velocity = body.linvel();
+                state.spin = body.angvel();
+            }
+        }
+    }
+}
+
+/// The change of velocity and yaw rate the two tyres give a robot in one substep: the impulses
+/// that would make both wheels roll without slipping, each clamped to `cap` (its friction
+/// circle). Wheels at ±axle/2 along the robot's left axis; the body's mass `mass` (kg) and
+/// moment of inertia `inertia` (kg·m²).
+fn tyre_impulses(body: &TractionBody, axle: f32, mass: f32, inertia: f32, cap: f32) -> (Vector, f32) {
+    let (s, c) = body.heading.sin_cos();
+    let forward = Vector::new(c, s);
+    let left = Vector::new(-s, c);
+    let half = 0.5 * axle;
+    // Ground velocity at each wheel: v + ω × r, with r = ±half·left and ω × left = −forward.
+    let at_left = body.velocity - body.spin * half * forward;
+    let at_right = body.velocity + body.spin * half * forward;
+    let slip_left = at_left - body.wheels[0] * forward;
+    let slip_right = at_right - body.wheels[1] * forward;
+    // The impulse that cancels both slips: a linear part for their mean, a torque for their
+    // difference (the lateral slips are equal, so this is exact).
+    let linear = -0.5 * mass * (slip_left + slip_right);
+    let torque = inertia * (slip_left - slip_right).dot(forward) / axle;
+    // Split between the wheels: the same lateral share, and longitudinal shares whose
+    // difference makes the torque (torque = half·(J_right − J_left)·forward).
+    let along = linear.dot(forward);
+    let across = 0.5 * linear.dot(left) * left;
+    let clamp = |j: Vector| {
+        let norm = j.length();
+        if norm > cap && norm > 0.0 {
+            j * (cap / norm)
+        } else {
+            j
+        }
+    };
+    let j_left = clamp((0.5 * along - torque / axle) * forward + across);
+    let j_right = clamp((0.5 * along + torque / axle) * forward + across);
+    let dv = (j_left + j_right) / mass;
+    let dw = half * (j_right - j_left).dot(forward) / inertia;
+    (dv, dw)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn body(wheels: [f32; 2], velocity: Vector, spin: f32) -> TractionBody {
+        TractionBody {
+            position: Vector::ZERO,
+            heading: 0.3,
+            velocity,
+            spin,
+            wheels,
+        }
+    }
+
+    #[test]
+    fn unclamped_impulses_make_both_wheels_roll() {
+        let (axle, mass, inertia) = (0.1054, 0.54, 0.5 * 0.54 * 0.0704 * 0.0704);
+        let b = body([0.2, 0.35], Vector::new(0.05, -0.1), 0.7);
+        let (dv, dw) = tyre_impulses(&b, axle, mass, inertia, f32::INFINITY);
+        let after = body(b.wheels, b.velocity + dv, b.spin + dw);
+        let (s, c) = after.heading.sin_cos();
+        let forward = Vector::new(c, s);
+        let v_left = after.velocity - after.spin * 0.5 * axle * forward;
+        let v_right = after.velocity + after.spin * 0.5 * axle * forward;
+        assert!((v_left - 0.2 * forward).length() < 1e-5, "{v_left:?}");
+        assert!((v_right - 0.35 * forward).length() < 1e-5, "{v_right:?}");
+    }
+
+    #[test]
+    fn clamped_impulses_bound_the_acceleration_by_the_grip() {
+        let (axle, mass, inertia) = (0.1054, 0.54, 0.5 * 0.54 * 0.0704 * 0.0704);
+        let h = 0.0125;
+        let cap = 1.0 * 0.5 * mass * GRAVITY * h;
+        // Wheels at full speed, body at rest: at most μ·g of acceleration.
+        let (dv, _) = tyre_impulses(&body([0.8, 0.8], Vector::ZERO, 0.0), axle, mass, inertia, cap);
+        assert!((dv.length() - GRAVITY * h).abs() < 1e-5, "{}", dv.length());
     }
 }

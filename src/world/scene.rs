@@ -33,6 +33,13 @@ pub struct SceneShape {
     sin: f32,
     /// Radius of a circle around `center` that contains the shape (m).
     pub bound_radius: f32,
+    /// Infrared reflectance relative to white paper (1 = K-Team's response curve).
+    #[serde(default = "white")]
+    pub reflectance: f32,
+}
+
+fn white() -> f32 {
+    1.0
 }
 
 impl SceneShape {
@@ -50,7 +57,14 @@ impl SceneShape {
             cos: angle.cos(),
             sin: angle.sin(),
             bound_radius,
+            reflectance: 1.0,
         }
+    }
+
+    /// The same shape with infrared `reflectance` (relative to white paper).
+    pub fn with_reflectance(mut self, reflectance: f32) -> Self {
+        self.reflectance = reflectance;
+        self
     }
 
     /// A disc of `radius` at `center`.
@@ -169,6 +183,9 @@ pub struct Scene {
     pub wall_thickness: f32,
     /// Whether the arena is walled (an open arena only bounds spawning).
     pub walled: bool,
+    /// Infrared reflectance of the walls relative to white paper.
+    #[serde(default = "white")]
+    pub wall_reflectance: f32,
     /// Obstacles (not the walls).
     pub shapes: Vec<SceneShape>,
 }
@@ -180,6 +197,7 @@ impl Scene {
             arena: (width, height),
             wall_thickness: thickness,
             walled: true,
+            wall_reflectance: 1.0,
             shapes: Vec::new(),
         }
     }
@@ -224,12 +242,28 @@ impl Scene {
         discs: &[Vector],
         disc_radius: f32,
     ) -> Option<f32> {
+        self.cast_hit(origin, dir, max, shapes, discs, disc_radius)
+            .map(|hit| hit.distance)
+    }
+
+    /// Like [`Scene::cast_among`], also saying what was hit (for its surface normal and
+    /// reflectance).
+    #[inline]
+    pub fn cast_hit<'a>(
+        &self,
+        origin: Vector,
+        dir: Vector,
+        max: f32,
+        shapes: impl Iterator<Item = &'a SceneShape>,
+        discs: &[Vector],
+        disc_radius: f32,
+    ) -> Option<Hit<'a>> {
         let mut best = max;
-        let mut hit = false;
+        let mut target = None;
         let wall = self.cast_walls(origin, dir);
         if wall <= best {
             best = wall;
-            hit = true;
+            target = Some(Target::Wall);
         }
         for shape in shapes {
             if !may_hit(origin, dir, shape.center, shape.bound_radius, best) {
@@ -238,17 +272,22 @@ impl Scene {
             if let Some(t) = shape.cast(origin, dir, best) {
                 if t <= best {
                     best = t;
-                    hit = true;
+                    target = Some(Target::Shape(shape));
                 }
             }
         }
         for &c in discs {
             if let Some(t) = ray_disc(origin, dir, c, disc_radius, best) {
                 best = t;
-                hit = true;
+                target = Some(Target::Disc(c));
             }
         }
-        hit.then_some(best)
+        target.map(|target| Hit {
+            distance: best,
+            origin,
+            dir,
+            target,
+        })
     }
 
     /// Distance along a unit ray to the walls: where it leaves the inner rectangle (0 when it
@@ -295,6 +334,84 @@ impl Scene {
             best = best.min(shape.distance(point));
         }
         best
+    }
+}
+
+/// What a ray hit.
+#[derive(Debug, Clone, Copy)]
+pub enum Target<'a> {
+    /// An arena wall.
+    Wall,
+    /// An obstacle.
+    Shape(&'a SceneShape),
+    /// A robot's disc, centred there.
+    Disc(Vector),
+}
+
+/// A ray's nearest hit.
+#[derive(Debug, Clone, Copy)]
+pub struct Hit<'a> {
+    /// Distance along the ray (m).
+    pub distance: f32,
+    /// The ray's origin (m).
+    pub origin: Vector,
+    /// The ray's unit direction.
+    pub dir: Vector,
+    /// What it hit.
+    pub target: Target<'a>,
+}
+
+impl Hit<'_> {
+    /// The cosine of the angle between the ray and the surface's normal at the hit (1 head-on,
+    /// 0 grazing); 1 when the ray starts inside what it hits.
+    pub fn incidence_cos(&self, scene: &Scene, disc_radius: f32) -> f32 {
+        let point = self.origin + self.distance * self.dir;
+        let normal = match self.target {
+            Target::Wall => {
+                let (hw, hh) = (0.5 * scene.arena.0, 0.5 * scene.arena.1);
+                // The face the ray leaves the inner rectangle through.
+                if (hw - point.x.abs()) < (hh - point.y.abs()) {
+                    Vector::new(-point.x.signum(), 0.0)
+                } else {
+                    Vector::new(0.0, -point.y.signum())
+                }
+            }
+            Target::Shape(shape) => {
+                let ray = Ray::new(shape.point_to_local(self.origin), shape.dir_to_local(self.dir));
+                let local = match &shape.geometry {
+                    Geometry::Circle(g) => {
+                        g.cast_local_ray_and_get_normal(&ray, self.distance + 1e-3, true)
+                    }
+                    Geometry::Box(g) => {
+                        g.cast_local_ray_and_get_normal(&ray, self.distance + 1e-3, true)
+                    }
+                    Geometry::Segment(g) => {
+                        g.cast_local_ray_and_get_normal(&ray, self.distance + 1e-3, true)
+                    }
+                };
+                match local {
+                    Some(i) => Vector::new(
+                        shape.cos * i.normal.x - shape.sin * i.normal.y,
+                        shape.sin * i.normal.x + shape.cos * i.normal.y,
+                    ),
+                    None => return 1.0,
+                }
+            }
+            Target::Disc(centre) => (point - centre) / disc_radius.max(f32::EPSILON),
+        };
+        if self.distance <= 0.0 {
+            return 1.0;
+        }
+        (-self.dir.dot(normal)).abs().min(1.0)
+    }
+
+    /// The infrared reflectance of what was hit, relative to white paper; `disc` is the robots'.
+    pub fn reflectance(&self, scene: &Scene, disc: f32) -> f32 {
+        match self.target {
+            Target::Wall => scene.wall_reflectance,
+            Target::Shape(shape) => shape.reflectance,
+            Target::Disc(_) => disc,
+        }
     }
 }
 

@@ -1,0 +1,130 @@
+//! Gyroscope: the z axis of the ST LSM330DLC at the robot's rotation centre (K-Team manual §4.10,
+//! spec §6): ±2000 °/s, read as raw counts of 0.066 °/s (`KH4_GYRO_DEG_S`). The reading is the
+//! body's yaw rate over the last control step plus Gaussian noise, quantised to whole counts and
+//! clamped to the full scale. Scenario keys: `sensors.gyro_noise_sigma`.
+//!
+//! Units: raw counts in `sensor_readings()["gyro_raw"]`, rad/s in `["gyro_z"]`; the observation
+//! block `gyro` is the rate over the full scale, in [-1, 1]. Robot frame z up: counter-clockwise
+//! positive.
+
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+use super::{DrawContext, Readout, SenseContext, Sensor};
+use crate::draw::Mark;
+use crate::error::{Error, Result};
+use crate::obs::Block;
+
+/// One raw count (°/s): `KH4_GYRO_DEG_S` of libkhepera (spec §6, §10).
+pub const DEG_S_PER_COUNT: f32 = 0.066;
+/// Full scale (°/s): the ±2000 °/s range K-Team configures (manual §4.10).
+pub const FULL_SCALE_DEG_S: f32 = 2000.0;
+
+crate::config_table! {
+    /// The gyroscope's keys in `[sensors]`.
+    pub struct GyroConfig {
+        /// °/s, Gaussian, per reading [E: the LSM330DLC's rate noise density 0.03 °/s/√Hz over its 95 Hz output, averaged over a reading]
+        gyro_noise_sigma: f32 = 0.2,
+    }
+}
+
+/// One robot's gyroscope reading.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct GyroReading {
+    /// Raw counts of 0.066 °/s.
+    pub raw: i32,
+    /// The same in rad/s.
+    pub rate: f32,
+}
+
+/// The z-axis gyroscope as a [`Sensor`].
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct Gyro {
+    /// Standard deviation of the noise (°/s).
+    pub noise_sigma: f32,
+}
+
+impl Sensor for Gyro {
+    const NAME: &'static str = "gyro";
+    type Config = GyroConfig;
+    type Reading = GyroReading;
+
+    fn new(cfg: &GyroConfig) -> Self {
+        Self {
+            noise_sigma: cfg.gyro_noise_sigma,
+        }
+    }
+
+    fn validate(cfg: &GyroConfig, origin: &str) -> Result<()> {
+        if !cfg.gyro_noise_sigma.is_finite() || cfg.gyro_noise_sigma < 0.0 {
+            return Err(Error::config(
+                origin,
+                "sensors.gyro_noise_sigma",
+                format!("must be a finite number >= 0, got {}", cfg.gyro_noise_sigma),
+            ));
+        }
+        Ok(())
+    }
+
+    fn randomise(&mut self, _cfg: &GyroConfig, _rng: &mut ChaCha8Rng) {}
+
+    fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut GyroReading) {
+        let noise: f32 = rng.sample(StandardNormal);
+        let deg_s = ctx.yaw_rate.to_degrees() + self.noise_sigma * noise;
+        let counts = (deg_s / DEG_S_PER_COUNT).round();
+        let limit = (FULL_SCALE_DEG_S / DEG_S_PER_COUNT).round();
+        reading.raw = counts.clamp(-limit, limit) as i32;
+        reading.rate = (reading.raw as f32 * DEG_S_PER_COUNT).to_radians();
+    }
+
+    fn block(&self) -> Block {
+        Block::new(Self::NAME, 1, -1.0, 1.0)
+    }
+
+    fn obs_len(&self) -> usize {
+        1
+    }
+
+    #[inline]
+    fn observe(&self, reading: &GyroReading, out: &mut [f32]) {
+        out[0] = (reading.raw as f32 * DEG_S_PER_COUNT / FULL_SCALE_DEG_S).clamp(-1.0, 1.0);
+    }
+
+    fn readout(&self, reading: &GyroReading, out: &mut Readout) {
+        out.ints("gyro_raw", 0, &[i64::from(reading.raw)]);
+        out.reals("gyro_z", 0, &[reading.rate]);
+    }
+
+    fn draw(&self, _at: &DrawContext, _reading: &GyroReading, _marks: &mut Vec<Mark>) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::scene::Scene;
+    use rand::SeedableRng;
+
+    #[test]
+    fn reads_the_yaw_rate_in_whole_counts() {
+        let scene = Scene::arena(2.0, 2.0, 0.05);
+        let mut gyro = Gyro { noise_sigma: 0.0 };
+        let mut rng = ChaCha8Rng::seed_from_u64(0);
+        let mut reading = GyroReading::default();
+        let ctx = SenseContext {
+            scene: &scene,
+            position: rapier2d::math::Vector::ZERO,
+            sin_cos: (0.0, 1.0),
+            radius: 0.07,
+            others: &[],
+            robot_reflectance: 1.0,
+            yaw_rate: 1.0,
+            dt: 0.05,
+            fresh: false,
+        };
+        gyro.read(&ctx, &mut rng, &mut reading);
+        // 1 rad/s = 57.2958 °/s = 868.1 counts → 868.
+        assert_eq!(reading.raw, 868);
+        assert!((reading.rate - 1.0).abs() < DEG_S_PER_COUNT.to_radians());
+    }
+}
