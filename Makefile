@@ -76,6 +76,6 @@ wheel: $(TOOLS)
 	python3 -m venv dist/smoke-venv
 	dist/smoke-venv/bin/pip install --quiet dist/*.whl
 	cd dist && env PATH=/usr/bin:/bin smoke-venv/bin/python -c "import gymnasium as gym, khepera_gym; \
-	e = gym.make('KheperaIV-Avoid-v0', render_mode='rgb_array'); o, _ = e.reset(seed=0); \
+	e = gym.make('KheperaIV-Avoid-v1', render_mode='rgb_array'); o, _ = e.reset(seed=0); \
 	o, r, t, u, i = e.step(e.action_space.sample()); f = e.render(); \
 	print('wheel smoke test ok:', khepera_gym.__version__, o.shape, f.shape)"

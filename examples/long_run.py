@@ -6,7 +6,7 @@ the first) shows.
 Usage::
 
     python examples/long_run.py                       # 10^8 Nav env-steps, 1024 worlds
-    python examples/long_run.py --env KheperaIV-Avoid-v0 --steps 2e7
+    python examples/long_run.py --env KheperaIV-Avoid-v1 --steps 2e7
 
 The actions are a fixed cycle of 64 seeded random batches, drawn once, so the loop measures the
 simulator and not NumPy's random generator.
@@ -30,7 +30,7 @@ def _mib(value: int | None) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--env", default="KheperaIV-Nav-v0")
+    parser.add_argument("--env", default="KheperaIV-Nav-v1")
     parser.add_argument("--steps", type=float, default=1e8, help="total env-steps")
     parser.add_argument("--num-envs", type=int, default=1024)
     parser.add_argument("--num-threads", type=int, default=None)

@@ -5,21 +5,21 @@ Importing the package registers the environments with Gymnasium::
     import gymnasium as gym
     import khepera_gym
 
-    env = gym.make("KheperaIV-Nav-v0")                      # one world
-    envs = gym.make_vec("KheperaIV-Nav-v0", num_envs=1024)  # native Rust batch
+    env = gym.make("KheperaIV-Nav-v1")                      # one world
+    envs = gym.make_vec("KheperaIV-Nav-v1", num_envs=1024)  # native Rust batch
 
 Registered ids (``gym.make("KheperaIV-Nav")`` picks the latest version, with Gymnasium's warning
 that it did so), made from the task list the Rust core exports (:mod:`khepera_gym.registration`):
 
-* ``KheperaIV-Nav-v0``: :class:`khepera_gym.envs.NavEnv`, vector env
+* ``KheperaIV-Nav-v1``: :class:`khepera_gym.envs.NavEnv`, vector env
   :class:`khepera_gym.vector.NavVectorEnv`;
-* ``KheperaIV-Avoid-v0``: :class:`khepera_gym.envs.AvoidEnv`, vector env
+* ``KheperaIV-Avoid-v1``: :class:`khepera_gym.envs.AvoidEnv`, vector env
   :class:`khepera_gym.vector.AvoidVectorEnv`;
-* ``KheperaIV-Formation-v0``: :class:`khepera_gym.envs.FormationEnv`, vector env
+* ``KheperaIV-Formation-v1``: :class:`khepera_gym.envs.FormationEnv`, vector env
   :class:`khepera_gym.vector.FormationVectorEnv`.
 
-Multi-agent versions (PettingZoo) live in :mod:`khepera_gym.pettingzoo`: ``formation_v0`` (one
-agent per follower) and ``multinav_v0`` (several robots, each with its own goal).
+Multi-agent versions (PettingZoo) live in :mod:`khepera_gym.pettingzoo`: ``formation_v1`` (one
+agent per follower) and ``multinav_v1`` (several robots, each with its own goal).
 
 No ``max_episode_steps`` is registered: the Rust core truncates episodes itself at the scenario's
 ``max_steps``. ``gym.make(id, max_episode_steps=k)`` still adds Gymnasium's ``TimeLimit`` wrapper

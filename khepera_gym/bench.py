@@ -2,7 +2,7 @@
 
 Measures env-steps per second of
 
-* the native vector env, ``gym.make_vec("KheperaIV-Nav-v0", num_envs=n, num_threads=t)``, for
+* the native vector env, ``gym.make_vec("KheperaIV-Nav-v1", num_envs=n, num_threads=t)``, for
   n in 1, 64, 1024, 4096 and t in 1, 2;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
 
@@ -26,12 +26,12 @@ import numpy as np
 import khepera_gym
 from khepera_gym import _core
 
-NAV_ID = "KheperaIV-Nav-v0"
+NAV_ID = "KheperaIV-Nav-v1"
 #: Distinct pregenerated action arrays cycled through while timing.
 _ACTION_SETS = 8
 #: The other tasks' native vector envs timed after Nav (with ``task_envs`` worlds). Avoid has 10
 #: random obstacles, Formation 5 robots (a leader and 4 followers).
-OTHER_TASKS = ("KheperaIV-Avoid-v0", "KheperaIV-Formation-v0")
+OTHER_TASKS = ("KheperaIV-Avoid-v1", "KheperaIV-Formation-v1")
 #: Worlds of the batch whose memory is measured.
 _MEMORY_WORLDS = 4096
 
@@ -84,7 +84,7 @@ def bench_vector(
         steps += _ACTION_SETS
         now = time.perf_counter()
     envs.close()
-    name = "" if env_id == NAV_ID else env_id.removeprefix("KheperaIV-").removesuffix("-v0") + " "
+    name = "" if env_id == NAV_ID else env_id.removeprefix("KheperaIV-").rsplit("-v", 1)[0] + " "
     return Measurement(f"{name}make_vec n={num_envs}", num_envs, num_threads, steps, now - start)
 
 

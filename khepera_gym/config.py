@@ -115,7 +115,7 @@ ACTION_TYPES = ("wheels", "unicycle")
 #: ``max_cycles``).
 MAX_STEPS_KEY = "max_steps"
 #: The keyword (not a scenario key) that picks a behaviour version's defaults: the registered
-#: ``KheperaIV-Nav-v0`` passes ``version=0``; None or absent: the latest.
+#: ``KheperaIV-Nav-v1`` passes ``version=0``; None or absent: the latest.
 VERSION_KEY = "version"
 
 

@@ -63,7 +63,7 @@ def record_video(
 
 def add_arguments(parser: Any) -> None:
     """The options of ``khepera-gym render``."""
-    parser.add_argument("--env", default="KheperaIV-Nav-v0", help="environment id")
+    parser.add_argument("--env", default="KheperaIV-Nav-v1", help="environment id")
     parser.add_argument(
         "--policy", default="position_control", help="baseline name or sb3:path/to/model.zip"
     )

@@ -30,7 +30,7 @@ def registered_ids() -> dict[str, list[str]]:
 
 
 def latest_ids() -> dict[str, str]:
-    """The latest id of each task with a Gymnasium env: ``{"nav": "KheperaIV-Nav-v0", ...}``."""
+    """The latest id of each task with a Gymnasium env: ``{"nav": "KheperaIV-Nav-v1", ...}``."""
     return {task: ids[-1] for task, ids in registered_ids().items()}
 
 

@@ -80,8 +80,8 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
 
     Args:
         algo: "ppo" or "sac"; names the default file ``configs/hyperparams/<algo>.toml``.
-        env_id: The table's name (a registered id such as "KheperaIV-Nav-v0", or another
-            table such as "formation_v0-followers").
+        env_id: The table's name (a registered id such as "KheperaIV-Nav-v1", or another
+            table such as "formation_v1-followers").
         path: Another TOML file to read instead.
 
     Raises:

@@ -1,6 +1,6 @@
 """Native vector environments: N worlds of one task stepped by the Rust core in one call.
 
-``gym.make_vec("KheperaIV-Nav-v0", num_envs=N)`` returns a :class:`NavVectorEnv` (likewise
+``gym.make_vec("KheperaIV-Nav-v1", num_envs=N)`` returns a :class:`NavVectorEnv` (likewise
 :class:`AvoidVectorEnv` and :class:`FormationVectorEnv`) over a ``_core.Batch`` of N worlds: no
 Python loop over worlds and no subprocesses. Worlds are stepped in parallel by the batch's own
 rayon pool of ``num_threads`` threads (None = all cores) while the GIL is released; results do not

@@ -75,7 +75,8 @@ impl RobotConfig {
                 ),
             );
         }
-        self.tyre_friction.check(origin, "robot.tyre_friction", false)?;
+        self.tyre_friction
+            .check(origin, "robot.tyre_friction", false)?;
         for (key, v) in [
             ("robot.motor_time_constant", self.motor_time_constant),
             ("robot.shell_reflectance", self.shell_reflectance),

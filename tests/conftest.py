@@ -15,10 +15,17 @@ import khepera_gym  # noqa: F401  (registers the environments)
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
-#: The versioned ids; the unversioned "KheperaIV-Nav" makes Gymnasium warn that it picked v0.
-NAV_ID = "KheperaIV-Nav-v0"
-AVOID_ID = "KheperaIV-Avoid-v0"
-FORMATION_ID = "KheperaIV-Formation-v0"
+#: The latest versioned ids (v1: tyre grip, contact friction, the motor's speed profile).
+NAV_ID = "KheperaIV-Nav-v1"
+AVOID_ID = "KheperaIV-Avoid-v1"
+FORMATION_ID = "KheperaIV-Formation-v1"
+#: The v0 ids: the paper's V-REP-like dynamics (kinematic drive, frictionless contacts, wheels at
+#: their command within a step), which the paper's controllers and gains were tuned for. Tests of
+#: those controllers' published success rates, and tests of the action mapping that read the wheel
+#: speeds one step after a command, pin them.
+NAV_V0_ID = "KheperaIV-Nav-v0"
+AVOID_V0_ID = "KheperaIV-Avoid-v0"
+FORMATION_V0_ID = "KheperaIV-Formation-v0"
 
 
 @pytest.fixture

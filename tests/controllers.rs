@@ -39,7 +39,10 @@ fn episodes(task: TaskKind, scene: Option<&str>, policy: &Policy, n: usize) -> V
     let source = Source {
         file: scene.map(|s| (scenario::scene(s).expect("scene"), s)),
         overrides: Default::default(),
-        ..Default::default()
+        // The paper's controllers with its gains, on the dynamics they were tuned for (v0:
+        // wheels at their command within a step, frictionless contacts); the README's tables
+        // give their rates on v1.
+        version: Some(0),
     };
     let cfg = load_scenario(task.name(), &source).expect("scenario");
     let mut batch = Batch::new(task, cfg, n, ActionType::Wheels, Some(2), true).expect("batch");

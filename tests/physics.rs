@@ -10,10 +10,16 @@ use _core::tasks::{Env, TaskKind};
 use rapier2d::math::Vector;
 
 fn nav_env(overrides: &str) -> Env {
+    nav_env_version(overrides, None)
+}
+
+/// A Nav env with behaviour `version`'s defaults (None: the latest); v0's kinematic drive is what
+/// the exact-kinematics tests below specify.
+fn nav_env_version(overrides: &str, version: Option<u32>) -> Env {
     let source = Source {
         file: None,
         overrides: overrides.parse().expect("overrides"),
-        ..Default::default()
+        version,
     };
     let cfg = load_scenario("nav", &source).expect("scenario");
     let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
@@ -59,7 +65,8 @@ fn test_full_speed_into_walls_never_leaves_arena() {
 
 #[test]
 fn test_robot_slides_along_wall_at_shallow_angle() {
-    let mut env = nav_env("max_steps = 100000");
+    // v0: frictionless walls (v1's friction is specified in tests/dynamics.rs).
+    let mut env = nav_env_version("max_steps = 100000", Some(0));
     env.world
         .place_robot(0, Vector::new(-0.5, 0.85), 10f32.to_radians());
     drive(&mut env, [0.5, 0.5], 30, |_| {});
@@ -71,7 +78,8 @@ fn test_robot_slides_along_wall_at_shallow_angle() {
 
 #[test]
 fn test_turning_in_place_keeps_centre_fixed() {
-    let mut env = nav_env("max_steps = 100000");
+    // v0: the wheels at full speed from the first step (tests/dynamics.rs ramps them).
+    let mut env = nav_env_version("max_steps = 100000", Some(0));
     let start = Vector::new(0.1, -0.3);
     env.world.place_robot(0, start, 0.4);
     let mut turned = 0.0f32;
@@ -91,7 +99,8 @@ fn test_turning_in_place_keeps_centre_fixed() {
 #[test]
 fn test_straight_driving_covers_v_times_t() {
     for v in [0.05f32, 0.2, 0.5, 0.813] {
-        let mut env = nav_env("max_steps = 100000");
+        // v0: at speed from the first step.
+        let mut env = nav_env_version("max_steps = 100000", Some(0));
         env.world.place_robot(0, Vector::new(-0.9, 0.0), 0.0);
         let a = v / 0.813;
         drive(&mut env, [a, a], 20, |_| {});

@@ -59,7 +59,7 @@ def test_make_versioned_id_gives_nav_env(nav_env: gym.Env) -> None:
 
 
 def test_make_unversioned_id_resolves_to_latest_version() -> None:
-    with pytest.warns(UserWarning, match="latest versioned environment `KheperaIV-Nav-v0`"):
+    with pytest.warns(UserWarning, match="latest versioned environment `KheperaIV-Nav-v1`"):
         env = gym.make("KheperaIV-Nav")
     assert env.spec is not None and env.spec.id == NAV_ID
     assert isinstance(env.unwrapped, NavEnv)
@@ -267,7 +267,7 @@ def test_unknown_render_mode_is_a_config_error() -> None:
 
 
 def test_unicycle_action_type_drives_forward_along_heading() -> None:
-    env = gym.make(NAV_ID, action_type="unicycle")
+    env = gym.make(NAV_ID, action_type="unicycle", version=0)  # wheels at the command at once
     env.reset(seed=2)
     start = env.unwrapped.poses()[0].copy()
     for _ in range(5):
@@ -310,7 +310,7 @@ def test_column_major_actions_are_read_in_the_right_order() -> None:
     """rust-numpy hands out Fortran-ordered buffers as slices too; the core must not misread."""
     results = []
     for order in ("C", "F"):
-        batch = _core.Batch("nav", 3, num_threads=1)
+        batch = _core.Batch("nav", 3, num_threads=1, version=0)  # wheels at the command at once
         batch.reset(0)
         actions = np.zeros((3, 2), np.float32, order=order)
         actions[:, 0] = 1.0

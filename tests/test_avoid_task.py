@@ -7,7 +7,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, NAV_ID
+from conftest import AVOID_ID, AVOID_V0_ID, NAV_ID
 from gymnasium.utils.env_checker import check_env
 
 import khepera_gym
@@ -142,7 +142,7 @@ def test_robot_never_passes_through_obstacles_under_random_actions() -> None:
 
 
 def test_avoid_heuristic_reaches_most_goals_and_beats_position_control() -> None:
-    envs = gym.make_vec(AVOID_ID, num_envs=32, num_threads=2)
+    envs = gym.make_vec(AVOID_V0_ID, num_envs=32, num_threads=2)  # the paper's gains' dynamics
     results = {}
     for name, policy in (("avoid", avoid_heuristic), ("nav", nav_heuristic)):
         observations, _ = envs.reset(seed=100)

@@ -92,7 +92,7 @@ def test_compare_runs_every_policy_on_the_same_seeded_episodes() -> None:
 def test_cli_compare_writes_table_csv_json_and_plots(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    argv = ["compare", "--task", "avoid", "--config", "paper_fig6", "--episodes", "3"]
+    argv = ["compare", "--env", "KheperaIV-Avoid-v0", "--config", "paper_fig6", "--episodes", "3"]
     argv += ["--policy", "braitenberg", "vfh", "--seed", "5", "--out", str(tmp_path)]
     argv += ["--num-threads", "2", "--no-progress"]
     assert cli.main(argv) == 0
@@ -110,7 +110,7 @@ def test_cli_compare_writes_table_csv_json_and_plots(
         (policy, str(seed)) for policy in ("braitenberg", "vfh") for seed in (5, 6, 7)
     ]
     document = json.loads((tmp_path / "paper_fig6_results.json").read_text())
-    assert document["env_id"] == AVOID_ID and document["config"] == "paper_fig6"
+    assert document["env_id"] == "KheperaIV-Avoid-v0" and document["config"] == "paper_fig6"
     assert [s["policy"] for s in document["summaries"]] == ["braitenberg", "vfh"]
     success = document["summaries"][0]["success_rate"]
     assert success["value"] == 1.0 and success["n"] == 3

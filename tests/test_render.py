@@ -54,7 +54,7 @@ def test_robot_pixels_move_with_the_robot_and_renders_repeat() -> None:
 def test_rendering_needs_no_display() -> None:
     code = (
         "import gymnasium as gym, khepera_gym;"
-        "e = gym.make('KheperaIV-Avoid-v0', render_mode='rgb_array'); e.reset(seed=1);"
+        "e = gym.make('KheperaIV-Avoid-v1', render_mode='rgb_array'); e.reset(seed=1);"
         "print(e.render().shape)"
     )
     environment = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
@@ -108,9 +108,9 @@ def test_gif_of_a_rollout_is_written(tmp_path) -> None:
 
 
 def test_pettingzoo_envs_render_frames() -> None:
-    from khepera_gym.pettingzoo import formation_v0, multinav_v0
+    from khepera_gym.pettingzoo import formation_v1, multinav_v1
 
-    for module in (formation_v0, multinav_v0):
+    for module in (formation_v1, multinav_v1):
         env = module.parallel_env(render_mode="rgb_array", frame_size=(200, 160))
         env.reset(seed=0)
         frame = env.render()

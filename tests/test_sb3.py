@@ -69,7 +69,7 @@ def test_sb3_check_env_passes_on_each_single_env(env_id: str) -> None:
 def test_make_vec_env_resolves_the_unversioned_id_without_a_warning() -> None:
     assert resolve_env_id("KheperaIV-Nav") == NAV_ID
     assert resolve_env_id(AVOID_ID) == AVOID_ID
-    with pytest.raises(ConfigError, match="KheperaIV-Nav-v0"):
+    with pytest.raises(ConfigError, match="KheperaIV-Nav-v1"):
         make_vec_env("KheperaIV-Swim", 2)
 
 
@@ -311,9 +311,9 @@ def test_hyperparameter_files_build_every_algorithm_they_list() -> None:
             if env_id == NAV_ID:
                 model = build_model(algo, env, hyperparams, seed=0)
                 assert type(model).__name__ == ALGORITHMS[algo]
-    assert load_hyperparams("ppo", "formation_v0-followers")["n_envs"] >= 1
+    assert load_hyperparams("ppo", "formation_v1-followers")["n_envs"] >= 1
     with pytest.raises(ConfigError, match="no table"):
-        load_hyperparams("ppo", "KheperaIV-Swim-v0")
+        load_hyperparams("ppo", "KheperaIV-Swim-v1")
 
 
 def test_parse_override_reads_toml_values() -> None:

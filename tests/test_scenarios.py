@@ -17,7 +17,7 @@ from khepera_gym import _core
 from khepera_gym.config import builtin_config_names
 from khepera_gym.envs import avoid_heuristic
 from khepera_gym.errors import ConfigError
-from khepera_gym.pettingzoo import multinav_v0
+from khepera_gym.pettingzoo import multinav_v1
 from khepera_gym.plot import plot_trajectories
 
 tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
@@ -59,7 +59,7 @@ def test_builtin_scenario_loads_and_steps_100_steps(env_id: str, config: str | N
 
 
 def test_multinav_default_scenario_loads_and_steps_100_steps() -> None:
-    env = multinav_v0.parallel_env()
+    env = multinav_v1.parallel_env()
     env.reset(seed=0)
     for _ in range(100):
         if not env.agents:
@@ -119,7 +119,7 @@ def test_paper_fig6_has_the_wall_the_obstacle_the_start_and_the_goal() -> None:
 
 
 def test_paper_fig6_plot_is_rendered(tmp_path: Path) -> None:
-    env = gym.make(AVOID_ID, config="paper_fig6")
+    env = gym.make(AVOID_ID, config="paper_fig6", version=0)  # the paper's Fig. 6 dynamics
     observation, _ = env.reset(seed=0)
     path = [env.unwrapped.poses()[0]]
     while True:

@@ -14,7 +14,7 @@ import pytest
 from conftest import AVOID_ID, FORMATION_ID, NAV_ID
 
 from khepera_gym.errors import StateError
-from khepera_gym.pettingzoo import formation_v0
+from khepera_gym.pettingzoo import formation_v1
 
 IDS = [NAV_ID, AVOID_ID, FORMATION_ID]
 
@@ -113,7 +113,7 @@ def test_pickled_vector_env_keeps_its_config_and_state(tmp_path) -> None:
 
 
 def test_pettingzoo_env_pickles_mid_episode() -> None:
-    env = formation_v0.parallel_env()
+    env = formation_v1.parallel_env()
     env.reset(seed=2)
     rng = np.random.default_rng(0)
     for _ in range(10):

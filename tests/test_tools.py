@@ -114,7 +114,7 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
     output = capsys.readouterr().out
     # The paper's Fig. 6 and Fig. 7 scenes, then Nav, Avoid and Formation.
     assert output.count("2 episodes per policy") == 5
-    for task in ("KheperaIV-Nav-v0", "KheperaIV-Avoid-v0", "KheperaIV-Formation-v0"):
+    for task in ("KheperaIV-Nav-v1", "KheperaIV-Avoid-v1", "KheperaIV-Formation-v1"):
         assert task in output
     for policy in ("position_control", "braitenberg", "vfh", "leader_follower", "random"):
         assert policy in output

@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the options of ``khepera-gym compare`` to a parser."""
     target = parser.add_mutually_exclusive_group(required=True)
     target.add_argument("--task", choices=sorted(TASK_IDS), help="nav, avoid or formation")
-    target.add_argument("--env", help="a registered id, e.g. KheperaIV-Avoid-v0")
+    target.add_argument("--env", help="a registered id, e.g. KheperaIV-Avoid-v1")
     parser.add_argument("--config", help="built-in scenario (e.g. paper_fig6) or TOML path")
     parser.add_argument(
         "--policy",

@@ -111,13 +111,13 @@ class FormationEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-Formation-v0", config="paper_fig7")
+    >>> env = gym.make("KheperaIV-Formation-v1", config="paper_fig7")
     >>> env.action_space.shape, env.observation_space.shape
     ((8,), (92,))
     >>> obs, info = env.reset(seed=0)
     >>> env.unwrapped.poses().shape, env.unwrapped.formation_targets().shape
     ((5, 3), (4, 2))
-    >>> gym.make("KheperaIV-Formation-v0", leader="agent", n_followers=2).action_space.shape
+    >>> gym.make("KheperaIV-Formation-v1", leader="agent", n_followers=2).action_space.shape
     (6,)
 
     ```
@@ -131,13 +131,13 @@ class FormationEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Formation-v0", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-Formation-v1", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.FormationVectorEnv` (NEXT_STEP autoreset, episode statistics with
     masks, world i reset with seed s ≡ this env reset with seed s + i); its
     `formation_targets()` has shape (N, K, 2).
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Formation-v0", num_envs=8)
+    >>> envs = gym.make_vec("KheperaIV-Formation-v1", num_envs=8)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape, envs.formation_targets().shape
     ((8, 92), (8, 4, 2))
@@ -145,7 +145,7 @@ class FormationEnv(KheperaEnv):
     ```
 
     For one agent per follower use the PettingZoo environment
-    :mod:`khepera_gym.pettingzoo.formation_v0`.
+    :mod:`khepera_gym.pettingzoo.formation_v1`.
 
     ## Robot model
 
@@ -192,7 +192,11 @@ class FormationEnv(KheperaEnv):
 
     ## Version History
 
-    * v0: Initial version.
+    * v0: Initial version, on the KH4VREP paper's V-REP-like dynamics (kinematic drive,
+      frictionless contacts, wheels at their command within a step); `KheperaIV-Formation-v0`.
+    * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
+      gyroscope, sonar timing and acceptance cone (the Version History of :class:`NavEnv` has the
+      details).
     """
 
     TASK: ClassVar[str] = "formation"

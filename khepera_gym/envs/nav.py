@@ -105,9 +105,9 @@ class NavEnv(KheperaEnv):
     ```python
     >>> import gymnasium as gym
     >>> import khepera_gym
-    >>> env = gym.make("KheperaIV-Nav-v0", max_steps=200, goal_radius=0.1)
+    >>> env = gym.make("KheperaIV-Nav-v1", max_steps=200, goal_radius=0.1)
     >>> env
-    <OrderEnforcing<PassiveEnvChecker<NavEnv<KheperaIV-Nav-v0>>>>
+    <OrderEnforcing<PassiveEnvChecker<NavEnv<KheperaIV-Nav-v1>>>>
     >>> obs, info = env.reset(seed=0)
 
     ```
@@ -125,7 +125,7 @@ class NavEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Nav-v0", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-Nav-v1", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.NavVectorEnv`: N worlds stepped in one Rust call on a thread pool
     (None = all cores), autoreset mode NEXT_STEP, episode statistics in
     `infos["episode_stats"]` with `_`-prefixed masks at steps where some world ended. World i
@@ -133,7 +133,7 @@ class NavEnv(KheperaEnv):
     thread count.
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Nav-v0", num_envs=1024, num_threads=2)
+    >>> envs = gym.make_vec("KheperaIV-Nav-v1", num_envs=1024, num_threads=2)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (1024, 18)
@@ -178,15 +178,22 @@ class NavEnv(KheperaEnv):
     | `robot.axle_length`           | 0.1054  | distance between the wheels (m)              |
     | `robot.max_wheel_speed`       | 0.813   | wheel speed limit (m/s); action 1 maps to it |
     | `robot.min_wheel_speed`       | 0.003   | smaller commands give 0 (m/s)                |
-    | `robot.wheel_accel_limit`     | inf     | wheel acceleration limit (m/s²); inf = none  |
+    | `robot.wheel_accel_limit`     | 0.203   | wheel acceleration (m/s²): K-Team's default  |
+    |                               |         | speed profile; 0.678 = its Braitenberg demo, |
+    |                               |         | 2.74 = Webots' motor; inf = none (v0)        |
+    | `robot.motor_time_constant`   | 0.0     | s, first-order lag after the profile [E]     |
     | `robot.mass`                  | 0.54    | kg                                           |
+    | `robot.tyre_friction`         | 1.0     | tyre-floor friction (grip) [E: Webots]       |
+    | `robot.shell_reflectance`     | 1.0     | shell's IR reflectance (1 = white paper) [E] |
     | `arena.width`, `arena.height` | 2.0     | inner arena size (m), centred at the origin  |
     | `arena.wall_thickness`        | 0.05    | m, outside the inner rectangle               |
     | `arena.walls`                 | true    | false: open floor (size bounds spawning only) |
+    | `arena.wall_reflectance`      | 1.0     | walls' IR reflectance (1 = white paper) [E]  |
     | `obstacles.fixed`             | []      | fixed obstacles: inline tables `{kind =      |
     |                               |         | "circle", center, radius}`, `{kind = "box",  |
     |                               |         | center, half_extents, angle}`, `{kind =      |
-    |                               |         | "segment", a, b}`                            |
+    |                               |         | "segment", a, b}`; each may add a            |
+    |                               |         | `reflectance` (IR, 1 = white paper)          |
     | `obstacles.count`             | 0       | random obstacles drawn at every reset        |
     | `obstacles.kinds`             | all 3   | shapes of the random obstacles               |
     | `obstacles.circle_radius`     | [0.04, 0.10] | range of random circle radii (m)        |
@@ -208,7 +215,13 @@ class NavEnv(KheperaEnv):
     | `sensors.us_max_range`        | 2.0     | m; farther reads code 1000                   |
     | `sensors.us_noise_sigma`      | 0.01    | m, Gaussian                                  |
     | `sensors.us_enabled`          | 5×true  | per sensor; a disabled one reads code 2000   |
-    | `sensors.carry`               | ir, us  | sensors each robot has (others cost nothing) |
+    | `sensors.us_period`           | 0.1     | s between sonar readings (K-Team: 100 ms for |
+    |                               |         | all five); 0 = every step (v0)               |
+    | `sensors.us_acceptance`       | 22.5°   | rad; no echo from a surface hit further from |
+    |                               |         | its normal [S: Webots]; π/2 = any (v0)       |
+    | `sensors.gyro_noise_sigma`    | 0.2     | °/s, Gaussian [E]                            |
+    | `sensors.carry`               | ir, us, | sensors each robot has (others cost nothing; |
+    |                               | gyro    | v0: ir, us)                                  |
     | `sensors.observe`             | ir, us  | carried sensors whose blocks the observation |
     |                               |         | holds (in this order whatever the list's)    |
     | `task.goal_radius`            | 0.05    | success distance (m)                         |
@@ -218,14 +231,35 @@ class NavEnv(KheperaEnv):
     | `task.success_bonus`          | 10.0    | reward on success                            |
     | `task.collision_penalty`      | 0.1     | reward subtracted per step in contact        |
     | `task.terminate_on_collision` | false   | end the episode on contact                   |
+    | `task.localization`           | ground_truth | or "odometry": goal distance and bearing |
+    |                               |         | from dead reckoning (encoders + gyro)        |
+    | `task.action_delay`           | 0       | steps before an action reaches the wheels    |
+    | `task.observation_delay`      | 0       | steps before the world shows in observations |
     | `physics.dt`                  | 0.05    | control step (s)                             |
     | `physics.substeps`            | 4       | physics substeps per control step            |
     | `physics.solver_iterations`   | 4       | rapier solver iterations for contact steps   |
-    | `physics.friction`            | 0.0     | robot-wall friction (0: slide along walls)   |
+    | `physics.drive`               | traction | "traction": tyres with bounded grip move the |
+    |                               |         | body; "kinematic": velocity imposed (v0)     |
+    | `physics.friction`            | 0.7     | shell-wall/obstacle friction [S: ARGoS]; v0: |
+    |                               |         | 0 (robots slid along walls)                  |
+    | `physics.robot_friction`      | 0.7     | shell-shell friction [S: ARGoS]              |
+    | `odometry.radius_error`       | 0.01    | believed wheel radius error, per episode [E] |
+    | `odometry.axle_error`         | 0.007   | believed axle error, per episode [D]         |
+    | `odometry.slip_noise`         | 0.029   | per-step wheel travel noise [E: Enki]        |
 
     ## Version History
 
-    * v0: Initial version.
+    * v0: Initial version: the KH4VREP paper's V-REP-like dynamics. The body's velocity is imposed
+      (kinematic drive), contacts are frictionless (robots slide along walls and shove each other),
+      wheels reach their command within a step, the sonars refresh every step and echo from any
+      angle. Registered as `KheperaIV-Nav-v0` with these defaults, so published v0 numbers
+      reproduce.
+    * v1: Dynamics of the real robot (issue 13). Tyres with bounded grip drive the body
+      (`physics.drive = "traction"`), contacts have friction (0.7), the wheels follow K-Team's
+      default speed profile (0.203 m/s²), the robot carries a gyroscope, the sonars refresh every
+      100 ms and do not echo beyond 22.5° from a surface's normal. Pushed into a wall a robot
+      slows, turns toward it and stalls; a stopped robot resists being shoved. New keys: IR
+      reflectances, `task.localization` with `[odometry]`, action and observation delays.
     """
 
     TASK: ClassVar[str] = "nav"
@@ -310,7 +344,7 @@ class AvoidEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-Avoid-v0", config="paper_fig6", max_steps=300)
+    >>> env = gym.make("KheperaIV-Avoid-v1", config="paper_fig6", max_steps=300)
     >>> obs, info = env.reset(seed=0)
     >>> [obstacle["kind"] for obstacle in env.unwrapped.scene()["obstacles"]]
     ['box', 'box']
@@ -322,17 +356,17 @@ class AvoidEnv(KheperaEnv):
     The parameters are those of :class:`NavEnv` (`render_mode`, `config`, `action_type`,
     `**overrides`); `config` is None (the Avoid defaults), a built-in scenario name such as
     `"paper_fig6"`, or a path to a TOML file, and keyword overrides are merged on top, e.g.
-    `gym.make("KheperaIV-Avoid-v0", count=20, kinds=["circle"])`.
+    `gym.make("KheperaIV-Avoid-v1", count=20, kinds=["circle"])`.
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Avoid-v0", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-Avoid-v1", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.AvoidVectorEnv` (same semantics as Nav's: NEXT_STEP autoreset,
     `infos["episode_stats"]` with masks, world i reset with seed s ≡ this env reset with seed
     s + i, bit for bit). `envs.scene(i)` is the geometry of world i.
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Avoid-v0", num_envs=16, num_threads=2)
+    >>> envs = gym.make_vec("KheperaIV-Avoid-v1", num_envs=16, num_threads=2)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (16, 18)
@@ -374,7 +408,11 @@ class AvoidEnv(KheperaEnv):
 
     ## Version History
 
-    * v0: Initial version.
+    * v0: Initial version, on the KH4VREP paper's V-REP-like dynamics (kinematic drive,
+      frictionless contacts, wheels at their command within a step); `KheperaIV-Avoid-v0`.
+    * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
+      gyroscope, sonar timing and acceptance cone (the Version History of `NavEnv` has the
+      details).
     """
 
     TASK: ClassVar[str] = "avoid"

@@ -1,9 +1,14 @@
 """PettingZoo environments: one agent per controlled Khepera IV robot, over the same Rust core.
 
-* :mod:`khepera_gym.pettingzoo.formation_v0`: followers holding a formation around a leader
-  (agents ``follower_0``.., plus ``leader`` with ``leader="agent"``);
-* :mod:`khepera_gym.pettingzoo.multinav_v0`: robots driving to their own goals
-  (agents ``robot_0``..).
+* :mod:`khepera_gym.pettingzoo.formation_v1`: followers holding a formation around a leader
+  (agents ``follower_0``.., plus ``leader`` with ``leader="agent"``; the manual:
+  :mod:`khepera_gym.pettingzoo.formation`);
+* :mod:`khepera_gym.pettingzoo.multinav_v1`: robots driving to their own goals
+  (agents ``robot_0``..; the manual: :mod:`khepera_gym.pettingzoo.multinav`).
+
+The ``_v0`` modules keep the v0 dynamics (kinematic drive, frictionless contacts, instant wheel
+speeds) so that published v0 numbers reproduce; see the Version History of
+:class:`khepera_gym.envs.NavEnv`.
 
 Each module has ``parallel_env(**kwargs)`` (a ``pettingzoo.ParallelEnv``) and ``env(**kwargs)``
 (its AEC version). Requires ``pettingzoo`` (a dependency of khepera_gym).
@@ -11,6 +16,6 @@ Each module has ``parallel_env(**kwargs)`` (a ``pettingzoo.ParallelEnv``) and ``
 
 from __future__ import annotations
 
-from khepera_gym.pettingzoo import formation_v0, multinav_v0
+from khepera_gym.pettingzoo import formation_v0, formation_v1, multinav_v0, multinav_v1
 
-__all__ = ["formation_v0", "multinav_v0"]
+__all__ = ["formation_v0", "formation_v1", "multinav_v0", "multinav_v1"]

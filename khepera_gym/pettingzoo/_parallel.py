@@ -60,6 +60,8 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
     }
     #: Task name in the Rust core.
     TASK: ClassVar[str] = ""
+    #: Behaviour version whose defaults apply (the module's ``_v<n>``); None: the latest.
+    VERSION: ClassVar[int | None] = None
     _WORLD: ClassVar[int | None] = 0
 
     def __init__(
@@ -84,6 +86,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             num_threads=1,
             autoreset=False,
             episode_steps=("max_cycles", max_cycles),
+            version=self.VERSION,
         )
         self._renderer = Renderer(
             self._batch,

@@ -1,30 +1,11 @@
-"""``multinav_v0``: several Khepera IV robots, each driving to its own goal, as PettingZoo agents.
+"""``multinav_v0``: several robots driving to their own goals, as PettingZoo agents, with the v0 dynamics (kinematic drive, frictionless contacts, instant wheel speeds) that the published v0 numbers came from.
 
-Every robot is an agent (``robot_0`` .. ``robot_{N-1}``) with the Nav observation (18 values:
-IR, ultrasonic, goal distance and bearing, wheel speeds; the table of
-:class:`khepera_gym.envs.NavEnv`), the Nav action (``Box(-1, 1, (2,))``, normalised wheel speeds)
-and the Nav reward for its own goal. The robots are obstacles to one another: their discs block
-each other's sensor rays and rapier resolves their contacts::
+The environment, its agents, spaces and rewards are documented in
+:mod:`khepera_gym.pettingzoo.multinav`; the Version History of :class:`khepera_gym.envs.NavEnv` says what changed in v1::
 
     from khepera_gym.pettingzoo import multinav_v0
 
-    env = multinav_v0.parallel_env(n_robots=4)
-    observations, infos = env.reset(seed=0)
-    while env.agents:
-        actions = {agent: env.action_space(agent).sample() for agent in env.agents}
-        observations, rewards, terminations, truncations, infos = env.step(actions)
-
-A robot that reaches its goal (within ``task.goal_radius``) is terminated as an agent and leaves
-``env.agents``; it parks on its goal (zero wheel commands), still an obstacle for the others.
-The episode terminates when every robot has arrived and is truncated after ``max_cycles`` steps
-(the scenario's ``task.max_steps``, 600): the remaining agents are then truncated, and each
-one's info holds ``"episode_stats"`` ("success" means every robot arrived). ``state()`` is the
-joint observation. The scenario is configs/multinav.toml: Nav's keys with Avoid's defaults for
-``spawn.min_goal_distance`` (1 m), ``task.max_steps`` (600) and ``task.collision_penalty`` (0.5),
-plus ``[multinav] n_robots`` (4, up to 32); ``spawn.start`` then lists N poses
-``[x, y, heading, ...]`` and ``spawn.goal`` N points ``[x, y, ...]``.
-
-``env(**kwargs)`` is the AEC version (``parallel_to_aec`` with its order-enforcing wrapper).
+    env = multinav_v0.parallel_env()
 """
 
 from __future__ import annotations
@@ -34,40 +15,15 @@ from typing import Any, ClassVar
 from pettingzoo import AECEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from khepera_gym.config import ConfigArg
-from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs, KheperaParallelEnv
+from khepera_gym.pettingzoo import multinav as _multinav
+from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
 
 
-class MultiNavParallelEnv(KheperaParallelEnv):
-    """N robots with their own goals as PettingZoo parallel agents.
+class MultiNavParallelEnv(_multinav.MultiNavParallelEnv):
+    """:class:`khepera_gym.pettingzoo.multinav.MultiNavParallelEnv` with behaviour version 0."""
 
-    Args:
-        n_robots: N, 1..32; None keeps the scenario's (4 by default).
-        config: None, a built-in scenario name or a path to a TOML file.
-        max_cycles: Steps before truncation; None keeps the scenario's ``task.max_steps``.
-        **kwargs: Further scenario overrides (e.g. ``count=5`` random obstacles), ``action_type``.
-    """
-
-    metadata: ClassVar[dict[str, Any]] = {
-        "name": "multinav_v0",
-        "render_modes": ["rgb_array", "human"],
-        "render_fps": 20,
-        "is_parallelizable": True,
-    }
-    TASK: ClassVar[str] = "multinav"
-
-    def __init__(
-        self,
-        n_robots: int | None = None,
-        config: ConfigArg = None,
-        max_cycles: int | None = None,
-        **kwargs: Any,
-    ) -> None:
-        if n_robots is not None:
-            multinav = dict(kwargs.pop("multinav", None) or {})
-            multinav["n_robots"] = n_robots
-            kwargs["multinav"] = multinav
-        super().__init__(config=config, max_cycles=max_cycles, **kwargs)
+    metadata: ClassVar[dict[str, Any]] = {**_multinav.MultiNavParallelEnv.metadata, "name": "multinav_v0"}
+    VERSION: ClassVar[int | None] = 0
 
 
 def parallel_env(**kwargs: Any) -> MultiNavParallelEnv:
@@ -76,8 +32,8 @@ def parallel_env(**kwargs: Any) -> MultiNavParallelEnv:
 
 
 def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """Multi-robot navigation as a PettingZoo AEC env; takes the arguments of
-    :func:`parallel_env`."""
+    """Multi-robot navigation as a PettingZoo AEC env (agents act in turn, the world steps once all have
+    acted); takes the arguments of :func:`parallel_env`."""
     return parallel_to_aec(parallel_env(**kwargs))
 
 

@@ -440,7 +440,7 @@ def make_vec_env(
     """An SB3 ``VecEnv`` of ``n_envs`` worlds of a khepera_gym env, stepped by the Rust batch.
 
     Args:
-        env_id: ``"KheperaIV-Nav-v0"``, ``"KheperaIV-Avoid-v0"``, ``"KheperaIV-Formation-v0"``
+        env_id: ``"KheperaIV-Nav-v1"``, ``"KheperaIV-Avoid-v1"``, ``"KheperaIV-Formation-v1"``
             (an unversioned id picks the latest version).
         n_envs: Number of worlds (rows).
         seed: World i is seeded with ``seed + i`` at the first ``reset()``; None draws a seed.
@@ -453,7 +453,7 @@ def make_vec_env(
 
     Example:
         >>> from stable_baselines3 import PPO
-        >>> envs = make_vec_env("KheperaIV-Nav-v0", n_envs=16, seed=0)
+        >>> envs = make_vec_env("KheperaIV-Nav-v1", n_envs=16, seed=0)
         >>> model = PPO("MlpPolicy", envs)  # doctest: +SKIP
     """
     return KheperaSB3VecEnv(task_of(env_id), n_envs, seed=seed, num_threads=num_threads, **config)

@@ -162,7 +162,9 @@ impl TaskSchema {
             return Err(Error::config(
                 "<built-in>",
                 "version",
-                format!("behaviour version {version} does not exist; the latest is {LATEST_VERSION}"),
+                format!(
+                    "behaviour version {version} does not exist; the latest is {LATEST_VERSION}"
+                ),
             ));
         }
         for (v, text) in VERSION_DEFAULTS.iter().rev() {

@@ -100,7 +100,12 @@ impl IrModel {
     /// Like [`IrModel::read`] for a surface of infrared `reflectance` relative to white paper:
     /// the reading rises above the floor value in proportion to it [E] (a dark obstacle reads
     /// lower than a white one at the same distance; Webots likewise scales by a reflectance).
-    pub fn read_surface<R: Rng>(&self, distance: Option<f32>, reflectance: f32, rng: &mut R) -> u16 {
+    pub fn read_surface<R: Rng>(
+        &self,
+        distance: Option<f32>,
+        reflectance: f32,
+        rng: &mut R,
+    ) -> u16 {
         let noise: f32 = rng.sample(StandardNormal);
         let white = self.mean_raw(distance);
         let mean = if reflectance == 1.0 {

@@ -274,8 +274,13 @@ macro_rules! sensor_registry {
             /// The table, every key in declaration order.
             pub fn to_table(&self) -> Table {
                 let mut table = Table::new();
+                // Through TOML text, so that f32 values read back as written (0.1, not
+                // 0.10000000149011612).
                 $(
-                    if let Ok(Value::Table(t)) = Value::try_from(&self.$field) {
+                    if let Some(t) = toml::to_string(&self.$field)
+                        .ok()
+                        .and_then(|text| text.parse::<Table>().ok())
+                    {
                         table.extend(t);
                     }
                 )*

@@ -21,8 +21,8 @@ use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::{DriveModel, Localization, Scenario};
 use crate::sensors::{Readings, SenseContext, Suite};
-use physics::{BodyState, Physics, PhysicsParams, TractionBody};
 pub use motion::integrate_arc;
+use physics::{BodyState, Physics, PhysicsParams, TractionBody};
 pub use scene::{Scene, SceneShape};
 
 /// State of one robot.

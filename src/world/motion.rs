@@ -142,9 +142,10 @@ impl World {
     fn advance_traction(&mut self) {
         let h = self.dt / self.substeps as f32;
         let far = !self.contact_possible(self.dt);
-        let steady = self.robots.iter().all(|r| {
-            r.wheel_speeds == r.wheel_command && r.wheel_setpoint == r.wheel_command
-        });
+        let steady = self
+            .robots
+            .iter()
+            .all(|r| r.wheel_speeds == r.wheel_command && r.wheel_setpoint == r.wheel_command);
         if far && steady && self.all_rolling() {
             // The wheels keep their speed and grip: one exact arc over the whole step.
             for r in &mut self.robots {

@@ -253,7 +253,13 @@ impl Physics {
 /// that would make both wheels roll without slipping, each clamped to `cap` (its friction
 /// circle). Wheels at ±axle/2 along the robot's left axis; the body's mass `mass` (kg) and
 /// moment of inertia `inertia` (kg·m²).
-fn tyre_impulses(body: &TractionBody, axle: f32, mass: f32, inertia: f32, cap: f32) -> (Vector, f32) {
+fn tyre_impulses(
+    body: &TractionBody,
+    axle: f32,
+    mass: f32,
+    inertia: f32,
+    cap: f32,
+) -> (Vector, f32) {
     let (s, c) = body.heading.sin_cos();
     let forward = Vector::new(c, s);
     let left = Vector::new(-s, c);
@@ -320,7 +326,13 @@ mod tests {
         let h = 0.0125;
         let cap = 1.0 * 0.5 * mass * GRAVITY * h;
         // Wheels at full speed, body at rest: at most μ·g of acceleration.
-        let (dv, _) = tyre_impulses(&body([0.8, 0.8], Vector::ZERO, 0.0), axle, mass, inertia, cap);
+        let (dv, _) = tyre_impulses(
+            &body([0.8, 0.8], Vector::ZERO, 0.0),
+            axle,
+            mass,
+            inertia,
+            cap,
+        );
         assert!((dv.length() - GRAVITY * h).abs() < 1e-5, "{}", dv.length());
     }
 }

@@ -377,7 +377,10 @@ impl Hit<'_> {
                 }
             }
             Target::Shape(shape) => {
-                let ray = Ray::new(shape.point_to_local(self.origin), shape.dir_to_local(self.dir));
+                let ray = Ray::new(
+                    shape.point_to_local(self.origin),
+                    shape.dir_to_local(self.dir),
+                );
                 let local = match &shape.geometry {
                     Geometry::Circle(g) => {
                         g.cast_local_ray_and_get_normal(&ray, self.distance + 1e-3, true)

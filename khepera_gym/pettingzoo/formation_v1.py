@@ -1,0 +1,40 @@
+"""``formation_v1``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents, with the latest dynamics (tyre grip, contact friction, the motor's speed profile).
+
+The environment, its agents, spaces and rewards are documented in
+:mod:`khepera_gym.pettingzoo.formation`::
+
+    from khepera_gym.pettingzoo import formation_v1
+
+    env = formation_v1.parallel_env()
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+from pettingzoo import AECEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from khepera_gym.pettingzoo import formation as _formation
+from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
+
+
+class FormationParallelEnv(_formation.FormationParallelEnv):
+    """:class:`khepera_gym.pettingzoo.formation.FormationParallelEnv` with behaviour version 1."""
+
+    metadata: ClassVar[dict[str, Any]] = {**_formation.FormationParallelEnv.metadata, "name": "formation_v1"}
+    VERSION: ClassVar[int | None] = 1
+
+
+def parallel_env(**kwargs: Any) -> FormationParallelEnv:
+    """The formation task as a PettingZoo ``ParallelEnv``; see :class:`FormationParallelEnv`."""
+    return FormationParallelEnv(**kwargs)
+
+
+def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
+    """The formation task as a PettingZoo AEC env (agents act in turn, the world steps once all have
+    acted); takes the arguments of :func:`parallel_env`."""
+    return parallel_to_aec(parallel_env(**kwargs))
+
+
+__all__ = ["FormationParallelEnv", "env", "parallel_env"]

@@ -1,0 +1,40 @@
+"""``multinav_v1``: several robots driving to their own goals, as PettingZoo agents, with the latest dynamics (tyre grip, contact friction, the motor's speed profile).
+
+The environment, its agents, spaces and rewards are documented in
+:mod:`khepera_gym.pettingzoo.multinav`::
+
+    from khepera_gym.pettingzoo import multinav_v1
+
+    env = multinav_v1.parallel_env()
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+from pettingzoo import AECEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from khepera_gym.pettingzoo import multinav as _multinav
+from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
+
+
+class MultiNavParallelEnv(_multinav.MultiNavParallelEnv):
+    """:class:`khepera_gym.pettingzoo.multinav.MultiNavParallelEnv` with behaviour version 1."""
+
+    metadata: ClassVar[dict[str, Any]] = {**_multinav.MultiNavParallelEnv.metadata, "name": "multinav_v1"}
+    VERSION: ClassVar[int | None] = 1
+
+
+def parallel_env(**kwargs: Any) -> MultiNavParallelEnv:
+    """Multi-robot navigation as a PettingZoo ``ParallelEnv``; see :class:`MultiNavParallelEnv`."""
+    return MultiNavParallelEnv(**kwargs)
+
+
+def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
+    """Multi-robot navigation as a PettingZoo AEC env (agents act in turn, the world steps once all have
+    acted); takes the arguments of :func:`parallel_env`."""
+    return parallel_to_aec(parallel_env(**kwargs))
+
+
+__all__ = ["MultiNavParallelEnv", "env", "parallel_env"]
