@@ -1,6 +1,8 @@
 //! Throughput of the Rust core alone (no Python): env-steps/s of each task's batch with random
 //! actions, per thread count. `cargo bench --bench core_step` prints figures and asserts nothing.
-//! `cargo bench --bench core_step -- nav` runs only the tasks whose name contains "nav".
+//! `cargo bench --bench core_step -- nav` runs only the tasks whose name contains "nav";
+//! `CORE_STEP_VERSION=0` measures behaviour version 0's defaults (the latest otherwise);
+//! `CORE_STEP_OVERRIDES='substeps = 8'` overrides scenario keys (TOML).
 
 use std::time::Instant;
 
@@ -41,7 +43,19 @@ fn main() {
         {
             continue;
         }
-        let cfg = load_scenario(kind.name(), &Source::default()).expect("scenario");
+        let version = std::env::var("CORE_STEP_VERSION")
+            .ok()
+            .and_then(|v| v.parse().ok());
+        let overrides = std::env::var("CORE_STEP_OVERRIDES")
+            .ok()
+            .map(|t| t.parse().expect("CORE_STEP_OVERRIDES is TOML"))
+            .unwrap_or_default();
+        let source = Source {
+            version,
+            overrides,
+            ..Default::default()
+        };
+        let cfg = load_scenario(kind.name(), &source).expect("scenario");
         let mut batch =
             Batch::new(kind, cfg, n, ActionType::Wheels, Some(threads), true).expect("batch");
         let robots = batch.envs()[0].world.robots.len();

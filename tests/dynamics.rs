@@ -165,8 +165,8 @@ fn test_frictionless_wall_keeps_the_tangential_speed_and_the_heading() {
 
 #[test]
 fn test_wall_contact_converges_as_substeps_grow() {
-    // One second against the wall at 45 deg, with 4 and 16 substeps: the end poses agree to a
-    // few millimetres (fidelity.md T4: 5 mm).
+    // One second against the wall at 45 deg, with the default 2, 4 and 16 substeps: the end
+    // poses agree to a few millimetres (fidelity.md T4: 5 mm).
     let end = |substeps: u32| {
         let mut env = nav(&format!("substeps = {substeps}"));
         env.world.place_robot(
@@ -178,10 +178,12 @@ fn test_wall_contact_converges_as_substeps_grow() {
         let r = &env.world.robots[0];
         (r.position, r.heading)
     };
-    let (p4, h4) = end(4);
     let (p16, h16) = end(16);
-    assert!((p4 - p16).length() < 0.005, "{p4:?} vs {p16:?}");
-    assert!((h4 - h16).abs() < 0.05, "{h4} vs {h16}");
+    for substeps in [2, 4] {
+        let (p, h) = end(substeps);
+        assert!((p - p16).length() < 0.005, "{substeps}: {p:?} vs {p16:?}");
+        assert!((h - h16).abs() < 0.05, "{substeps}: {h} vs {h16}");
+    }
 }
 
 #[test]
@@ -215,7 +217,7 @@ fn test_acceleration_and_braking_follow_the_speed_profile_in_both_motion_paths()
     let (a, free, v, braking, stopped) = run(0.0);
     let (_, near_wall, v_wall, braking_wall, _) = run(wall_side);
     assert!((a - 0.2034543).abs() < 1e-6, "default profile {a}");
-    let (t, h) = (2.0, 0.05 / 4.0); // 40 steps of 50 ms, 4 substeps each
+    let (t, h) = (2.0, 0.05 / 2.0); // 40 steps of 50 ms, 2 substeps each (the default)
     assert!(
         (v - a * t).abs() < 1e-4,
         "speed {v} after {t} s, theory {}",

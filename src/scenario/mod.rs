@@ -109,6 +109,7 @@ pub const VERSION_DEFAULTS: &[(u32, &str)] = &[(
 wheel_accel_limit = inf      # v0: wheels reached any commanded speed within one step
 
 [physics]
+substeps = 4                 # v0: four 12.5 ms substeps
 drive = "kinematic"          # v0: velocity imposed on the body, no tyre model
 friction = 0.0               # v0: frictionless shell: robots slid along walls
 

@@ -6,7 +6,7 @@
 
 use rapier2d::math::Vector;
 
-use super::physics::{BodyState, Grip, TractionBody};
+use super::physics::{BodyState, Grip, TractionBody, GRAVITY};
 use super::{Robot, World};
 use crate::robot::wrap_angle;
 use crate::scenario::DriveModel;
@@ -24,12 +24,20 @@ impl World {
     /// exceeds the larger of its current and commanded speeds.
     fn contact_possible(&self, duration: f32) -> bool {
         // (In the traction model a body may also move faster than its wheels, pushed or
-        // sliding: its own speed counts too; it is 0 in the kinematic model.)
+        // sliding: its own speed counts too; it is 0 in the kinematic model. There the wheels
+        // also follow a speed profile: within `duration` a wheel's speed and setpoint gain at
+        // most accel·duration. The kinematic model (v0) keeps its original bound, so that its
+        // choice between arcs and rapier, hence its trajectories, stay bit for bit.)
+        let gain = match self.drive_model {
+            DriveModel::Traction => self.drive.wheel_accel_limit * duration,
+            DriveModel::Kinematic => f32::INFINITY,
+        };
         let speed = |r: &Robot| {
-            r.wheel_speeds
-                .iter()
-                .chain(&r.wheel_command)
-                .fold(r.velocity.length(), |m, w| m.max(w.abs()))
+            let wheel = |i: usize| {
+                let now = r.wheel_speeds[i].abs().max(r.wheel_setpoint[i].abs());
+                r.wheel_command[i].abs().max(now).min(now + gain)
+            };
+            r.velocity.length().max(wheel(0)).max(wheel(1))
         };
         let radius = self.drive.radius;
         for (i, r) in self.robots.iter().enumerate() {
@@ -146,7 +154,7 @@ impl World {
             .robots
             .iter()
             .all(|r| r.wheel_speeds == r.wheel_command && r.wheel_setpoint == r.wheel_command);
-        if far && steady && self.all_rolling() {
+        if far && steady && self.all_rolling() && self.all_grip(self.dt) {
             // The wheels keep their speed and grip: one exact arc over the whole step.
             for r in &mut self.robots {
                 r.wheel_travel[0] += (r.wheel_speeds[0] * self.dt) as f64;
@@ -159,14 +167,23 @@ impl World {
             return;
         }
         for _ in 0..self.substeps {
+            // Rolling now, and the tyres can give this substep's change of wheel speeds (and the
+            // turn's centripetal force) within their grip: the body keeps rolling.
+            let mut rolls = self.all_rolling();
+            let grip = self.tyre_friction * GRAVITY * h;
+            let ratio = self.inertia_per_mass() / self.drive.axle_length;
             for r in &mut self.robots {
+                let before = r.wheel_speeds;
                 (r.wheel_setpoint, r.wheel_speeds) =
                     self.drive
                         .motors(r.wheel_setpoint, r.wheel_speeds, r.wheel_command, h);
                 r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
                 r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
+                if rolls {
+                    rolls = within_grip(&self.drive, before, r.wheel_speeds, ratio, grip, h);
+                }
             }
-            if (!far && self.contact_possible(h)) || !self.all_rolling() {
+            if (!far && self.contact_possible(h)) || !rolls {
                 self.traction_substep();
             } else {
                 for r in &mut self.robots {
@@ -177,6 +194,22 @@ impl World {
                 }
             }
         }
+    }
+
+    /// Moment of inertia over mass (m²) of the robots' bodies (uniform discs: R²/2, as rapier's
+    /// ball colliders give).
+    fn inertia_per_mass(&self) -> f32 {
+        0.5 * self.drive.radius * self.drive.radius
+    }
+
+    /// Whether every robot's tyres give the centripetal force of its steady turn over `h`
+    /// seconds within their grip.
+    fn all_grip(&self, h: f32) -> bool {
+        let grip = self.tyre_friction * GRAVITY * h;
+        let ratio = self.inertia_per_mass() / self.drive.axle_length;
+        self.robots
+            .iter()
+            .all(|r| within_grip(&self.drive, r.wheel_speeds, r.wheel_speeds, ratio, grip, h))
     }
 
     /// Whether every robot's body moves as its wheels roll (no slip, within a tolerance far
@@ -215,6 +248,29 @@ impl World {
         }
         self.mark_contacts();
     }
+}
+
+/// Whether a robot rolling on wheels at `before` (m/s) keeps rolling when they change to `after`
+/// over `h` seconds: the impulse per unit mass each tyre must give (half the change of forward
+/// speed, plus or minus the yaw change's share `ratio`·Δω with `ratio` = (I/m)/axle, and half of
+/// the turn's centripetal v·ω·h) stays inside its friction circle, half of μ·g·h (`grip`: each
+/// wheel carries half the weight).
+#[inline]
+fn within_grip(
+    drive: &crate::robot::Drive,
+    before: [f32; 2],
+    after: [f32; 2],
+    ratio: f32,
+    grip: f32,
+    h: f32,
+) -> bool {
+    let (v0, w0) = drive.twist(before);
+    let (v1, w1) = drive.twist(after);
+    let (dv, dw) = (v1 - v0, w1 - w0);
+    let lateral = 0.5 * v1 * w1 * h;
+    let cap = 0.5 * grip;
+    let fits = |long: f32| long * long + lateral * lateral <= cap * cap;
+    fits(0.5 * dv - ratio * dw) && fits(0.5 * dv + ratio * dw)
 }
 
 /// A rolling robot's body velocity: forward speed `v` (m/s) along its heading, yaw rate `w`.

@@ -131,7 +131,10 @@ impl Physics {
                     .mass(params.mass)
                     .friction(params.friction)
                     .restitution(0.0);
-                if params.traction {
+                if params.traction && params.robot_friction != params.friction {
+                    // A different coefficient between robots than against the scene needs the
+                    // per-pair hook; rapier never recycles hooked pairs' contacts, so equal
+                    // coefficients (the default) go without it.
                     collider = collider.active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS);
                 }
                 world.insert(body, collider).0
@@ -174,10 +177,28 @@ impl Physics {
         }
     }
 
-    /// Sets the shell friction coefficients of this episode (traction model).
+    /// Sets the shell friction coefficients of this episode (traction model): every collider's
+    /// coefficient, and the robot-robot hook when the two differ.
     pub fn set_friction(&mut self, wall: f32, robot: f32) {
         self.params.friction = wall;
         self.params.robot_friction = robot;
+        let hooks = if self.params.traction && robot != wall {
+            ActiveHooks::MODIFY_SOLVER_CONTACTS
+        } else {
+            ActiveHooks::empty()
+        };
+        let robot_colliders: Vec<ColliderHandle> = self
+            .robots
+            .iter()
+            .filter_map(|h| self.world.bodies.get(*h))
+            .flat_map(|b| b.colliders().to_vec())
+            .collect();
+        for (handle, collider) in self.world.colliders.iter_mut() {
+            collider.set_friction(wall);
+            if robot_colliders.contains(&handle) {
+                collider.set_active_hooks(hooks);
+            }
+        }
     }
 
     /// Robot mass of this episode (kg).
