@@ -1,17 +1,23 @@
 """The paper's controllers compared on the same seeded episodes: the README's tables and figures.
 
 Usage: ``python examples/compare_baselines.py [--episodes 200] [--fig6-episodes 20]
-[--out compare_out] [--docs docs]``. Runs, with :func:`khepera_gym.compare.compare`:
+[--out compare_out] [--docs docs] [--version 1]``. Runs, with :func:`khepera_gym.compare.compare`,
+on the envs of behaviour ``--version`` (default: the latest; 0 is the paper's V-REP-like
+dynamics):
 
 1. the paper's Fig. 6 scene (``config="paper_fig6"``): Braitenberg vs VFH (and position control
    alone), and how much each turns (total heading change, turn-direction reversals: the paper
    says VFH zigzags);
 2. the paper's Fig. 7 scene (``config="paper_fig7"``): four LeaderFollower followers in a cross;
 3. KheperaIV-Nav, KheperaIV-Avoid and KheperaIV-Formation with every baseline that fits and a
-   random policy.
+   random policy;
+4. from v1 on, the Fig. 6 scene and Avoid as K-Team's own Braitenberg demo drives the real robot:
+   its speed profile (Acc_Inc 10 per 10 ms: ``wheel_accel_limit = 0.678`` m/s^2) and its cruise
+   speed (200 units, 0.136 m/s: the ``*_slow`` policies).
 
 It prints each table, writes CSV, JSON and trajectory plots into ``--out``, and with ``--docs``
-saves the Fig. 6 (Braitenberg vs VFH) and Fig. 7 figures the README shows. The same runs from
+saves the Fig. 6 (Braitenberg vs VFH) and Fig. 7 figures the README shows (``_v<version>`` in
+their names). The same runs from
 the shell: ``khepera-gym compare --task avoid --config paper_fig6 --policy braitenberg vfh``.
 """
 
@@ -29,10 +35,17 @@ from khepera_gym.plot import panel_title, plot_rollouts
 DOCS_DPI = 100
 
 
-def fig6(episodes: int, out: Path, docs: Path | None) -> None:
+def env_id(task: str, version: int | None) -> str:
+    """The registered id of ``task`` in behaviour ``version`` (None: the latest)."""
+    latest = compare.TASK_IDS[task]
+    return latest if version is None else f"{latest.rsplit('-v', 1)[0]}-v{version}"
+
+
+def fig6(episodes: int, out: Path, docs: Path | None, version: int | None) -> None:
     """Braitenberg vs VFH on the paper's Fig. 6 scene, with how much each turns."""
+    avoid = env_id("avoid", version)
     result = compare.compare(
-        compare.TASK_IDS["avoid"],
+        avoid,
         ["braitenberg", "vfh", "position_control"],
         episodes=episodes,
         config="paper_fig6",
@@ -52,16 +65,15 @@ def fig6(episodes: int, out: Path, docs: Path | None) -> None:
             panel_title(name, r) for name, r in zip(("Braitenberg", "VFH"), rollouts, strict=True)
         ]
         figure = plot_rollouts(
-            rollouts, titles, suptitle='Paper Fig. 6 scene: KheperaIV-Avoid, config="paper_fig6"'
+            rollouts, titles, suptitle=f'Paper Fig. 6 scene: {avoid}, config="paper_fig6"'
         )
-        _save(figure, docs / "paper_fig6_braitenberg_vs_vfh.png")
+        _save(figure, docs / f"paper_fig6_braitenberg_vs_vfh_{avoid.rsplit('-', 1)[1]}.png")
 
 
-def fig7(episodes: int, out: Path, docs: Path | None) -> None:
+def fig7(episodes: int, out: Path, docs: Path | None, version: int | None) -> None:
     """The cross formation of four LeaderFollower followers on the paper's Fig. 7 scene."""
-    result = compare.compare(
-        compare.TASK_IDS["formation"], ["leader_follower"], episodes=episodes, config="paper_fig7"
-    )
+    formation = env_id("formation", version)
+    result = compare.compare(formation, ["leader_follower"], episodes=episodes, config="paper_fig7")
     compare.report(result, out)
     if docs is not None:
         rollout = result.rollouts["leader_follower"][0]
@@ -69,9 +81,26 @@ def fig7(episodes: int, out: Path, docs: Path | None) -> None:
         figure = plot_rollouts(
             [rollout],
             [title],
-            suptitle='Paper Fig. 7 scene: KheperaIV-Formation, config="paper_fig7"',
+            suptitle=f'Paper Fig. 7 scene: {formation}, config="paper_fig7"',
         )
-        _save(figure, docs / "paper_fig7_leader_follower.png")
+        _save(figure, docs / f"paper_fig7_leader_follower_{formation.rsplit('-', 1)[1]}.png")
+
+
+#: K-Team's braitenbergAvoidance demo (kh4test): Acc_Inc 10 speed units (0.678 mm/s) per 10 ms.
+KTEAM_DEMO_PROFILE = {"wheel_accel_limit": 0.678}
+#: The baselines at the demo's cruise speed.
+SLOW_POLICIES = ["position_control_slow", "braitenberg_slow", "vfh_slow"]
+
+
+def kteam_demo(episodes: int, fig6_episodes: int, out: Path, version: int | None) -> None:
+    """Fig. 6 and Avoid with K-Team's demo motor profile and cruise speed."""
+    avoid = env_id("avoid", version)
+    for config, n in (("paper_fig6", fig6_episodes), (None, episodes)):
+        print(f"\n== {avoid}, config={config!r}, K-Team demo profile {KTEAM_DEMO_PROFILE}\n")
+        result = compare.compare(
+            avoid, SLOW_POLICIES, episodes=n, config=config, overrides=KTEAM_DEMO_PROFILE
+        )
+        compare.report(result, out / "kteam_demo", plot=False)
 
 
 def _save(figure, path: Path) -> None:
@@ -86,21 +115,26 @@ def main() -> int:
     parser.add_argument("--fig6-episodes", type=int, default=20, help="on the paper scenes (20)")
     parser.add_argument("--out", type=Path, default=Path("compare_out"), help="(compare_out/)")
     parser.add_argument("--docs", type=Path, default=None, help="also save the README figures")
+    parser.add_argument(
+        "--version", type=int, default=None, help="behaviour version of the envs (the latest)"
+    )
     args = parser.parse_args()
 
     print("== The paper's Fig. 6 scene\n")
-    fig6(args.fig6_episodes, args.out, args.docs)
+    fig6(args.fig6_episodes, args.out, args.docs, args.version)
     print("\n== The paper's Fig. 7 scene\n")
-    fig7(args.fig6_episodes, args.out, args.docs)
+    fig7(args.fig6_episodes, args.out, args.docs, args.version)
     for task in ("nav", "avoid", "formation"):
-        print(f"\n== {compare.TASK_IDS[task]}\n")
+        print(f"\n== {env_id(task, args.version)}\n")
         result = compare.compare(
-            compare.TASK_IDS[task],
+            env_id(task, args.version),
             list(compare.DEFAULT_POLICIES[task]),
             episodes=args.episodes,
             record_worlds=2,
         )
         compare.report(result, args.out)
+    if args.version is None or args.version >= 1:
+        kteam_demo(args.episodes, args.fig6_episodes, args.out, args.version)
     return 0
 
 

@@ -24,6 +24,7 @@ import dataclasses
 import importlib.util
 import json
 import platform
+import re
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -81,7 +82,8 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     Args:
         algo: "ppo" or "sac"; names the default file ``configs/hyperparams/<algo>.toml``.
         env_id: The table's name (a registered id such as "KheperaIV-Nav-v1", or another
-            table such as "formation_v1-followers").
+            table such as "formation_v1-followers"); a table named without the version
+            ("KheperaIV-Nav") serves every version.
         path: Another TOML file to read instead.
 
     Raises:
@@ -98,11 +100,17 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
         ) from None
     except (OSError, tomllib.TOMLDecodeError) as error:
         raise ConfigError(f"{file}: cannot read hyperparameters: {error}") from None
-    if env_id not in tables:
-        raise ConfigError(f"{file}: no table [{env_id!r}]; tables: {sorted(tables)}")
-    table = tables[env_id]
+    # A table named without the version ("KheperaIV-Nav", "formation-followers") serves every
+    # version of the env; one named with it wins for that version.
+    unversioned = re.sub(r"[-_]v\d+(?=$|-)", "", env_id)
+    name = env_id if env_id in tables else unversioned
+    if name not in tables:
+        raise ConfigError(
+            f"{file}: no table [{env_id!r}] or [{unversioned!r}]; tables: {sorted(tables)}"
+        )
+    table = tables[name]
     if not isinstance(table, dict):
-        raise ConfigError(f"{file}: [{env_id!r}] must be a table")
+        raise ConfigError(f"{file}: [{name!r}] must be a table")
     return dict(table)
 
 

@@ -8,7 +8,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, AVOID_V0_ID, FORMATION_ID, FORMATION_V0_ID, NAV_ID, NAV_V0_ID
+from conftest import AVOID_ID, AVOID_V0_ID, FORMATION_ID, FORMATION_V0_ID, NAV_V0_ID
 
 from khepera_gym import _core
 from khepera_gym.baselines import (

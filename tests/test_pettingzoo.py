@@ -46,14 +46,18 @@ def _heuristic_actions(env: ParallelEnv, observations: dict) -> dict:
 
 @pytest.mark.parametrize(
     ("module", "version", "drive"),
-    [(formation_v0, 0, "kinematic"), (formation_v1, 1, "traction"), (multinav_v0, 0, "kinematic"),
-     (multinav_v1, 1, "traction")],
+    [
+        (formation_v0, 0, "kinematic"),
+        (formation_v1, 1, "traction"),
+        (multinav_v0, 0, "kinematic"),
+        (multinav_v1, 1, "traction"),
+    ],
 )
 def test_each_module_keeps_its_versions_dynamics(module, version: int, drive: str) -> None:
     env = module.parallel_env()
     assert env.metadata["name"].endswith(f"_v{version}")
     assert f'drive = "{drive}"' in env.config_toml()
-    assert env.VERSION == version
+    assert version == env.VERSION
 
 
 @pytest.mark.parametrize(("module", "kwargs"), ENVS, ids=ENV_IDS)

@@ -17,7 +17,9 @@ It writes the per-episode results as CSV and JSON and draws the first worlds' tr
 side by side, one panel per policy, in the style of the paper's Figs. 6 and 7
 (:func:`khepera_gym.plot.plot_rollouts`). Policies are named:
 
-* ``position_control``, ``braitenberg``, ``braitenberg_kteam`` (K-Team's weights), ``vfh``:
+* ``position_control``, ``braitenberg``, ``braitenberg_kteam`` (K-Team's weights), ``vfh``, and
+  ``position_control_slow``, ``braitenberg_slow``, ``vfh_slow`` (cruising at K-Team's demo speed,
+  0.136 m/s):
   :mod:`khepera_gym.baselines` on Nav/Avoid observations;
 * ``leader_follower``: :class:`khepera_gym.baselines.LeaderFollower` with the scenario's
   formation (Formation task);

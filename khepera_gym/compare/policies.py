@@ -23,6 +23,11 @@ BASELINES: dict[str, type[baselines.BaselinePolicy]] = {
 #: Named variants of the baselines: parameters other than the defaults.
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "braitenberg_kteam": ("braitenberg", {"weights": "kteam"}),
+    # At K-Team's demo cruise speed, 200 speed units = 0.136 m/s (its braitenbergAvoidance's
+    # fwSpeed, khepera4 library's kh4test): what the real robot's own demo drives at.
+    "position_control_slow": ("position_control", {"vmax": 0.136}),
+    "braitenberg_slow": ("braitenberg", {"vmax": 0.136}),
+    "vfh_slow": ("vfh", {"vmax": 0.136}),
     # An agent leader (formation.leader = "agent") drives like the scripted one.
     "leader_follower": ("leader_follower", {"leader": baselines.Braitenberg()}),
 }

@@ -257,6 +257,7 @@ def compare(
     record_worlds: int = 1,
     progress: bool = True,
     algo: str | None = None,
+    overrides: dict[str, Any] | None = None,
 ) -> Comparison:
     """Runs every policy on the same N seeded episodes and summarises them.
 
@@ -270,6 +271,8 @@ def compare(
         record_worlds: How many of the first worlds to record for plots.
         progress: Show progress bars.
         algo: stable-baselines3 algorithm of ``sb3:`` policies.
+        overrides: Scenario keys overriding the config, as for ``gym.make`` (e.g.
+            ``{"wheel_accel_limit": 0.678}``).
 
     Returns:
         The :class:`Comparison`.
@@ -286,7 +289,9 @@ def compare(
         raise ValueError(f"a policy is listed twice: {list(policies)}")
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    env = gym.make_vec(env_id, num_envs=episodes, config=config, num_threads=num_threads)
+    env = gym.make_vec(
+        env_id, num_envs=episodes, config=config, num_threads=num_threads, **(overrides or {})
+    )
     try:
         # Every policy is built (sb3 models loaded) before anything runs: errors come first.
         built = {name: make_policy(name, env, seed, algo) for name in policies}

@@ -21,8 +21,8 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed
 from khepera_gym import _core
+from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed
 from khepera_gym.config import VERSION_KEY, ConfigArg, make_batch
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer

@@ -1,4 +1,5 @@
-"""``formation_v1`` (and ``formation_v1``): leader-follower formation (paper §3.5, Fig. 7), one PettingZoo agent per robot.
+"""Leader-follower formation (paper §3.5, Fig. 7), one PettingZoo agent per robot: the manual of
+``formation_v1`` (and ``formation_v0``, the same with the v0 dynamics).
 
 The scenario of ``KheperaIV-Formation-v1`` (:class:`khepera_gym.envs.FormationEnv`, whose manual
 details the observation, reward and scenario keys) with one agent per follower::

@@ -1,7 +1,11 @@
-"""``formation_v0``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents, with the v0 dynamics (kinematic drive, frictionless contacts, instant wheel speeds) that the published v0 numbers came from.
+"""``formation_v0``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents,
+with the v0
+dynamics (kinematic drive, frictionless contacts, instant wheel speeds) of the published v0
+numbers.
 
 The environment, its agents, spaces and rewards are documented in
-:mod:`khepera_gym.pettingzoo.formation`; the Version History of :class:`khepera_gym.envs.NavEnv` says what changed in v1::
+:mod:`khepera_gym.pettingzoo.formation`; the Version History of
+:class:`khepera_gym.envs.NavEnv` says what changed in v1::
 
     from khepera_gym.pettingzoo import formation_v0
 
@@ -18,11 +22,13 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from khepera_gym.pettingzoo import formation as _formation
 from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
 
+_BASE = _formation.FormationParallelEnv
 
-class FormationParallelEnv(_formation.FormationParallelEnv):
+
+class FormationParallelEnv(_BASE):
     """:class:`khepera_gym.pettingzoo.formation.FormationParallelEnv` with behaviour version 0."""
 
-    metadata: ClassVar[dict[str, Any]] = {**_formation.FormationParallelEnv.metadata, "name": "formation_v0"}
+    metadata: ClassVar[dict[str, Any]] = {**_BASE.metadata, "name": "formation_v0"}
     VERSION: ClassVar[int | None] = 0
 
 
@@ -32,8 +38,8 @@ def parallel_env(**kwargs: Any) -> FormationParallelEnv:
 
 
 def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """The formation task as a PettingZoo AEC env (agents act in turn, the world steps once all have
-    acted); takes the arguments of :func:`parallel_env`."""
+    """The formation task as a PettingZoo AEC env (agents act in turn, the world steps
+    once all have acted); takes the arguments of :func:`parallel_env`."""
     return parallel_to_aec(parallel_env(**kwargs))
 
 

@@ -1,4 +1,6 @@
-"""``formation_v1``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents, with the latest dynamics (tyre grip, contact friction, the motor's speed profile).
+"""``formation_v1``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents,
+with the latest dynamics
+(tyre grip, contact friction, the motor's speed profile).
 
 The environment, its agents, spaces and rewards are documented in
 :mod:`khepera_gym.pettingzoo.formation`::
@@ -18,11 +20,13 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from khepera_gym.pettingzoo import formation as _formation
 from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
 
+_BASE = _formation.FormationParallelEnv
 
-class FormationParallelEnv(_formation.FormationParallelEnv):
+
+class FormationParallelEnv(_BASE):
     """:class:`khepera_gym.pettingzoo.formation.FormationParallelEnv` with behaviour version 1."""
 
-    metadata: ClassVar[dict[str, Any]] = {**_formation.FormationParallelEnv.metadata, "name": "formation_v1"}
+    metadata: ClassVar[dict[str, Any]] = {**_BASE.metadata, "name": "formation_v1"}
     VERSION: ClassVar[int | None] = 1
 
 
@@ -32,8 +36,8 @@ def parallel_env(**kwargs: Any) -> FormationParallelEnv:
 
 
 def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """The formation task as a PettingZoo AEC env (agents act in turn, the world steps once all have
-    acted); takes the arguments of :func:`parallel_env`."""
+    """The formation task as a PettingZoo AEC env (agents act in turn, the world steps
+    once all have acted); takes the arguments of :func:`parallel_env`."""
     return parallel_to_aec(parallel_env(**kwargs))
 
 

@@ -1,4 +1,5 @@
-"""``multinav_v1`` (and ``multinav_v1``): several Khepera IV robots, each driving to its own goal, as PettingZoo agents.
+"""Several Khepera IV robots, each driving to its own goal, as PettingZoo agents: the manual of
+``multinav_v1`` (and ``multinav_v0``, the same with the v0 dynamics).
 
 Every robot is an agent (``robot_0`` .. ``robot_{N-1}``) with the Nav observation (18 values:
 IR, ultrasonic, goal distance and bearing, wheel speeds; the table of
@@ -30,7 +31,6 @@ plus ``[multinav] n_robots`` (4, up to 32); ``spawn.start`` then lists N poses
 from __future__ import annotations
 
 from typing import Any, ClassVar
-
 
 from khepera_gym.config import ConfigArg
 from khepera_gym.pettingzoo._parallel import KheperaParallelEnv

@@ -1,7 +1,11 @@
-"""``multinav_v0``: several robots driving to their own goals, as PettingZoo agents, with the v0 dynamics (kinematic drive, frictionless contacts, instant wheel speeds) that the published v0 numbers came from.
+"""``multinav_v0``: robots driving to their own goals, as PettingZoo agents,
+with the v0
+dynamics (kinematic drive, frictionless contacts, instant wheel speeds) of the published v0
+numbers.
 
 The environment, its agents, spaces and rewards are documented in
-:mod:`khepera_gym.pettingzoo.multinav`; the Version History of :class:`khepera_gym.envs.NavEnv` says what changed in v1::
+:mod:`khepera_gym.pettingzoo.multinav`; the Version History of
+:class:`khepera_gym.envs.NavEnv` says what changed in v1::
 
     from khepera_gym.pettingzoo import multinav_v0
 
@@ -18,11 +22,13 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from khepera_gym.pettingzoo import multinav as _multinav
 from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
 
+_BASE = _multinav.MultiNavParallelEnv
 
-class MultiNavParallelEnv(_multinav.MultiNavParallelEnv):
+
+class MultiNavParallelEnv(_BASE):
     """:class:`khepera_gym.pettingzoo.multinav.MultiNavParallelEnv` with behaviour version 0."""
 
-    metadata: ClassVar[dict[str, Any]] = {**_multinav.MultiNavParallelEnv.metadata, "name": "multinav_v0"}
+    metadata: ClassVar[dict[str, Any]] = {**_BASE.metadata, "name": "multinav_v0"}
     VERSION: ClassVar[int | None] = 0
 
 
@@ -32,8 +38,8 @@ def parallel_env(**kwargs: Any) -> MultiNavParallelEnv:
 
 
 def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """Multi-robot navigation as a PettingZoo AEC env (agents act in turn, the world steps once all have
-    acted); takes the arguments of :func:`parallel_env`."""
+    """Multi-robot navigation as a PettingZoo AEC env (agents act in turn, the world steps
+    once all have acted); takes the arguments of :func:`parallel_env`."""
     return parallel_to_aec(parallel_env(**kwargs))
 
 

@@ -1,4 +1,6 @@
-"""``multinav_v1``: several robots driving to their own goals, as PettingZoo agents, with the latest dynamics (tyre grip, contact friction, the motor's speed profile).
+"""``multinav_v1``: robots driving to their own goals, as PettingZoo agents,
+with the latest dynamics
+(tyre grip, contact friction, the motor's speed profile).
 
 The environment, its agents, spaces and rewards are documented in
 :mod:`khepera_gym.pettingzoo.multinav`::
@@ -18,11 +20,13 @@ from pettingzoo.utils.conversions import parallel_to_aec
 from khepera_gym.pettingzoo import multinav as _multinav
 from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
 
+_BASE = _multinav.MultiNavParallelEnv
 
-class MultiNavParallelEnv(_multinav.MultiNavParallelEnv):
+
+class MultiNavParallelEnv(_BASE):
     """:class:`khepera_gym.pettingzoo.multinav.MultiNavParallelEnv` with behaviour version 1."""
 
-    metadata: ClassVar[dict[str, Any]] = {**_multinav.MultiNavParallelEnv.metadata, "name": "multinav_v1"}
+    metadata: ClassVar[dict[str, Any]] = {**_BASE.metadata, "name": "multinav_v1"}
     VERSION: ClassVar[int | None] = 1
 
 
@@ -32,8 +36,8 @@ def parallel_env(**kwargs: Any) -> MultiNavParallelEnv:
 
 
 def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """Multi-robot navigation as a PettingZoo AEC env (agents act in turn, the world steps once all have
-    acted); takes the arguments of :func:`parallel_env`."""
+    """Multi-robot navigation as a PettingZoo AEC env (agents act in turn, the world steps
+    once all have acted); takes the arguments of :func:`parallel_env`."""
     return parallel_to_aec(parallel_env(**kwargs))
 
 
