@@ -544,3 +544,44 @@ fn test_observation_delay_shows_the_world_k_steps_late() {
         assert_eq!(&b, shown, "step {i}");
     }
 }
+
+#[test]
+fn test_delays_and_odometry_save_and_restore_bit_for_bit() {
+    let overrides = "action_delay = 2\nobservation_delay = 1\nlocalization = \"odometry\"";
+    let mut env = nav(overrides);
+    let mut obs = vec![0.0; env.obs_dim()];
+    let actions: Vec<[f32; 2]> = (0..40).map(|i| [0.5, 0.1 * (i % 7) as f32]).collect();
+    for a in &actions[..20] {
+        env.step(a, &mut obs);
+    }
+    let mut state = Vec::new();
+    env.save_state(&mut state).expect("save");
+    let replay = |env: &mut Env| {
+        let mut out = Vec::new();
+        let mut o = vec![0.0; env.obs_dim()];
+        for a in &actions[20..] {
+            env.step(a, &mut o);
+            let r = &env.world.robots[0];
+            out.push((o.clone(), r.position, r.odometry.position));
+        }
+        out
+    };
+    let first = replay(&mut env);
+    let mut restored = nav(overrides);
+    restored.load_state(&state).expect("load");
+    assert_eq!(replay(&mut restored), first);
+}
+
+#[test]
+fn test_delays_beyond_the_limit_are_config_errors() {
+    let source = Source {
+        file: None,
+        overrides: "observation_delay = 1000000".parse().expect("overrides"),
+        version: None,
+    };
+    let e = load_scenario("nav", &source).unwrap_err().to_string();
+    assert!(
+        e.contains("task.observation_delay: must be at most 100"),
+        "{e}"
+    );
+}

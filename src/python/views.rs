@@ -47,7 +47,8 @@ pub fn episode_stats<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Bound<
 
 /// Raw sensor readings of the last observation, in the real robot's units: each carried
 /// sensor's channels (shape (N, n_robots, values) or (N, n_robots)), then the body's
-/// "wheel_speeds" (m/s), "encoders" (pulses) and "gyro_z" (rad/s).
+/// "wheel_speeds" (m/s), "encoders" (pulses) and "gyro_z" (rad/s); with `localization =
+/// "odometry"` also "odometry" (the robot's dead-reckoned x, y in m and heading in rad).
 pub fn sensor_readings<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Bound<'py, PyDict>> {
     let (n, r) = (batch.len(), batch.envs()[0].world.robots.len());
     let robots = || batch.envs().iter().flat_map(|e| e.world.robots.iter());
@@ -91,6 +92,22 @@ pub fn sensor_readings<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Boun
         "encoders",
         PyArray1::from_vec(py, encoders).reshape([n, r, 2])?,
     )?;
+    if batch.scenario().task.localization == crate::scenario::Localization::Odometry {
+        // The robot's own dead-reckoned pose (x, y, heading): what its observation is built from.
+        let estimate: Vec<f32> = robots()
+            .flat_map(|r| {
+                [
+                    r.odometry.position.x,
+                    r.odometry.position.y,
+                    r.odometry.heading,
+                ]
+            })
+            .collect();
+        d.set_item(
+            "odometry",
+            PyArray1::from_vec(py, estimate).reshape([n, r, 3])?,
+        )?;
+    }
     if !d.contains("gyro_z")? {
         // Without a gyroscope model carried (v0), the body's exact yaw rate over the step.
         let gyro: Vec<f32> = robots().map(|r| r.yaw_rate).collect();

@@ -120,6 +120,10 @@ us_acceptance = 1.5707963267948966 # v0: an echo from any incidence angle
 "#,
 )];
 
+/// Largest action or observation delay (control steps): 5 s at the default 50 ms, far beyond
+/// the real robot's latencies; each pending step keeps an observation per world.
+pub const MAX_DELAY_STEPS: u32 = 100;
+
 /// Largest arena side (m): positions are float32 metres, which keep millimetre precision well
 /// beyond this; far larger arenas overflow distances to infinity.
 pub const MAX_ARENA_SIDE: f32 = 1000.0;
@@ -350,6 +354,17 @@ impl Scenario {
         self.odometry.validate(origin)?;
         if self.task.max_steps == 0 {
             return bad("task.max_steps", "must be >= 1, got 0".into());
+        }
+        for (key, delay) in [
+            ("task.action_delay", self.task.action_delay),
+            ("task.observation_delay", self.task.observation_delay),
+        ] {
+            if delay > MAX_DELAY_STEPS {
+                return bad(
+                    key,
+                    format!("must be at most {MAX_DELAY_STEPS} control steps, got {delay}"),
+                );
+            }
         }
         if self.physics.substeps == 0 || self.physics.substeps > 64 {
             return bad(
