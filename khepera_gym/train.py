@@ -15,6 +15,10 @@ then evaluates the final model on ``eval_episodes`` seeded episodes. A run direc
   ``tensorboard`` package is installed (``tensorboard --logdir runs``).
 
 SB3 and torch are imported only when training starts, so ``khepera-gym demo`` stays light.
+
+``--backend rllib`` trains Ray RLlib's PPO instead (:func:`khepera_gym.rllib.train`, the
+``rllib`` extra), from ``configs/hyperparams/rllib_ppo.toml``, evaluated on the same seeded
+episodes; the run directory then holds ``checkpoint/`` (RLlib's) and ``run.json``.
 """
 
 from __future__ import annotations
@@ -42,6 +46,8 @@ if TYPE_CHECKING:
 HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "configs" / "hyperparams"
 #: Algorithms ``train`` knows: command-line name → SB3 class name.
 ALGORITHMS = {"ppo": "PPO", "sac": "SAC"}
+#: Training libraries of ``--backend``: stable-baselines3 (default) or Ray RLlib (PPO only).
+BACKENDS = ("sb3", "rllib")
 #: Seed of the first evaluation episode; evaluation episodes are seeded EVAL_SEED + i, away from
 #: the training worlds' seeds (``--seed`` + i).
 EVAL_SEED = 10_000
@@ -453,10 +459,62 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--verbose", type=int, default=1, help="0 quiet, 1 evaluations (default), 2 SB3 tables"
     )
+    parser.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default="sb3",
+        help="sb3 (stable-baselines3, default) or rllib (Ray RLlib PPO: the rllib extra; "
+        "--n-envs is then worlds per EnvRunner)",
+    )
+    parser.add_argument(
+        "--num-env-runners",
+        type=int,
+        help="rllib: remote EnvRunners, 1 CPU each (the table's; 0 samples in this process)",
+    )
+    parser.add_argument(
+        "--address", help="rllib: address of a Ray cluster (ray.init(address=...)); default local"
+    )
+
+
+def _run_rllib(args: argparse.Namespace) -> int:
+    """``khepera-gym train --backend rllib``: :func:`khepera_gym.rllib.train`."""
+    if importlib.util.find_spec("ray") is None or importlib.util.find_spec("torch") is None:
+        raise SystemExit(
+            "khepera-gym train --backend rllib needs Ray RLlib and torch: "
+            "pip install 'khepera-gym[rllib]'"
+        )
+    if args.algo != "ppo":
+        raise SystemExit(f"khepera-gym train --backend rllib trains ppo only, not {args.algo}")
+    if args.eval_episodes < 1:
+        raise SystemExit("khepera-gym train: --eval-episodes must be >= 1")
+    from khepera_gym import rllib
+
+    try:
+        rllib.train(
+            args.env,
+            timesteps=args.timesteps,
+            n_envs=args.n_envs,
+            num_env_runners=args.num_env_runners,
+            seed=args.seed,
+            out_dir=args.out,
+            hyperparams_path=args.hyperparams,
+            overrides=dict(parse_override(text) for text in args.hp),
+            eval_freq=args.eval_freq,
+            eval_episodes=args.eval_episodes,
+            eval_seed=args.eval_seed,
+            address=args.address,
+            verbose=args.verbose,
+            torch_threads=args.torch_threads,
+        )
+    except ConfigError as error:
+        raise SystemExit(f"khepera-gym train: {error}") from None
+    return 0
 
 
 def run_from_args(args: argparse.Namespace) -> int:
     """Runs ``khepera-gym train`` from parsed arguments; returns the exit code."""
+    if getattr(args, "backend", "sb3") == "rllib":
+        return _run_rllib(args)
     if importlib.util.find_spec("stable_baselines3") is None:
         raise SystemExit(
             "khepera-gym train needs stable-baselines3: pip install 'khepera-gym[sb3]'"
@@ -496,6 +554,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 __all__ = [
     "ALGORITHMS",
+    "BACKENDS",
     "EVAL_SEED",
     "HYPERPARAMS_DIR",
     "LinearDecay",
