@@ -50,6 +50,16 @@ pytestmark = [
     # Several RLlib EnvRunners built in one process each register their env under the same
     # Gymnasium id (RLlib's own "rllib-single-agent-env-v0"), which makes Gymnasium warn.
     pytest.mark.filterwarnings("ignore:.*Overriding environment rllib-:UserWarning"),
+    # Ray 2.52's ray.init announces a change of its GPU environment variables (no GPU here).
+    pytest.mark.filterwarnings("ignore:Tip. In future versions of Ray:FutureWarning"),
+    # Ray 2.52 leaves the Popen handles of its own processes (raylet, GCS) unwaited and their
+    # /dev/null files open.
+    pytest.mark.filterwarnings("ignore:subprocess [0-9]+ is still running:ResourceWarning"),
+    pytest.mark.filterwarnings("ignore:unclosed file .*/dev/null:ResourceWarning"),
+    # Ray 2.52's Algorithm still builds Tune's deprecated UnifiedLogger (2.60 no longer does).
+    pytest.mark.filterwarnings(
+        "ignore:This API is deprecated and may be removed in future Ray:DeprecationWarning"
+    ),
 ]
 
 
