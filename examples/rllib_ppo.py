@@ -2,7 +2,7 @@
 
     python examples/rllib_ppo.py                          # a local Ray (ray.init())
     python examples/rllib_ppo.py --address auto           # on a node of a running cluster
-    python examples/rllib_ppo.py --address auto --num-env-runners 8 --wheel dist/khepera_gym-*.whl
+    python examples/rllib_ppo.py --address auto --num-env-runners 8
 
 The same script runs in both places; only ``--address`` changes (and the number of EnvRunners
 you can afford). Each EnvRunner (a Ray actor with 1 CPU) steps ONE Rust batch of
@@ -12,9 +12,9 @@ the policy is evaluated on the same 100 seeded episodes as ``khepera-gym train``
 10000..10099) and the algorithm is saved as an RLlib checkpoint.
 
 Every node must be able to import khepera_gym, a compiled extension: install the abi3 wheel of
-``make wheel`` next to Ray on every node, or pass ``--wheel`` to let Ray upload it and install it
-for this job (``runtime_env={"py_modules": [wheel]}``). Needs the ``rllib`` extra:
-``pip install 'khepera-gym[rllib]'``. About 15 s of training on 2 cores for the default 100k steps.
+``make wheel`` with pip into the Python environment of Ray on every node (README, "Training on a
+cluster"). Needs the ``rllib`` extra: ``pip install 'khepera-gym[rllib]'``. About 20 s of
+training on 2 cores for the default 100k steps.
 """
 
 from __future__ import annotations
@@ -42,12 +42,10 @@ def main() -> None:
     parser.add_argument("--envs-per-runner", type=int, default=16, help="worlds per runner (16)")
     parser.add_argument("--timesteps", type=int, default=100_000, help="env steps (100k)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--wheel", type=Path, help="khepera_gym wheel for Ray to install on nodes")
     parser.add_argument("--out", type=Path, default=Path("runs/rllib-ppo-nav-example"))
     args = parser.parse_args()
 
-    runtime_env = {"py_modules": [str(args.wheel.resolve())]} if args.wheel else None
-    ray.init(address=args.address, runtime_env=runtime_env, include_dashboard=False)
+    ray.init(address=args.address, include_dashboard=False)
     # The learner runs here: one torch thread is fastest for these small networks.
     torch.set_num_threads(1)
     config = (
@@ -80,6 +78,11 @@ def main() -> None:
         .debugging(seed=args.seed)
     )
     algo = rllib.build_algo(config)  # checks the config against the env, then builds it
+    if args.num_env_runners > 0:
+        nodes = algo.env_runner_group.foreach_env_runner(
+            lambda runner: ray.get_runtime_context().get_node_id()[:8], local_env_runner=False
+        )
+        print(f"{len(nodes)} EnvRunners on {len(set(nodes))} Ray node(s): {sorted(nodes)}")
     steps, start = 0, time.perf_counter()
     while steps < args.timesteps:
         result = algo.train()

@@ -1205,30 +1205,39 @@ def train(
     return result
 
 
-def sampling_throughput(config: AlgorithmConfig, iterations: int = 3, warmup: int = 1) -> float:
-    """Env-steps/s of whole ``algo.train()`` iterations (sampling and learning) of ``config``.
+def sampling_throughput(
+    config: AlgorithmConfig, steps_per_runner: int = 8192, repeats: int = 3
+) -> float:
+    """Env-steps/s of RLlib's sampling alone (no learning) with the EnvRunners of ``config``.
 
-    Builds the algorithm (Ray must be initialised), runs ``warmup`` iterations untimed, then
-    ``iterations`` timed ones, and stops it.
+    Builds the algorithm (Ray must be initialised), lets every EnvRunner (remote ones in
+    parallel, else the local one) sample ``steps_per_runner`` env steps with the initial policy
+    once untimed, then ``repeats`` times timed, and stops it. Counts the steps the episodes hold.
 
     Raises:
-        ConfigError: ``iterations`` < 1, or see :func:`check_config`.
+        ConfigError: ``steps_per_runner`` or ``repeats`` < 1, or see :func:`check_config`.
     """
-    if iterations < 1:
-        raise ConfigError(f"iterations must be >= 1, got {iterations}")
+    if steps_per_runner < 1 or repeats < 1:
+        raise ConfigError(
+            f"steps_per_runner and repeats must be >= 1, got {steps_per_runner}, {repeats}"
+        )
     algo = build_algo(config)
+
+    def sample(runner: Any) -> int:
+        episodes = runner.sample(num_timesteps=steps_per_runner)
+        return sum(len(episode) for episode in episodes)
+
+    local = config.num_env_runners == 0
     try:
-        before = 0
-        for _ in range(warmup):
-            before = _sampled_steps(algo.train())
+        algo.env_runner_group.foreach_env_runner(sample, local_env_runner=local)
         start = time.perf_counter()
-        after = before
-        for _ in range(iterations):
-            after = _sampled_steps(algo.train())
+        steps = 0
+        for _ in range(repeats):
+            steps += sum(algo.env_runner_group.foreach_env_runner(sample, local_env_runner=local))
         elapsed = time.perf_counter() - start
     finally:
         algo.stop()
-    return (after - before) / elapsed
+    return steps / elapsed
 
 
 __all__ = [
