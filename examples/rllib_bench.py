@@ -62,7 +62,7 @@ def main() -> None:
                     result.final.success_rate,
                 )
             )
-        ray.init(num_cpus=cores, include_dashboard=False, log_to_driver=False)
+        ray.init(address="local", num_cpus=cores, include_dashboard=False, log_to_driver=False)
         for runners in args.runners:
             run = rllib.train(
                 "KheperaIV-Nav",

@@ -52,7 +52,7 @@ import platform
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -78,8 +78,10 @@ from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.layout import layout_dict
 from khepera_gym.pettingzoo import formation_v0, multinav_v0
-from khepera_gym.pettingzoo._parallel import KheperaParallelEnv
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+
+if TYPE_CHECKING:
+    from khepera_gym.pettingzoo._parallel import KheperaParallelEnv
 
 #: Prefix of every env name this module registers with Ray Tune.
 ENV_PREFIX = "khepera_gym/"
@@ -98,8 +100,6 @@ EVAL_SEED = 10_000
 HYPERPARAMS_NAME = "rllib_ppo"
 #: Keys of a hyperparameter table that configure the run, not ``PPOConfig.training``.
 _RUN_KEYS = ("n_timesteps", "num_env_runners", "num_envs_per_env_runner", "model", "env_kwargs")
-#: RLlib evaluation runners add this to their seed (``env_runner.py``: ``1e6 * in_evaluation``).
-_RLLIB_EVAL_SEED_OFFSET = 10**6
 
 
 # --- names and ids ---------------------------------------------------------------------------
@@ -678,6 +678,7 @@ def _spaces_of(name: str, env_config: Mapping[str, Any]) -> dict[str, tuple[gym.
     config = {key: value for key, value in env_config.items() if key not in _VECTOR_ONLY_KWARGS}
     if name == FOLLOWERS_ENV:
         followers = FormationFollowersVectorEnv(1, num_threads=1, **config)
+        followers.close()
         return {
             DEFAULT_MODULE_ID: (followers.single_observation_space, followers.single_action_space)
         }
@@ -689,7 +690,8 @@ def _spaces_of(name: str, env_config: Mapping[str, Any]) -> dict[str, tuple[gym.
 
 
 def describe_space(space: gym.Space) -> str:
-    """A short description of a space for messages: ``Box(-1.0..1.0, (2,), float32)``."""
+    """A short description of a space for messages: ``Box(-1..1, (2,), float32)`` (the
+    smallest low and largest high), other spaces as they print themselves."""
     if isinstance(space, gym.spaces.Box):
         return (
             f"Box({float(np.min(space.low)):g}..{float(np.max(space.high)):g}, {space.shape}, "
@@ -984,7 +986,7 @@ def evaluate_policy(
     """
     start = time.perf_counter()
     envs = gym.make_vec(
-        resolve_env_id(env_id),
+        resolve_env_id(env_id.removeprefix(ENV_PREFIX)),
         num_envs=episodes,
         vectorization_mode="vector_entry_point",
         num_threads=num_threads,

@@ -68,7 +68,7 @@ def local_ray() -> Iterator[None]:
     """One local Ray instance for the module, and torch on one thread (as `train` uses)."""
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield
     ray.shutdown()
     torch.set_num_threads(threads)
