@@ -175,6 +175,21 @@ def test_vector_envs_pass_rllib_checks_and_train(name: str, rows: int) -> None:
         algo.stop()
 
 
+@ray.remote
+class RunnerLikeActor:
+    """An actor like an EnvRunner: builds the vector env the registered creator makes."""
+
+    def batch_threads(self) -> int:
+        return rllib.VectorEnvCreator(NAV)({"num_envs": 2}).unwrapped.num_threads
+
+
+@pytest.mark.parametrize("cpus", [1, 2])
+def test_batch_threads_default_to_the_cpus_ray_gives_the_runner(cpus: int) -> None:
+    actor = RunnerLikeActor.options(num_cpus=cpus).remote()  # type: ignore[attr-defined]
+    assert ray.get(actor.batch_threads.remote()) == cpus
+    ray.kill(actor)
+
+
 def test_followers_rows_replay_pettingzoo_followers_across_an_episode_end() -> None:
     seed, worlds, steps = 11, 2, 12
     env = rllib.FormationFollowersVectorEnv(worlds, n_followers=3, max_steps=5, num_threads=1)
