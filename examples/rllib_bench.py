@@ -9,7 +9,8 @@ Prints two tables, measured on this machine:
   per runner), with the hyperparameters of configs/hyperparams/ppo.toml and rllib_ppo.toml (both
   4096 env steps per update, minibatches of 256, 10 epochs, 64-64 tanh networks): env-steps/s of
   the whole run as its run.json reports it (sampling, learning and the ten evaluations on 100
-  seeded episodes), and the final success rate;
+  seeded episodes), env-steps per CPU-second (this process, plus RLlib's EnvRunner processes;
+  not Ray's daemons), which other load on the machine hardly changes, and the final success rate;
 * sampling alone: env-steps/s of RLlib's EnvRunners stepping the Rust batch with the initial
   policy, no learning (``khepera_gym.rllib.sampling_throughput``).
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 import argparse
 import os
 import tempfile
+import time
 from pathlib import Path
 
 import ray
@@ -43,9 +45,10 @@ def main() -> None:
     cores = os.cpu_count() or 1
     print(f"{cores} cores, load average {os.getloadavg()[0]:.2f} at the start")
     torch.set_num_threads(1)
-    rows: list[tuple[str, float, float]] = []
+    rows: list[tuple[str, float, float, float]] = []
     with tempfile.TemporaryDirectory() as scratch:
         if not args.skip_sb3:
+            cpu_start = time.process_time()  # SB3 runs in this process (rayon threads included)
             result = train_sb3(
                 "KheperaIV-Nav",
                 "ppo",
@@ -55,13 +58,9 @@ def main() -> None:
                 progress_bar=False,
                 verbose=0,
             )
-            rows.append(
-                (
-                    f"SB3 PPO, {args.n_envs} worlds",
-                    result.steps_per_second,
-                    result.final.success_rate,
-                )
-            )
+            cpu_steps = result.timesteps / (time.process_time() - cpu_start)
+            label = f"SB3 PPO, {args.n_envs} worlds"
+            rows.append((label, result.steps_per_second, cpu_steps, result.final.success_rate))
         ray.init(address="local", num_cpus=cores, include_dashboard=False, log_to_driver=False)
         for runners in args.runners:
             run = rllib.train(
@@ -73,7 +72,8 @@ def main() -> None:
                 verbose=0,
             )
             label = f"RLlib PPO, {runners} EnvRunner(s) x {args.n_envs} worlds"
-            rows.append((label, run.steps_per_second, run.final.success_rate))
+            cpu_steps = run.timesteps / run.cpu_time
+            rows.append((label, run.steps_per_second, cpu_steps, run.final.success_rate))
         hyperparams = rllib.load_hyperparams("KheperaIV-Nav-v0")
         sampling = []
         for runners in args.runners:
@@ -87,9 +87,9 @@ def main() -> None:
         ray.shutdown()
 
     print(f"\ntraining, {args.timesteps:,} env steps per run (evaluations included)")
-    print(f"{'run':<44} {'env-steps/s':>12} {'success':>8}")
-    for label, steps_per_second, success in rows:
-        print(f"{label:<44} {steps_per_second:>12,.0f} {100 * success:>7.0f}%")
+    print(f"{'run':<44} {'env-steps/s':>12} {'per CPU-s':>10} {'success':>8}")
+    for label, steps_per_second, cpu_steps, success in rows:
+        print(f"{label:<44} {steps_per_second:>12,.0f} {cpu_steps:>10,.0f} {100 * success:>7.0f}%")
     print("\nRLlib sampling alone (no learning)")
     print(f"{'EnvRunners':<44} {'env-steps/s':>12}")
     for runners, steps_per_second in sampling:

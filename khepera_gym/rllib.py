@@ -1046,6 +1046,10 @@ class TrainResult:
     eval_time: float
     #: Environment steps per second of the training loop (evaluations included, as SB3's).
     steps_per_second: float
+    #: CPU time of the training loop (s): this process (learner, evaluations, a local runner)
+    #: plus the remote EnvRunner processes; Ray's own daemons are not counted. Unlike the wall
+    #: time it hardly depends on other work on the machine.
+    cpu_time: float
     final: Evaluation
     history: list[Evaluation]
     checkpoint: str
@@ -1060,6 +1064,18 @@ class TrainResult:
 
 def _sampled_steps(result: Mapping[str, Any]) -> int:
     return int(result["env_runners"]["num_env_steps_sampled_lifetime"])
+
+
+def _cpu_seconds(algo: Algorithm) -> float:
+    """CPU time so far of this process and of the algorithm's remote EnvRunner processes."""
+    remote = 0.0
+    if algo.config.num_env_runners > 0:
+        remote = sum(
+            algo.env_runner_group.foreach_env_runner(
+                lambda runner: time.process_time(), local_env_runner=False
+            )
+        )
+    return time.process_time() + remote
 
 
 def train(
@@ -1141,6 +1157,7 @@ def train(
             )
         history: list[Evaluation] = []
         steps = iterations = last_eval = 0
+        cpu_start = _cpu_seconds(algo)
         start = time.perf_counter()
         while steps < total:
             steps = _sampled_steps(algo.train())
@@ -1163,6 +1180,7 @@ def train(
                         f"length {evaluation.mean_length:5.1f}"
                     )
         wall_time = time.perf_counter() - start
+        cpu_time = _cpu_seconds(algo) - cpu_start
         checkpoint = algo.save_to_path(str(out / "checkpoint"))
         algo.stop()
     finally:
@@ -1182,6 +1200,7 @@ def train(
         wall_time=wall_time,
         eval_time=sum(evaluation.seconds for evaluation in history),
         steps_per_second=steps / wall_time,
+        cpu_time=cpu_time,
         final=history[-1],
         history=history,
         checkpoint=str(checkpoint),
