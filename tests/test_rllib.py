@@ -64,13 +64,20 @@ pytestmark = [
 
 
 @pytest.fixture(scope="module", autouse=True)
-def local_ray() -> Iterator[None]:
+def local_ray(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     """One local Ray instance for the module, and torch on one thread (as `train` uses)."""
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
+    patch = pytest.MonkeyPatch()
+    # Every Algorithm (a Tune Trainable) makes a log folder under ~/ray_results: keep them here.
+    patch.setattr(
+        "ray.tune.trainable.trainable.DEFAULT_STORAGE_PATH",
+        str(tmp_path_factory.mktemp("ray_results")),
+    )
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield
     ray.shutdown()
+    patch.undo()
     torch.set_num_threads(threads)
 
 
