@@ -69,11 +69,11 @@ def local_ray(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     patch = pytest.MonkeyPatch()
-    # Every Algorithm (a Tune Trainable) makes a log folder under ~/ray_results: keep them here.
-    patch.setattr(
-        "ray.tune.trainable.trainable.DEFAULT_STORAGE_PATH",
-        str(tmp_path_factory.mktemp("ray_results")),
-    )
+    # Every Algorithm (a Tune Trainable) makes a log folder under ~/ray_results: keep them here
+    # (Ray 2.52's Algorithm module has a copy of the path of its own).
+    results = str(tmp_path_factory.mktemp("ray_results"))
+    patch.setattr("ray.tune.trainable.trainable.DEFAULT_STORAGE_PATH", results)
+    patch.setattr("ray.rllib.algorithms.algorithm.DEFAULT_STORAGE_PATH", results, raising=False)
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield
     ray.shutdown()
