@@ -18,7 +18,8 @@ SB3 and torch are imported only when training starts, so ``khepera-gym demo`` st
 
 ``--backend rllib`` trains Ray RLlib's PPO instead (:func:`khepera_gym.rllib.train`, the
 ``rllib`` extra), from ``configs/hyperparams/rllib_ppo.toml``, evaluated on the same seeded
-episodes; the run directory then holds ``checkpoint/`` (RLlib's) and ``run.json``.
+episodes; the run directory then holds ``checkpoint/`` (RLlib's) and ``run.json``. Both backends
+read their tables with :mod:`khepera_gym.hyperparams`.
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ import dataclasses
 import importlib.util
 import json
 import platform
-import sys
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -36,21 +36,17 @@ from typing import TYPE_CHECKING, Any
 
 import khepera_gym
 from khepera_gym.errors import ConfigError
+from khepera_gym.hyperparams import EVAL_SEED, HYPERPARAMS_DIR, load_hyperparams, parse_override
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
 
     from khepera_gym.sb3 import Evaluation
 
-#: Folder of the hyperparameter files in a source checkout (``configs/hyperparams``).
-HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "configs" / "hyperparams"
 #: Algorithms ``train`` knows: command-line name → SB3 class name.
 ALGORITHMS = {"ppo": "PPO", "sac": "SAC"}
 #: Training libraries of ``--backend``: stable-baselines3 (default) or Ray RLlib (PPO only).
 BACKENDS = ("sb3", "rllib")
-#: Seed of the first evaluation episode; evaluation episodes are seeded EVAL_SEED + i, away from
-#: the training worlds' seeds (``--seed`` + i).
-EVAL_SEED = 10_000
 #: Keys of a hyperparameter table that configure the run rather than the SB3 algorithm.
 _RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
 #: Activation functions by name, for ``policy_kwargs.activation_fn``.
@@ -69,65 +65,6 @@ class LinearDecay:
 
     def __repr__(self) -> str:
         return f"lin_{self.start}"
-
-
-def _toml() -> Any:
-    """tomllib, or tomli before Python 3.11 (in the sb3 extra): imported when first needed, so
-    ``khepera-gym demo`` runs without it."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-    return tomllib
-
-
-def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
-    """The hyperparameter table of ``env_id`` in an algorithm's TOML file.
-
-    Args:
-        algo: "ppo" or "sac"; names the default file ``configs/hyperparams/<algo>.toml``.
-        env_id: The table's name (a registered id such as "KheperaIV-Nav-v0", or another
-            table such as "formation_v0-followers").
-        path: Another TOML file to read instead.
-
-    Raises:
-        ConfigError: The file is missing or unreadable, or has no table for ``env_id``.
-    """
-    tomllib = _toml()
-    file = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.toml"
-    try:
-        tables = tomllib.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(
-            f"{file}: hyperparameter file not found (installed from a wheel? pass "
-            "--hyperparams FILE; the repository's configs/hyperparams/ has examples)"
-        ) from None
-    except (OSError, tomllib.TOMLDecodeError) as error:
-        raise ConfigError(f"{file}: cannot read hyperparameters: {error}") from None
-    if env_id not in tables:
-        raise ConfigError(f"{file}: no table [{env_id!r}]; tables: {sorted(tables)}")
-    table = tables[env_id]
-    if not isinstance(table, dict):
-        raise ConfigError(f"{file}: [{env_id!r}] must be a table")
-    return dict(table)
-
-
-def parse_override(text: str) -> tuple[str, Any]:
-    """``"KEY=VALUE"`` with VALUE in TOML syntax (``n_steps=64``, ``learning_rate="lin_1e-3"``,
-    ``policy_kwargs={net_arch=[32, 32]}``); a VALUE that is not TOML is taken as a string.
-
-    Raises:
-        ConfigError: No ``=`` or an empty key.
-    """
-    tomllib = _toml()
-    key, separator, value = text.partition("=")
-    key = key.strip()
-    if not separator or not key:
-        raise ConfigError(f"--hp takes KEY=VALUE, got {text!r}")
-    try:
-        return key, tomllib.loads(f"value = {value.strip()}")["value"]
-    except tomllib.TOMLDecodeError:
-        return key, value.strip()
 
 
 def _learning_rate(value: Any) -> Any:
