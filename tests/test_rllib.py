@@ -10,6 +10,7 @@ on 2 cores.
 from __future__ import annotations
 
 import json
+import pickle
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -35,7 +36,9 @@ from ray.rllib.env.single_agent_env_runner import SingleAgentEnvRunner
 from khepera_gym import rllib
 from khepera_gym.cli import main as cli_main
 from khepera_gym.errors import ConfigError
+from khepera_gym.face import BatchFace
 from khepera_gym.pettingzoo import formation_v0, multinav_v0
+from khepera_gym.registration import latest_ids
 
 NAV = "khepera_gym/KheperaIV-Nav-v0"
 #: A small, quick PPO for the tests that only need RLlib to run (not to learn).
@@ -308,6 +311,74 @@ def test_multi_agent_ppo_steps_with_shared_and_per_agent_policies(
     modules = {"shared_policy"} if shared else set(agents.possible_agents)
     assert modules == mapping["policies"]
     assert modules <= set(result["learners"])
+
+
+# --- faces over the batch ----------------------------------------------------------------------
+
+
+def test_rllib_envs_show_their_world_through_the_shared_face() -> None:
+    # Both RLlib faces of a 3-follower Formation world reset with seed 4 show the world a single
+    # FormationEnv reset with seed 4 shows, through the same BatchFace accessors.
+    single = gym.make(latest_ids()["formation"], n_followers=3).unwrapped
+    single.reset(seed=4)
+    followers = rllib.FormationFollowersVectorEnv(2, n_followers=3, num_threads=1)
+    followers.reset(seed=4)
+    multi_agent = rllib.make_multi_agent_env("khepera_gym/formation_v0", {"n_followers": 3})
+    multi_agent.reset(seed=4)
+    for face, world in ((followers, lambda a: a[0]), (multi_agent, lambda a: a)):
+        assert isinstance(face, BatchFace)
+        np.testing.assert_array_equal(world(face.poses()), single.poses())
+        np.testing.assert_array_equal(world(face.goals()), single.goals())
+        np.testing.assert_array_equal(world(face.targets()), single.targets())
+        for key, values in single.sensor_readings().items():
+            np.testing.assert_array_equal(world(face.sensor_readings()[key]), values)
+        assert face.config_toml() == single.config_toml()
+        assert face.obs_layout() == single.obs_layout()
+        assert face.agent_layouts() == single.agent_layouts()
+        assert face.max_episode_steps == single.max_episode_steps
+    np.testing.assert_array_equal(followers.formation_targets(), followers.targets())
+    assert followers.follower_layout == single.agent_layouts()["follower_0"]
+
+
+def test_followers_env_saves_restores_and_pickles_its_state_across_an_episode_end() -> None:
+    env = rllib.FormationFollowersVectorEnv(2, n_followers=2, max_steps=6, num_threads=1)
+    env.reset(seed=5)
+    actions = np.random.default_rng(1).uniform(-1, 1, (10, env.num_envs, 2)).astype(np.float32)
+    for step in actions[:3]:
+        env.step(step)
+    state = env.get_state()
+    first = [env.step(step) for step in actions[3:]]  # the worlds end at step 6, reset at 7
+    clone = pickle.loads(pickle.dumps(env))
+    for restored in (env, clone):
+        restored.set_state(state)
+        again = [restored.step(step) for step in actions[3:]]
+        for before, after in zip(first, again, strict=True):
+            for x, y in zip(before[:4], after[:4], strict=True):
+                np.testing.assert_array_equal(x, y)
+            assert before[4].keys() == after[4].keys()
+    assert any(result[4] for result in first)  # the replay crossed an episode end
+
+
+def test_multi_agent_env_saves_and_restores_its_world() -> None:
+    env = rllib.make_multi_agent_env("khepera_gym/multinav_v0", {"n_robots": 2})
+    env.reset(seed=2)
+    rng = np.random.default_rng(0)
+    actions = [{a: rng.uniform(-1, 1, 2).astype(np.float32) for a in env.agents} for _ in range(30)]
+    state = env.get_state()
+    first = [env.step(action)[0] for action in actions]
+    env.set_state(state)
+    again = [env.step(action)[0] for action in actions]
+    for x, y in zip(first, again, strict=True):
+        assert x.keys() == y.keys()
+        for agent in x:
+            np.testing.assert_array_equal(x[agent], y[agent])
+    # In a fresh env, a reset without a seed after set_state continues the restored world's
+    # stream (rather than drawing a first seed), as in the PettingZoo env.
+    fresh = rllib.make_multi_agent_env("khepera_gym/multinav_v0", {"n_robots": 2})
+    fresh.set_state(env.get_state())
+    twin = multinav_v0.parallel_env(n_robots=2)
+    twin.set_state(env.get_state())
+    np.testing.assert_array_equal(fresh.reset()[0]["robot_0"], twin.reset()[0]["robot_0"])
 
 
 # --- learning ----------------------------------------------------------------------------------
