@@ -73,18 +73,20 @@ SUPPORTED_MODELS = (
 FORMATS = ("c", "onnx")
 #: Install hint for the ONNX writer and checker.
 EXPORT_EXTRA = "pip install 'khepera-gym[export]'"
-#: ONNX operator set of the exported graph (supported by onnxruntime >= 1.13).
-ONNX_OPSET = 17
-#: ONNX IR version written (8 goes with opset 17; older runtimes reject newer IR versions).
-ONNX_IR_VERSION = 8
+#: ONNX operator set of the exported graph: every operator used exists in this form since
+#: opset 13, and older runtimes (as on small robots) load it.
+ONNX_OPSET = 13
+#: ONNX IR version written (7 goes with opset 13; older runtimes reject newer IR versions).
+ONNX_IR_VERSION = 7
 #: Largest absolute difference between an exported policy's action and the Python policy's that
 #: the checks accept.
 PARITY_TOLERANCE = 1e-5
 #: Largest difference between the C observation and the simulator's (float32 rounding of the
 #: goal bearing's sine and cosine; the sensor blocks match exactly).
 OBSERVATION_TOLERANCE = 1e-6
-#: Flags of the native build of ``export_check`` (the C must be warning-free C99).
-C_FLAGS = ("-O2", "-std=c99", "-Wall", "-Wextra", "-Werror")
+#: Flags of the native build of ``export_check`` in the export's check (the tests add -Wextra
+#: -Werror: the code is warning-free C99 with gcc).
+C_FLAGS = ("-O2", "-std=c99", "-Wall")
 #: Raw IR reading of an obstacle touching the sensor (src/sensors/ir.rs, IR_MAX_RAW).
 IR_MAX_RAW = 1023.0
 #: One ``kh4_set_speed`` unit in mm/s (src/robot.rs, khepera4_spec.md §1).
@@ -420,6 +422,8 @@ class _RllibPolicy:
     action_config: _RllibActionConfig
     #: The env the algorithm was configured with (a string id), if any.
     env_id: str | None
+    #: Its ``env_config`` (``gym.make`` keyword arguments for a registered id).
+    env_config: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def predict(
         self, observation: npt.NDArray[np.float32], deterministic: bool = True
@@ -483,7 +487,7 @@ def _load_rllib(path: Path) -> _RllibPolicy:
     """An RLlib checkpoint: an algorithm's directory or one RLModule's."""
     module_dir = path
     action_config = _RllibActionConfig()
-    env_id = None
+    env_id, env_config = None, {}
     if (path / "rllib_checkpoint.json").exists() and (path / "learner_group").is_dir():
         modules = path / "learner_group" / "learner" / "rl_module"
         candidates = sorted(p for p in modules.iterdir() if (p / "module_state.pkl").exists())
@@ -510,26 +514,28 @@ def _load_rllib(path: Path) -> _RllibPolicy:
                         bool(kwargs.get("normalize_actions", True)),
                         bool(kwargs.get("clip_actions", False)),
                     )
-        env_id = _rllib_env_id(path)
+        env_id, env_config = _rllib_env(path)
     elif not (path / "module_state.pkl").exists():
         raise _unsupported(f"{path} (a directory that is not an RLlib checkpoint)")
     rl_module = _import_rllib()
     module = rl_module.from_checkpoint(module_dir)
-    return _RllibPolicy(module, action_config, env_id)
+    return _RllibPolicy(module, action_config, env_id, env_config)
 
 
-def _rllib_env_id(path: Path) -> str | None:
-    """The env id an RLlib algorithm checkpoint was configured with, when it is a string."""
+def _rllib_env(path: Path) -> tuple[str | None, dict[str, Any]]:
+    """The env id (when a string) and ``env_config`` an RLlib algorithm checkpoint was
+    configured with."""
     import pickle
 
     try:
         with (path / "class_and_ctor_args.pkl").open("rb") as spec_file:
             spec = pickle.load(spec_file)
         config = spec["ctor_args_and_kwargs"][0][0]
-        env = config.get("env") if isinstance(config, dict) else getattr(config, "env", None)
     except (OSError, KeyError, IndexError, TypeError, pickle.UnpicklingError):
-        return None
-    return env if isinstance(env, str) else None
+        return None, {}
+    get = config.get if isinstance(config, dict) else lambda key: getattr(config, key, None)
+    env, env_config = get("env"), get("env_config")
+    return (env if isinstance(env, str) else None), dict(env_config or {})
 
 
 def _describe_rllib_module(module: Any, action_config: _RllibActionConfig) -> PolicyNetwork:
@@ -625,7 +631,10 @@ def _toml_loads(text: str) -> dict[str, Any]:
     if sys.version_info >= (3, 11):
         import tomllib
     else:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
+        try:
+            import tomli as tomllib
+        except ImportError as error:
+            raise ImportError(f"reading the scenario needs tomli: {EXPORT_EXTRA}") from error
     return tomllib.loads(text)
 
 
@@ -833,6 +842,11 @@ def _c_array(values: Iterable[str], indent: str = "    ", per_line: int = 6) -> 
     items = list(values)
     lines = [", ".join(items[i : i + per_line]) for i in range(0, len(items), per_line)]
     return (",\n" + indent).join(lines)
+
+
+def _indices(start: int, stop: int, dash: str) -> str:
+    """A block's indices: "13", or "0-7" for a longer one."""
+    return str(start) if stop - start == 1 else f"{start}{dash}{stop - 1}"
 
 
 def _c_name(name: str) -> str:
@@ -1073,7 +1087,7 @@ def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
         "where": where,
         "version": khepera_gym.__version__,
         "layout": "\n".join(
-            f" *   {start:>3}-{stop - 1:<3} {name}" for name, start, stop in robot.layout
+            f" *   {_indices(start, stop, '-'):<7} {name}" for name, start, stop in robot.layout
         ),
         "obs_dim": robot.obs_dim,
         "input_count": sum(count for _, _, count, _ in fields),
@@ -1270,7 +1284,7 @@ def record_rollouts(
     env: gym.Env[Any, Any],
     robot: RobotInterface,
     act: Callable[[npt.NDArray[np.float32]], npt.NDArray[Any]],
-    seeds: Sequence[int] = (0, 1, 2),
+    seeds: Sequence[int] = tuple(range(10)),
     steps: int = 150,
     random_fraction: float = 0.3,
 ) -> Recording:
@@ -1349,8 +1363,9 @@ def _env_of(model_path: Path | None, model: Any, env_id: str | None) -> tuple[st
             run = json.loads(run_file.read_text(encoding="utf-8"))
             overrides = dict(run.get("hyperparams", {}).get("env_kwargs", {}))
             env_id = env_id or run.get("env_id")
-    if env_id is None and isinstance(model, _RllibPolicy):
+    if env_id is None and isinstance(model, _RllibPolicy) and model.env_id is not None:
         env_id = model.env_id
+        overrides = dict(model.env_config)
     if env_id is None:
         raise ConfigError(
             "cannot tell which env the policy was trained on (no run.json next to the model): "
@@ -1455,7 +1470,8 @@ def export_policy(
                 source=network.source,
                 version=khepera_gym.__version__,
                 layout="\n".join(
-                    f"| {start}–{stop - 1} | `{name}` |" for name, start, stop in robot.layout
+                    f"| {_indices(start, stop, '–')} | `{name}` |"
+                    for name, start, stop in robot.layout
                 ),
             )
             (out / "README.md").write_text(readme, encoding="utf-8")
@@ -1557,6 +1573,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env", default=None, help="env id trained on (from run.json if absent)")
     parser.add_argument("--config", default=None, help="scenario trained on (name or TOML path)")
     parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a scenario override as in training (VALUE in TOML syntax), e.g. ir_floor_value=110",
+    )
+    parser.add_argument(
         "--action-type", choices=("wheels", "unicycle"), default=None, help="as in training"
     )
     parser.add_argument(
@@ -1567,10 +1590,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cc", default="cc", help="C compiler of the check (cc)")
 
 
+def _parse_override(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` with VALUE in TOML syntax, or a string when it is not TOML.
+
+    Raises:
+        ConfigError: No ``=`` or an empty key.
+    """
+    key, separator, value = text.partition("=")
+    if not separator or not key.strip():
+        raise ConfigError(f"--set takes KEY=VALUE, got {text!r}")
+    try:
+        return key.strip(), _toml_loads(f"value = {value.strip()}")["value"]
+    except ValueError:  # tomllib.TOMLDecodeError is a ValueError
+        return key.strip(), value.strip()
+
+
 def run_from_args(args: argparse.Namespace) -> int:
     """Runs ``khepera-gym export`` with parsed arguments."""
     model = Path(args.model)
     out = args.out if args.out is not None else model.resolve().parent / "export"
+    overrides = dict(_parse_override(text) for text in args.set)
     result = export_policy(
         model,
         out,
@@ -1580,6 +1619,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         action_type=args.action_type,
         check=not args.no_check,
         compiler=args.cc,
+        **overrides,
     )
     agent = f" (one agent's block, as {result.robot.agent})" if result.robot.agent else ""
     print(

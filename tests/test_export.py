@@ -214,6 +214,79 @@ def test_c_and_onnx_policies_match_predict_on_recorded_observations(
     assert np.max(np.abs(onnx_actions - expected)) < ACTION_TOLERANCE
 
 
+def numpy_policy(network: export.PolicyNetwork, observations: npt.NDArray[Any]) -> npt.NDArray[Any]:
+    """The network's actions computed with numpy, from its definition."""
+    x = observations.astype(np.float64)
+    norm = network.normalization
+    if norm is not None:
+        x = np.clip((x - norm.mean) / np.sqrt(norm.variance + norm.epsilon), -norm.clip, norm.clip)
+    x = x.astype(np.float32)
+    for layer in network.layers:
+        x = x @ layer.weight.T + layer.bias
+        if layer.activation == "tanh":
+            x = np.tanh(x)
+        elif layer.activation == "relu":
+            x = np.maximum(x, 0)
+        elif layer.activation == "elu":
+            x = np.where(x > 0, x, layer.alpha * np.expm1(x))
+        elif layer.activation == "leaky_relu":
+            x = np.where(x > 0, x, layer.alpha * x)
+        elif layer.activation == "silu":
+            x = x / (1 + np.exp(-x))
+    x = network.action.scale * x + network.action.offset
+    if network.action.low is not None:
+        x = np.clip(x, network.action.low, network.action.high)
+    return x
+
+
+def test_every_activation_exports_to_c_and_onnx(
+    nav_recording: export.Recording, tmp_path: Path
+) -> None:
+    # A network written by hand (no torch): every activation, statistics far from (0, 1) with
+    # some clipped, asymmetric action bounds.
+    rng = np.random.default_rng(0)
+    widths = [18, 24, 20, 16, 12, 8, 2]
+    activations = ["tanh", "relu", "elu", "leaky_relu", "silu", "identity"]
+    layers = tuple(
+        export.DenseLayer(
+            rng.normal(0, 1.5 / np.sqrt(n_in), (n_out, n_in)).astype(np.float32),
+            rng.normal(0, 0.3, n_out).astype(np.float32),
+            activation,
+            {"elu": 0.7, "leaky_relu": 0.05}.get(activation, 0.0),
+        )
+        for n_in, n_out, activation in zip(widths[:-1], widths[1:], activations, strict=True)
+    )
+    observations = nav_recording.observations
+    normalization = export.ObservationNormalization(
+        mean=observations.mean(axis=0) + rng.normal(0, 0.05, 18),
+        variance=observations.var(axis=0) * rng.uniform(0.5, 2.0, 18),
+        epsilon=1e-8,
+        clip=3.0,
+    )
+    low, high = np.array([-1.0, -0.5], np.float32), np.array([1.0, 0.25], np.float32)
+    network = export.PolicyNetwork(
+        "hand-written",
+        18,
+        2,
+        normalization,
+        layers,
+        export.ActionTransform((high - low) / 4, (high + low) / 2, low, high),
+    )
+    expected = numpy_policy(network, observations)
+    assert np.mean((expected == low) | (expected == high)) > 0.05  # some actions are clipped
+    assert np.mean((expected > low) & (expected < high)) > 0.5
+
+    (tmp_path / "policy.onnx").write_bytes(export.build_onnx(network).SerializeToString())
+    onnx_actions = export.onnx_actions(tmp_path / "policy.onnx", observations)
+    assert np.max(np.abs(onnx_actions - expected)) < ACTION_TOLERANCE
+
+    with gym.make(NAV_ID) as env:
+        robot = export.robot_interface(env, 18, NAV_ID)
+    export.write_c(network, robot, tmp_path, "a test")
+    c_actions = run_check(compile_check(tmp_path), "policy", observations)
+    assert np.max(np.abs(c_actions - expected)) < ACTION_TOLERANCE
+
+
 @pytest.mark.parametrize(
     ("env_id", "heuristic", "config"),
     [
@@ -352,6 +425,13 @@ def test_command_exports_a_trained_run_with_its_scenario_and_statistics(
     assert "#define OBSERVATION_IR_FLOOR_VALUE 110.0f" in (out / "observation.h").read_text()
     for name in ("policy.c", "policy.h", "observation.c", "khepera_policy_main.c", "Makefile"):
         assert (out / name).is_file()
+
+    # --set overrides the scenario, --env the run's env; --no-check measures nothing.
+    other = tmp_path / "other"
+    arguments = ["--set", "us_max_range=1.5", "--no-check", "--out", str(other)]
+    assert cli.main(["export", str(run / "model.zip"), "--env", NAV_ID, *arguments]) == 0
+    assert "#define OBSERVATION_US_MAX_RANGE 1.5f" in (other / "observation.h").read_text()
+    assert json.loads((other / export.MANIFEST_FILE).read_text())["checks"] == {}
 
 
 class ImageEnv(gym.Env[npt.NDArray[np.uint8], npt.NDArray[np.float32]]):
