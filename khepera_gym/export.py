@@ -263,13 +263,18 @@ def load_model(path: str | Path) -> tuple[Any, Any]:
         raise _unsupported(f"{path} (not an SB3 .zip nor an RLlib checkpoint directory)")
     import pickle
 
-    from khepera_gym import sb3  # its ImportError names the sb3 extra
-
+    try:
+        stable_baselines3 = importlib.import_module("stable_baselines3")
+        from khepera_gym import sb3
+    except ImportError as error:
+        raise ImportError(
+            f"{path} is a stable-baselines3 model: pip install 'khepera-gym[sb3]'"
+        ) from error
     try:
         algorithm = sb3.algorithm_of(path)
     except KheperaError as error:
         raise _unsupported(f"{path} ({error})") from error
-    model_class = getattr(importlib.import_module("stable_baselines3"), algorithm)
+    model_class = getattr(stable_baselines3, algorithm)
     model = model_class.load(path, device="cpu")
     stats_path = path.parent / sb3.VECNORMALIZE_FILE
     normalizer = None

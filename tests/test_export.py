@@ -620,6 +620,13 @@ def test_missing_onnx_extra_names_the_pip_command(
         export.onnx_actions(tmp_path / "policy.onnx", np.zeros((1, 18), np.float32))
 
 
+def test_missing_sb3_names_the_pip_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    PPO("MlpPolicy", gym.make(NAV_ID), device="cpu").save(tmp_path / "model.zip")
+    monkeypatch.setitem(sys.modules, "stable_baselines3", None)
+    with pytest.raises(ImportError, match=r"pip install 'khepera-gym\[sb3\]'"):
+        export.export_policy(tmp_path / "model.zip", tmp_path / "out", env_id=NAV_ID)
+
+
 def test_missing_ray_names_the_pip_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     module = tmp_path / "learner_group" / "learner" / "rl_module" / "default_policy"
     module.mkdir(parents=True)
