@@ -32,6 +32,7 @@ from torch import nn
 
 import khepera_gym
 from khepera_gym import cli, export
+from khepera_gym.baselines import Braitenberg
 from khepera_gym.envs import avoid_heuristic, formation_follower_heuristic, nav_heuristic
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.sb3 import NormalizedPolicy, make_formation_vec_env, make_vec_env
@@ -71,7 +72,8 @@ int kh4_activate_us(char mask, knet_dev_t *device);
 
 
 # A fake robot behind those declarations: fixed sensor readings, wheels turning at (300, -200)
-# speed units, encoders that do not move; it logs the commands it gets to standard error.
+# speed units, encoders that do not move; it logs the commands and ultrasonic measurements it
+# gets to standard error.
 FAKE_ROBOT = """
 #include <stdio.h>
 #include <khepera/khepera.h>
@@ -131,6 +133,7 @@ int kh4_measure_us(char *buffer, knet_dev_t *d)
     static const int codes[5] = {25, 1000, 80, 2000, 0};
     int i;
     (void)d;
+    fprintf(stderr, "measure_us\\n");
     for (i = 0; i < 5; ++i) {
         put_u16(buffer, i, codes[i]);
     }
@@ -271,13 +274,9 @@ def test_c_and_onnx_policies_match_predict_on_recorded_observations(
     expected, _ = reference.predict(observations, deterministic=True)
     assert_actions_span_the_space(expected)
 
+    # With VecNormalize, the model is given as khepera_gym.sb3.load_policy gives it.
     result = export.export_policy(
-        model,
-        tmp_path,
-        formats=("c", "onnx"),
-        env_id=NAV_ID,
-        normalizer=normalizer,
-        check=False,
+        reference, tmp_path, formats=("c", "onnx"), env_id=NAV_ID, check=False
     )
     assert (result.network.normalization is not None) == (normalizer is not None)
     c_actions = run_check(compile_check(tmp_path), "policy", observations)
@@ -442,23 +441,29 @@ def test_formation_follower_policy_exports_one_robots_block(tmp_path: Path) -> N
     assert "float leader_offset[2];" in header and "OBSERVATION_EXTRA_INPUTS 4" in header
 
 
-def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Path) -> None:
-    model, _ = nav_models()["ppo"]()
-    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False)
-    stub = tmp_path / "stub" / "khepera"
+def robot_program_on_fake_robot(out_dir: Path) -> Path:
+    """The exported template program built against the fake robot (test flags)."""
+    stub = out_dir / "stub" / "khepera"
     stub.mkdir(parents=True)
     (stub / "khepera.h").write_text(LIBKHEPERA_STUB)
-    (tmp_path / "fake_robot.c").write_text(FAKE_ROBOT)
+    (out_dir / "fake_robot.c").write_text(FAKE_ROBOT)
     sources = ["khepera_policy_main.c", *export.C_SOURCES, "fake_robot.c"]
-    program = tmp_path / "khepera_policy"
+    program = out_dir / "khepera_policy"
     subprocess.run(
-        ["cc", *C_FLAGS, f"-I{tmp_path / 'stub'}", "-o", str(program)]
-        + [str(tmp_path / name) for name in sources]
+        ["cc", *C_FLAGS, f"-I{out_dir / 'stub'}", "-o", str(program)]
+        + [str(out_dir / name) for name in sources]
         + ["-lm"],
         check=True,
         capture_output=True,
         text=True,
     )
+    return program
+
+
+def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Path) -> None:
+    model, _ = nav_models()["ppo"]()
+    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False)
+    program = robot_program_on_fake_robot(tmp_path)
 
     # Three steps toward a goal 1 m ahead and 0.5 m to the left of the start pose.
     run = subprocess.run(
@@ -485,6 +490,7 @@ def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Pa
         ["set_speed", str(left), str(right)] for left, right in [*units, [0, 0]]
     ]
     assert commands[-1] == ["set_mode", "0"] and ["activate_us", "31"] in commands
+    assert commands.count(["measure_us"]) == 3  # once a step
     wheels = run_check(compile_check(tmp_path), "wheels", expected).astype(int)
     assert units[0] == wheels[0].tolist()
 
@@ -493,6 +499,58 @@ def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Pa
         [str(program), "0.01", "0.0"], capture_output=True, text=True, check=True, timeout=10
     )
     assert run.stdout.startswith("goal reached (by odometry) after 0 steps")
+
+
+def test_export_follows_a_scenario_that_observes_only_the_ir_ring(tmp_path: Path) -> None:
+    # [sensors] observe = ["ir"]: the robots still carry their ultrasonic sensors but the
+    # observation has no "us" block, so every index after the IR ring moves; the C observation
+    # must follow the env's own layout, and the robot program must not switch the ultrasonic
+    # sensors on nor read them.
+    config = {"observe": ["ir"]}
+    env = gym.make(AVOID_ID, **config)
+    layout = env.unwrapped.obs_layout()
+    assert "us" not in layout and env.observation_space.shape == (13,)
+    recording = recording_of(AVOID_ID, Braitenberg(layout=env), **config)[0]
+    model = PPO("MlpPolicy", env, seed=0, device="cpu", n_steps=64)
+    scale_output_layer(model.policy.action_net, 300.0)
+
+    # The export's own check (on its own rollouts) passes.
+    result = export.export_policy(model, tmp_path, formats=("c", "onnx"), env_id=AVOID_ID, **config)
+    assert result.checks["c_max_abs_error"] < ACTION_TOLERANCE
+    assert result.checks["onnx_max_abs_error"] < ACTION_TOLERANCE
+    assert result.checks["observation_max_abs_error"] < OBSERVATION_TOLERANCE
+    written = json.loads((tmp_path / export.LAYOUT_FILE).read_text())
+    assert written == {name: [block.start, block.stop] for name, block in layout.items()}
+    header = (tmp_path / "observation.h").read_text()
+    assert "#define OBSERVATION_HAS_US 0" in header and "int16_t us_cm" not in header
+    # 8 IR values, 2 wheel speeds, the pose (3) and the goal (2).
+    assert "#define OBSERVATION_INPUT_COUNT 15 " in header
+    assert "#define KHEPERA_US_MASK 0 " in (tmp_path / "khepera_policy_config.h").read_text()
+
+    # The C observation from the raw readings, and the actions, on the recorded rollouts.
+    binary = compile_check(tmp_path)
+    simulated = recording.observations
+    built = run_check(binary, "observation", recording.input_rows)
+    assert built.shape == simulated.shape == (len(simulated), 13)
+    assert np.mean(simulated[:, layout["ir"]] > 0) > 0.02  # obstacles were seen
+    for block in ("ir", "wheel_speeds"):
+        np.testing.assert_array_equal(built[:, layout[block]], simulated[:, layout[block]])
+    assert np.max(np.abs(built - simulated)) < OBSERVATION_TOLERANCE
+    expected, _ = model.predict(simulated, deterministic=True)
+    assert_actions_span_the_space(expected)
+    assert np.max(np.abs(run_check(binary, "policy", simulated) - expected)) < ACTION_TOLERANCE
+    onnx_actions = export.onnx_actions(tmp_path / export.ONNX_FILE, simulated)
+    assert np.max(np.abs(onnx_actions - expected)) < ACTION_TOLERANCE
+
+    # On the fake robot: the ultrasonic sensors are switched off and never measured.
+    program = robot_program_on_fake_robot(tmp_path)
+    run = subprocess.run(
+        [str(program), "1.0", "0.5", "2"], capture_output=True, text=True, check=True, timeout=10
+    )
+    commands = [line.split() for line in run.stderr.splitlines()]
+    assert ["activate_us", "0"] in commands and ["measure_us"] not in commands
+    assert len(run.stdout.splitlines()) == 2
+    env.close()
 
 
 def test_robot_program_template_compiles_without_goal_inputs(tmp_path: Path) -> None:

@@ -382,7 +382,10 @@ def robot_c_sources(robot: RobotInterface, network: PolicyNetwork) -> dict[str, 
         "goal_radius": _c_double(robot.goal_radius),
         "axle_length": _c_double(robot.axle_length),
         "metres_per_pulse": _c_double(2.0 * math.pi * robot.wheel_radius / PULSES_PER_WHEEL_TURN),
-        "us_mask": sum(1 << i for i, on in enumerate(robot.us_enabled) if on),
+        # The real robot pings only when the policy sees the ultrasonic sensors.
+        "us_mask": sum(1 << i for i, on in enumerate(robot.us_enabled) if on)
+        if robot.observes("us")
+        else 0,
     }
     return {
         "wheel_command.h": _template("wheel_command.h").substitute(wheel_fields),

@@ -8,6 +8,6 @@
 #define KHEPERA_GOAL_RADIUS $goal_radius /* task.goal_radius, m */
 #define KHEPERA_AXLE_LENGTH $axle_length /* robot.axle_length, m */
 #define KHEPERA_METRES_PER_PULSE $metres_per_pulse /* 2 pi robot.wheel_radius / 19456 */
-#define KHEPERA_US_MASK $us_mask /* kh4_activate_us bits of sensors.us_enabled */
+#define KHEPERA_US_MASK $us_mask /* kh4_activate_us bits: sensors.us_enabled, 0 if not observed */
 
 #endif /* KHEPERA_POLICY_CONFIG_H */

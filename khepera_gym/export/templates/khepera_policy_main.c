@@ -6,8 +6,9 @@
  * Makefile next to it), copy it to the robot and run it there.
  *
  * Every control period (KHEPERA_CONTROL_PERIOD_S: the simulator's step) it
- *   1. reads the IR ring (kh4_proximity_ir), the ultrasonic sensors (kh4_measure_us), the wheel
- *      speeds (kh4_get_speed) and the encoders (kh4_get_position);
+ *   1. reads the IR ring (kh4_proximity_ir) and the ultrasonic sensors (kh4_measure_us) when
+ *      the observation has their blocks (observation.h), the wheel speeds (kh4_get_speed) and
+ *      the encoders (kh4_get_position);
  *   2. integrates the encoders into a dead-reckoning pose in the frame of the robot at start
  *      (x forward, y left): the goal inputs of the observation come from it and from the goal
  *      given on the command line in that frame;
@@ -78,12 +79,14 @@ static void odometry_update(odometry *pose, int left_pulses, int right_pulses)
     pose->last_right = right_pulses;
 }
 
+#if OBSERVATION_HAS_IR || OBSERVATION_HAS_US
 /* Little-endian 16-bit values as libkhepera's byte buffers hold them. */
 static unsigned int read_u16(const char *buffer, int index)
 {
     return (unsigned int)(unsigned char)buffer[2 * index]
         | ((unsigned int)(unsigned char)buffer[2 * index + 1] << 8);
 }
+#endif
 
 static void add_seconds(struct timespec *time, double seconds)
 {
@@ -100,7 +103,9 @@ static void stop_motors(knet_dev_t *ds_pic)
 
 int main(int argc, char *argv[])
 {
+#if OBSERVATION_HAS_IR || OBSERVATION_HAS_US
     char buffer[128];
+#endif
     float goal[2] = {0.0f, 0.0f};
     long max_steps = 0;
     long step;
@@ -136,7 +141,7 @@ int main(int argc, char *argv[])
     signal(SIGTERM, on_signal);
     kh4_SetMode(kh4RegIdle, ds_pic);
     kh4_ResetEncoders(ds_pic);
-    kh4_activate_us(KHEPERA_US_MASK, ds_pic); /* the sensors the scenario has enabled */
+    kh4_activate_us(KHEPERA_US_MASK, ds_pic); /* those enabled and observed (0: all off) */
     kh4_SetMode(kh4RegSpeed, ds_pic);         /* closed-loop speed control */
     kh4_get_position(&pose.last_left, &pose.last_right, ds_pic);
 
@@ -146,18 +151,17 @@ int main(int argc, char *argv[])
         int right_units;
         int left_pulses;
         int right_pulses;
-        int i;
 
         /* 1. Sensors, in K-Team's units. */
-        kh4_proximity_ir(buffer, ds_pic); /* 12 x uint16: the ring (8, K-Team order), then ground */
 #if OBSERVATION_HAS_IR
-        for (i = 0; i < 8; ++i) {
+        kh4_proximity_ir(buffer, ds_pic); /* 12 x uint16: the ring (8, K-Team order), then ground */
+        for (int i = 0; i < 8; ++i) {
             inputs.ir_raw[i] = (uint16_t)read_u16(buffer, i);
         }
 #endif
-        kh4_measure_us(buffer, ds_pic); /* 5 x int16 cm: L, FL, F, FR, R; codes 0, 1000, 2000 */
 #if OBSERVATION_HAS_US
-        for (i = 0; i < 5; ++i) {
+        kh4_measure_us(buffer, ds_pic); /* 5 x int16 cm: L, FL, F, FR, R; codes 0, 1000, 2000 */
+        for (int i = 0; i < 5; ++i) {
             inputs.us_cm[i] = (int16_t)read_u16(buffer, i);
         }
 #endif
