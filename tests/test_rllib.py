@@ -157,6 +157,18 @@ def test_multi_agent_runners_get_disjoint_worlds() -> None:
     assert len({observation.tobytes() for observation in joint}) == 4
 
 
+def test_env_names_survive_a_ray_restart() -> None:
+    # Ray's registry gives what was registered before ray.init() (here: on import) to the first
+    # Ray session only; ppo_config registers the names again for the session at hand.
+    ray.shutdown()
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+    config = rllib.ppo_config(NAV, TINY_PPO, seed=5, num_envs_per_env_runner=2)
+    observations = first_observations(SingleAgentEnvRunner(config=config, worker_index=0))
+    world_seed = rllib.runner_world_seed(5, 0, 2, 1)  # (seed + runner) · worlds + world
+    expected, _ = gym.make("KheperaIV-Nav-v0").reset(seed=world_seed)
+    np.testing.assert_array_equal(observations[1], expected)
+
+
 # --- envs under RLlib --------------------------------------------------------------------------
 
 

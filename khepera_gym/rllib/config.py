@@ -36,6 +36,7 @@ from khepera_gym.rllib.creators import (
     is_multi_agent,
     make_multi_agent_env,
     make_vector_env,
+    register_envs,
 )
 from khepera_gym.rllib.followers import FormationFollowersVectorEnv
 from khepera_gym.rllib.multi_agent import SharedPolicy, policy_per_agent
@@ -246,12 +247,14 @@ def _module_spaces(
 
 
 def build_algo(config: AlgorithmConfig) -> Algorithm:
-    """:func:`check_config`, then ``config.build_algo()``.
+    """:func:`check_config`, then ``config.build_algo()`` (with this package's env names
+    registered again: see :func:`ppo_config`).
 
     Raises:
         ConfigError: See :func:`check_config`.
     """
     check_config(config)
+    register_envs()
     return config.build_algo()
 
 
@@ -299,6 +302,10 @@ def ppo_config(
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
     name = env_name(name)
+    # Ray's registry hands what was registered before ray.init() to the first Ray session only:
+    # after ray.shutdown() and a new ray.init() in this process, the names registered on import
+    # are gone. Registering them again (harmless) makes them known to the session at hand.
+    register_envs()
     table = dict(hyperparams)
     runners = int(table.get("num_env_runners", 0) if num_env_runners is None else num_env_runners)
     rows = int(
