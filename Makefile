@@ -33,11 +33,13 @@ $(BUILT): $(TOOLS) $(RUST_SRC)
 	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test
 	touch $@
 
-# `make test` also installs the `sb3` extra (stable-baselines3, torch, rich) for tests/test_sb3.py,
-# with the same `maturin develop` (and stamps the build as fresh). PyPI's torch wheel brings its
-# CUDA libraries: about 5.4 GB and 75 s on a fresh machine. `make demo` does without it.
+# `make test` also installs the `sb3` extra (stable-baselines3, torch, rich) for tests/test_sb3.py
+# and the `torchrl` and `benchmarl` extras for tests/test_torchrl.py, with the same `maturin
+# develop` (and stamps the build as fresh). PyPI's torch wheel brings its CUDA libraries: about
+# 5.4 GB and 75 s on a fresh machine; torchrl and BenchMARL add ~160 MB and ~10 s. `make demo`
+# does without them.
 $(SB3): $(TOOLS) pyproject.toml
-	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3
+	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,torchrl,benchmarl
 	touch $@ $(BUILT)
 
 test: $(SB3) develop
