@@ -57,7 +57,7 @@ import numpy.typing as npt
 
 from khepera_gym._inputs import check_seed
 from khepera_gym.config import ConfigArg, make_batch
-from khepera_gym.errors import ConfigError, KheperaError
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
 
 
 @contextlib.contextmanager
@@ -244,7 +244,7 @@ class KheperaTorchEnv(EnvBase):
         max_steps: If given, overrides the scenario's ``task.max_steps`` (truncation length).
         num_threads: Threads of the batch's rayon pool; None uses all cores.
         seed: If given, the first reset seeds world i with ``seed + i`` (as ``set_seed``).
-        device: Must be "cpu" (the simulator's arrays live there).
+        device: "cpu" or None (the simulator's arrays live on the CPU).
         **overrides: Scenario keys overriding the file, as for the Gymnasium envs
             (``n_followers=3``, ``shape="wedge"``, ``n_robots=6``, ``leader="agent"``, ...).
 
@@ -252,6 +252,10 @@ class KheperaTorchEnv(EnvBase):
         ConfigError: Unknown task, an unknown or impossible scenario key, a ``group_map`` that
             does not fit the env's agents (or any ``group_map`` for a single-agent task), a
             device other than the CPU, a bad seed.
+
+    ``step`` raises :class:`~khepera_gym.errors.ActionError` for a missing or wrongly shaped
+    action or a NaN/inf in one, and :class:`~khepera_gym.errors.KheperaError` for a world whose
+    episode ended and was not reset.
     """
 
     def __init__(
@@ -270,7 +274,11 @@ class KheperaTorchEnv(EnvBase):
     ) -> None:
         if task not in TASKS:
             raise ConfigError(f"unknown task {task!r} for KheperaTorchEnv; tasks: {list(TASKS)}")
-        if torch.device(device).type != "cpu":
+        try:
+            device_type = torch.device("cpu" if device is None else device).type
+        except (RuntimeError, TypeError) as error:
+            raise ConfigError(f"device={device!r} is not a torch device: {error}") from None
+        if device_type != "cpu":
             raise ConfigError(
                 f"KheperaTorchEnv runs on the CPU, got device={device!r}; keep the env (and "
                 "BenchMARL's sampling_device) on the CPU and train on the GPU"
@@ -445,14 +453,13 @@ class KheperaTorchEnv(EnvBase):
         return self._output(None)
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        n = self.batch_size[0]
         if not self._groups:
-            joint = self._actions_of(tensordict.get("action"), n, self._batch.act_dim)
+            joint = self._actions_of(tensordict, "action", (self._batch.act_dim,))
         else:
             joint = self._joint_action
             for group in self._groups:
                 actions = self._actions_of(
-                    tensordict.get((group.name, "action")), n, group.size * ACTION_DIM
+                    tensordict, (group.name, "action"), (group.size, ACTION_DIM)
                 )
                 if group.action_slice is not None:
                     joint[:, group.action_slice] = actions
@@ -467,12 +474,23 @@ class KheperaTorchEnv(EnvBase):
             last.episode_stats = self._batch.episode_stats()
         return self._output(reward)
 
-    @staticmethod
-    def _actions_of(actions: torch.Tensor, n: int, width: int) -> npt.NDArray[np.float32]:
+    def _actions_of(
+        self, tensordict: TensorDictBase, key: str | tuple[str, str], shape: tuple[int, ...]
+    ) -> npt.NDArray[np.float32]:
+        """The actions at ``key`` as a float32 (N, prod(shape)) array (NaN/inf are left to
+        the core, which names the world and element).
+
+        Raises:
+            ActionError: ``key`` is missing or its tensor does not have shape (N, *shape).
+        """
+        actions = tensordict.get(key, None)
+        expected = (self.batch_size[0], *shape)
+        if actions is None or tuple(actions.shape) != expected:
+            got = "nothing" if actions is None else f"shape {tuple(actions.shape)}"
+            raise ActionError(f"{key!r} must be a tensor of shape {expected}, got {got}")
         if actions.dtype != torch.float32 or actions.device != _CPU:
             actions = actions.to(_CPU, torch.float32)
-        values = actions.detach().numpy()
-        return np.ascontiguousarray(values.reshape(n, width))
+        return np.ascontiguousarray(actions.detach().numpy().reshape(expected[0], -1))
 
     def _output(self, reward: npt.NDArray[np.float32] | None) -> TensorDictBase:
         """The TensorDict of the current outputs; with ``reward`` (a step) or without (a reset).

@@ -16,7 +16,7 @@ import torch
 from conftest import FORMATION_ID, NAV_ID, random_actions
 
 from khepera_gym.baselines import PositionControl
-from khepera_gym.errors import ConfigError, KheperaError
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.pettingzoo import formation_v0, multinav_v0
 from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
 
@@ -376,6 +376,7 @@ def test_multinav_robots_end_separately_and_stay_done() -> None:
             "mixes observation sizes",
         ),
         ({"task": "nav", "device": "cuda"}, "runs on the CPU"),
+        ({"task": "nav", "device": "abacus"}, "not a torch device"),
         ({"task": "nav", "seed": -1}, "seed must be an int"),
         ({"task": "formation", "n_followerz": 3}, "n_followerz"),
         ({"task": "nav", "action_type": "discrete"}, "action_type"),
@@ -386,6 +387,23 @@ def test_bad_configs_raise_config_errors(kwargs: dict[str, Any], message: str) -
     task = kwargs.pop("task")
     with pytest.raises(ConfigError, match=message):
         KheperaTorchEnv(task, 2, **kwargs)
+
+
+def test_bad_actions_raise_action_errors_and_change_nothing() -> None:
+    env = KheperaTorchEnv("nav", 2, seed=0)
+    tensordict = env.reset()
+    poses = env.poses()
+    with pytest.raises(ActionError, match=r"'action' must be a tensor of shape \(2, 2\), got "):
+        env.step(tensordict.clone())  # no action
+    tensordict["action"] = torch.zeros(2, 3)
+    with pytest.raises(ActionError, match=r"got shape \(2, 3\)"):
+        env.step(tensordict.clone())
+    tensordict["action"] = torch.tensor([[0.5, 0.5], [float("nan"), 0.0]])
+    with pytest.raises(ActionError, match="world 1 element 0 is NaN"):
+        env.step(tensordict.clone())
+    assert np.array_equal(env.poses(), poses)
+    tensordict["action"] = torch.ones(2, 2, dtype=torch.float64)  # any real dtype is taken
+    assert env.step(tensordict)["next", "observation"].dtype == torch.float32
 
 
 def test_bad_uses_raise_khepera_errors() -> None:
