@@ -1,6 +1,6 @@
 """MAPPO on Formation with BenchMARL, on the CPU in a few minutes; formation error before/after.
 
-    python examples/benchmarl_mappo.py [--frames 300000] [--worlds 30] [--episodes 50]
+    python examples/benchmarl_mappo.py [--frames 150000] [--worlds 8] [--episodes 50]
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
 ``state``, the joint observation) on ``khepera_gym.benchmarl.KheperaTask.FORMATION``: a
@@ -9,6 +9,9 @@ with its own 23-value observation and its own reward (minus its distance to its 
 minus contacts); the scripted leader drives to its goal. Before and after training the policy
 (deterministic actions) plays the same ``--episodes`` seeded episodes (seeds 10000 + i), as
 does the LeaderFollower baseline for reference, and the mean formation error is printed.
+Hyperparameters mirror the ``formation_v0-followers`` table of configs/hyperparams/ppo.toml
+(1,024 env steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs);
+BenchMARL's default of 45 epochs per batch is far slower on a CPU.
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
