@@ -420,11 +420,13 @@ class KheperaTorchEnv(EnvBase):
                     "a world resets as a whole: give the root '_reset' mask of shape "
                     f"({self.batch_size[0]}, 1), not only a group's (single robots cannot reset)"
                 )
-        seed = self._pending_seed
-        self._pending_seed = None
         n = self.batch_size[0]
         if mask is not None:
             mask = mask.detach().cpu().numpy().reshape(n).astype(bool, copy=False)
+            if self._has_reset and not mask.any():
+                return self._output(None)  # nothing to reset; a pending seed stays pending
+        seed = self._pending_seed
+        self._pending_seed = None
         if mask is None or mask.all() or not self._has_reset:
             # The first reset resets every world, whatever the mask: none has a state before it.
             if seed is None and not self._has_reset:
