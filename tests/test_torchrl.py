@@ -355,7 +355,8 @@ def test_multinav_robots_end_separately_and_stay_done() -> None:
     ("kwargs", "message"),
     [
         ({"task": "walk"}, "unknown task 'walk'"),
-        ({"task": "nav", "group_map": {"agents": ["robot"]}}, "group_map applies to"),
+        ({"task": "KheperaIV-Walk-v0"}, "or the Gymnasium ids"),
+        ({"task": "nav", "group_map": {"agents": ["robot"]}}, "group_map does not apply"),
         (
             {"task": "formation", "group_map": {"followers": ["follower_0", "follower_7"]}},
             "names 'follower_7', which this formation env does not have",
@@ -430,7 +431,8 @@ def test_a_missing_extra_names_the_pip_command(
 ) -> None:
     for name in [name for name in sys.modules if name.split(".")[0] == hidden]:
         monkeypatch.setitem(sys.modules, name, None)  # importing it now raises ImportError
-    monkeypatch.delitem(sys.modules, module)
+    for name in [n for n in sys.modules if n.startswith(("khepera_gym.torchrl", module))]:
+        monkeypatch.delitem(sys.modules, name)  # imported afresh (monkeypatch restores them)
     monkeypatch.delitem(sys.modules, "khepera_gym.benchmarl", raising=False)
     with pytest.raises(ImportError, match=rf"pip install 'khepera-gym\[{extra}\]'"):
         importlib.import_module(module)
