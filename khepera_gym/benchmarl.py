@@ -24,11 +24,13 @@ A task's config is a dict of :class:`~khepera_gym.torchrl.KheperaTorchEnv` argum
 scenario overrides (``n_followers``, ``shape``, ``leader``, ``n_robots``, ``max_steps``, ...)
 and ``config`` (a scenario file or built-in name), ``group_map``, ``action_type``,
 ``num_threads``; BenchMARL itself passes ``num_envs``, ``seed`` (world i of a batch is seeded
-``seed + i``) and ``device`` (the CPU). ``get_from_yaml()`` gives :data:`DEFAULT_TASK_CONFIGS`
-(BenchMARL's own YAML folder is not used), ``get_from_yaml(path)`` reads a YAML file of such
-keys. Groups: formation ``"followers"`` (and ``"leader"`` with ``leader: agent``), multinav
-``"robots"`` with per-robot done flags; the ``state`` (every agent's observation) feeds
-centralised critics (MAPPO, MASAC, QMIX-style mixers). Actions are continuous only.
+``seed + i``) and ``device`` (the CPU). ``get_from_yaml()`` gives :func:`default_task_config`,
+the task's own keys and ``max_steps`` as the Rust core's built-in scenario sets them
+(BenchMARL's own YAML folder is not used); ``get_from_yaml(path)`` reads a YAML file of such
+keys. The members of :class:`KheperaTask` are the core's multi-agent tasks. Groups: formation
+``"followers"`` (and ``"leader"`` with ``leader: agent``), multinav ``"robots"`` with per-robot
+done flags; the ``state`` (every agent's observation) feeds centralised critics (MAPPO, MASAC,
+QMIX-style mixers). Actions are continuous only.
 BenchMARL's Hydra command line does not know these tasks (they are not in its registry);
 use the Python API.
 
@@ -44,6 +46,11 @@ from collections.abc import Callable
 from typing import Any
 
 try:
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli comes with the extra
+    import tomli as tomllib
+
+try:
     from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
 
     with torchrl_import_warnings_ignored():
@@ -55,16 +62,23 @@ except ImportError as error:  # pragma: no cover - exercised with the extra miss
         "khepera_gym.benchmarl needs BenchMARL: pip install 'khepera-gym[benchmarl]'"
     ) from error
 
+from khepera_gym import _core
 from khepera_gym.errors import ConfigError
 
-#: The config each task gets from ``get_from_yaml()`` without a path: the scenario's defaults,
-#: spelt out (configs/formation.toml, configs/multinav.toml).
-DEFAULT_TASK_CONFIGS: dict[str, dict[str, Any]] = {
-    "formation": {"n_followers": 4, "shape": "cross", "leader": "scripted", "max_steps": 800},
-    "multinav": {"n_robots": 4, "max_steps": 600},
-}
 #: Arguments BenchMARL passes itself; a task config may not set them.
 _BENCHMARL_ARGUMENTS = ("num_envs", "num_worlds", "seed", "device")
+
+
+def default_task_config(task: str) -> dict[str, Any]:
+    """The config a task gets from ``get_from_yaml()`` without a path: its own scenario table
+    and ``max_steps`` (the episode length BenchMARL reads), with the values of the Rust core's
+    built-in scenario (``_core.default_config(task)``, every key documented there).
+
+    Raises:
+        ConfigError: ``task`` is not a task of the Rust core.
+    """
+    scenario = tomllib.loads(_core.default_config(task))
+    return {**scenario.get(task, {}), "max_steps": scenario["task"]["max_steps"]}
 
 
 class KheperaTaskClass(TaskClass):
@@ -154,8 +168,10 @@ class KheperaTaskClass(TaskClass):
 
 
 class KheperaTask(Task):
-    """The Khepera IV tasks of BenchMARL. ``KheperaTask.FORMATION.get_task(config={...})`` or
-    ``.get_from_yaml([path])`` gives the task to pass to ``benchmarl.experiment.Experiment``."""
+    """The Khepera IV tasks of BenchMARL, one per multi-agent task of the Rust core
+    (``khepera_gym.torchrl.multi_agent_tasks()``; the tests check they match).
+    ``KheperaTask.FORMATION.get_task(config={...})`` or ``.get_from_yaml([path])`` gives the task
+    to pass to ``benchmarl.experiment.Experiment``."""
 
     FORMATION = None
     MULTINAV = None
@@ -166,7 +182,7 @@ class KheperaTask(Task):
         return KheperaTaskClass
 
     def get_from_yaml(self, path: str | os.PathLike[str] | None = None) -> KheperaTaskClass:
-        """The task with :data:`DEFAULT_TASK_CONFIGS`, or with the config of a YAML file.
+        """The task with :func:`default_task_config`, or with the config of a YAML file.
 
         Args:
             path: A YAML file holding a mapping of env arguments (e.g. ``n_followers: 3``); None
@@ -176,7 +192,7 @@ class KheperaTask(Task):
             ConfigError: The file is missing, not YAML, or not a mapping.
         """
         if path is None:
-            return self.get_task(config=dict(DEFAULT_TASK_CONFIGS[self.name.lower()]))
+            return self.get_task(config=default_task_config(self.name.lower()))
         import yaml  # PyYAML comes with BenchMARL (through hydra-core and omegaconf)
 
         try:
@@ -196,4 +212,4 @@ class KheperaTask(Task):
         return self.get_task(config=config)
 
 
-__all__ = ["DEFAULT_TASK_CONFIGS", "KheperaTask", "KheperaTaskClass"]
+__all__ = ["KheperaTask", "KheperaTaskClass", "default_task_config"]

@@ -18,7 +18,11 @@ from conftest import FORMATION_ID, NAV_ID, random_actions
 from khepera_gym.baselines import PositionControl
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.pettingzoo import formation_v0, multinav_v0
-from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
+from khepera_gym.torchrl import (
+    KheperaTorchEnv,
+    multi_agent_tasks,
+    torchrl_import_warnings_ignored,
+)
 
 with torchrl_import_warnings_ignored():
     from benchmarl.algorithms import MappoConfig
@@ -27,7 +31,7 @@ with torchrl_import_warnings_ignored():
     from tensordict import TensorDict
     from torchrl.envs.utils import MarlGroupMapType, check_env_specs, step_mdp
 
-from khepera_gym.benchmarl import DEFAULT_TASK_CONFIGS, KheperaTask
+from khepera_gym.benchmarl import KheperaTask, default_task_config
 
 #: Every kind of env: (task, scenario overrides).
 ENV_KINDS = [
@@ -444,13 +448,13 @@ def test_a_missing_extra_names_the_pip_command(
 @pytest.mark.parametrize("task", [KheperaTask.FORMATION, KheperaTask.MULTINAV])
 def test_benchmarl_task_builds_a_batched_env(task: KheperaTask) -> None:
     task_class = task.get_from_yaml()
-    assert task_class.config == DEFAULT_TASK_CONFIGS[task.name.lower()]
+    assert task_class.config == default_task_config(task.name.lower())
     env = task_class.get_env_fun(num_envs=3, continuous_actions=True, seed=4, device="cpu")()
     assert env.batch_size == (3,)
     check_env_specs(env, seed=4)
     group = "followers" if task is KheperaTask.FORMATION else "robots"
     assert list(task_class.group_map(env)) == [group]
-    assert task_class.max_steps(env) == DEFAULT_TASK_CONFIGS[task.name.lower()]["max_steps"]
+    assert task_class.max_steps(env) == default_task_config(task.name.lower())["max_steps"]
     obs_dim = 23 if group == "followers" else 18
     assert task_class.observation_spec(env)[group, "observation"].shape == (4, obs_dim)
     assert "state" not in list(task_class.observation_spec(env).keys())
@@ -461,6 +465,20 @@ def test_benchmarl_task_builds_a_batched_env(task: KheperaTask) -> None:
     assert task_class.supports_continuous_actions() and not task_class.supports_discrete_actions()
     rollout = env.rollout(5)
     assert rollout.shape == (3, 5)
+
+
+def test_benchmarl_tasks_are_the_cores_multi_agent_tasks() -> None:
+    assert [task.name.lower() for task in KheperaTask] == multi_agent_tasks()
+    assert multi_agent_tasks() == ["formation", "multinav"]
+    # The default config is the built-in scenario's: an env built from it is the default env.
+    for task in KheperaTask:
+        name = task.name.lower()
+        config = default_task_config(name)
+        assert config["max_steps"] == KheperaTorchEnv(name, 1).max_episode_steps
+        assert KheperaTorchEnv(name, 1, **config).config_toml() == (
+            KheperaTorchEnv(name, 1).config_toml()
+        )
+    assert {"n_followers", "shape", "leader"} <= set(default_task_config("formation"))
 
 
 def test_benchmarl_task_config_from_yaml_and_errors(tmp_path: Any) -> None:
