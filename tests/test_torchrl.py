@@ -6,6 +6,7 @@ Needs the ``torchrl`` and ``benchmarl`` extras, which ``make test`` installs.
 from __future__ import annotations
 
 import importlib
+import pickle
 import sys
 from typing import Any
 
@@ -308,6 +309,85 @@ def test_set_seed_makes_runs_repeat_bit_for_bit() -> None:
     run_b = second.rollout(40, break_when_any_done=False)
     assert (run_a == run_b).all()
     assert run_a["next", "done"].sum() == 2 * 4  # two episode ends per world, then resets
+
+
+# --- the face: ids, ground truth, statistics, saved state -------------------------------------
+
+
+def test_gymnasium_ids_name_their_task() -> None:
+    by_id = KheperaTorchEnv("KheperaIV-Avoid-v0", 2, seed=1)
+    by_name = KheperaTorchEnv("avoid", 2, seed=1)
+    assert by_id.task == "avoid" and by_id.group_map == {}
+    assert torch.equal(by_id.reset()["observation"], by_name.reset()["observation"])
+    assert KheperaTorchEnv("KheperaIV-Formation", 1).group_map == {
+        "followers": [f"follower_{k}" for k in range(4)]
+    }
+
+
+def test_ground_truth_and_episode_stats_are_the_vector_envs() -> None:
+    """Accessors from BatchFace keep the world axis first, and episode_stats() is the native
+    vector env's info["episode_stats"] of the step where worlds ended."""
+    worlds, seed = 4, 8
+    env = KheperaTorchEnv("formation", worlds, max_steps=30, seed=seed)
+    native = gym.make_vec(FORMATION_ID, num_envs=worlds, max_episode_steps=30)
+    native.reset(seed=seed)
+    tensordict = env.reset()
+    assert not any(env.episode_stats()["_return"])
+    info: dict[str, Any] = {}
+    for step_actions in random_actions(4, 30, (worlds, 8)):
+        _, _, _, _, info = native.step(step_actions)
+        tensordict = step_mdp(step_with(env, tensordict, step_actions))
+        if info:
+            break
+    assert info and info["_episode_stats"].any()
+    stats, expected = env.episode_stats(), info["episode_stats"]
+    assert stats.keys() == expected.keys() and "formation_error_mean" in stats
+    for name, values in expected.items():
+        assert np.array_equal(stats[name], values)
+    vector = native.unwrapped
+    for accessor in ("poses", "goals", "targets", "obs_layout", "agent_layouts"):
+        ours, theirs = getattr(env, accessor)(), getattr(vector, accessor)()
+        if isinstance(theirs, np.ndarray):
+            assert ours.shape[0] == worlds and np.array_equal(ours, theirs)
+        else:
+            assert ours == theirs
+    assert env.scene(2) == vector.scene(2)
+    assert env.max_episode_steps == 30 and env.n_robots == 5
+    native.close()
+
+
+def _drive(
+    env: KheperaTorchEnv, tensordict: TensorDict, actions: np.ndarray
+) -> tuple[list[TensorDict], TensorDict]:
+    """Multinav steps as a collector makes them: each step's data, and the next step's input."""
+    steps = []
+    for step_actions in actions:
+        per_robot = step_actions.reshape(env.batch_size[0], -1, 2)
+        tensordict["robots", "action"] = torch.from_numpy(per_robot)
+        stepped, tensordict = env.step_and_maybe_reset(tensordict)
+        steps.append(stepped.clone())
+    return steps, tensordict
+
+
+def test_saved_state_restores_and_replays_bit_for_bit() -> None:
+    worlds = 3
+    env = KheperaTorchEnv("multinav", worlds, n_robots=3, max_steps=20, seed=4)
+    actions = random_actions(6, 70, (worlds, 6))
+    _, tensordict = _drive(env, env.reset(), actions[:25])
+    state = env.get_state()
+    first, _ = _drive(env, tensordict.clone(), actions[25:])
+    for restored in (env, pickle.loads(pickle.dumps(env))):
+        restored.set_state(state)
+        again, _ = _drive(restored, tensordict.clone(), actions[25:])
+        assert all((a == b).all() for a, b in zip(first, again, strict=True))
+    assert sum(int(s["next", "done"].sum()) for s in first) >= worlds  # crossed episode ends
+    # The statistics are part of the state: a fresh env restored shows the same.
+    fresh = KheperaTorchEnv("multinav", worlds, n_robots=3, max_steps=20)
+    fresh.set_state(state)
+    env.set_state(state)
+    ours, theirs = env.episode_stats(), fresh.episode_stats()
+    assert ours["_return"].all()  # every world finished an episode in the first 25 steps
+    assert all(np.array_equal(ours[name], theirs[name]) for name in ours)
 
 
 # --- multinav's per-robot done flags ----------------------------------------------------------

@@ -43,9 +43,9 @@ The first reset without any seed draws s from the operating system's entropy.
 What every khepera_gym env shows of its batch comes from :class:`khepera_gym.face.BatchFace`,
 with the world axis first: ``poses()``, ``goals()``, ``targets()``, ``sensor_readings()``,
 ``scene(i)``, ``config_toml()``, ``obs_layout()``, ``agent_layouts()``, ``max_episode_steps``,
-``get_state()``/``set_state()`` (restore, then step on bit for bit), and
-``episode_stats()``: the statistics of the episodes that ended on the last step that ended any,
-as the native vector env's ``info["episode_stats"]``.
+``get_state()``/``set_state()`` (restore, then step on bit for bit; the env pickles too), and
+``episode_stats()``: each world's last finished episode, in the form of the native vector env's
+``info["episode_stats"]`` (arrays of N values with masks of the worlds that have finished one).
 
 Units are those of the Gymnasium envs (SI, robot frame x forward, y left); observations and
 rewards are float32, bit for bit those of the native batch. Threading and copies: ``step`` and

@@ -145,8 +145,6 @@ class KheperaTorchEnv(BatchFace, EnvBase):
         self._groups = make_groups(self.group_map, agents)
         self._group_done = task in AGENTS_END_SEPARATELY
         n = batch.num_worlds
-        #: Worlds that ended on the last step that ended any (for ``episode_stats``).
-        self._ended = np.zeros(n, bool)
         self._joint_action = np.zeros((n, batch.act_dim), np.float32)
         self._flat_action_shape = torch.Size([n, batch.act_dim])
         specs = make_specs(batch, self._groups, self._group_done)
@@ -210,11 +208,7 @@ class KheperaTorchEnv(BatchFace, EnvBase):
                 joint[:, group.action_columns] = self._actions_of(
                     tensordict, (group.name, "action"), shape
                 )
-        observation, reward, terminated, truncated = self._batch.step(joint)
-        # count_nonzero is several times cheaper than ndarray.any() on small arrays (hot path).
-        if np.count_nonzero(terminated) or np.count_nonzero(truncated):
-            self._ended = terminated | truncated
-        return self._output(observation, reward, terminated, truncated)
+        return self._output(*self._batch.step(joint))
 
     def _actions_of(
         self, tensordict: TensorDictBase, key: str | tuple[str, str], shape: torch.Size
@@ -282,27 +276,20 @@ class KheperaTorchEnv(BatchFace, EnvBase):
         out["state"] = torch.from_numpy(observation)
         return _tensordict(out, self.batch_size)
 
-    # --- statistics and saved state ------------------------------------------------------------
+    # --- statistics ---------------------------------------------------------------------------
 
     def episode_stats(self) -> dict[str, npt.NDArray[Any]]:
-        """Statistics of the episodes that ended on the last step that ended any, as the native
-        vector env's ``info["episode_stats"]``: arrays of N values, "return", "length",
-        "success", "path_length" (m), "collisions" (steps in contact) and the task's own
-        (formation: "formation_error_mean", "formation_error_max", m), each with a mask
-        ``"_return"``, ... True for the worlds that ended (values are 0 elsewhere). Resets do not
-        clear them; before any episode ended every mask is False."""
-        return self._vector_episode_info(self._ended)["episode_stats"]
+        """Statistics of each world's last finished episode, in the form of the native vector
+        env's ``info["episode_stats"]``: arrays of N values, "return", "length", "success",
+        "path_length" (m), "collisions" (steps in contact) and the task's own (formation:
+        "formation_error_mean", "formation_error_max", m), each with a mask ``"_return"``, ...
+        True for the worlds that have finished an episode (values are 0 elsewhere).
 
-    def set_state(self, state: bytes) -> None:
-        """Restores a state from ``get_state`` (see :meth:`BatchFace.set_state`); the next step
-        continues it, and ``episode_stats`` then shows the worlds that ended on its last step.
-
-        Raises:
-            StateError: ``state`` is not a state of an env of this task, scenario and size.
+        World i's entries change on the step that ends its next episode (where
+        ``("next", "done")`` is True for it); resets leave them, ``set_state`` restores them.
         """
-        super().set_state(state)
-        _, _, terminated, truncated = self._batch.last_outputs()
-        self._ended = terminated | truncated
+        finished = self._batch.episode_stats()["length"] > 0
+        return self._vector_episode_info(finished)["episode_stats"]
 
 
 __all__ = ["KheperaTorchEnv"]
