@@ -30,6 +30,7 @@ with torchrl_import_warnings_ignored():
     from benchmarl.experiment import Experiment, ExperimentConfig
     from benchmarl.models import MlpConfig
     from tensordict import TensorDict
+    from torchrl.envs import EnvBase
     from torchrl.envs.utils import MarlGroupMapType, check_env_specs, step_mdp
 
 from khepera_gym.benchmarl import KheperaTask, default_task_config
@@ -72,6 +73,28 @@ def test_check_env_specs_passes(task: str, overrides: dict[str, Any]) -> None:
     # Episodes of 2 steps: the 3-step rollouts cross an episode end and a partial reset.
     check_env_specs(env, seed=0)
     check_env_specs(env, seed=0, break_when_any_done="both")
+
+
+@pytest.mark.parametrize(("task", "overrides"), ENV_KINDS)
+def test_torchrls_step_post_processing_would_change_nothing(
+    task: str, overrides: dict[str, Any]
+) -> None:
+    """The env skips EnvBase._step_proc_data (reward reshapes, missing done keys): on its own
+    step outputs, ended episodes included, TorchRL's version must be the identity."""
+    env = KheperaTorchEnv(task, 3, max_steps=2, seed=0, **overrides)
+    tensordict = env.reset()
+    for _ in range(2):
+        tensordict = env.rand_action(tensordict)
+        skipped = env._step(tensordict)
+        processed = EnvBase._step_proc_data(env, skipped.clone())
+        assert set(processed.keys(True, True)) == set(skipped.keys(True, True))
+        assert (processed == skipped).all()
+        for key in skipped.keys(True, True):
+            assert processed[key].shape == skipped[key].shape
+        tensordict = step_mdp(tensordict.set("next", skipped))
+    assert skipped["done"].all()
+    env.run_type_checks = True  # TorchRL's checks on: its post-processing runs, and passes
+    env.rollout(3, break_when_any_done=False)
 
 
 def test_layout_of_groups_and_flat_keys() -> None:

@@ -210,6 +210,16 @@ class KheperaTorchEnv(BatchFace, EnvBase):
                 )
         return self._output(*self._batch.step(joint))
 
+    def _step_proc_data(self, next_tensordict_out: TensorDictBase) -> TensorDictBase:
+        """``EnvBase.step``'s post-processing of ``_step``'s output, skipped unless
+        ``run_type_checks`` is on: it reshapes rewards to their specs and fills in missing done
+        keys, and ``_step`` already returns every key at its spec's shape
+        (tests/test_torchrl.py checks that TorchRL's version changes nothing). That saves about
+        12 µs of every step (an eighth of a 64-world Nav step)."""
+        if self.run_type_checks:
+            return super()._step_proc_data(next_tensordict_out)
+        return next_tensordict_out
+
     def _actions_of(
         self, tensordict: TensorDictBase, key: str | tuple[str, str], shape: torch.Size
     ) -> npt.NDArray[np.float32]:
