@@ -32,11 +32,11 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-import khepera_gym  # noqa: F401  (registers the environments)
+from khepera_gym.registration import latest_ids
 from khepera_gym.torchrl import KheperaTorchEnv
 
-#: (task, env id) pairs measured.
-TASKS = (("nav", "KheperaIV-Nav-v0"), ("formation", "KheperaIV-Formation-v0"))
+#: Tasks measured (their Gymnasium ids come from the registration).
+TASKS = ("nav", "formation")
 #: Distinct random action batches, cycled.
 ACTION_BATCHES = 64
 #: A clock in seconds: time.perf_counter (wall) or time.process_time (CPU).
@@ -140,7 +140,8 @@ def main() -> None:
         f"{'overhead/step':>14} {'rollout':>11}"
     )
     print(header)
-    for task, env_id in TASKS:
+    for task in TASKS:
+        env_id = latest_ids()[task]
         for worlds in args.worlds:
             steps = max(50, args.env_steps // worlds)
             native = native_rate(env_id, worlds, steps, args.threads, clock)
@@ -161,7 +162,7 @@ def main() -> None:
             )
     print("\nreset cost, µs per world")
     print(f"{'task':<10} {'N':>5} {'all (batch)':>12} {'masked (loop)':>14}")
-    for task, _ in TASKS:
+    for task in TASKS:
         for worlds in args.worlds:
             full, partial = reset_costs(task, worlds, args.threads, clock)
             print(f"{task:<10} {worlds:>5} {full:>12.1f} {partial:>14.1f}")
