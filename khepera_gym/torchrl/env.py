@@ -170,8 +170,8 @@ class KheperaTorchEnv(BatchFace, EnvBase):
                 seed = first_seed()
             observation = self._batch.reset(seed)
             self._has_reset = True
-            flags = np.zeros(self.batch_size[0], bool)
-            return self._output(observation, None, flags, flags)
+            n = self.batch_size[0]
+            return self._output(observation, None, np.zeros(n, bool), np.zeros(n, bool))
         for world in np.flatnonzero(mask):
             world_seed = None if seed is None else (seed + int(world)) % _SEED_MODULUS
             self._batch.reset_world(int(world), world_seed)
