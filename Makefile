@@ -33,11 +33,16 @@ $(BUILT): $(TOOLS) $(RUST_SRC)
 	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test
 	touch $@
 
-# `make test` also installs the `sb3` extra (stable-baselines3, torch, rich) for tests/test_sb3.py,
-# with the same `maturin develop` (and stamps the build as fresh). PyPI's torch wheel brings its
-# CUDA libraries: about 5.4 GB and 75 s on a fresh machine. `make demo` does without it.
+# `make test` also installs the `sb3` extra (stable-baselines3, torch, rich) for tests/test_sb3.py
+# and the `rllib` extra (ray[rllib]) for tests/test_rllib.py, the `export` extra (onnx,
+# onnxruntime) for tests/test_export.py and the `torchrl` and `benchmarl` extras for
+# tests/test_torchrl.py, with the same `maturin develop` (and stamps the build as fresh). PyPI's
+# torch wheel brings its CUDA libraries: about 5.4 GB and 75 s on a fresh machine; Ray RLlib adds
+# about 0.7 GB and 60 s, onnx and onnxruntime about 110 MB, torchrl and BenchMARL ~160 MB and
+# ~10 s. Ray pins its gymnasium version, so the tests then run with that one. `make demo` does
+# without them.
 $(SB3): $(TOOLS) pyproject.toml
-	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3
+	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,rllib,export,torchrl,benchmarl
 	touch $@ $(BUILT)
 
 test: $(SB3) develop

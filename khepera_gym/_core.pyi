@@ -92,6 +92,17 @@ class Batch:
         With autoreset, a world that ended on the previous call is reset instead of stepped and
         returns its first observation with reward 0 and both flags False (Gymnasium NEXT_STEP).
         Returns (obs (N, obs_dim), reward (N,), terminated (N,), truncated (N,))."""
+    def last_outputs(
+        self,
+    ) -> tuple[
+        npt.NDArray[np.float32],
+        npt.NDArray[np.float32],
+        npt.NDArray[np.bool_],
+        npt.NDArray[np.bool_],
+    ]:
+        """What the last step() returned, as each world now shows it: a world reset since shows
+        its first observation, reward 0 and both flags False. Same shapes as step(); restored by
+        set_state() with the rest of the state."""
     def episode_stats(self) -> dict[str, npt.NDArray[Any]]:
         """Statistics of the episodes that ended on the last step() (valid where
         terminated | truncated): "return" f32, "length" i64, "success" bool, "path_length" f32 (m),

@@ -26,12 +26,12 @@ import numpy as np
 import khepera_gym
 from khepera_gym import _core
 
-NAV_ID = "KheperaIV-Nav-v1"
+NAV_ID = f"KheperaIV-Nav-v{_core.LATEST_VERSION}"
 #: Distinct pregenerated action arrays cycled through while timing.
 _ACTION_SETS = 8
 #: The other tasks' native vector envs timed after Nav (with ``task_envs`` worlds). Avoid has 10
 #: random obstacles, Formation 5 robots (a leader and 4 followers).
-OTHER_TASKS = ("KheperaIV-Avoid-v1", "KheperaIV-Formation-v1")
+OTHER_TASKS = ("KheperaIV-Avoid", "KheperaIV-Formation")
 #: Worlds of the batch whose memory is measured.
 _MEMORY_WORLDS = 4096
 
@@ -84,13 +84,14 @@ def bench_vector(
         steps += _ACTION_SETS
         now = time.perf_counter()
     envs.close()
-    name = "" if env_id == NAV_ID else env_id.removeprefix("KheperaIV-").rsplit("-v", 1)[0] + " "
+    task = env_id.removeprefix("KheperaIV-").rsplit("-v", 1)[0]
+    name = "" if task == "Nav" else task + " "
     return Measurement(f"{name}make_vec n={num_envs}", num_envs, num_threads, steps, now - start)
 
 
-def bench_single(duration: float, warmup: int = 200) -> Measurement:
+def bench_single(duration: float, warmup: int = 200, env_id: str = NAV_ID) -> Measurement:
     """Times ``step`` of one env made by ``gym.make`` (with its wrappers); resets on episode end."""
-    env = gym.make(NAV_ID)
+    env = gym.make(env_id)
     actions = _random_actions(np.random.default_rng(0), (2,))
     env.reset(seed=0)
     steps = 0
@@ -146,9 +147,12 @@ def run(
     single: bool = True,
     memory: bool = True,
     task_envs: int = 1024,
+    version: int = _core.LATEST_VERSION,
 ) -> list[Measurement]:
-    """Runs the benchmark and prints a table; returns the measurements."""
-    print(f"khepera_gym {khepera_gym.__version__} benchmark: {NAV_ID}, uniform random actions,")
+    """Runs the benchmark of behaviour ``version``'s envs and prints a table; returns the
+    measurements."""
+    nav_id = f"KheperaIV-Nav-v{version}"
+    print(f"khepera_gym {khepera_gym.__version__} benchmark: {nav_id}, uniform random actions,")
     print(f"{duration:.1f} s per configuration after warm-up; {os.cpu_count()} CPU(s) visible\n")
     header = (
         f"{'configuration':<22} {'threads':>7} {'env-steps/s':>13} {'µs/step':>10} {'×1 thread':>9}"
@@ -174,11 +178,11 @@ def run(
             )
 
     for count in num_envs:
-        thread_rows(count, NAV_ID)
+        thread_rows(count, nav_id)
     for env_id in OTHER_TASKS if task_envs else ():
-        thread_rows(task_envs, env_id)
+        thread_rows(task_envs, f"{env_id}-v{version}")
     if single:
-        result = bench_single(duration)
+        result = bench_single(duration, env_id=nav_id)
         measurements.append(result)
         print(
             f"{result.label:<22} {'-':>7} {result.env_steps_per_second:>13,.0f} "
@@ -224,6 +228,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--no-single", action="store_true", help="skip the gym.make single env")
     parser.add_argument("--no-memory", action="store_true", help="skip the memory measurement")
+    parser.add_argument(
+        "--version",
+        type=int,
+        choices=range(_core.LATEST_VERSION + 1),
+        default=_core.LATEST_VERSION,
+        help=f"behaviour version of the envs (default {_core.LATEST_VERSION}, the latest)",
+    )
 
 
 def run_from_args(args: argparse.Namespace) -> int:
@@ -237,6 +248,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         duration=duration,
         single=not args.no_single,
         memory=not args.no_memory,
+        version=args.version,
     )
     return 0
 

@@ -1,7 +1,9 @@
-"""The ``khepera-gym`` command: ``demo``, ``compare``, ``train``, ``render`` and ``bench``.
+"""The ``khepera-gym`` command: ``demo``, ``compare``, ``train``, ``render``, ``export`` and
+``bench``.
 
 ``train`` trains a stable-baselines3 agent on the Rust batch (:mod:`khepera_gym.train`; SB3 and
-torch are imported only then).
+torch are imported only then). ``export`` writes a trained policy as C for the real robot or as
+ONNX (:mod:`khepera_gym.export`).
 
 ``compare`` runs policies (the paper's controllers of :mod:`khepera_gym.baselines`, random, or a
 stable-baselines3 model) on the same seeded episodes and prints a table with 95% intervals,
@@ -17,7 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, compare, record, train
+from khepera_gym import bench, compare, export, record, train
 
 #: Episodes per policy of each comparison of the demo.
 DEMO_EPISODES = 50
@@ -66,6 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     record.add_arguments(render_parser)
 
+    export_parser = commands.add_parser(
+        "export", help="a trained policy as C for the real robot (libkhepera template) or ONNX"
+    )
+    export.add_arguments(export_parser)
+
     bench_parser = commands.add_parser("bench", help="env-steps/s and memory per world")
     bench.add_arguments(bench_parser)
     return parser
@@ -84,6 +91,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return train.run_from_args(args)
     if args.command == "render":
         return record.run_from_args(args)
+    if args.command == "export":
+        return export.run_from_args(args)
     return bench.run_from_args(args)
 
 

@@ -71,10 +71,27 @@ def resolve_env_id(env_id: str) -> str:
     return max(versions, key=lambda i: int(i.rsplit("-v", 1)[1]))
 
 
+def version_of(env_id: str) -> int:
+    """The behaviour version of a khepera_gym env id: ``"KheperaIV-Nav-v0"`` → 0, an id without
+    its version → the latest.
+
+    Raises:
+        ConfigError: ``env_id`` is not a registered khepera_gym environment.
+    """
+    return int(resolve_env_id(env_id).rsplit("-v", 1)[1])
+
+
 def task_of(env_id: str) -> str:
     """The Rust core's task name ("nav", "avoid", "formation") of a khepera_gym env id."""
     resolved = resolve_env_id(env_id)
     return next(task for task, ids in registered_ids().items() if resolved in ids)
 
 
-__all__ = ["latest_ids", "register_envs", "registered_ids", "resolve_env_id", "task_of"]
+__all__ = [
+    "latest_ids",
+    "register_envs",
+    "registered_ids",
+    "resolve_env_id",
+    "task_of",
+    "version_of",
+]

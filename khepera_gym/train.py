@@ -15,6 +15,11 @@ then evaluates the final model on ``eval_episodes`` seeded episodes. A run direc
   ``tensorboard`` package is installed (``tensorboard --logdir runs``).
 
 SB3 and torch are imported only when training starts, so ``khepera-gym demo`` stays light.
+
+``--backend rllib`` trains Ray RLlib's PPO instead (:func:`khepera_gym.rllib.train`, the
+``rllib`` extra), from ``configs/hyperparams/rllib_ppo.toml``, evaluated on the same seeded
+episodes; the run directory then holds ``checkpoint/`` (RLlib's) and ``run.json``. Both backends
+read their tables with :mod:`khepera_gym.hyperparams`.
 """
 
 from __future__ import annotations
@@ -24,8 +29,6 @@ import dataclasses
 import importlib.util
 import json
 import platform
-import re
-import sys
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -33,19 +36,17 @@ from typing import TYPE_CHECKING, Any
 
 import khepera_gym
 from khepera_gym.errors import ConfigError
+from khepera_gym.hyperparams import EVAL_SEED, HYPERPARAMS_DIR, load_hyperparams, parse_override
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
 
     from khepera_gym.sb3 import Evaluation
 
-#: Folder of the hyperparameter files in a source checkout (``configs/hyperparams``).
-HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "configs" / "hyperparams"
 #: Algorithms ``train`` knows: command-line name → SB3 class name.
 ALGORITHMS = {"ppo": "PPO", "sac": "SAC"}
-#: Seed of the first evaluation episode; evaluation episodes are seeded EVAL_SEED + i, away from
-#: the training worlds' seeds (``--seed`` + i).
-EVAL_SEED = 10_000
+#: Training libraries of ``--backend``: stable-baselines3 (default) or Ray RLlib (PPO only).
+BACKENDS = ("sb3", "rllib")
 #: Keys of a hyperparameter table that configure the run rather than the SB3 algorithm.
 _RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
 #: Activation functions by name, for ``policy_kwargs.activation_fn``.
@@ -64,72 +65,6 @@ class LinearDecay:
 
     def __repr__(self) -> str:
         return f"lin_{self.start}"
-
-
-def _toml() -> Any:
-    """tomllib, or tomli before Python 3.11 (in the sb3 extra): imported when first needed, so
-    ``khepera-gym demo`` runs without it."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-    return tomllib
-
-
-def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
-    """The hyperparameter table of ``env_id`` in an algorithm's TOML file.
-
-    Args:
-        algo: "ppo" or "sac"; names the default file ``configs/hyperparams/<algo>.toml``.
-        env_id: The table's name (a registered id such as "KheperaIV-Nav-v1", or another
-            table such as "formation_v1-followers"); a table named without the version
-            ("KheperaIV-Nav") serves every version.
-        path: Another TOML file to read instead.
-
-    Raises:
-        ConfigError: The file is missing or unreadable, or has no table for ``env_id``.
-    """
-    tomllib = _toml()
-    file = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.toml"
-    try:
-        tables = tomllib.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(
-            f"{file}: hyperparameter file not found (installed from a wheel? pass "
-            "--hyperparams FILE; the repository's configs/hyperparams/ has examples)"
-        ) from None
-    except (OSError, tomllib.TOMLDecodeError) as error:
-        raise ConfigError(f"{file}: cannot read hyperparameters: {error}") from None
-    # A table named without the version ("KheperaIV-Nav", "formation-followers") serves every
-    # version of the env; one named with it wins for that version.
-    unversioned = re.sub(r"[-_]v\d+(?=$|-)", "", env_id)
-    name = env_id if env_id in tables else unversioned
-    if name not in tables:
-        raise ConfigError(
-            f"{file}: no table [{env_id!r}] or [{unversioned!r}]; tables: {sorted(tables)}"
-        )
-    table = tables[name]
-    if not isinstance(table, dict):
-        raise ConfigError(f"{file}: [{name!r}] must be a table")
-    return dict(table)
-
-
-def parse_override(text: str) -> tuple[str, Any]:
-    """``"KEY=VALUE"`` with VALUE in TOML syntax (``n_steps=64``, ``learning_rate="lin_1e-3"``,
-    ``policy_kwargs={net_arch=[32, 32]}``); a VALUE that is not TOML is taken as a string.
-
-    Raises:
-        ConfigError: No ``=`` or an empty key.
-    """
-    tomllib = _toml()
-    key, separator, value = text.partition("=")
-    key = key.strip()
-    if not separator or not key:
-        raise ConfigError(f"--hp takes KEY=VALUE, got {text!r}")
-    try:
-        return key, tomllib.loads(f"value = {value.strip()}")["value"]
-    except tomllib.TOMLDecodeError:
-        return key, value.strip()
 
 
 def _learning_rate(value: Any) -> Any:
@@ -461,10 +396,62 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--verbose", type=int, default=1, help="0 quiet, 1 evaluations (default), 2 SB3 tables"
     )
+    parser.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default="sb3",
+        help="sb3 (stable-baselines3, default) or rllib (Ray RLlib PPO: the rllib extra; "
+        "--n-envs is then worlds per EnvRunner)",
+    )
+    parser.add_argument(
+        "--num-env-runners",
+        type=int,
+        help="rllib: remote EnvRunners, 1 CPU each (the table's; 0 samples in this process)",
+    )
+    parser.add_argument(
+        "--address", help="rllib: address of a Ray cluster (ray.init(address=...)); default local"
+    )
+
+
+def _run_rllib(args: argparse.Namespace) -> int:
+    """``khepera-gym train --backend rllib``: :func:`khepera_gym.rllib.train`."""
+    if importlib.util.find_spec("ray") is None or importlib.util.find_spec("torch") is None:
+        raise SystemExit(
+            "khepera-gym train --backend rllib needs Ray RLlib and torch: "
+            "pip install 'khepera-gym[rllib]'"
+        )
+    if args.algo != "ppo":
+        raise SystemExit(f"khepera-gym train --backend rllib trains ppo only, not {args.algo}")
+    if args.eval_episodes < 1:
+        raise SystemExit("khepera-gym train: --eval-episodes must be >= 1")
+    from khepera_gym import rllib
+
+    try:
+        rllib.train(
+            args.env,
+            timesteps=args.timesteps,
+            n_envs=args.n_envs,
+            num_env_runners=args.num_env_runners,
+            seed=args.seed,
+            out_dir=args.out,
+            hyperparams_path=args.hyperparams,
+            overrides=dict(parse_override(text) for text in args.hp),
+            eval_freq=args.eval_freq,
+            eval_episodes=args.eval_episodes,
+            eval_seed=args.eval_seed,
+            address=args.address,
+            verbose=args.verbose,
+            torch_threads=args.torch_threads,
+        )
+    except ConfigError as error:
+        raise SystemExit(f"khepera-gym train: {error}") from None
+    return 0
 
 
 def run_from_args(args: argparse.Namespace) -> int:
     """Runs ``khepera-gym train`` from parsed arguments; returns the exit code."""
+    if getattr(args, "backend", "sb3") == "rllib":
+        return _run_rllib(args)
     if importlib.util.find_spec("stable_baselines3") is None:
         raise SystemExit(
             "khepera-gym train needs stable-baselines3: pip install 'khepera-gym[sb3]'"
@@ -504,6 +491,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 __all__ = [
     "ALGORITHMS",
+    "BACKENDS",
     "EVAL_SEED",
     "HYPERPARAMS_DIR",
     "LinearDecay",

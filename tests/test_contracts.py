@@ -180,6 +180,28 @@ def test_pettingzoo_envs_save_and_restore_their_state() -> None:
     assert clone.get_state() == env.get_state()
 
 
+def test_last_outputs_show_each_world_as_it_now_is_and_are_saved() -> None:
+    batch = _core.Batch("multinav", 3, autoreset=False, num_threads=1)
+    batch.reset(5)
+    actions = np.random.default_rng(1).uniform(-1, 1, (30, 3, batch.act_dim)).astype(np.float32)
+    for step_actions in actions[:-1]:
+        batch.step(step_actions)
+    stepped = batch.step(actions[-1])
+    for got, expected in zip(batch.last_outputs(), stepped, strict=True):
+        np.testing.assert_array_equal(got, expected)
+    state = batch.get_state()
+    first = batch.reset_world(1)
+    observations, rewards, terminated, truncated = batch.last_outputs()
+    np.testing.assert_array_equal(observations[1], first)
+    assert rewards[1] == 0 and not terminated[1] and not truncated[1]
+    np.testing.assert_array_equal(np.delete(observations, 1, 0), np.delete(stepped[0], 1, 0))
+    assert not np.array_equal(first, stepped[0][1])
+    restored = _core.Batch("multinav", 3, autoreset=False, num_threads=1)
+    restored.set_state(state)
+    for got, expected in zip(restored.last_outputs(), stepped, strict=True):
+        np.testing.assert_array_equal(got, expected)
+
+
 # --- failures ----------------------------------------------------------------------------------
 
 

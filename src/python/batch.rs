@@ -309,17 +309,24 @@ impl Batch {
             }
             let (inner, acts) = (&mut self.inner, &self.actions);
             py.detach(|| inner.step(acts)).map_err(|e| to_py(py, e))?;
-            let outcomes = self.inner.outcomes();
-            let rewards: Vec<f32> = outcomes.iter().map(|o| o.reward).collect();
-            let terminated: Vec<bool> = outcomes.iter().map(|o| o.terminated).collect();
-            let truncated: Vec<bool> = outcomes.iter().map(|o| o.truncated).collect();
-            Ok((
-                self.obs_array(py)?,
-                PyArray1::from_vec(py, rewards),
-                PyArray1::from_vec(py, terminated),
-                PyArray1::from_vec(py, truncated),
-            ))
+            self.outputs(py)
         })
+    }
+
+    /// What the last `step` returned, as each world now shows it: a world reset since shows its
+    /// first observation, reward 0 and both flags false. Observations (N, obs_dim), rewards,
+    /// terminated and truncated (N,); `set_state` restores them with the rest of the state.
+    #[allow(clippy::type_complexity)]
+    fn last_outputs<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        Bound<'py, PyArray1<f32>>,
+        Bound<'py, PyArray1<bool>>,
+        Bound<'py, PyArray1<bool>>,
+    )> {
+        self.outputs(py)
     }
 
     /// Statistics of the episodes that ended on the last step (valid where they ended).
@@ -505,6 +512,29 @@ impl Batch {
         Ok(PyArray1::from_slice(py, self.inner.obs())
             .reshape([self.inner.len(), self.inner.obs_dim()])?
             .into_any())
+    }
+
+    /// Fresh arrays of the batch's output buffers: observations, rewards, terminated, truncated.
+    #[allow(clippy::type_complexity)]
+    fn outputs<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        Bound<'py, PyArray1<f32>>,
+        Bound<'py, PyArray1<bool>>,
+        Bound<'py, PyArray1<bool>>,
+    )> {
+        let outcomes = self.inner.outcomes();
+        let rewards: Vec<f32> = outcomes.iter().map(|o| o.reward).collect();
+        let terminated: Vec<bool> = outcomes.iter().map(|o| o.terminated).collect();
+        let truncated: Vec<bool> = outcomes.iter().map(|o| o.truncated).collect();
+        Ok((
+            self.obs_array(py)?,
+            PyArray1::from_vec(py, rewards),
+            PyArray1::from_vec(py, terminated),
+            PyArray1::from_vec(py, truncated),
+        ))
     }
 }
 

@@ -1,0 +1,160 @@
+"""MAPPO on Formation with BenchMARL, on the CPU in a few minutes; formation error before/after.
+
+    python examples/benchmarl_mappo.py [--frames 150000] [--worlds 8] [--episodes 50]
+    python examples/benchmarl_mappo.py --version 0     # the v0 dynamics (the paper's V-REP)
+
+BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
+``state``, the joint observation) on ``khepera_gym.benchmarl.KheperaTask.FORMATION``: a
+``KheperaTorchEnv`` of ``--worlds`` worlds, each follower an agent of the ``"followers"`` group
+with its own 23-value observation and its own reward (minus its distance to its eq. 12 target,
+minus contacts); the scripted leader drives to its goal. Before and after training the policy
+(deterministic actions) plays the same ``--episodes`` seeded episodes (seeds 10000 + i), as
+does the LeaderFollower baseline for reference, and the mean formation error is printed.
+Hyperparameters mirror the ``formation-followers`` table of configs/hyperparams/ppo.toml
+(1,024 env steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs);
+BenchMARL's default of 45 epochs per batch is far slower on a CPU.
+Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import torch
+
+from khepera_gym.baselines import LeaderFollower
+from khepera_gym.benchmarl import KheperaTask
+from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
+
+with torchrl_import_warnings_ignored():
+    from benchmarl.algorithms import MappoConfig
+    from benchmarl.experiment import Experiment, ExperimentConfig
+    from benchmarl.models import MlpConfig
+    from tensordict import TensorDictBase
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+#: Evaluation episodes are seeded EVAL_SEED + i, away from the training worlds' seeds.
+EVAL_SEED = 10_000
+#: The task's scenario: Formation's defaults (4 followers in a cross, scripted leader).
+TASK_CONFIG: dict[str, Any] = {"n_followers": 4, "shape": "cross"}
+
+
+def formation_errors(
+    policy: Callable[[TensorDictBase], TensorDictBase], episodes: int, task_config: dict[str, Any]
+) -> dict[str, float]:
+    """Mean formation error (m) and contacts of one episode in each of ``episodes`` worlds."""
+    env = KheperaTorchEnv("formation", episodes, seed=EVAL_SEED, **task_config)
+    error_mean = np.full(episodes, np.nan)
+    error_max = np.full(episodes, np.nan)
+    collisions = np.full(episodes, np.nan)
+    tensordict = env.reset()
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(env.max_episode_steps):
+            tensordict, next_tensordict = env.step_and_maybe_reset(policy(tensordict))
+            ended = tensordict["next", "done"].squeeze(-1).numpy() & np.isnan(error_mean)
+            if ended.any():
+                stats = env.episode_stats()
+                error_mean[ended] = stats["formation_error_mean"][ended]
+                error_max[ended] = stats["formation_error_max"][ended]
+                collisions[ended] = stats["collisions"][ended]
+            if not np.isnan(error_mean).any():
+                break
+            tensordict = next_tensordict
+    return {
+        "error_mean": float(error_mean.mean()),
+        "error_max": float(error_max.mean()),
+        "collisions": float(collisions.mean()),
+    }
+
+
+def leader_follower_policy() -> Callable[[TensorDictBase], TensorDictBase]:
+    """The LeaderFollower baseline (eq. 12 on each follower's observed target) as a policy."""
+    controller = LeaderFollower(shape=None)
+
+    def act(tensordict: TensorDictBase) -> TensorDictBase:
+        observation = tensordict["followers", "observation"]
+        actions, _ = controller.predict(observation.reshape(-1, observation.shape[-1]).numpy())
+        tensordict["followers", "action"] = torch.from_numpy(actions).reshape(
+            *observation.shape[:-1], 2
+        )
+        return tensordict
+
+    return act
+
+
+def report(name: str, errors: dict[str, float]) -> None:
+    print(
+        f"{name:<24} formation error mean {100 * errors['error_mean']:6.1f} cm, "
+        f"max {100 * errors['error_max']:6.1f} cm, steps in contact {errors['collisions']:5.1f}"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=150_000, help="env steps to train on")
+    parser.add_argument("--worlds", type=int, default=8, help="worlds collecting in parallel")
+    parser.add_argument("--frames-per-batch", type=int, default=1_024, help="env steps")
+    parser.add_argument("--minibatch-size", type=int, default=128, help="env steps")
+    parser.add_argument("--epochs", type=int, default=10, help="passes over each batch")
+    parser.add_argument("--hidden", type=int, nargs="+", default=[64, 64], help="MLP layers")
+    parser.add_argument("--lr", type=float, default=3e-4)
+    parser.add_argument("--gamma", type=float, default=0.95)
+    parser.add_argument("--episodes", type=int, default=50, help="evaluation episodes")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--version", type=int, help="behaviour version (default: the latest)")
+    args = parser.parse_args()
+    task_config = dict(TASK_CONFIG)
+    if args.version is not None:
+        task_config["version"] = args.version
+    # One torch thread: on these small MLPs more threads only add synchronisation (2 cores).
+    torch.set_num_threads(1)
+
+    config = ExperimentConfig.get_from_yaml()
+    config.sampling_device = config.train_device = config.buffer_device = "cpu"
+    config.max_n_frames = args.frames
+    config.on_policy_collected_frames_per_batch = args.frames_per_batch
+    config.on_policy_n_envs_per_worker = args.worlds
+    config.on_policy_minibatch_size = args.minibatch_size
+    # BenchMARL's n_minibatch_iters counts passes over the batch (its default, 45, is slow on
+    # a CPU: 675 gradient steps per batch).
+    config.on_policy_n_minibatch_iters = args.epochs
+    config.lr = args.lr
+    config.gamma = args.gamma
+    config.evaluation = False
+    config.render = False
+    config.loggers = []
+    config.create_json = False
+    config.checkpoint_at_end = False
+    config.save_folder = tempfile.mkdtemp(prefix="benchmarl_mappo_")
+    algorithm = MappoConfig.get_from_yaml()
+    algorithm.lmbda = 0.95
+    model = MlpConfig.get_from_yaml()
+    model.num_cells = list(args.hidden)
+    experiment = Experiment(
+        task=KheperaTask.FORMATION.get_task(config=dict(task_config)),
+        algorithm_config=algorithm,
+        model_config=model,
+        critic_model_config=model,
+        seed=args.seed,
+        config=config,
+    )
+    print(f"{args.episodes} seeded Formation episodes (4 followers, cross), deterministic actions")
+    report("LeaderFollower", formation_errors(leader_follower_policy(), args.episodes, task_config))
+    report("MAPPO before training", formation_errors(experiment.policy, args.episodes, task_config))
+    start = time.perf_counter()
+    experiment.run()
+    elapsed = time.perf_counter() - start
+    print(
+        f"trained on {experiment.total_frames:,} env steps ({experiment.n_iters_performed} "
+        f"iterations) in {elapsed:.0f} s: {experiment.total_frames / elapsed:,.0f} env steps/s"
+    )
+    report("MAPPO after training", formation_errors(experiment.policy, args.episodes, task_config))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,97 @@
+"""``khepera-gym export``: a trained policy as ONNX, or as plain C for the real Khepera IV.
+
+A policy network is first reduced to a small description,
+:class:`~khepera_gym.export.network.PolicyNetwork`: the observation normalisation
+(``VecNormalize`` statistics), a list of dense layers with their activations, and the transform
+of the network's output into an action. Both writers work from that one description, so the
+ONNX file and the C code compute the same function. The package, one job a module:
+
+* :mod:`~khepera_gym.export.network`: the description, and what is supported;
+* :mod:`~khepera_gym.export.describe` (with :mod:`~khepera_gym.export.from_sb3`,
+  :mod:`~khepera_gym.export.from_rllib` and :mod:`~khepera_gym.export.torch_layers`): a
+  stable-baselines3 model (PPO, A2C, SAC, TD3) or a Ray RLlib PPO checkpoint to that
+  description (:data:`SUPPORTED_MODELS`; anything else raises ConfigError naming these);
+* :mod:`~khepera_gym.export.robot`: the robot side, read from the env the policy was trained on:
+  its observation layout (the scenario's observed sensors only) and the scenario's constants;
+* :mod:`~khepera_gym.export.onnx_writer`: ``policy.onnx`` (opset 13, checked with
+  ``onnx.checker``; the ``export`` extra);
+* :mod:`~khepera_gym.export.c_writer`: ``policy.c``, ``observation.c``, ``wheel_command.c``, the
+  libkhepera template program, ``export_check.c``, a Makefile and a README (templates in
+  ``khepera_gym/export/templates/``);
+* :mod:`~khepera_gym.export.checks`: the exported files against the Python policy and the
+  simulator on seeded rollouts (:func:`khepera_gym.rollout.run_episodes`);
+* :mod:`~khepera_gym.export.exporter`: :func:`export_policy`, the whole job;
+* :mod:`~khepera_gym.export.command`: the ``khepera-gym export`` command line.
+
+Units: the observation is the simulator's (SI units, normalised sensors); wheel commands are
+K-Team speed units of 0.678181 mm/s. Threading: everything runs in the calling thread.
+"""
+
+from khepera_gym.export.c_writer import C_SOURCES, write_c
+from khepera_gym.export.checks import (
+    C_FLAGS,
+    OBSERVATION_TOLERANCE,
+    PARITY_TOLERANCE,
+    Recording,
+    compile_check_program,
+    input_row,
+    record_rollouts,
+    run_check_program,
+)
+from khepera_gym.export.command import add_arguments, run_from_args
+from khepera_gym.export.describe import describe_policy, load_model
+from khepera_gym.export.exporter import (
+    FORMATS,
+    LAYOUT_FILE,
+    MANIFEST_FILE,
+    SCENARIO_FILE,
+    ExportResult,
+    export_policy,
+)
+from khepera_gym.export.network import (
+    ACTIVATIONS,
+    EXPORT_EXTRA,
+    SUPPORTED_MODELS,
+    ActionTransform,
+    DenseLayer,
+    ObservationNormalization,
+    PolicyNetwork,
+)
+from khepera_gym.export.onnx_writer import ONNX_FILE, ONNX_OPSET, build_onnx, onnx_actions
+from khepera_gym.export.robot import RobotInterface, robot_interface
+
+__all__ = [
+    "ACTIVATIONS",
+    "C_FLAGS",
+    "C_SOURCES",
+    "EXPORT_EXTRA",
+    "FORMATS",
+    "LAYOUT_FILE",
+    "MANIFEST_FILE",
+    "OBSERVATION_TOLERANCE",
+    "ONNX_FILE",
+    "ONNX_OPSET",
+    "PARITY_TOLERANCE",
+    "SCENARIO_FILE",
+    "SUPPORTED_MODELS",
+    "ActionTransform",
+    "DenseLayer",
+    "ExportResult",
+    "ObservationNormalization",
+    "PolicyNetwork",
+    "Recording",
+    "RobotInterface",
+    "add_arguments",
+    "build_onnx",
+    "compile_check_program",
+    "describe_policy",
+    "export_policy",
+    "input_row",
+    "load_model",
+    "onnx_actions",
+    "record_rollouts",
+    "robot_interface",
+    "run_check_program",
+    "run_from_args",
+    "write_c",
+]

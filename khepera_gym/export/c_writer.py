@@ -1,0 +1,445 @@
+"""The C writer: plain C99 sources of an exported policy for the real Khepera IV.
+
+:func:`write_c` writes, from a :class:`~khepera_gym.export.network.PolicyNetwork` and a
+:class:`~khepera_gym.export.robot.RobotInterface`:
+
+* ``policy.c``/``policy.h``: the weights as ``const float`` arrays and
+  ``int policy_forward(const float *observation, float *action)`` (no allocation, libm for
+  tanhf/expf only);
+* ``observation.c``/``.h``: the simulator's normalisation of the raw IR and ultrasonic readings,
+  wheel speeds and goal into the observation of the env the policy was trained on, block by
+  block in the env's own layout (only the blocks it observes), with the scenario's constants
+  baked in;
+* ``wheel_command.c``/``.h``: the action to ``kh4_set_speed`` units, as the simulator turns
+  actions into wheel speeds;
+* the template program ``khepera_policy_main.c`` (libkhepera: sensors, dead reckoning, policy,
+  wheel speeds every control period) with ``khepera_policy_config.h``, ``export_check.c`` (runs
+  the exported code on rows of numbers, for parity checks on a PC or on the robot), a Makefile
+  and a README.
+
+The fixed parts are files of ``khepera_gym/export/templates/`` with ``$``-placeholders
+(``string.Template``). Float constants are written so that they read back as the same float32
+(or float64) value. Threading: none.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import math
+import re
+import string
+import textwrap
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+
+import khepera_gym
+from khepera_gym.errors import ConfigError
+from khepera_gym.export.network import PolicyNetwork
+from khepera_gym.export.robot import (
+    MAX_SPEED_UNITS,
+    MM_S_PER_SPEED_UNIT,
+    PULSES_PER_WHEEL_TURN,
+    RobotInterface,
+)
+
+#: The C files of the exported code that ``export_check`` and the robot program link.
+C_SOURCES = ("policy.c", "observation.c", "wheel_command.c")
+
+
+def _c_float(value: float) -> str:
+    """A float32 literal that reads back as exactly ``np.float32(value)``."""
+    number = float(np.float32(value))
+    if not math.isfinite(number):
+        raise ConfigError(f"cannot write the non-finite value {number} as a C constant")
+    text = f"{number:.9g}"
+    if not any(mark in text for mark in ".en"):
+        text += ".0"
+    return text + "f"
+
+
+def _c_double(value: float) -> str:
+    """A double literal that reads back as exactly ``value``."""
+    if not math.isfinite(value):
+        raise ConfigError(f"cannot write the non-finite value {value} as a C constant")
+    text = f"{value:.17g}"
+    return text if any(mark in text for mark in ".en") else text + ".0"
+
+
+def _c_array(values: Iterable[str], indent: str = "    ", per_line: int = 6) -> str:
+    """Comma-separated values, ``per_line`` to a line."""
+    items = list(values)
+    lines = [", ".join(items[i : i + per_line]) for i in range(0, len(items), per_line)]
+    return (",\n" + indent).join(lines)
+
+
+def _indices(start: int, stop: int, dash: str) -> str:
+    """A block's indices: "13", or "0-7" for a longer one."""
+    return str(start) if stop - start == 1 else f"{start}{dash}{stop - 1}"
+
+
+def _c_name(name: str) -> str:
+    return re.sub(r"\W", "_", name)
+
+
+def _template(name: str) -> string.Template:
+    """A file of khepera_gym/export/templates/ ($-placeholders, see string.Template)."""
+    text = importlib.resources.files("khepera_gym.export").joinpath("templates", name)
+    return string.Template(text.read_text("utf-8"))
+
+
+#: C expressions of the activations, of ``{x}`` (and ``{alpha}``).
+_C_ACTIVATIONS = {
+    "tanh": "tanhf({x})",
+    "relu": "({x} > 0.0f ? {x} : 0.0f)",
+    "elu": "({x} > 0.0f ? {x} : {alpha} * (expf({x}) - 1.0f))",
+    "leaky_relu": "({x} > 0.0f ? {x} : {alpha} * {x})",
+    "silu": "({x} / (1.0f + expf(-{x})))",
+}
+
+
+def _policy_constants(network: PolicyNetwork) -> str:
+    """The C definitions of the normalisation statistics, weights and action transform."""
+    parts = []
+    norm = network.normalization
+    if norm is not None:
+        parts.append(
+            "/* VecNormalize statistics: clip((obs - mean) / sqrt(var + epsilon)), in double as\n"
+            f" * stable-baselines3 computes it (epsilon {norm.epsilon:g} is in OBS_STD). */\n"
+            f"#define OBS_CLIP {_c_double(norm.clip)}\n"
+            "static const double OBS_MEAN[POLICY_OBS_DIM] = {\n    "
+            f"{_c_array(_c_double(v) for v in norm.mean)}\n}};\n"
+            "static const double OBS_STD[POLICY_OBS_DIM] = {\n    "
+            f"{_c_array(_c_double(v) for v in norm.std)}\n}};\n"
+        )
+    for index, layer in enumerate(network.layers):
+        rows = ",\n".join(
+            "    {" + _c_array((_c_float(v) for v in row), indent="     ") + "}"
+            for row in layer.weight
+        )
+        bias = _c_array(_c_float(v) for v in layer.bias)
+        parts.append(
+            f"/* Layer {index}: {layer.inputs} -> {layer.outputs}, {layer.activation}. */\n"
+            f"static const float LAYER{index}_WEIGHT[{layer.outputs}][{layer.inputs}] = {{\n"
+            f"{rows}\n}};\n"
+            f"static const float LAYER{index}_BIAS[{layer.outputs}] = {{\n    {bias}\n}};\n"
+        )
+    transform = network.action
+    if transform.is_affine:
+        parts.append(
+            "/* The action: ACTION_SCALE * output + ACTION_OFFSET (to the action bounds). */\n"
+            "static const float ACTION_SCALE[POLICY_ACTION_DIM] = {"
+            f"{', '.join(_c_float(v) for v in transform.scale)}}};\n"
+            "static const float ACTION_OFFSET[POLICY_ACTION_DIM] = {"
+            f"{', '.join(_c_float(v) for v in transform.offset)}}};\n"
+        )
+    if transform.low is not None and transform.high is not None:
+        parts.append(
+            "/* The action's bounds (the action space): it is clipped to them. */\n"
+            "static const float ACTION_LOW[POLICY_ACTION_DIM] = {"
+            f"{', '.join(_c_float(v) for v in transform.low)}}};\n"
+            "static const float ACTION_HIGH[POLICY_ACTION_DIM] = {"
+            f"{', '.join(_c_float(v) for v in transform.high)}}};\n"
+        )
+    return "\n".join(parts)
+
+
+def _policy_forward(network: PolicyNetwork) -> str:
+    """The statements of ``policy_forward``: normalisation, layers, action transform."""
+    lines = ["    for (i = 0; i < POLICY_OBS_DIM; ++i) {"]
+    if network.normalization is not None:
+        lines += [
+            "        double value = ((double)observation[i] - OBS_MEAN[i]) / OBS_STD[i];",
+            "        value = value < -OBS_CLIP ? -OBS_CLIP : value;",
+            "        value = value > OBS_CLIP ? OBS_CLIP : value;",
+            "        buffer_a[i] = (float)value;",
+        ]
+    else:
+        lines.append("        buffer_a[i] = observation[i];")
+    lines.append("    }")
+    source, target = "buffer_a", "buffer_b"
+    for index, layer in enumerate(network.layers):
+        lines.append(
+            f"    dense(&LAYER{index}_WEIGHT[0][0], LAYER{index}_BIAS, {layer.inputs}, "
+            f"{layer.outputs}, {source}, {target});"
+        )
+        if layer.activation != "identity":
+            x = f"{target}[i]"
+            expression = _C_ACTIVATIONS[layer.activation].format(x=x, alpha=_c_float(layer.alpha))
+            lines += [
+                f"    for (i = 0; i < {layer.outputs}; ++i) {{",
+                f"        {x} = {expression};",
+                "    }",
+            ]
+        source, target = target, source
+    lines += [
+        "    for (i = 0; i < POLICY_ACTION_DIM; ++i) {",
+        f"        float value = {source}[i];",
+    ]
+    if network.action.is_affine:
+        lines.append("        value = ACTION_SCALE[i] * value + ACTION_OFFSET[i];")
+    if network.action.low is not None:
+        lines += [
+            "        if (value < ACTION_LOW[i]) {",
+            "            value = ACTION_LOW[i];",
+            "        } else if (value > ACTION_HIGH[i]) {",
+            "            value = ACTION_HIGH[i];",
+            "        }",
+        ]
+    lines += ["        action[i] = value;", "    }"]
+    return "\n".join(lines)
+
+
+def policy_c_sources(network: PolicyNetwork, provenance: str) -> dict[str, str]:
+    """``policy.h`` and ``policy.c`` of ``network`` (file name → text)."""
+    widths = [network.obs_dim, *(layer.outputs for layer in network.layers)]
+    fields = {
+        "source": network.source,
+        "version": khepera_gym.__version__,
+        "provenance": provenance,
+        "obs_dim": network.obs_dim,
+        "action_dim": network.action_dim,
+        "widths": " -> ".join(str(width) for width in widths),
+        "max_width": network.max_width,
+        "constants": _policy_constants(network),
+        "forward": _policy_forward(network),
+    }
+    return {name: _template(name).substitute(fields) for name in ("policy.h", "policy.c")}
+
+
+def _input_fields(robot: RobotInterface) -> list[tuple[str, str, int, str]]:
+    """Fields of ``observation_inputs``: (C name, C type, count, comment), in row order."""
+    names = {name for name, _, _ in robot.layout}
+    fields = []
+    if "ir" in names:
+        fields.append(
+            (
+                "ir_raw",
+                "uint16_t",
+                8,
+                "kh4_proximity_ir's first 8 values: the ring in K-Team "
+                "order (back-left, left, front-left, front, front-right, right, back-right, back), "
+                "0..1023",
+            )
+        )
+    if "us" in names:
+        fields.append(
+            (
+                "us_cm",
+                "int16_t",
+                5,
+                "kh4_measure_us: left, front-left, front, front-right, "
+                "right, in cm, or 0 (too close), 1000 (nothing in range), 2000 (disabled)",
+            )
+        )
+    if "wheel_speeds" in names:
+        fields.append(
+            (
+                "wheel_speeds",
+                "float",
+                2,
+                "left, right wheel speeds (m/s): wheel_units_to_speed() of kh4_get_speed's units",
+            )
+        )
+    if robot.has_goal:
+        fields.append(
+            (
+                "robot_pose",
+                "float",
+                3,
+                "x, y (m) and heading (rad, counter-clockwise) of the "
+                "robot, e.g. by dead reckoning",
+            )
+        )
+        fields.append(("goal", "float", 2, "x, y (m) of the goal, in the frame of robot_pose"))
+    for name, start, stop in robot.extra_blocks:
+        fields.append(
+            (
+                _c_name(name),
+                "float",
+                stop - start,
+                f"the observation's {name} block, as the "
+                "simulator defines it (the env's documentation)",
+            )
+        )
+    return fields
+
+
+def _wrap_comment(text: str, indent: str) -> str:
+    """A ``/* ... */`` comment of ``text`` wrapped to 100 columns."""
+    lines = textwrap.wrap(text, 100 - len(indent) - 3)
+    return "\n".join(
+        indent + ("/* " if i == 0 else "   ") + line + (" */" if i == len(lines) - 1 else "")
+        for i, line in enumerate(lines)
+    )
+
+
+def _observation_statement(name: str, start: int, stop: int) -> str:
+    """The C statement of ``observation_build`` filling one block."""
+    target = f"observation[{start}]"
+    if name == "ir":
+        source = "observation_ir(inputs->ir_raw[i])"
+    elif name == "us":
+        source = "observation_us(inputs->us_cm[i])"
+    elif name == "wheel_speeds":
+        source = "clamp(inputs->wheel_speeds[i] / OBSERVATION_MAX_WHEEL_SPEED, -1.0f, 1.0f)"
+    elif name == "goal_distance":
+        return (
+            f"    {target} = distance < OBSERVATION_ARENA_DIAGONAL ? distance"
+            " : OBSERVATION_ARENA_DIAGONAL;"
+        )
+    elif name in ("goal_bearing_sin", "goal_bearing_cos"):
+        axis, fallback = ("1", "0.0f") if name.endswith("sin") else ("0", "1.0f")
+        return (
+            f"    {target} = distance > 0.0f ? clamp(local[{axis}] / distance, -1.0f, 1.0f)"
+            f" : {fallback};"
+        )
+    else:
+        source = f"inputs->{_c_name(name)}[i]"
+    return (
+        f"    for (int i = 0; i < {stop - start}; ++i) {{\n"
+        f"        observation[{start} + i] = {source};\n    }}"
+    )
+
+
+def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
+    """``observation.h``/``.c``: the simulator's observation from raw readings (name → text)."""
+    fields = _input_fields(robot)
+    names = {name for name, _, _ in robot.layout}
+    randomised = "".join(
+        f"\n * {key} is a range {list(bounds)} in the scenario (domain randomisation): its "
+        "midpoint is used."
+        for key, bounds in robot.randomised.items()
+    )
+    where = robot.env_id + (f" (one robot's block, as {robot.agent}'s)" if robot.agent else "")
+    header = {
+        "where": where,
+        "version": khepera_gym.__version__,
+        "layout": "\n".join(
+            f" *   {_indices(start, stop, '-'):<7} {name}" for name, start, stop in robot.layout
+        ),
+        "obs_dim": robot.obs_dim,
+        "input_count": sum(count for _, _, count, _ in fields),
+        "has_ir": int("ir" in names),
+        "has_us": int("us" in names),
+        "has_wheel_speeds": int("wheel_speeds" in names),
+        "has_goal": int(robot.has_goal),
+        "extra_inputs": len(robot.extra_blocks),
+        "randomised": randomised,
+        "ir_floor_value": _c_float(robot.ir_floor_value),
+        "us_max_range": _c_float(robot.us_max_range),
+        "max_wheel_speed": _c_float(robot.max_wheel_speed),
+        "arena_diagonal": _c_float(robot.arena_diagonal),
+        "fields": "\n".join(
+            f"{_wrap_comment(comment + '.', '    ')}\n    {c_type} {name}[{count}];"
+            for name, c_type, count, comment in fields
+        ),
+    }
+    source = {
+        "build": "\n".join(_observation_statement(*block) for block in robot.layout),
+        "from_row": "\n".join(
+            f"    for (int i = 0; i < {count}; ++i) {{\n"
+            f"        inputs->{name}[i] = ({c_type})row[next++];\n    }}"
+            for name, c_type, count, _ in fields
+        ),
+        "clear": "\n".join(
+            f"    for (int i = 0; i < {stop - start}; ++i) {{\n"
+            f"        inputs->{_c_name(name)}[i] = 0.0f;\n    }}"
+            for name, start, stop in robot.extra_blocks
+        ),
+    }
+    return {
+        "observation.h": _template("observation.h").substitute(header),
+        "observation.c": _template("observation.c").substitute(source),
+    }
+
+
+def robot_c_sources(robot: RobotInterface, network: PolicyNetwork) -> dict[str, str]:
+    """The wheel command, the template program and its constants, the check program, the
+    Makefile (name → text)."""
+    if network.action_dim != 2:
+        raise ConfigError(
+            f"the policy gives {network.action_dim} action values; one robot takes 2 (its wheels)"
+        )
+    unicycle = robot.action_type == "unicycle"
+    wheel_fields = {
+        "action_type": robot.action_type,
+        "env_id": robot.env_id,
+        "action_meaning": "normalised (v, omega): v by the wheel speed limit, omega by 2 limit /"
+        " axle; wheels over the limit are scaled down together."
+        if unicycle
+        else "normalised (left, right) wheel speeds, 1 = the wheel speed limit.",
+        "unicycle": int(unicycle),
+        "max_wheel_speed": _c_float(robot.max_wheel_speed),
+        "min_wheel_speed": _c_float(robot.min_wheel_speed),
+        "axle_length": _c_float(robot.axle_length),
+        "mm_s_per_unit": _c_float(MM_S_PER_SPEED_UNIT),
+        "max_units": MAX_SPEED_UNITS,
+    }
+    config_fields = {
+        "control_period": _c_double(robot.control_period),
+        "goal_radius": _c_double(robot.goal_radius),
+        "axle_length": _c_double(robot.axle_length),
+        "metres_per_pulse": _c_double(2.0 * math.pi * robot.wheel_radius / PULSES_PER_WHEEL_TURN),
+        # The real robot pings only when the policy sees the ultrasonic sensors.
+        "us_mask": sum(1 << i for i, on in enumerate(robot.us_enabled) if on)
+        if robot.observes("us")
+        else 0,
+    }
+    return {
+        "wheel_command.h": _template("wheel_command.h").substitute(wheel_fields),
+        "wheel_command.c": _template("wheel_command.c").template,
+        "khepera_policy_config.h": _template("khepera_policy_config.h").substitute(config_fields),
+        "khepera_policy_main.c": _template("khepera_policy_main.c").template,
+        "export_check.c": _template("export_check.c").template,
+        "Makefile": _template("Makefile").template,
+    }
+
+
+def readme(network: PolicyNetwork, robot: RobotInterface) -> str:
+    """The README of an export: its files, the observation layout, building and checking."""
+    return _template("README.md").safe_substitute(
+        env_id=robot.env_id,
+        source=network.source,
+        version=khepera_gym.__version__,
+        layout="\n".join(
+            f"| {_indices(start, stop, '–')} | `{name}` |" for name, start, stop in robot.layout
+        ),
+    )
+
+
+def write_c(
+    network: PolicyNetwork, robot: RobotInterface, out_dir: str | Path, provenance: str
+) -> list[Path]:
+    """Writes the C sources, the Makefile and the README into ``out_dir``; returns their
+    paths.
+
+    Raises:
+        ConfigError: The policy does not give one robot's two wheel actions, or a constant is
+            not finite.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sources = {
+        **policy_c_sources(network, provenance),
+        **observation_c_sources(robot),
+        **robot_c_sources(robot, network),
+        "README.md": readme(network, robot),
+    }
+    paths = []
+    for name, text in sources.items():
+        path = out / name
+        path.write_text(text, encoding="utf-8")
+        paths.append(path)
+    return paths
+
+
+__all__ = [
+    "C_SOURCES",
+    "observation_c_sources",
+    "policy_c_sources",
+    "readme",
+    "robot_c_sources",
+    "write_c",
+]

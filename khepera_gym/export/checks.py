@@ -1,0 +1,270 @@
+"""The checks of an export: the exported files against the Python policy and the simulator, on
+observations recorded from seeded env rollouts.
+
+:func:`record_rollouts` plays seeded episodes with :func:`khepera_gym.rollout.run_episodes` (the
+one episode loop of the package) on the env's batch, driven by the policy with a share of
+seeded random actions, and records at every step the policy's observation and what the real
+robot would have measured then (its raw readings, pose and goal: a row of the C
+``observation_inputs``). :func:`check_export` compares, on those rows, the ONNX file's actions
+(onnxruntime) and the C code's actions and observations (``export_check`` compiled with the
+system C compiler) with the reference, against :data:`PARITY_TOLERANCE` and
+:data:`OBSERVATION_TOLERANCE`.
+
+Threading: the batch steps its worlds with the GIL released; the compiler and ``export_check``
+run as child processes, one at a time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import numpy.typing as npt
+
+from khepera_gym.errors import KheperaError
+from khepera_gym.export.c_writer import C_SOURCES
+from khepera_gym.export.onnx_writer import ONNX_FILE, onnx_actions
+from khepera_gym.export.robot import RobotInterface
+from khepera_gym.rollout import run_episodes
+
+#: Largest absolute difference between an exported policy's action and the Python policy's that
+#: the checks accept.
+PARITY_TOLERANCE = 1e-5
+#: Largest difference between the C observation and the simulator's (float32 rounding of the
+#: goal bearing's sine and cosine; the sensor blocks match exactly).
+OBSERVATION_TOLERANCE = 1e-6
+#: Flags of the native build of ``export_check`` in the export's check (the tests add -Wextra
+#: -Werror: the code is warning-free C99 with gcc).
+C_FLAGS = ("-O2", "-std=c99", "-Wall")
+
+
+def compile_check_program(
+    out_dir: str | Path, compiler: str = "cc", flags: Sequence[str] = C_FLAGS
+) -> Path:
+    """Compiles ``export_check`` from the exported sources with the system C compiler.
+
+    Raises:
+        KheperaError: The compiler is missing or the sources do not compile (its output).
+    """
+    out = Path(out_dir)
+    binary = out / "export_check"
+    command = [
+        compiler,
+        *flags,
+        "-o",
+        str(binary),
+        *(str(out / name) for name in ("export_check.c", *C_SOURCES)),
+        "-lm",
+    ]
+    try:
+        result = subprocess.run(command, capture_output=True, text=True, check=False)
+    except FileNotFoundError as error:
+        raise KheperaError(f"no C compiler {compiler!r} on PATH") from error
+    if result.returncode != 0:
+        raise KheperaError(f"{' '.join(command)} failed:\n{result.stderr}")
+    return binary
+
+
+def run_check_program(binary: str | Path, mode: str, rows: npt.ArrayLike) -> npt.NDArray[Any]:
+    """Feeds rows to ``export_check MODE`` and parses its output rows: float32 (the C values
+    exactly) for "policy" and "observation", integers for "wheels".
+
+    Raises:
+        KheperaError: The program failed or printed something else than rows of numbers.
+    """
+    values = np.atleast_2d(np.asarray(rows, np.float64))
+    text = "\n".join(" ".join(f"{v:.9g}" for v in row) for row in values) + "\n"
+    result = subprocess.run(
+        [str(binary), mode], input=text, capture_output=True, text=True, check=False
+    )
+    if result.returncode != 0:
+        raise KheperaError(f"{binary} {mode} exited with {result.returncode}: {result.stderr}")
+    try:
+        parsed = np.array([[float(v) for v in line.split()] for line in result.stdout.splitlines()])
+    except ValueError as error:
+        raise KheperaError(f"{binary} {mode} printed {result.stdout[:200]!r}") from error
+    return parsed.astype(np.int64 if mode == "wheels" else np.float32)
+
+
+@dataclasses.dataclass
+class Recording:
+    """Observations of seeded rollouts with what the robot would have measured at each step."""
+
+    #: Policy observations (N, obs_dim), float32.
+    observations: npt.NDArray[np.float32]
+    #: Rows of ``observation_inputs`` (N, OBSERVATION_INPUT_COUNT) for ``export_check``.
+    input_rows: npt.NDArray[np.float64]
+
+
+def input_row(
+    robot: RobotInterface,
+    readings: Mapping[str, npt.NDArray[Any]],
+    pose: npt.ArrayLike,
+    goal: npt.ArrayLike,
+    observation: npt.NDArray[np.float32],
+) -> list[float]:
+    """One robot's ``observation_inputs`` as a row, in the order of the C struct's fields: the
+    raw readings of the blocks the observation has, pose and goal (when it has goal blocks), and
+    the blocks the robot cannot measure (taken from ``observation``, the policy's own block).
+
+    Args:
+        robot: The export's robot side.
+        readings: ``sensor_readings()`` of a face of one world (a robot axis first).
+        pose: That robot's ground-truth pose (x, y, θ).
+        goal: Its goal (x, y).
+        observation: Its observation block.
+    """
+    index = robot.robot_index
+    row: list[float] = []
+    for block, channel in (("ir", "ir_raw"), ("us", "us_cm"), ("wheel_speeds", "wheel_speeds")):
+        if robot.observes(block):
+            row += [float(v) for v in readings[channel][index]]
+    if robot.has_goal:
+        row += [float(v) for v in np.asarray(pose)[:3]]
+        row += [float(v) for v in np.asarray(goal)[:2]]
+    for _, start, stop in robot.extra_blocks:
+        row += [float(v) for v in observation[start:stop]]
+    return row
+
+
+def record_rollouts(
+    env: gym.Env[Any, Any],
+    robot: RobotInterface,
+    act: Callable[[npt.NDArray[np.float32]], npt.ArrayLike],
+    seeds: Sequence[int] = tuple(range(10)),
+    steps: int = 150,
+    random_fraction: float = 0.3,
+) -> Recording:
+    """Observations and raw inputs of seeded episodes of ``env`` driven by ``act``.
+
+    Each episode runs through :func:`khepera_gym.rollout.run_episodes` on the env's batch, for
+    at most ``steps`` steps; its first observation and those after every step (the last one
+    included) are recorded with the robot's raw readings at that moment.
+
+    Args:
+        env: A single env (one world) of khepera_gym, as :func:`robot_interface` read it.
+        robot: The export's robot side (which agent's block, which inputs).
+        act: Maps the policy's observations (M, obs_dim) to actions (M, 2). In a multi-robot
+            env it drives every agent whose block has the policy's width (a shared policy);
+            other agents stand still.
+        seeds: One episode per seed.
+        steps: Largest number of steps of an episode.
+        random_fraction: The share of steps, drawn from a generator seeded with ``seeds[0]``,
+            whose actions are uniform in [-1, 1] instead, so the rollouts visit more states.
+    """
+    unwrapped = env.unwrapped
+    batch = unwrapped._batch
+    width = robot.obs_dim
+    # (block start, first action column) of every agent the policy drives: agent i's action is
+    # joint columns 2i, 2i + 1.
+    driven = [
+        (int(start), 2 * i)
+        for i, (_, _, start, stop, _) in enumerate(batch.agents())
+        if stop - start == width
+    ]
+    rng = np.random.default_rng(seeds[0] if seeds else 0)
+    observations: list[npt.NDArray[np.float32]] = []
+    rows: list[list[float]] = []
+
+    def record(joint: npt.NDArray[np.float32]) -> None:
+        own = np.array(joint[0, robot.offset : robot.offset + width], np.float32)
+        goals = unwrapped.goals()
+        goal = goals[min(robot.robot_index, len(goals) - 1)] if len(goals) else np.zeros(2)
+        pose = unwrapped.poses()[robot.robot_index]
+        observations.append(own)
+        rows.append(input_row(robot, unwrapped.sensor_readings(), pose, goal, own))
+
+    def policy(joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        if rng.random() < random_fraction:
+            return rng.uniform(-1.0, 1.0, (1, batch.act_dim)).astype(np.float32)
+        blocks = np.stack([joint[0, start : start + width] for start, _ in driven])
+        agent_actions = np.asarray(act(blocks), np.float32).reshape(len(driven), 2)
+        actions = np.zeros((1, batch.act_dim), np.float32)
+        for (_, column), action in zip(driven, agent_actions, strict=True):
+            actions[0, column : column + 2] = action
+        return actions
+
+    def on_step(
+        _step: int,
+        joint: npt.NDArray[np.float32],
+        _rewards: npt.NDArray[np.float32],
+        _ended: npt.NDArray[np.bool_],
+        done: npt.NDArray[np.bool_],
+    ) -> None:
+        if not done[0]:  # the episode's last observation is recorded, nothing after it
+            record(joint)
+
+    for seed in seeds:
+        run_episodes(batch, policy, seed, on_reset=record, on_step=on_step, max_steps=steps)
+    return Recording(np.array(observations, np.float32), np.array(rows, np.float64))
+
+
+def check_export(
+    reference: Callable[[npt.NDArray[np.float32]], npt.ArrayLike],
+    env: gym.Env[Any, Any],
+    robot: RobotInterface,
+    out: Path,
+    formats: Sequence[str],
+    compiler: str,
+) -> tuple[dict[str, Any], list[str]]:
+    """Measures the exported files in ``out`` against ``reference`` (the Python policy's
+    deterministic actions) on recorded rollouts of ``env``.
+
+    Returns:
+        (figures, failures): "observations" (rows checked), "onnx_max_abs_error",
+        "c_max_abs_error", "observation_max_abs_error" or "c_skipped" (no compiler); and what
+        exceeds its tolerance ("C actions", ...).
+
+    Raises:
+        KheperaError: The C code does not compile or ``export_check`` fails.
+    """
+    recording = record_rollouts(env, robot, reference)
+    expected = np.asarray(reference(recording.observations), np.float64)
+    checks: dict[str, Any] = {"observations": len(recording.observations)}
+    failures = []
+    if "onnx" in formats:
+        got = onnx_actions(out / ONNX_FILE, recording.observations)
+        checks["onnx_max_abs_error"] = float(np.max(np.abs(got - expected)))
+        if checks["onnx_max_abs_error"] > PARITY_TOLERANCE:
+            failures.append("ONNX actions")
+    if "c" in formats:
+        if shutil.which(compiler) is None:
+            checks["c_skipped"] = f"no C compiler {compiler!r} on PATH"
+        else:
+            with tempfile.TemporaryDirectory() as build:
+                for name in ("export_check.c", *C_SOURCES):
+                    shutil.copy(out / name, build)
+                for name in out.glob("*.h"):
+                    shutil.copy(name, build)
+                binary = compile_check_program(build, compiler)
+                got = run_check_program(binary, "policy", recording.observations)
+                built = run_check_program(binary, "observation", recording.input_rows)
+            checks["c_max_abs_error"] = float(np.max(np.abs(got - expected)))
+            checks["observation_max_abs_error"] = float(
+                np.max(np.abs(built - recording.observations))
+            )
+            if checks["c_max_abs_error"] > PARITY_TOLERANCE:
+                failures.append("C actions")
+            if checks["observation_max_abs_error"] > OBSERVATION_TOLERANCE:
+                failures.append("C observations")
+    return checks, failures
+
+
+__all__ = [
+    "C_FLAGS",
+    "OBSERVATION_TOLERANCE",
+    "PARITY_TOLERANCE",
+    "Recording",
+    "check_export",
+    "compile_check_program",
+    "input_row",
+    "record_rollouts",
+    "run_check_program",
+]

@@ -1,0 +1,112 @@
+"""``khepera-gym export``: the command line of :func:`~khepera_gym.export.exporter.export_policy`.
+
+Examples::
+
+    khepera-gym export runs/ppo_nav/model.zip                 # C, beside the model in export/
+    khepera-gym export runs/ppo_nav/model.zip --format c onnx --out robot/
+    khepera-gym export checkpoint_dir --env KheperaIV-Nav-v0 --set ir_floor_value=110
+
+It prints the files written, the scenario constants given as ranges (their midpoint is baked
+in) and the check figures. Threading: the calling thread.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from khepera_gym.errors import ConfigError
+from khepera_gym.export.exporter import FORMATS, export_policy
+from khepera_gym.export.robot import toml_loads
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``khepera-gym export``."""
+    parser.add_argument(
+        "model",
+        help="an SB3 model.zip (vecnormalize.pkl and run.json beside it are used) or an "
+        "RLlib checkpoint directory",
+    )
+    parser.add_argument(
+        "--format",
+        nargs="+",
+        choices=FORMATS,
+        default=["c"],
+        help="c (policy.c, observation.c, a libkhepera program template) and/or onnx (c)",
+    )
+    parser.add_argument(
+        "--out", type=Path, default=None, help="output folder (export/ beside the model)"
+    )
+    parser.add_argument("--env", default=None, help="env id trained on (from run.json if absent)")
+    parser.add_argument("--config", default=None, help="scenario trained on (name or TOML path)")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a scenario override as in training (VALUE in TOML syntax), e.g. ir_floor_value=110",
+    )
+    parser.add_argument(
+        "--action-type", choices=("wheels", "unicycle"), default=None, help="as in training"
+    )
+    parser.add_argument(
+        "--no-check",
+        action="store_true",
+        help="skip measuring the exported files against the Python policy",
+    )
+    parser.add_argument("--cc", default="cc", help="C compiler of the check (cc)")
+
+
+def _parse_override(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` with VALUE in TOML syntax, or a string when it is not TOML.
+
+    Raises:
+        ConfigError: No ``=`` or an empty key.
+    """
+    key, separator, value = text.partition("=")
+    if not separator or not key.strip():
+        raise ConfigError(f"--set takes KEY=VALUE, got {text!r}")
+    try:
+        return key.strip(), toml_loads(f"value = {value.strip()}")["value"]
+    except ValueError:  # tomllib.TOMLDecodeError is a ValueError
+        return key.strip(), value.strip()
+
+
+def run_from_args(args: argparse.Namespace) -> int:
+    """Runs ``khepera-gym export`` with parsed arguments."""
+    model = Path(args.model)
+    out = args.out if args.out is not None else model.resolve().parent / "export"
+    overrides = dict(_parse_override(text) for text in args.set)
+    result = export_policy(
+        model,
+        out,
+        formats=args.format,
+        env_id=args.env,
+        config=args.config,
+        action_type=args.action_type,
+        check=not args.no_check,
+        compiler=args.cc,
+        **overrides,
+    )
+    agent = f" (one agent's block, as {result.robot.agent})" if result.robot.agent else ""
+    print(
+        f"exported the {result.network.source} policy for {result.robot.env_id}{agent} "
+        f"to {result.out_dir}:"
+    )
+    for path in result.files:
+        print(f"  {path.name}")
+    for key, bounds in result.robot.randomised.items():
+        print(f"note: {key} is a range {list(bounds)} in the scenario; the midpoint is baked in")
+    checks = result.checks
+    if "observations" in checks:
+        print(f"checked on {checks['observations']} observations of seeded rollouts:")
+    for key in ("onnx_max_abs_error", "c_max_abs_error", "observation_max_abs_error"):
+        if key in checks:
+            print(f"  {key.replace('_', ' ')}: {checks[key]:.3g}")
+    if "c_skipped" in checks:
+        print(f"  C check skipped: {checks['c_skipped']}")
+    return 0
+
+
+__all__ = ["add_arguments", "run_from_args"]

@@ -1,0 +1,147 @@
+"""The policy network as the exporter sees it: :class:`PolicyNetwork`, the one description the
+ONNX writer and the C writer both work from, so the two compute the same function.
+
+A policy is reduced to the observation normalisation (``VecNormalize`` statistics: mean,
+variance, epsilon, clip), a list of dense layers with their activations, and the transform of the
+network's output into an action (an affine map and a clip to the action bounds). Weights are
+float32 as in torch; the normalisation is float64 as stable-baselines3 computes it.
+
+This module also says what the exporter supports (:data:`SUPPORTED_MODELS`, the message of
+:func:`unsupported_model`) and how to install what it needs (:data:`EXPORT_EXTRA`).
+Threading: plain immutable data, no threads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import numpy.typing as npt
+
+from khepera_gym.errors import ConfigError, KheperaError
+
+#: What :func:`khepera_gym.export.describe_policy` accepts, for error messages and the manual.
+SUPPORTED_MODELS = (
+    "stable-baselines3 PPO or A2C with MlpPolicy (a model.zip, the loaded model, or "
+    "khepera_gym.sb3.load_policy's result)",
+    "stable-baselines3 SAC or TD3 (DDPG) with MlpPolicy",
+    "a Ray RLlib PPO checkpoint directory (new API stack, default torch MLP RLModule) or its "
+    "loaded RLModule",
+)
+#: Install hint for the ONNX writer and checker (and tomli before Python 3.11).
+EXPORT_EXTRA = "pip install 'khepera-gym[export]'"
+#: Activations the writers implement.
+ACTIVATIONS = ("identity", "tanh", "relu", "elu", "leaky_relu", "silu")
+
+
+def unsupported_model(what: str) -> ConfigError:
+    """The error for a model the exporter cannot handle; its message lists what it can."""
+    supported = "; ".join(SUPPORTED_MODELS)
+    return ConfigError(f"cannot export {what}: supported are {supported}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservationNormalization:
+    """``VecNormalize``'s observation transform: ``clip((obs - mean) / sqrt(var + epsilon))``.
+
+    Computed in float64 as SB3 does, then rounded to float32.
+    """
+
+    mean: npt.NDArray[np.float64]
+    variance: npt.NDArray[np.float64]
+    epsilon: float
+    clip: float
+
+    @property
+    def std(self) -> npt.NDArray[np.float64]:
+        """``sqrt(variance + epsilon)``, the divisor."""
+        return np.sqrt(self.variance + self.epsilon)
+
+
+@dataclasses.dataclass(frozen=True)
+class DenseLayer:
+    """``activation(weight @ x + bias)``; ``weight`` has shape (outputs, inputs), float32.
+
+    ``activation`` is "identity", "tanh", "relu", "elu" (``alpha``), "leaky_relu" (slope
+    ``alpha``) or "silu".
+    """
+
+    weight: npt.NDArray[np.float32]
+    bias: npt.NDArray[np.float32]
+    activation: str = "identity"
+    alpha: float = 0.0
+
+    @property
+    def inputs(self) -> int:
+        """Input width."""
+        return int(self.weight.shape[1])
+
+    @property
+    def outputs(self) -> int:
+        """Output width."""
+        return int(self.weight.shape[0])
+
+
+@dataclasses.dataclass(frozen=True)
+class ActionTransform:
+    """The network output ``y`` to an action: ``scale * y + offset``, then clipped to
+    ``[low, high]`` when those are set (float32)."""
+
+    scale: npt.NDArray[np.float32]
+    offset: npt.NDArray[np.float32]
+    low: npt.NDArray[np.float32] | None
+    high: npt.NDArray[np.float32] | None
+
+    @property
+    def is_affine(self) -> bool:
+        """False when the scale is 1 and the offset 0."""
+        return bool(np.any(self.scale != 1.0) or np.any(self.offset != 0.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class PolicyNetwork:
+    """A deterministic policy as normalisation → dense layers → action transform.
+
+    Raises:
+        KheperaError: The layers do not chain from ``obs_dim`` to ``action_dim`` or use an
+            activation the writers do not implement.
+        ConfigError: A weight is NaN or infinite.
+    """
+
+    #: Where it came from, e.g. "stable-baselines3 PPO".
+    source: str
+    obs_dim: int
+    action_dim: int
+    normalization: ObservationNormalization | None
+    layers: tuple[DenseLayer, ...]
+    action: ActionTransform
+
+    def __post_init__(self) -> None:
+        width = self.obs_dim
+        for index, layer in enumerate(self.layers):
+            if layer.inputs != width:
+                raise KheperaError(f"layer {index} takes {layer.inputs} inputs, not {width}")
+            if layer.activation not in ACTIVATIONS:
+                raise KheperaError(f"layer {index}: unknown activation {layer.activation!r}")
+            if not (np.all(np.isfinite(layer.weight)) and np.all(np.isfinite(layer.bias))):
+                raise ConfigError(f"layer {index} of the {self.source} policy has NaN/inf weights")
+            width = layer.outputs
+        if width != self.action_dim:
+            raise KheperaError(f"the network gives {width} values, not {self.action_dim}")
+
+    @property
+    def max_width(self) -> int:
+        """The widest vector of the forward pass."""
+        return max([self.obs_dim, *(layer.outputs for layer in self.layers)])
+
+
+__all__ = [
+    "ACTIVATIONS",
+    "EXPORT_EXTRA",
+    "SUPPORTED_MODELS",
+    "ActionTransform",
+    "DenseLayer",
+    "ObservationNormalization",
+    "PolicyNetwork",
+    "unsupported_model",
+]

@@ -1,0 +1,213 @@
+/* khepera_policy_main.c: TEMPLATE of a program running the exported policy on a real Khepera IV.
+ *
+ * A starting point to read and adapt, not a tested driver: khepera_gym checks that it is valid
+ * C99 against the libkhepera declarations it uses, but it has not been run on a robot by the
+ * exporter. Cross-compile it with K-Team's toolchain and libkhepera (see README.md and the
+ * Makefile next to it), copy it to the robot and run it there.
+ *
+ * Every control period (KHEPERA_CONTROL_PERIOD_S: the simulator's step) it
+ *   1. reads the IR ring (kh4_proximity_ir) and the ultrasonic sensors (kh4_measure_us) when
+ *      the observation has their blocks (observation.h), the wheel speeds (kh4_get_speed) and
+ *      the encoders (kh4_get_position);
+ *   2. integrates the encoders into a dead-reckoning pose in the frame of the robot at start
+ *      (x forward, y left): the goal inputs of the observation come from it and from the goal
+ *      given on the command line in that frame;
+ *   3. builds the observation exactly as the simulator does (observation.c);
+ *   4. runs the policy (policy.c) and sends the wheel speeds with kh4_set_speed in K-Team's units,
+ *      clipped to the robot's limit (wheel_command.c).
+ * It stops the motors on Ctrl-C, at the goal (estimated by odometry, which drifts), after
+ * MAX_STEPS steps, or when the policy gives a non-finite action.
+ *
+ * Usage on the robot:  ./khepera_policy GOAL_X GOAL_Y [MAX_STEPS]
+ *   GOAL_X, GOAL_Y  goal in metres in the robot's frame at start (ignored if the observation has
+ *                   no goal inputs); MAX_STEPS  0 or absent: no limit.
+ * It prints one line per step: step, pose (m, m, rad), action, wheel units.
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+
+#include <khepera/khepera.h>
+
+#include "khepera_policy_config.h"
+#include "observation.h"
+#include "policy.h"
+#include "wheel_command.h"
+
+#if POLICY_OBS_DIM != OBSERVATION_DIM
+#error "policy.h and observation.h come from different exports"
+#endif
+
+static volatile sig_atomic_t stop_requested = 0;
+
+static void on_signal(int signal_number)
+{
+    (void)signal_number;
+    stop_requested = 1;
+}
+
+/* Dead reckoning from the wheel encoders (pulses), midpoint integration, in the start frame. */
+typedef struct {
+    double x;       /* m */
+    double y;       /* m */
+    double heading; /* rad, counter-clockwise, wrapped to (-pi, pi] */
+    int last_left;  /* encoder pulses at the previous update */
+    int last_right;
+} odometry;
+
+static void odometry_update(odometry *pose, int left_pulses, int right_pulses)
+{
+    const double pi = 3.14159265358979323846;
+    const double left = (double)(left_pulses - pose->last_left) * KHEPERA_METRES_PER_PULSE;
+    const double right = (double)(right_pulses - pose->last_right) * KHEPERA_METRES_PER_PULSE;
+    const double distance = 0.5 * (left + right);
+    const double turn = (right - left) / KHEPERA_AXLE_LENGTH;
+    const double middle = pose->heading + 0.5 * turn;
+    pose->x += distance * cos(middle);
+    pose->y += distance * sin(middle);
+    pose->heading += turn;
+    if (pose->heading > pi) {
+        pose->heading -= 2.0 * pi;
+    } else if (pose->heading <= -pi) {
+        pose->heading += 2.0 * pi;
+    }
+    pose->last_left = left_pulses;
+    pose->last_right = right_pulses;
+}
+
+#if OBSERVATION_HAS_IR || OBSERVATION_HAS_US
+/* Little-endian 16-bit values as libkhepera's byte buffers hold them. */
+static unsigned int read_u16(const char *buffer, int index)
+{
+    return (unsigned int)(unsigned char)buffer[2 * index]
+        | ((unsigned int)(unsigned char)buffer[2 * index + 1] << 8);
+}
+#endif
+
+static void add_seconds(struct timespec *time, double seconds)
+{
+    long nanoseconds = time->tv_nsec + (long)(seconds * 1e9);
+    time->tv_sec += nanoseconds / 1000000000L;
+    time->tv_nsec = nanoseconds % 1000000000L;
+}
+
+static void stop_motors(knet_dev_t *ds_pic)
+{
+    kh4_set_speed(0, 0, ds_pic);
+    kh4_SetMode(kh4RegIdle, ds_pic);
+}
+
+int main(int argc, char *argv[])
+{
+#if OBSERVATION_HAS_IR || OBSERVATION_HAS_US
+    char buffer[128];
+#endif
+    float goal[2] = {0.0f, 0.0f};
+    long max_steps = 0;
+    long step;
+    odometry pose = {0.0, 0.0, 0.0, 0, 0};
+    observation_inputs inputs;
+    float observation[OBSERVATION_DIM];
+    float action[POLICY_ACTION_DIM];
+    int units[2];
+    struct timespec next_tick;
+    knet_dev_t *ds_pic;
+
+    if (argc < 3 || argc > 4) {
+        fprintf(stderr, "usage: %s GOAL_X GOAL_Y [MAX_STEPS]   (metres, start frame)\n", argv[0]);
+        return 2;
+    }
+    goal[0] = strtof(argv[1], NULL);
+    goal[1] = strtof(argv[2], NULL);
+    if (argc == 4) {
+        max_steps = strtol(argv[3], NULL, 10);
+    }
+
+    /* Open the link to the dsPIC that runs the motors and sensors (libkhepera). */
+    if (kh4_init(0, NULL) != 0) {
+        fprintf(stderr, "cannot initialise libkhepera\n");
+        return 1;
+    }
+    ds_pic = knet_open("Khepera4:dsPic", KNET_BUS_I2C, 0, NULL);
+    if (ds_pic == NULL) {
+        fprintf(stderr, "cannot open the dsPIC (Khepera4:dsPic)\n");
+        return 1;
+    }
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    kh4_SetMode(kh4RegIdle, ds_pic);
+    kh4_ResetEncoders(ds_pic);
+    kh4_activate_us(KHEPERA_US_MASK, ds_pic); /* those enabled and observed (0: all off) */
+    kh4_SetMode(kh4RegSpeed, ds_pic);         /* closed-loop speed control */
+    kh4_get_position(&pose.last_left, &pose.last_right, ds_pic);
+
+    clock_gettime(CLOCK_MONOTONIC, &next_tick);
+    for (step = 0; !stop_requested && (max_steps <= 0 || step < max_steps); ++step) {
+        int left_units;
+        int right_units;
+        int left_pulses;
+        int right_pulses;
+
+        /* 1. Sensors, in K-Team's units. */
+#if OBSERVATION_HAS_IR
+        kh4_proximity_ir(buffer, ds_pic); /* 12 x uint16: the ring (8, K-Team order), then ground */
+        for (int i = 0; i < 8; ++i) {
+            inputs.ir_raw[i] = (uint16_t)read_u16(buffer, i);
+        }
+#endif
+#if OBSERVATION_HAS_US
+        kh4_measure_us(buffer, ds_pic); /* 5 x int16 cm: L, FL, F, FR, R; codes 0, 1000, 2000 */
+        for (int i = 0; i < 5; ++i) {
+            inputs.us_cm[i] = (int16_t)read_u16(buffer, i);
+        }
+#endif
+        kh4_get_speed(&left_units, &right_units, ds_pic);
+#if OBSERVATION_HAS_WHEEL_SPEEDS
+        inputs.wheel_speeds[0] = wheel_units_to_speed(left_units);
+        inputs.wheel_speeds[1] = wheel_units_to_speed(right_units);
+#endif
+
+        /* 2. Dead reckoning; the goal stays where it was given, in the start frame. */
+        kh4_get_position(&left_pulses, &right_pulses, ds_pic);
+        odometry_update(&pose, left_pulses, right_pulses);
+#if OBSERVATION_HAS_GOAL
+        inputs.robot_pose[0] = (float)pose.x;
+        inputs.robot_pose[1] = (float)pose.y;
+        inputs.robot_pose[2] = (float)pose.heading;
+        inputs.goal[0] = goal[0];
+        inputs.goal[1] = goal[1];
+        if (hypot(goal[0] - pose.x, goal[1] - pose.y) < KHEPERA_GOAL_RADIUS) {
+            printf("goal reached (by odometry) after %ld steps\n", step);
+            break;
+        }
+#else
+        (void)goal; /* this task's observation has no goal */
+#endif
+#if OBSERVATION_EXTRA_INPUTS > 0
+        /* TODO: this task's observation has inputs the robot cannot measure by itself (see
+         * observation.h, e.g. the leader's offset in a formation): fill them here from your own
+         * source (motion capture, radio). They are zero until you do. */
+        observation_clear_extra_inputs(&inputs);
+#endif
+
+        /* 3. and 4. Observation, policy, wheel command. */
+        observation_build(&inputs, observation);
+        if (policy_forward(observation, action) != 0) {
+            fprintf(stderr, "non-finite action at step %ld: stopping\n", step);
+            break;
+        }
+        wheel_command_units(action, units);
+        kh4_set_speed(units[0], units[1], ds_pic);
+        printf("%ld %.4f %.4f %.4f %.4f %.4f %d %d\n", step, pose.x, pose.y, pose.heading,
+               (double)action[0], (double)action[1], units[0], units[1]);
+
+        add_seconds(&next_tick, KHEPERA_CONTROL_PERIOD_S);
+        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next_tick, NULL);
+    }
+    stop_motors(ds_pic);
+    return 0;
+}
