@@ -8,6 +8,9 @@ lists) raises :class:`~khepera_gym.errors.ActionError` naming the dtype or the s
 left for the core, which names the world and element.
 
 Seeds: a seed is a non-negative int below 2**64 (the core's seeds are u64).
+
+Reset masks (``reset(options={"reset_mask": mask})`` of a vector env): a NumPy bool array of one
+value per world with at least one True, as Gymnasium's own vector envs require.
 """
 
 from __future__ import annotations
@@ -130,4 +133,30 @@ def check_world_seeds(seeds: Any, n: int) -> list[int | None]:
     return [check_seed(seed, f"seed of world {index}") for index, seed in enumerate(seeds)]
 
 
-__all__ = ["SEED_LIMIT", "as_action_array", "check_seed", "check_world_seeds"]
+def check_reset_mask(mask: Any, n: int) -> npt.NDArray[np.bool_]:
+    """``mask`` checked as Gymnasium's vector envs check ``options["reset_mask"]``: a NumPy
+    array of dtype bool and shape (n,) with at least one True.
+
+    Raises:
+        ConfigError: Not a NumPy array, another dtype or shape, or no True value (the message
+            says which; Gymnasium raises TypeError or ValueError for the same masks).
+    """
+    what = 'reset(options={"reset_mask": mask})'
+    if not isinstance(mask, np.ndarray):
+        raise ConfigError(
+            f"{what}: mask must be a numpy array of dtype bool and shape ({n},), "
+            f"got {type(mask).__name__}"
+        )
+    if mask.dtype != np.bool_:
+        raise ConfigError(f"{what}: mask must have dtype bool, got dtype {mask.dtype}")
+    if mask.shape != (n,):
+        raise ConfigError(f"{what}: mask must have shape ({n},) (one per world), got {mask.shape}")
+    if not mask.any():
+        raise ConfigError(
+            f"{what}: mask has no True value, so it resets no world; "
+            "mark at least one world, or do not reset"
+        )
+    return mask
+
+
+__all__ = ["SEED_LIMIT", "as_action_array", "check_reset_mask", "check_seed", "check_world_seeds"]

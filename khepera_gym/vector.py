@@ -8,10 +8,25 @@ depend on the thread count.
 
 Semantics follow Gymnasium's ``VectorEnv``:
 
-* autoreset mode NEXT_STEP: the step after a world terminated or was truncated resets it and
-  returns its first observation with reward 0 and both flags False (its action is ignored);
+* autoreset mode NEXT_STEP (the default): the step after a world terminated or was truncated
+  resets it and returns its first observation with reward 0 and both flags False (its action is
+  ignored);
+* autoreset mode DISABLED (``gym.make_vec(id, num_envs=N,
+  autoreset_mode=gym.vector.AutoresetMode.DISABLED)``; a keyword, as Gymnasium's ``make_vec``
+  refuses ``vector_kwargs`` for a ``vector_entry_point``), for loops that reset worlds themselves
+  (partial resets in the manner of TorchRL's ``"_reset"`` mask): nothing is reset by ``step``;
+  stepping while a world that ended has not been reset raises
+  :class:`~khepera_gym.errors.KheperaError` naming it (and steps no world), and the caller resets
+  the worlds that ended with ``reset(options={"reset_mask": terminations | truncations})``;
 * ``reset(seed=s)`` seeds world i with ``s + i``, so world i behaves bit for bit like a single env
   reset with seed ``s + i`` given the same actions;
+* ``reset(seed=..., options={"reset_mask": mask})`` (either mode, as in Gymnasium's own vector
+  envs) resets only the worlds where ``mask`` is True, each with the seed a full reset would give
+  it (``s + i``, its entry of a seed sequence, or its own stream for None); the other worlds keep
+  their state and return their current observation. ``mask`` is a NumPy bool array of shape (N,)
+  with at least one True, anything else raises :class:`~khepera_gym.errors.ConfigError`; the first
+  reset must start every world, so a mask leaving one out then raises
+  :class:`~khepera_gym.errors.KheperaError`;
 * ``info`` is ``{}`` except at steps where some world ended: ``info["episode_stats"]`` then holds
   arrays "return", "length", "success", "path_length", "collisions" (Formation adds
   "formation_error_mean", "formation_error_max") of shape (N,) with boolean masks ``"_return"``,
@@ -21,7 +36,7 @@ Semantics follow Gymnasium's ``VectorEnv``:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -29,12 +44,48 @@ import numpy.typing as npt
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from khepera_gym._inputs import as_action_array, check_seed, check_world_seeds
+from khepera_gym._inputs import (
+    SEED_LIMIT,
+    as_action_array,
+    check_reset_mask,
+    check_seed,
+    check_world_seeds,
+)
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.envs import ENV_CLASSES, KheperaEnv
-from khepera_gym.errors import ConfigError
+from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+
+#: The autoreset modes of the native vector envs (the Rust batch resets a finished world on the
+#: next step, or not at all; SAME_STEP would need the final observation kept in ``info``).
+AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.DISABLED)
+
+
+def resolve_autoreset_mode(autoreset_mode: AutoresetMode | str) -> AutoresetMode:
+    """``autoreset_mode`` as an :class:`AutoresetMode` of :data:`AUTORESET_MODES`; like
+    Gymnasium's own vector envs, it takes the enum or its value ("NextStep", "Disabled").
+
+    Raises:
+        ConfigError: Anything else, SAME_STEP included.
+    """
+    mode: AutoresetMode | None = None
+    if isinstance(autoreset_mode, AutoresetMode):
+        mode = autoreset_mode
+    elif isinstance(autoreset_mode, str):
+        mode = next((m for m in AutoresetMode if m.value == autoreset_mode), None)
+    if mode is None or mode not in AUTORESET_MODES:
+        supported = ", ".join(f"AutoresetMode.{m.name} ({m.value!r})" for m in AUTORESET_MODES)
+        hint = (
+            "; for SAME_STEP use Gymnasium's SyncVectorEnv over the single env: gym.make_vec(id, "
+            "vectorization_mode='sync', vector_kwargs={'autoreset_mode': ...})"
+            if mode is AutoresetMode.SAME_STEP
+            else ""
+        )
+        raise ConfigError(
+            f"autoreset_mode must be one of {supported}, got {autoreset_mode!r}{hint}"
+        )
+    return mode
 
 
 class KheperaVectorEnv(BatchFace, VectorEnv):
@@ -51,6 +102,10 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         frame_size: (width, height) in pixels of one world's frame.
         render_worlds: How many worlds ``render()`` tiles (default 4).
         max_episode_steps: If given, overrides the scenario's ``max_steps`` (truncation length).
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default: the step after a world ended
+            resets it) or ``AutoresetMode.DISABLED`` (worlds that ended are reset by
+            ``reset(options={"reset_mask": ...})``; stepping one before raises); the enum or its
+            value string. ``metadata["autoreset_mode"]`` and :attr:`autoreset_mode` show it.
         **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1``.
     """
 
@@ -72,9 +127,14 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         max_episode_steps: int | None = None,
         frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
         render_worlds: int = 4,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **overrides: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
+        #: How a world that ended is reset (see the class docstring).
+        self.autoreset_mode = resolve_autoreset_mode(autoreset_mode)
+        # An instance's own metadata, as Gymnasium's vector envs do: the class keeps NEXT_STEP.
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self._batch = make_batch(
             task,
             num_envs,
@@ -82,7 +142,7 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
             overrides,
             action_type=action_type,
             num_threads=num_threads,
-            autoreset=True,
+            autoreset=self.autoreset_mode == AutoresetMode.NEXT_STEP,
             episode_steps=("max_episode_steps", max_episode_steps),
         )
         self.task = task
@@ -116,17 +176,32 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         seed: int | Sequence[int | None] | None = None,
         options: dict[str, Any] | None = None,
     ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]:
-        """Reset every world.
+        """Reset every world, or the worlds of ``options["reset_mask"]``.
 
         Args:
             seed: An int s seeds world i with ``s + i``; a sequence of N seeds (int or None) seeds
                 each world with its own; None continues each world's stream (the very first reset
-                without a seed draws s from ``self.np_random``).
-            options: Unused; accepted for API compatibility.
+                without a seed draws s from ``self.np_random``). With a reset mask, the worlds
+                reset take the same seeds (``s + i``, or their entry of the sequence); the other
+                worlds' entries are checked, and unused.
+            options: ``{"reset_mask": mask}``, a NumPy bool array of shape (N,) with at least one
+                True, resets only the worlds where it is True (in either autoreset mode, as
+                Gymnasium's own vector envs do); the other worlds keep their state, and their row
+                of the returned observations is their current one. Other keys are ignored, and
+                ``options`` itself is not modified.
 
         Returns:
             Observations of shape (N, obs_dim) and an empty info dict.
+
+        Raises:
+            ConfigError: A bad seed, ``options`` not a dict, or a bad reset mask (not a NumPy
+                array, another dtype or shape, no True value).
+            KheperaError: A reset mask leaving a world out on the first reset (every world must
+                start an episode first).
         """
+        mask = self._reset_mask(options)
+        if mask is not None and not mask.all():
+            return self._reset_masked(seed, mask), {}
         if seed is None or isinstance(seed, (int, np.integer)):
             seed = check_seed(seed)
             super().reset(seed=seed)
@@ -137,6 +212,42 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
             observations = self._reset_each(seed)
         self._has_reset = True
         return observations, {}
+
+    def _reset_mask(self, options: Mapping[str, Any] | None) -> npt.NDArray[np.bool_] | None:
+        """The checked ``options["reset_mask"]``, or None (reset every world)."""
+        if options is None:
+            return None
+        if not isinstance(options, Mapping):
+            raise ConfigError(
+                f"reset(options=...) takes a dict or None, got {type(options).__name__}"
+            )
+        if "reset_mask" not in options:
+            return None
+        return check_reset_mask(options["reset_mask"], self.num_envs)
+
+    def _reset_masked(
+        self, seed: int | Sequence[int | None] | None, mask: npt.NDArray[np.bool_]
+    ) -> npt.NDArray[np.float32]:
+        """Resets the worlds of ``mask`` (some, not all) with the seeds a full reset would give
+        them; returns every world's current observation."""
+        if not self._has_reset:
+            raise KheperaError(
+                'reset(options={"reset_mask": mask}) before the first reset: the first reset '
+                "starts every world, so drop the mask (or make it all True)"
+            )
+        worlds = np.flatnonzero(mask).tolist()
+        if seed is None or isinstance(seed, (int, np.integer)):
+            base = check_seed(seed)
+            super().reset(seed=base)
+            # As the core's full reset does: world i gets s + i, wrapping at 2**64.
+            world_seeds = [None if base is None else (base + w) % SEED_LIMIT for w in worlds]
+        else:
+            seeds = check_world_seeds(seed, self.num_envs)
+            world_seeds = [seeds[world] for world in worlds]
+        for world, world_seed in zip(worlds, world_seeds, strict=True):
+            self._batch.reset_world(world, world_seed)
+        observations, _, _, _ = self._batch.last_outputs()
+        return observations
 
     def _reset_each(self, seeds: Sequence[int | None]) -> npt.NDArray[np.float32]:
         seeds = check_world_seeds(seeds, self.num_envs)
@@ -158,7 +269,8 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         npt.NDArray[np.bool_],
         dict[str, Any],
     ]:
-        """Step every world once (a world that ended on the previous step is reset instead).
+        """Step every world once. NEXT_STEP: a world that ended on the previous step is reset
+        instead (its action is ignored). DISABLED: every world must be in an episode.
 
         Args:
             actions: Shape (N, act_dim), normalised to [-1, 1]; finite values outside are clipped.
@@ -168,6 +280,8 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
 
         Raises:
             ActionError: Actions are not numeric, have the wrong shape, or contain NaN/inf.
+            KheperaError: DISABLED only: a world ended and was not reset since (or no reset yet);
+                the message names the first such world, and no world is stepped.
         """
         action_array = as_action_array(actions, self._action_shape, "actions (num_envs, act_dim)")
         observations, rewards, terminations, truncations = self._batch.step(action_array)
@@ -232,10 +346,12 @@ AvoidVectorEnv = VECTOR_ENV_CLASSES["avoid"]
 FormationVectorEnv = VECTOR_ENV_CLASSES["formation"]
 
 __all__ = [
+    "AUTORESET_MODES",
     "VECTOR_ENV_CLASSES",
     "AvoidVectorEnv",
     "FormationVectorEnv",
     "KheperaVectorEnv",
     "NavVectorEnv",
+    "resolve_autoreset_mode",
     "vector_env_class",
 ]

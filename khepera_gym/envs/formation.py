@@ -132,9 +132,9 @@ class FormationEnv(KheperaEnv):
     ## Vectorized environment
 
     `gym.make_vec("KheperaIV-Formation-v1", num_envs=N, num_threads=None)` returns the native
-    :class:`khepera_gym.vector.FormationVectorEnv` (NEXT_STEP autoreset, episode statistics with
-    masks, world i reset with seed s ≡ this env reset with seed s + i); its
-    `formation_targets()` has shape (N, K, 2).
+    :class:`khepera_gym.vector.FormationVectorEnv` (NEXT_STEP autoreset or DISABLED with resets
+    by mask, episode statistics with masks, world i reset with seed s ≡ this env reset with seed
+    s + i); its `formation_targets()` has shape (N, K, 2).
 
     ```python
     >>> envs = gym.make_vec("KheperaIV-Formation-v1", num_envs=8)

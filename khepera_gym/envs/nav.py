@@ -130,7 +130,9 @@ class NavEnv(KheperaEnv):
     (None = all cores), autoreset mode NEXT_STEP, episode statistics in
     `infos["episode_stats"]` with `_`-prefixed masks at steps where some world ended. World i
     reset with seed s behaves bit for bit like this env reset with seed s + i, whatever the
-    thread count.
+    thread count. `autoreset_mode=gym.vector.AutoresetMode.DISABLED` turns autoreset off: the
+    caller resets the worlds that ended with `envs.reset(options={"reset_mask": mask})`, which
+    (in either mode) resets only the masked worlds, seeded as a full reset would seed them.
 
     ```python
     >>> envs = gym.make_vec("KheperaIV-Nav-v1", num_envs=1024, num_threads=2)
@@ -361,9 +363,9 @@ class AvoidEnv(KheperaEnv):
     ## Vectorized environment
 
     `gym.make_vec("KheperaIV-Avoid-v1", num_envs=N, num_threads=None)` returns the native
-    :class:`khepera_gym.vector.AvoidVectorEnv` (same semantics as Nav's: NEXT_STEP autoreset,
-    `infos["episode_stats"]` with masks, world i reset with seed s ≡ this env reset with seed
-    s + i, bit for bit). `envs.scene(i)` is the geometry of world i.
+    :class:`khepera_gym.vector.AvoidVectorEnv` (same semantics as Nav's: NEXT_STEP autoreset or
+    DISABLED with resets by mask, `infos["episode_stats"]` with masks, world i reset with seed
+    s ≡ this env reset with seed s + i, bit for bit). `envs.scene(i)` is the geometry of world i.
 
     ```python
     >>> envs = gym.make_vec("KheperaIV-Avoid-v1", num_envs=16, num_threads=2)
