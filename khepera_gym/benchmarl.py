@@ -47,7 +47,7 @@ from typing import Any
 
 try:
     import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli comes with the extra
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli, a dependency there
     import tomli as tomllib
 
 try:

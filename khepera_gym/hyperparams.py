@@ -5,33 +5,27 @@ A file is ``configs/hyperparams/<name>.toml`` (``ppo``, ``sac``, ``rllib_ppo``) 
 per env id, as rl-zoo3's files; ``--hp KEY=VALUE`` overrides a key with a TOML value. Evaluation
 episodes of every backend are seeded from :data:`EVAL_SEED`.
 
-This module reads files only (no simulation, no threads). tomllib (tomli before Python 3.11, in
-the training extras) is imported when first needed, so ``khepera-gym demo`` runs without it.
+This module reads files only (no simulation, no threads).
 """
 
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 from typing import Any
 
 from khepera_gym.errors import ConfigError
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 #: Folder of the hyperparameter files in a source checkout (``configs/hyperparams``).
 HYPERPARAMS_DIR = Path(__file__).resolve().parent.parent / "configs" / "hyperparams"
 #: Seed of the first evaluation episode; evaluation episodes are seeded EVAL_SEED + i, away from
 #: the training worlds' seeds (``--seed`` + i).
 EVAL_SEED = 10_000
-
-
-def _toml() -> Any:
-    """tomllib, or tomli before Python 3.11."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-    return tomllib
 
 
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
@@ -48,7 +42,6 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     Raises:
         ConfigError: The file is missing or unreadable, or has no table for ``env_id``.
     """
-    tomllib = _toml()
     file = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.toml"
     try:
         tables = tomllib.loads(file.read_text(encoding="utf-8"))
@@ -80,7 +73,6 @@ def parse_override(text: str) -> tuple[str, Any]:
     Raises:
         ConfigError: No ``=`` or an empty key.
     """
-    tomllib = _toml()
     key, separator, value = text.partition("=")
     key = key.strip()
     if not separator or not key:

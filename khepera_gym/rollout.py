@@ -26,6 +26,11 @@ import numpy.typing as npt
 
 from khepera_gym import _core
 
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli, a dependency there
+    import tomli as tomllib
+
 #: A policy on joint observations: (N, obs_dim) float32 → (N, act_dim) actions.
 BatchPolicy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]
 #: Called after every step: (step, observations, rewards, ended, done): ``ended`` marks the worlds
@@ -211,10 +216,8 @@ class Rollout:
 def control_step(env: Any) -> float:
     """The scenario's ``physics.dt`` (s) of an env (0.05 s if it cannot be read)."""
     try:
-        import tomllib
-
         return float(tomllib.loads(env.unwrapped.config_toml())["physics"]["dt"])
-    except (ImportError, AttributeError, KeyError, TypeError, ValueError):
+    except (AttributeError, KeyError, TypeError, ValueError):
         return 0.05
 
 

@@ -14,7 +14,6 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-import tomllib
 from conftest import AVOID_ID, FORMATION_ID, NAV_ID
 
 import khepera_gym
@@ -25,6 +24,11 @@ from khepera_gym.errors import ConfigError, StateError
 from khepera_gym.pettingzoo import formation_v1, multinav_v1
 from khepera_gym.registration import latest_ids
 from khepera_gym.vector import KheperaVectorEnv, NavVectorEnv
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 DATA = Path(__file__).parent / "data"
 

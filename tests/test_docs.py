@@ -6,6 +6,11 @@ import doctest
 import re
 from typing import Any
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
+    import tomli as tomllib
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -132,7 +137,6 @@ def test_formation_manual_states_the_agent_leader_block_is_navs() -> None:
 
 
 def test_nav_manual_documents_every_scenario_key() -> None:
-    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
     manual = NavEnv.__doc__ or ""
     scenario = tomllib.loads(_core.default_config("nav"))
     assert scenario
@@ -145,7 +149,6 @@ def test_nav_manual_documents_every_scenario_key() -> None:
 def test_task_manual_documents_every_key_that_differs_from_nav(env_class: type, task: str) -> None:
     """A task manual tables the keys whose default differs from Nav's and its own sections; for
     the other keys it refers to NavEnv's table, which documents them (test above)."""
-    tomllib = pytest.importorskip("tomllib")
     manual = env_class.__doc__ or ""
     assert ":class:`NavEnv`" in _section(manual, "Scenario file")
     nav = tomllib.loads(_core.default_config("nav"))

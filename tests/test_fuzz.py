@@ -57,8 +57,8 @@ from khepera_gym.errors import ActionError, ConfigError, KheperaError
 
 try:
     import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    tomllib = pytest.importorskip("tomli")
+except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 # --- profiles ---------------------------------------------------------------------------------
 

@@ -22,7 +22,7 @@ import pytest
 
 if sys.version_info >= (3, 11):
     import tomllib
-else:  # pragma: no cover - Python 3.10 (tomli comes with the rllib extra)
+else:  # pragma: no cover - Python 3.10: tomli, a dependency there
     import tomli as tomllib
 
 pytest.importorskip("ray.rllib", reason="needs the rllib extra: pip install 'khepera-gym[rllib]'")

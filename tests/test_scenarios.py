@@ -20,7 +20,10 @@ from khepera_gym.errors import ConfigError
 from khepera_gym.pettingzoo import multinav_v1
 from khepera_gym.plot import plot_trajectories
 
-tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 #: The paper's Fig. 6 scene, as configs/paper_fig6.toml gives it.
 FIG6 = tomllib.loads(_core.default_config("paper_fig6"))

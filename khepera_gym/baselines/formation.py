@@ -16,10 +16,10 @@ from khepera_gym.baselines.base import FORMATION_SHAPES, BaselinePolicy, Layout,
 from khepera_gym.baselines.navigation import Braitenberg, PositionControl
 from khepera_gym.errors import ActionError, ConfigError
 
-try:  # Python >= 3.11; without it LeaderFollower.for_env follows the observation's targets.
+try:  # Python >= 3.11
     import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    tomllib = None  # type: ignore[assignment]
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 
 def formation_offsets(shape: str, r: float, n_followers: int) -> list[tuple[float, float]]:
@@ -171,8 +171,7 @@ class LeaderFollower(BaselinePolicy):
         Reads ``formation.shape``, ``n_followers``, ``spacing`` and ``offsets`` from
         ``env.unwrapped.config_toml()`` (a single, vector or PettingZoo Formation env), so the
         followers compute the same eq. 12 targets as the environment, and reads its followers'
-        blocks by the env's own layout. Without ``tomllib``
-        (Python 3.10) it follows the observation's ``target_offset`` (``shape=None``).
+        blocks by the env's own layout.
 
         Args:
             env: The environment.
@@ -186,8 +185,6 @@ class LeaderFollower(BaselinePolicy):
         followers = [a for a in unwrapped.agent_layouts() if a.startswith("follower_")]
         if followers and "layout" not in kwargs:
             kwargs["layout"] = unwrapped.agent_layouts()[followers[0]]
-        if tomllib is None:  # pragma: no cover - Python 3.10
-            return cls(shape=None, **kwargs)
         formation = tomllib.loads(config_toml).get("formation")
         if formation is None:
             raise ConfigError("the environment's scenario has no [formation] table")

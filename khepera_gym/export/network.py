@@ -28,7 +28,7 @@ SUPPORTED_MODELS = (
     "a Ray RLlib PPO checkpoint directory (new API stack, default torch MLP RLModule) or its "
     "loaded RLModule",
 )
-#: Install hint for the ONNX writer and checker (and tomli before Python 3.11).
+#: Install hint for the ONNX writer and checker.
 EXPORT_EXTRA = "pip install 'khepera-gym[export]'"
 #: Activations the writers implement.
 ACTIVATIONS = ("identity", "tanh", "relu", "elu", "leaky_relu", "silu")

@@ -13,7 +13,6 @@ Threading: none (reads the env in the calling thread).
 from __future__ import annotations
 
 import dataclasses
-import sys
 from collections.abc import Mapping
 from typing import Any
 
@@ -21,7 +20,11 @@ import gymnasium as gym
 import numpy as np
 
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.export.network import EXPORT_EXTRA
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 #: One ``kh4_set_speed`` unit in mm/s (src/robot.rs, khepera4_spec.md §1).
 MM_S_PER_SPEED_UNIT = 0.678181
@@ -94,14 +97,7 @@ class RobotInterface:
 
 
 def toml_loads(text: str) -> dict[str, Any]:
-    """TOML text as a dict (tomllib; tomli before Python 3.11, in the export extra)."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover - Python 3.10
-        try:
-            import tomli as tomllib
-        except ImportError as error:
-            raise ImportError(f"reading the scenario needs tomli: {EXPORT_EXTRA}") from error
+    """TOML text as a dict (tomllib; tomli before Python 3.11, a dependency there)."""
     return tomllib.loads(text)
 
 
