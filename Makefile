@@ -15,7 +15,20 @@ TOOLS     := $(VENV)/.tools-installed
 BUILT     := $(VENV)/.khepera-gym-built
 SB3       := $(VENV)/.sb3-installed
 
-.PHONY: develop test demo bench lint format clean wheel
+# The floors leg: a Python 3.10 venv whose packages are pyproject.toml's floors.
+FLOORS_VENV        := .venv-floors
+FLOORS_CONSTRAINTS := constraints/floors.txt
+FLOORS_WHEEL_DIR   := $(FLOORS_VENV)/wheel
+# A Python 3.10 interpreter: FLOORS_PYTHON=... if given, else python3.10 on PATH, else one of
+# pyenv's 3.10 (each candidate is run to check it is 3.10: a pyenv shim may not be usable).
+PYENV_ROOT         ?= $(HOME)/.pyenv
+is_python310        = $(shell $(1) -c "import sys; sys.exit(sys.version_info[:2] != (3, 10))" \
+                        >/dev/null 2>&1 && echo $(1))
+FLOORS_CANDIDATES   = python3.10 $(wildcard $(PYENV_ROOT)/versions/3.10*/bin/python3.10)
+FLOORS_PYTHON      ?= $(firstword $(foreach candidate,$(FLOORS_CANDIDATES), \
+                        $(call is_python310,$(candidate))))
+
+.PHONY: develop test test-floors demo bench lint format clean wheel
 
 develop: $(BUILT)
 
@@ -48,6 +61,27 @@ $(SB3): $(TOOLS) pyproject.toml
 test: $(SB3) develop
 	cargo test --release
 	$(PYTHON) -m pytest -q
+
+# The Python tests at the declared floors on Python 3.10 (`make test` runs them on 3.11 with the
+# newest releases). pip installs the project's wheel with the test, sb3 and render extras, held to
+# constraints/floors.txt; the wheel's build reuses the extension `make develop` compiled (abi3:
+# one build serves every CPython >= 3.10). The tests import the source tree with that extension,
+# as `make test` does (`khepera-gym train` finds configs/hyperparams/ there). The venv is rebuilt
+# when the pins change; torch 2.3 with its CUDA libraries makes it ~5 GB.
+$(FLOORS_VENV)/.floors-installed: $(FLOORS_CONSTRAINTS) pyproject.toml $(TOOLS) | $(BUILT)
+	@test -n "$(FLOORS_PYTHON)" || { echo "make test-floors needs a Python 3.10 interpreter:" \
+	  "none found as python3.10 on PATH nor as $(PYENV_ROOT)/versions/3.10*/bin/python3.10;" \
+	  "install one (pyenv install 3.10) or pass FLOORS_PYTHON=/path/to/python3.10" >&2; exit 1; }
+	rm -rf $(FLOORS_VENV)
+	$(FLOORS_PYTHON) -m venv $(FLOORS_VENV)
+	$(IN_VENV) $(VENV)/bin/maturin build --release --out $(FLOORS_WHEEL_DIR)
+	$(FLOORS_VENV)/bin/python -m pip install --quiet --disable-pip-version-check \
+	  --constraint $(FLOORS_CONSTRAINTS) "$$(ls $(FLOORS_WHEEL_DIR)/*.whl)[test,sb3,render]"
+	$(FLOORS_VENV)/bin/python -m pip check
+	touch $@
+
+test-floors: develop $(FLOORS_VENV)/.floors-installed
+	KHEPERA_GYM_FLOORS=1 $(FLOORS_VENV)/bin/python -m pytest -q -p no:cacheprovider
 
 demo: develop
 	$(VENV)/bin/khepera-gym demo
