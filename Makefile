@@ -1,6 +1,8 @@
 # Developer entry points. On a fresh machine (Python >= 3.10 and a Rust toolchain):
 #   make demo    build the extension into .venv and run the Nav demo
 #   make test    build with the sb3 extra (torch, ~5 GB), then run the Rust and Python tests
+# CI (.ci/run) then runs `make test-floors` (the Python tests at the declared floors, on Python
+# 3.10) and `make wheel` (the abi3 wheel, smoke-tested in a fresh venv).
 # Everything Python lives in the virtual environment .venv (created here when missing).
 
 VENV      := .venv
@@ -110,8 +112,8 @@ clean:
 # the wheel installed in a fresh venv, run with no Rust toolchain on PATH.
 wheel: $(TOOLS)
 	rm -rf dist
-	$(VENV)/bin/maturin build --release --out dist
-	$(VENV)/bin/maturin sdist --out dist
+	$(IN_VENV) $(VENV)/bin/maturin build --release --out dist
+	$(IN_VENV) $(VENV)/bin/maturin sdist --out dist
 	python3 -m venv dist/smoke-venv
 	dist/smoke-venv/bin/pip install --quiet dist/*.whl
 	cd dist && env PATH=/usr/bin:/bin smoke-venv/bin/python -c "import gymnasium as gym, khepera_gym; \
