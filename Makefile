@@ -19,8 +19,14 @@ SB3       := $(VENV)/.sb3-installed
 
 # The floors leg: a Python 3.10 venv whose packages are pyproject.toml's floors.
 FLOORS_VENV        := .venv-floors
+FLOORS_PIP         := $(FLOORS_VENV)/bin/python -m pip --disable-pip-version-check
+FLOORS_PYTEST      := $(FLOORS_VENV)/bin/python -m pytest -q -p no:cacheprovider
 FLOORS_CONSTRAINTS := constraints/floors.txt
+FLOORS_RLLIB       := constraints/floors-rllib.txt
 FLOORS_WHEEL_DIR   := $(FLOORS_VENV)/wheel
+FLOORS_WHEEL        = $$(ls $(FLOORS_WHEEL_DIR)/*.whl)
+# The extras of the first step: all but rllib, whose floors cannot be installed beside them.
+FLOORS_EXTRAS      := test,sb3,render,export,torchrl,benchmarl
 # A Python 3.10 interpreter: FLOORS_PYTHON=... if given, else python3.10 on PATH, else one of
 # pyenv's 3.10 (each candidate is run to check it is 3.10: a pyenv shim may not be usable).
 PYENV_ROOT         ?= $(HOME)/.pyenv
@@ -65,11 +71,17 @@ test: $(SB3) develop
 	$(PYTHON) -m pytest -q
 
 # The Python tests at the declared floors on Python 3.10 (`make test` runs them on 3.11 with the
-# newest releases). pip installs the project's wheel with the test, sb3 and render extras, held to
-# constraints/floors.txt; the wheel's build reuses the extension `make develop` compiled (abi3:
-# one build serves every CPython >= 3.10). The tests import the source tree with that extension,
-# as `make test` does (`khepera-gym train` finds configs/hyperparams/ there). The venv is rebuilt
-# when the pins change; torch 2.3 with its CUDA libraries makes it ~5 GB.
+# newest releases), in two steps that tests/test_dependencies.py knows by KHEPERA_GYM_FLOORS:
+# 1. pip installs the project's wheel with every extra but rllib, held to constraints/floors.txt,
+#    and the whole suite runs (tests/test_rllib.py skips itself);
+# 2. Ray 2.52, the rllib extra's floor, pins gymnasium 1.1.1 and needs protobuf >= 3.20.3, which
+#    onnx 1.12 (the export extra's floor) refuses: the same venv drops onnx and onnxruntime, takes
+#    the rllib extra held to constraints/floors-rllib.txt, and tests/test_rllib.py runs.
+# The wheel's build reuses the extension `make develop` compiled (abi3: one build serves every
+# CPython >= 3.10). The tests import the source tree with that extension, as `make test` does
+# (`khepera-gym train` finds configs/hyperparams/ there). The stamp marks the venv as step 1's:
+# step 2 removes it, so the next run rebuilds the venv (~2 min; ~5.5 GB with torch 2.3's CUDA
+# libraries), as does a change of the pins.
 $(FLOORS_VENV)/.floors-installed: $(FLOORS_CONSTRAINTS) pyproject.toml $(TOOLS) | $(BUILT)
 	@test -n "$(FLOORS_PYTHON)" || { echo "make test-floors needs a Python 3.10 interpreter:" \
 	  "none found as python3.10 on PATH nor as $(PYENV_ROOT)/versions/3.10*/bin/python3.10;" \
@@ -77,13 +89,18 @@ $(FLOORS_VENV)/.floors-installed: $(FLOORS_CONSTRAINTS) pyproject.toml $(TOOLS) 
 	rm -rf $(FLOORS_VENV)
 	$(FLOORS_PYTHON) -m venv $(FLOORS_VENV)
 	$(IN_VENV) $(VENV)/bin/maturin build --release --out $(FLOORS_WHEEL_DIR)
-	$(FLOORS_VENV)/bin/python -m pip install --quiet --disable-pip-version-check \
-	  --constraint $(FLOORS_CONSTRAINTS) "$$(ls $(FLOORS_WHEEL_DIR)/*.whl)[test,sb3,render]"
-	$(FLOORS_VENV)/bin/python -m pip check
+	$(FLOORS_PIP) install --quiet --constraint $(FLOORS_CONSTRAINTS) \
+	  "$(FLOORS_WHEEL)[$(FLOORS_EXTRAS)]"
+	$(FLOORS_PIP) check
 	touch $@
 
 test-floors: develop $(FLOORS_VENV)/.floors-installed
-	KHEPERA_GYM_FLOORS=1 $(FLOORS_VENV)/bin/python -m pytest -q -p no:cacheprovider
+	KHEPERA_GYM_FLOORS=floors $(FLOORS_PYTEST)
+	rm $(FLOORS_VENV)/.floors-installed
+	$(FLOORS_PIP) uninstall --quiet --yes onnx onnxruntime
+	$(FLOORS_PIP) install --quiet --constraint $(FLOORS_RLLIB) "$(FLOORS_WHEEL)[rllib]"
+	$(FLOORS_PIP) check
+	KHEPERA_GYM_FLOORS=rllib $(FLOORS_PYTEST) tests/test_rllib.py tests/test_dependencies.py
 
 demo: develop
 	$(VENV)/bin/khepera-gym demo

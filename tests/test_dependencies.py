@@ -1,10 +1,11 @@
-"""The declared dependencies: pyproject.toml's floors, the pinned floor set, and the optional
+"""The declared dependencies: pyproject.toml's floors, the pinned floor sets, and the optional
 packages that no other test exercises (rich for SB3's progress bar, imageio for MP4 files).
 
-``make test-floors`` runs the whole suite in a Python 3.10 venv resolved with
-``constraints/floors.txt`` (every declared floor pinned with ``==``) and sets
-``KHEPERA_GYM_FLOORS=1``; there the installed versions must be the floors themselves, elsewhere
-they must satisfy pyproject.toml's specifiers.
+``make test-floors`` runs on Python 3.10, in steps that each set ``KHEPERA_GYM_FLOORS`` to their
+name (:data:`FLOOR_STEPS`): the whole suite in a venv resolved with ``constraints/floors.txt``
+(every declared floor but the rllib extra's pinned with ``==``), then tests/test_rllib.py and this
+file after the same venv took ``constraints/floors-rllib.txt``. In a step the installed versions
+must be the pinned ones; elsewhere they must satisfy pyproject.toml's specifiers.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 import os
 import re
 import subprocess
+import sysconfig
+from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
@@ -30,19 +33,59 @@ from packaging.version import Version
 from khepera_gym.render import save_video
 
 ROOT = Path(__file__).resolve().parents[1]
-FLOORS_FILE = ROOT / "constraints" / "floors.txt"
+CONSTRAINTS_DIR = ROOT / "constraints"
 #: Declared without a floor: a developer tool (`make lint`), never imported by the package or
 #: the tests, so no floor of it can be tested.
 UNFLOORED = {"ruff"}
+#: The parts of pyproject.toml: "" for the dependencies, else an extra's name.
+DEPENDENCIES = ""
+#: Installed in a floor step without a pin: the project, the venv's own installers and ruff.
+UNPINNED = {"khepera-gym", "pip", "setuptools", *UNFLOORED}
 
 
-def _declared() -> list[Requirement]:
-    """Every requirement of pyproject.toml: the dependencies and those of each extra."""
+@dataclass(frozen=True)
+class FloorStep:
+    """One step of ``make test-floors``.
+
+    Attributes:
+        constraints: Files in constraints/ whose pins the step installs, a later file's pin of a
+            package replacing an earlier one's.
+        floored: The parts whose floors the last file pins.
+        installed: The parts installed in the step.
+    """
+
+    constraints: tuple[str, ...]
+    floored: frozenset[str]
+    installed: frozenset[str]
+
+
+_FIRST_STEP_PARTS = frozenset(
+    {DEPENDENCIES, "test", "sb3", "render", "export", "torchrl", "benchmarl"}
+)
+#: By ``KHEPERA_GYM_FLOORS``. Ray 2.52 pins gymnasium 1.1.1 and needs a protobuf that the export
+#: extra's onnx 1.12 refuses, so the rllib step moves gymnasium and uninstalls the export extra.
+FLOOR_STEPS = {
+    "floors": FloorStep(("floors.txt",), _FIRST_STEP_PARTS, _FIRST_STEP_PARTS),
+    "rllib": FloorStep(
+        ("floors.txt", "floors-rllib.txt"),
+        frozenset({"rllib"}),
+        _FIRST_STEP_PARTS - {"export"} | {"rllib"},
+    ),
+}
+
+
+def _declared(parts: frozenset[str] | None = None) -> list[Requirement]:
+    """The requirements of pyproject.toml's dependencies and extras (of ``parts`` if given)."""
     project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
-    lines = list(project["dependencies"])
-    for extra in project["optional-dependencies"].values():
-        lines += extra
-    return [Requirement(line) for line in lines]
+    by_part = {DEPENDENCIES: project["dependencies"], **project["optional-dependencies"]}
+    if parts is not None:
+        assert parts <= by_part.keys(), f"pyproject.toml has no extras {parts - by_part.keys()}"
+    return [
+        Requirement(line)
+        for part, lines in by_part.items()
+        if parts is None or part in parts
+        for line in lines
+    ]
 
 
 def _floor(requirement: Requirement) -> Version | None:
@@ -52,51 +95,92 @@ def _floor(requirement: Requirement) -> Version | None:
     return floors[0] if floors else None
 
 
-def _pins() -> dict[str, Version]:
-    """``name==version`` lines of constraints/floors.txt, by canonical name."""
+def _pins(file_name: str) -> dict[str, Version]:
+    """``name==version`` lines of a file in constraints/, by canonical name."""
     pins: dict[str, Version] = {}
-    for line in FLOORS_FILE.read_text(encoding="utf-8").splitlines():
+    for line in (CONSTRAINTS_DIR / file_name).read_text(encoding="utf-8").splitlines():
         line = line.split("#", 1)[0].strip()
         if not line:
             continue
         name, separator, version = line.partition("==")
-        assert separator and ";" not in line, f"floors.txt: {line!r} is not a name==version pin"
+        assert separator and ";" not in line, f"{file_name}: {line!r} is not a name==version pin"
         key = canonicalize_name(name.strip())
-        assert key not in pins, f"floors.txt pins {key} twice"
+        assert key not in pins, f"{file_name} pins {key} twice"
         pins[key] = Version(version.strip())
     return pins
 
 
-def test_every_declared_dependency_has_a_floor_pinned_in_the_floor_constraints() -> None:
-    pins = _pins()
-    for requirement in _declared():
+def _installed_version(name: str) -> Version | None:
+    try:
+        return Version(metadata.version(name))
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def test_every_part_of_pyproject_has_its_floors_pinned_by_one_floor_step() -> None:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    parts = [DEPENDENCIES, *project["optional-dependencies"]]
+    floored = [part for step in FLOOR_STEPS.values() for part in step.floored]
+    assert sorted(floored) == sorted(parts)
+    for step in FLOOR_STEPS.values():
+        assert step.floored <= step.installed
+
+
+@pytest.mark.parametrize("step_name", FLOOR_STEPS)
+def test_every_declared_dependency_has_a_floor_pinned_in_the_floor_constraints(
+    step_name: str,
+) -> None:
+    step = FLOOR_STEPS[step_name]
+    file_name = step.constraints[-1]
+    pins = _pins(file_name)
+    for requirement in _declared(step.floored):
         key = canonicalize_name(requirement.name)
         floor = _floor(requirement)
         if key in UNFLOORED:
             assert floor is None and key not in pins, f"{key} is listed as unfloored"
             continue
         assert floor is not None, f"pyproject.toml: {requirement} declares no floor (>=)"
-        assert key in pins, f"constraints/floors.txt does not pin {key} (floor {floor})"
-        assert pins[key] == floor, f"{key}: pyproject.toml's floor {floor}, floors.txt {pins[key]}"
+        assert key in pins, f"constraints/{file_name} does not pin {key} (floor {floor})"
+        assert pins[key] == floor, f"{key}: pyproject.toml's floor {floor}, {file_name} {pins[key]}"
 
 
-def test_installed_versions_are_the_floors_in_the_floor_run_and_allowed_elsewhere() -> None:
-    in_floor_run = os.environ.get("KHEPERA_GYM_FLOORS") == "1"
-    pins = _pins()
-    checked = 0
-    for requirement in _declared():
-        if requirement.marker is not None and not requirement.marker.evaluate({"extra": ""}):
-            continue  # e.g. tomli on Python >= 3.11
-        key = canonicalize_name(requirement.name)
-        installed = Version(metadata.version(requirement.name))
-        checked += 1
-        if in_floor_run and key not in UNFLOORED:
-            assert installed == pins[key], f"{key} {installed} installed, floor {pins[key]}"
-        else:
+def test_installed_versions_are_the_pinned_ones_in_a_floor_step_and_allowed_elsewhere() -> None:
+    step_name = os.environ.get("KHEPERA_GYM_FLOORS")
+    if step_name is None:
+        checked = 0
+        for requirement in _declared():
+            if requirement.marker is not None and not requirement.marker.evaluate({"extra": ""}):
+                continue  # e.g. tomli on Python >= 3.11
+            installed = Version(metadata.version(requirement.name))
             assert requirement.specifier.contains(installed, prereleases=True), (
-                f"{key} {installed} installed, pyproject.toml asks {requirement}"
+                f"{requirement.name} {installed} installed, pyproject.toml asks {requirement}"
             )
-    assert checked >= 10
+            checked += 1
+        assert checked >= 20
+        return
+    assert step_name in FLOOR_STEPS, f"KHEPERA_GYM_FLOORS={step_name!r}: not one of {FLOOR_STEPS}"
+    step = FLOOR_STEPS[step_name]
+    pins: dict[str, Version] = {}
+    for file_name in step.constraints:
+        pins.update(_pins(file_name))
+    for requirement in _declared(step.installed):
+        if requirement.marker is not None and not requirement.marker.evaluate({"extra": ""}):
+            continue
+        key = canonicalize_name(requirement.name)
+        if key in UNFLOORED:
+            continue
+        installed = _installed_version(requirement.name)
+        assert installed == pins[key], f"{key} {installed} installed, pinned {pins[key]}"
+    # The rest of the resolve too: nothing drifted from the pins, nothing came in unpinned. Only
+    # the venv's site-packages: Ray puts its own copy of psutil on sys.path once imported.
+    site_packages = sorted({sysconfig.get_path("purelib"), sysconfig.get_path("platlib")})
+    installed_keys = {
+        canonicalize_name(d.metadata["Name"]) for d in metadata.distributions(path=site_packages)
+    }
+    assert installed_keys - pins.keys() - UNPINNED == set()
+    for key in installed_keys - UNPINNED:
+        installed = _installed_version(key)
+        assert installed == pins[key], f"{key} {installed} installed, pinned {pins[key]}"
 
 
 @pytest.mark.filterwarnings("ignore::tqdm.TqdmExperimentalWarning")  # tqdm.rich is "experimental"
