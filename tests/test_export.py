@@ -22,8 +22,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
-import onnx
 import pytest
+
+pytest.importorskip(
+    "stable_baselines3", reason="needs the sb3 extra: pip install 'khepera-gym[sb3]'"
+)
+pytest.importorskip("onnx", reason="needs the export extra: pip install 'khepera-gym[export]'")
+
+import onnx
 import torch
 from conftest import AVOID_ID, FORMATION_ID, NAV_ID
 from stable_baselines3 import A2C, DQN, PPO, SAC, TD3

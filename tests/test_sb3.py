@@ -13,6 +13,11 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 import pytest
+
+pytest.importorskip(
+    "stable_baselines3", reason="needs the sb3 extra: pip install 'khepera-gym[sb3]'"
+)
+
 import torch
 from conftest import AVOID_ID, FORMATION_ID, NAV_ID, random_actions
 from stable_baselines3 import PPO

@@ -13,6 +13,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+
+pytest.importorskip("torchrl", reason="needs the torchrl extra: pip install 'khepera-gym[torchrl]'")
+
 import torch
 from conftest import FORMATION_ID, NAV_ID, random_actions
 
