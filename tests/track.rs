@@ -121,16 +121,43 @@ fn kanayama_envelope(cfg: &Scenario, t: f32) -> f32 {
         c
     });
     let lambda = kx.min(v_min * ky.sqrt());
-    let (offset, heading) = (0.2f32, 0.7853982f32); // track.start_offset, start_heading_offset
+    // track.start_offset (m) and start_heading_offset (45 degrees)
+    let (offset, heading) = (0.2f32, std::f32::consts::FRAC_PI_4);
     let accel = cfg.robot.wheel_accel_limit.bounds().0;
     let e0 = offset + v_max * heading.sin() / lambda + v_max * v_max / (2.0 * accel);
     e0 * (1.0 + lambda * t) * (-lambda * t).exp() + v_max * cfg.physics.dt
 }
 
+/// A scenario file's own reference: 8 points on a 0.5 m circle, 2.5 s apart (about 0.16 m/s).
+fn waypoints_file() -> String {
+    let points: Vec<String> = (0..=8)
+        .map(|k| {
+            let a = std::f32::consts::TAU * k as f32 / 8.0;
+            format!("[{}, {}, {}]", 2.5 * k as f32, 0.5 * a.cos(), 0.5 * a.sin())
+        })
+        .collect();
+    format!(
+        "[track]\nreference = \"waypoints\"\nwaypoints = [{}]\n",
+        points.join(", ")
+    )
+}
+
+fn scenario_file(text: &str) -> Scenario {
+    let source = Source {
+        file: Some((text, "waypoints.toml")),
+        ..Default::default()
+    };
+    load_scenario("track", &source).expect("scenario")
+}
+
 #[test]
-fn test_kanayama_converges_on_circle_and_lemniscate_within_the_linear_envelope() {
-    for reference in ["circle", "lemniscate"] {
-        let cfg = scenario(&format!("reference = \"{reference}\""));
+fn test_kanayama_converges_on_circle_lemniscate_and_waypoints_within_the_linear_envelope() {
+    for reference in ["circle", "lemniscate", "waypoints"] {
+        let cfg = if reference == "waypoints" {
+            scenario_file(&waypoints_file())
+        } else {
+            scenario(&format!("reference = \"{reference}\""))
+        };
         let transient = 5.0; // track.transient
         let bound = kanayama_envelope(&cfg, transient);
         let r = run(&cfg, &policy("kanayama", &cfg), 100, 100);
@@ -304,6 +331,57 @@ fn test_bad_references_are_config_errors_naming_the_key() {
         "track.start_heading_offset"
     );
     assert_eq!(config_error("direction = \"up\""), "track.direction");
+    let waypoints =
+        |points: &str| config_error(&format!("reference = \"waypoints\"\nwaypoints = {points}"));
+    let square = "[0, 0.3, 0], [5, 0, 0.3], [10, -0.3, 0], [15, 0, -0.3]";
+    assert_eq!(waypoints(&format!("[{square}]")), "track.waypoints"); // not closed
+    assert_eq!(
+        waypoints("[[0, 0.3, 0], [5, 0, 0.3], [0, 0.3, 0]]"),
+        "track.waypoints"
+    ); // too few
+    let backwards = "[[0, 0.3, 0], [5, 0, 0.3], [4, -0.3, 0], [15, 0, -0.3], [20, 0.3, 0]]";
+    assert_eq!(waypoints(backwards), "track.waypoints"); // non-increasing times
+    let outside = "[[0, 0.9, 0], [5, 0, 0.9], [10, -0.9, 0], [15, 0, -0.9], [20, 0.9, 0]]";
+    assert_eq!(waypoints(outside), "track.waypoints");
+    let fast = "[[0, 0.3, 0], [0.5, 0, 0.3], [1, -0.3, 0], [1.5, 0, -0.3], [2, 0.3, 0]]";
+    assert_eq!(waypoints(fast), "track.waypoints"); // too fast for the wheels
+    assert_eq!(
+        waypoints("[[0, 0.3, 0], [5, 0, 0.3], [10, -0.3, 0], [15, 0, -0.3], [20, 0.3, nan]]"),
+        "track.waypoints"
+    );
+    // Waypoints with another reference would be silently ignored: refused.
+    assert_eq!(
+        config_error(&format!("waypoints = [{square}, [20, 0.3, 0]]")),
+        "track.waypoints"
+    );
+    let good = format!("reference = \"waypoints\"\nwaypoints = [{square}, [20, 0.3, 0]]");
+    assert!(load_scenario(
+        "track",
+        &Source {
+            file: None,
+            overrides: good.parse().unwrap(),
+            ..Default::default()
+        }
+    )
+    .is_ok());
+}
+
+#[test]
+fn test_track_has_no_version_zero() {
+    // The task was added with the v1 dynamics: v0 (the paper's older ones) has no Track.
+    let source = Source {
+        version: Some(0),
+        ..Default::default()
+    };
+    match load_scenario("track", &source) {
+        Err(_core::error::Error::Config { key, .. }) => assert_eq!(key, "version"),
+        other => panic!("expected a config error, got {other:?}"),
+    }
+    let latest = Source {
+        version: Some(1),
+        ..Default::default()
+    };
+    assert!(load_scenario("track", &latest).is_ok());
 }
 
 #[test]

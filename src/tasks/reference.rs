@@ -12,7 +12,10 @@
 //! where the heading jumps by 90° and ω_r is an impulse the feed-forward does not carry: the
 //! limit of smooth controllers) and `spline` (a random smooth star-shaped closed curve,
 //! r(φ) = size·(1 + Σₖ aₖ cos(kφ + ψₖ)), k = 2..4, with Σ aₖ ≤ the irregularity < 1, so r > 0
-//! and the curve never crosses itself).
+//! and the curve never crosses itself), or `waypoints` (a scenario's own: points with times,
+//! joined by a periodic cubic Hermite curve in time whose tangents are the central differences
+//! of the neighbouring points, Catmull–Rom style: C¹, so v_r is continuous and ω_r jumps at
+//! most at the points).
 //!
 //! Units: metres, seconds, radians; world frame, arena centred at the origin. Computed in f64
 //! (phases over long episodes), returned in f32.
@@ -39,10 +42,12 @@ pub enum Shape {
     Square,
     /// A random smooth star-shaped curve of mean radius `size`.
     Spline,
+    /// A scenario's points with times.
+    Waypoints,
 }
 
 /// A closed curve p(s), s ∈ [0, 1).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Curve {
     /// Its family.
     pub shape: Shape,
@@ -50,6 +55,9 @@ pub struct Curve {
     pub size: f64,
     /// Spline only: (a_k, ψ_k) of the harmonics k = 2, 3, 4.
     pub harmonics: [(f64, f64); SPLINE_HARMONICS],
+    /// Waypoints only: (s, x, y) of each point but the closing one, s = t / period rising
+    /// from 0.
+    pub knots: Vec<[f64; 3]>,
 }
 
 /// What a curve travelled in a period asks of the robot, from [`SAMPLES`] samples.
@@ -70,7 +78,91 @@ impl Curve {
             shape,
             size: size as f64,
             harmonics: [(0.0, 0.0); SPLINE_HARMONICS],
+            knots: Vec::new(),
         }
+    }
+
+    /// The curve through `points` ([t, x, y]: s, m, m; times rising from 0, the last point
+    /// closing the loop at the period) and its period (s). Checked by the caller: at least 4
+    /// points, finite, times strictly rising from 0.
+    pub fn waypoints(points: &[[f32; 3]]) -> (Self, f64) {
+        let period = points.last().map_or(1.0, |p| p[0] as f64);
+        let knots = points[..points.len().saturating_sub(1)]
+            .iter()
+            .map(|[t, x, y]| [*t as f64 / period, *x as f64, *y as f64])
+            .collect();
+        let curve = Self {
+            knots,
+            ..Self::new(Shape::Waypoints, 0.0)
+        };
+        (curve, period)
+    }
+
+    /// The tangent dp/ds at knot `k` (central difference of its neighbours, periodic).
+    fn knot_tangent(&self, k: usize) -> [f64; 2] {
+        let m = self.knots.len();
+        let (prev, next) = (&self.knots[(k + m - 1) % m], &self.knots[(k + 1) % m]);
+        let s_prev = prev[0] - if k == 0 { 1.0 } else { 0.0 };
+        let s_next = next[0] + if k + 1 == m { 1.0 } else { 0.0 };
+        let ds = s_next - s_prev;
+        [(next[1] - prev[1]) / ds, (next[2] - prev[2]) / ds]
+    }
+
+    /// p, p', p'' of the waypoint curve: cubic Hermite between knots i and i + 1.
+    fn eval_waypoints(&self, s: f64) -> [[f64; 2]; 3] {
+        let m = self.knots.len();
+        if m < 3 {
+            return [[0.0; 2]; 3];
+        }
+        let i = self.knots.partition_point(|k| k[0] <= s).saturating_sub(1);
+        let j = (i + 1) % m;
+        let s_j = if i + 1 == m { 1.0 } else { self.knots[j][0] };
+        let h = s_j - self.knots[i][0];
+        let u = (s - self.knots[i][0]) / h;
+        let (ti, tj) = (
+            self.knots_tangent_scaled(i, h),
+            self.knots_tangent_scaled(j, h),
+        );
+        let (pi, pj) = (&self.knots[i], &self.knots[j]);
+        let (u2, u3) = (u * u, u * u * u);
+        let basis = [
+            [
+                2.0 * u3 - 3.0 * u2 + 1.0,
+                u3 - 2.0 * u2 + u,
+                -2.0 * u3 + 3.0 * u2,
+                u3 - u2,
+            ],
+            [
+                6.0 * u2 - 6.0 * u,
+                3.0 * u2 - 4.0 * u + 1.0,
+                -6.0 * u2 + 6.0 * u,
+                3.0 * u2 - 2.0 * u,
+            ],
+            [
+                12.0 * u - 6.0,
+                6.0 * u - 4.0,
+                -12.0 * u + 6.0,
+                6.0 * u - 2.0,
+            ],
+        ];
+        let mut out = [[0.0; 2]; 3];
+        for (order, b) in basis.iter().enumerate() {
+            let scale = h.powi(-(order as i32));
+            for axis in 0..2 {
+                out[order][axis] = scale
+                    * (b[0] * pi[axis + 1]
+                        + b[1] * ti[axis]
+                        + b[2] * pj[axis + 1]
+                        + b[3] * tj[axis]);
+            }
+        }
+        out
+    }
+
+    /// The tangent at knot `k` times the segment length `h` (Hermite's scaled tangent).
+    fn knots_tangent_scaled(&self, k: usize, h: f64) -> [f64; 2] {
+        let t = self.knot_tangent(k);
+        [t[0] * h, t[1] * h]
     }
 
     /// p(s), p'(s), p''(s) (m, per unit phase).
@@ -127,6 +219,7 @@ impl Curve {
                     [0.0, 0.0],
                 ]
             }
+            Shape::Waypoints => self.eval_waypoints(s),
             Shape::Spline => {
                 let phi = TAU * s;
                 let (mut r, mut r1, mut r2) = (1.0, 0.0, 0.0);
@@ -170,7 +263,7 @@ impl Curve {
 }
 
 /// A curve put in time: period, starting phase and direction.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Reference {
     /// The curve.
     pub curve: Curve,
@@ -198,9 +291,15 @@ pub struct Posture {
 impl Reference {
     /// `curve` travelled at mean speed `speed` (m/s) from phase `phase` in `direction` (±1).
     pub fn new(curve: Curve, speed: f32, phase: f64, direction: f64) -> Self {
+        let period = curve.length() / speed as f64;
+        Self::timed(curve, period, phase, direction)
+    }
+
+    /// `curve` travelled once in `period` (s) from phase `phase` in `direction` (±1).
+    pub fn timed(curve: Curve, period: f64, phase: f64, direction: f64) -> Self {
         Self {
             curve,
-            period: curve.length() / speed as f64,
+            period,
             phase,
             direction,
         }
@@ -253,5 +352,87 @@ impl Reference {
             previous = w;
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curves() -> Vec<Curve> {
+        let mut spline = Curve::new(Shape::Spline, 0.5);
+        spline.harmonics = [(0.1, 0.3), (0.05, 1.0), (0.08, 2.0)];
+        let points: Vec<[f32; 3]> = (0..=6)
+            .map(|k| {
+                let a = std::f32::consts::TAU * k as f32 / 6.0;
+                [3.0 * k as f32, 0.5 * a.cos(), 0.3 * a.sin()]
+            })
+            .collect();
+        vec![
+            Curve::new(Shape::Circle, 0.6),
+            Curve::new(Shape::Lemniscate, 0.6),
+            Curve::new(Shape::Square, 0.6),
+            spline,
+            Curve::waypoints(&points).0,
+        ]
+    }
+
+    #[test]
+    fn derivatives_match_finite_differences_and_curves_close() {
+        let h = 1e-6;
+        for curve in curves() {
+            for i in 0..97 {
+                let s = (i as f64 + 0.37) / 97.0;
+                let [p, d1, d2] = curve.eval(s);
+                let ([pa, da, _], [pb, db, _]) = (curve.eval(s - h), curve.eval(s + h));
+                for axis in 0..2 {
+                    let fd1 = (pb[axis] - pa[axis]) / (2.0 * h);
+                    let fd2 = (db[axis] - da[axis]) / (2.0 * h);
+                    assert!(
+                        (fd1 - d1[axis]).abs() < 1e-4 * (1.0 + d1[axis].abs()),
+                        "{curve:?} p' at {s}"
+                    );
+                    assert!(
+                        (fd2 - d2[axis]).abs() < 1e-3 * (1.0 + d2[axis].abs()),
+                        "{curve:?} p'' at {s}"
+                    );
+                }
+                assert!(p.iter().all(|v| v.is_finite()));
+            }
+            let (start, end) = (curve.eval(0.0)[0], curve.eval(1.0 - 1e-12)[0]);
+            assert!((start[0] - end[0]).abs() < 1e-6 && (start[1] - end[1]).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn circle_feed_forward_is_speed_over_radius() {
+        // R = 0.6 m at 0.15 m/s: T = 2π·0.6/0.15 = 25.13 s, ω_r = 0.25 rad/s (tasks.md §3).
+        for direction in [1.0, -1.0] {
+            let r = Reference::new(Curve::new(Shape::Circle, 0.6), 0.15, 0.1, direction);
+            assert!((r.period - 25.132741).abs() < 1e-4);
+            let p = r.at(3.0);
+            assert!((p.speed - 0.15).abs() < 1e-6);
+            assert!((p.turn_rate - 0.25 * direction as f32).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn waypoints_pass_through_their_points_at_their_times() {
+        let points = [
+            [0.0, 0.4, 0.0],
+            [4.0, 0.0, 0.4],
+            [8.0, -0.4, 0.0],
+            [12.0, 0.0, -0.4],
+            [16.0, 0.4, 0.0],
+        ];
+        let (curve, period) = Curve::waypoints(&points);
+        let r = Reference::timed(curve, period, 0.0, 1.0);
+        for [t, x, y] in points {
+            let p = r.at(t as f64).position;
+            assert!(
+                (p.x - x).abs() < 1e-6 && (p.y - y).abs() < 1e-6,
+                "{t}: {p:?}"
+            );
+        }
     }
 }

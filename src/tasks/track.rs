@@ -19,27 +19,28 @@
 //! `preview_points` reference points, every `preview_step` s, in the robot frame, m),
 //! `wheel_speeds`. Extra statistics: `track_error_rms`, `track_error_max` (m, after the first
 //! `transient` s), `track_iae` (Σ‖e‖·dt, m·s) and `track_converge_time` (s: when ‖e‖ fell below
-//! `converge_radius` for good; NaN if it is above at the end).
+//! `converge_radius` for good; infinite if it is above at the end). An episode that ends within
+//! the transient (lost) has its RMS and maximum over every step.
+
+mod config;
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
-use toml::Table;
 
 use super::nav;
-use super::reference::{Curve, Posture, Reference, Shape, SPLINE_HARMONICS};
+use super::reference::{Posture, Reference, Shape, SPLINE_HARMONICS};
 use super::{Agent, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::robot::wrap_angle;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
-
-/// Most preview points.
-pub const MAX_PREVIEW_POINTS: u32 = 16;
+use config::check_section;
+pub use config::{Direction, TrackConfig, MAX_PREVIEW_POINTS};
 
 /// Times the spline's harmonics are halved, at most, to bring it within the robot's limits
 /// (then it is the circle, which validation checked).
@@ -52,6 +53,7 @@ pub const TRACK: TaskInfo = TaskInfo {
               lemniscate, square, random spline) in time; the robot starts off the reference",
     schema: TaskSchema {
         name: "track",
+        since: 1, // added with the real robot's dynamics; v0 means the paper's older ones
         defaults: r#"
 [task]
 max_steps = 4000             # cap only: the episode is truncated after one period + track.truncation_margin (circle 543 steps)
@@ -63,213 +65,6 @@ max_steps = 4000             # cap only: the episode is truncated after one peri
         }),
     },
 };
-
-/// Direction of travel along the reference.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Direction {
-    /// Drawn at every reset.
-    Random,
-    /// The curve's own direction (counter-clockwise for the circle and square).
-    Ccw,
-    /// Against it.
-    Cw,
-}
-
-crate::config_table! {
-    /// `[track]`: the reference trajectory, start offsets, reward, end and statistics.
-    pub struct TrackConfig {
-        /// circle, lemniscate (Gerono's figure eight), square (corners: the limit of smooth controllers) or spline (a random smooth closed curve from the world's stream)
-        reference: Shape = "circle",
-        /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [tasks.md §3: R = 0.6 m]
-        size: f32 = 0.6,
-        /// m/s, mean speed along the reference; period = length / speed [tasks.md §3: 0.15 m/s, so omega_r = 0.25 rad/s on the circle]
-        speed: f32 = 0.15,
-        /// "random" (drawn each reset), "ccw" (the curve's own direction) or "cw" [tasks.md §3]
-        direction: Direction = "random",
-        /// draw the starting phase uniformly at each reset; false: start at phase 0 [tasks.md §3]
-        random_phase: bool = true,
-        /// m, largest start distance from the reference point, drawn uniformly [tasks.md §3]
-        start_offset: f32 = 0.2,
-        /// rad, largest start heading error (45 degrees), drawn uniformly [tasks.md §3]
-        start_heading_offset: f32 = 0.7853982,
-        /// spline: sum of the harmonics' relative amplitudes (k = 2, 3, 4), in [0, 0.5] [E]
-        spline_irregularity: f32 = 0.3,
-        /// the reference's wheel speeds stay within this fraction of robot.max_wheel_speed, leaving the feedback room to correct [E]
-        max_wheel_fraction: f32 = 0.5,
-        /// the reference's wheel accelerations stay within this fraction of robot.wheel_accel_limit (square corners excepted) [E]
-        max_accel_fraction: f32 = 0.5,
-        /// m, terminated as lost beyond this position error [tasks.md §3]
-        lost_distance: f32 = 0.5,
-        /// s, truncated after one period plus this [tasks.md §3]
-        truncation_margin: f32 = 2.0,
-        /// reference points previewed (0..16) [tasks.md §3]
-        preview_points: u32 = 4,
-        /// s between previewed points [tasks.md §3]
-        preview_step: f32 = 0.25,
-        /// reward per metre of position error [tasks.md §3]
-        error_weight: f32 = 1.0,
-        /// reward per unit of 1 - cos(heading error) [tasks.md §3]
-        heading_weight: f32 = 0.1,
-        /// s, start-up excluded from the RMS and maximum error statistics [tasks.md §3]
-        transient: f32 = 5.0,
-        /// m, converged once the error stays below this [issue 14]
-        converge_radius: f32 = 0.02,
-    }
-}
-
-impl TrackConfig {
-    /// The largest |x|, |y| a reference of this table can reach (m).
-    fn extent(&self) -> [f32; 2] {
-        match self.reference {
-            Shape::Lemniscate => [self.size, 0.5 * self.size],
-            _ => [self.size; 2],
-        }
-    }
-
-    /// The curve before any random draw: a spline's is its mean circle, of radius
-    /// size / (1 + irregularity), so that its harmonics never take it beyond `size`.
-    fn base_curve(&self) -> Curve {
-        match self.reference {
-            Shape::Spline => {
-                Curve::new(Shape::Spline, self.size / (1.0 + self.spline_irregularity))
-            }
-            shape => Curve::new(shape, self.size),
-        }
-    }
-
-    /// The robot's limits the reference must stay within: (wheel speed m/s, wheel acceleration
-    /// m/s², axle m), the worst case of `[robot]`'s ranges.
-    fn robot_limits(cfg: &Scenario) -> (f32, f32, f32) {
-        (
-            cfg.robot.max_wheel_speed.bounds().0,
-            cfg.robot.wheel_accel_limit.bounds().0,
-            cfg.robot.axle_length.bounds().1,
-        )
-    }
-
-    /// Whether `reference` is within the robot's limits, else what it asks (for messages).
-    fn within_limits(
-        &self,
-        reference: &Reference,
-        cfg: &Scenario,
-    ) -> std::result::Result<(), String> {
-        let (vmax, amax, axle) = Self::robot_limits(cfg);
-        let limits = reference.limits(axle);
-        let speed_cap = self.max_wheel_fraction * vmax;
-        if limits.wheel_speed > speed_cap {
-            return Err(format!(
-                "the reference needs wheel speeds up to {:.3} m/s, more than max_wheel_fraction \
-                 x robot.max_wheel_speed = {speed_cap:.3} m/s (too fast or too sharp for the \
-                 robot): lower track.speed or raise track.size",
-                limits.wheel_speed
-            ));
-        }
-        let accel_cap = self.max_accel_fraction * amax;
-        if self.reference != Shape::Square && limits.wheel_accel > accel_cap {
-            return Err(format!(
-                "the reference needs wheel accelerations up to {:.3} m/s^2, more than \
-                 max_accel_fraction x robot.wheel_accel_limit = {accel_cap:.3} m/s^2: lower \
-                 track.speed or raise track.size",
-                limits.wheel_accel
-            ));
-        }
-        Ok(())
-    }
-
-    fn validate(&self, origin: &str, cfg: &Scenario) -> Result<()> {
-        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        for (key, v) in [
-            ("track.size", self.size),
-            ("track.speed", self.speed),
-            ("track.lost_distance", self.lost_distance),
-            ("track.preview_step", self.preview_step),
-            ("track.converge_radius", self.converge_radius),
-            ("track.max_wheel_fraction", self.max_wheel_fraction),
-            ("track.max_accel_fraction", self.max_accel_fraction),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return bad(key, format!("must be a finite number > 0, got {v}"));
-            }
-        }
-        for (key, v) in [
-            ("track.start_offset", self.start_offset),
-            ("track.start_heading_offset", self.start_heading_offset),
-            ("track.truncation_margin", self.truncation_margin),
-            ("track.error_weight", self.error_weight),
-            ("track.heading_weight", self.heading_weight),
-            ("track.transient", self.transient),
-            ("track.spline_irregularity", self.spline_irregularity),
-        ] {
-            if !v.is_finite() || v < 0.0 {
-                return bad(key, format!("must be a finite number >= 0, got {v}"));
-            }
-        }
-        if self.start_heading_offset > std::f32::consts::PI {
-            return bad(
-                "track.start_heading_offset",
-                format!("must be at most pi, got {}", self.start_heading_offset),
-            );
-        }
-        if self.spline_irregularity > 0.5 {
-            return bad(
-                "track.spline_irregularity",
-                format!(
-                    "must be at most 0.5 (the curve must stay star-shaped and smooth), got {}",
-                    self.spline_irregularity
-                ),
-            );
-        }
-        for (key, v) in [
-            ("track.max_wheel_fraction", self.max_wheel_fraction),
-            ("track.max_accel_fraction", self.max_accel_fraction),
-        ] {
-            if v > 1.0 {
-                return bad(key, format!("must be at most 1, got {v}"));
-            }
-        }
-        if self.preview_points > MAX_PREVIEW_POINTS {
-            return bad(
-                "track.preview_points",
-                format!(
-                    "must be in 0..={MAX_PREVIEW_POINTS}, got {}",
-                    self.preview_points
-                ),
-            );
-        }
-        // The reference, the start offset and the robot's body inside the arena's margin.
-        let (hx, hy) = (0.5 * cfg.arena.width, 0.5 * cfg.arena.height);
-        let room = self.start_offset + cfg.robot.radius + cfg.spawn.wall_margin;
-        let [ex, ey] = self.extent();
-        if ex + room > hx || ey + room > hy {
-            return bad(
-                "track.size",
-                format!(
-                    "the reference reaches {ex:.3} m x {ey:.3} m from the centre; with \
-                     track.start_offset, the robot's radius and spawn.wall_margin ({room:.3} m) \
-                     it leaves the {:.3} m x {:.3} m arena",
-                    cfg.arena.width, cfg.arena.height
-                ),
-            );
-        }
-        // A spline shrinks toward its mean circle until it fits the limits; the circle must.
-        let reference = Reference::new(self.base_curve(), self.speed, 0.0, 1.0);
-        if let Err(msg) = self.within_limits(&reference, cfg) {
-            return bad("track.speed", msg);
-        }
-        if !reference.period.is_finite() || reference.period / cfg.physics.dt as f64 > 1.0e7 {
-            return bad(
-                "track.speed",
-                format!("a lap would take {:.3e} s", reference.period),
-            );
-        }
-        Ok(())
-    }
-}
-
-fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()> {
-    TrackConfig::from_table(table, origin, "track")?.validate(origin, scenario)
-}
 
 /// Per-world state of the tracking task.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -288,6 +83,9 @@ pub struct Track {
     square_sum: f64,
     samples: u32,
     error_max: f32,
+    /// The same over every step, for episodes that end within the transient.
+    square_sum_all: f64,
+    error_max_all: f32,
     /// Step of the last error at or above the convergence radius (0: the start), if any.
     last_above: Option<u32>,
     above_now: bool,
@@ -345,6 +143,8 @@ impl Track {
         self.error = error;
         let dt = self.dt as f64;
         self.iae += error as f64 * dt;
+        self.square_sum_all += (error as f64).powi(2);
+        self.error_max_all = self.error_max_all.max(error);
         if self.steps as f64 * dt >= cfg.transient as f64 - 1e-9 {
             self.square_sum += (error as f64).powi(2);
             self.samples += 1;
@@ -367,8 +167,7 @@ impl Task for Track {
 
     fn new(cfg: &Scenario) -> Result<Self> {
         let track: TrackConfig = cfg.own()?;
-        let curve = track.base_curve();
-        let reference = Reference::new(curve, track.speed, 0.0, 1.0);
+        let reference = track.base_reference(0.0, 1.0);
         let mut state = Self {
             reference,
             dt: cfg.physics.dt,
@@ -380,6 +179,8 @@ impl Task for Track {
             square_sum: 0.0,
             samples: 0,
             error_max: 0.0,
+            square_sum_all: 0.0,
+            error_max_all: 0.0,
             last_above: None,
             above_now: true,
             cfg: track,
@@ -420,8 +221,10 @@ impl Task for Track {
                 }
             }
         };
-        let mut curve = c.base_curve();
+        let mut reference = c.base_reference(phase, direction);
         if c.reference == Shape::Spline {
+            // Shrunk toward its mean circle (at most SPLINE_SHRINKS times) until it fits.
+            let mut curve = reference.curve.clone();
             for h in curve.harmonics.iter_mut() {
                 let weight: f64 = rng.random();
                 let psi: f64 = rng.random::<f64>() * std::f64::consts::TAU;
@@ -430,9 +233,7 @@ impl Task for Track {
                     psi,
                 );
             }
-        }
-        let mut reference = Reference::new(curve, c.speed, phase, direction);
-        if c.reference == Shape::Spline {
+            reference = Reference::new(curve.clone(), c.speed, phase, direction);
             let mut shrinks = 0;
             while c.within_limits(&reference, cfg).is_err() {
                 shrinks += 1;
@@ -443,14 +244,15 @@ impl Task for Track {
                         0.5 * h.0
                     };
                 }
-                reference = Reference::new(curve, c.speed, phase, direction);
+                reference = Reference::new(curve.clone(), c.speed, phase, direction);
                 if shrinks >= SPLINE_SHRINKS {
                     break;
                 }
             }
         }
-        self.reference = reference;
         let start = reference.at(0.0);
+        let laps = (reference.period + c.truncation_margin as f64) / self.dt as f64;
+        self.reference = reference;
         let distance = c.start_offset * rng.random::<f32>();
         let bearing = rng.random::<f32>() * std::f32::consts::TAU;
         let heading = c.start_heading_offset * (2.0 * rng.random::<f32>() - 1.0);
@@ -458,7 +260,6 @@ impl Task for Track {
         if let Some(pose) = layout.poses.first_mut() {
             *pose = (position, wrap_angle(start.heading + heading));
         }
-        let laps = (reference.period + c.truncation_margin as f64) / self.dt as f64;
         self.max_steps = cfg
             .task
             .max_steps
@@ -471,6 +272,8 @@ impl Task for Track {
         self.square_sum = 0.0;
         self.samples = 0;
         self.error_max = 0.0;
+        self.square_sum_all = 0.0;
+        self.error_max_all = 0.0;
         self.set_now();
         self.error = (self.reference_point() - world.robots[0].position).length();
         self.above_now = self.error >= self.cfg.converge_radius;
@@ -504,19 +307,17 @@ impl Task for Track {
     }
 
     fn extra_stats(&self, out: &mut [f32]) {
-        out[0] = if self.samples > 0 {
-            (self.square_sum / self.samples as f64).sqrt() as f32
+        if self.samples > 0 {
+            out[0] = (self.square_sum / self.samples as f64).sqrt() as f32;
+            out[1] = self.error_max;
         } else {
-            f32::NAN
-        };
-        out[1] = if self.samples > 0 {
-            self.error_max
-        } else {
-            f32::NAN
-        };
+            // Ended within the transient (lost): over every step it lasted.
+            out[0] = (self.square_sum_all / self.steps.max(1) as f64).sqrt() as f32;
+            out[1] = self.error_max_all;
+        }
         out[2] = self.iae as f32;
         out[3] = match (self.above_now, self.last_above) {
-            (true, _) => f32::NAN,
+            (true, _) => f32::INFINITY,
             (false, None) => 0.0,
             // Below the radius since the step after the last one above it.
             (false, Some(k)) => ((k as f64 + 1.0) * self.dt as f64) as f32,
