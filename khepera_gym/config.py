@@ -26,7 +26,15 @@ from khepera_gym.errors import ConfigError, KheperaError
 BUILT_IN_SOURCE = "<built-in>"
 
 #: Names that may denote a built-in scenario, used only if the extension cannot list its own.
-_CANDIDATE_BUILTIN_NAMES = ("nav", "avoid", "formation", "multinav", "paper_fig6", "paper_fig7")
+_CANDIDATE_BUILTIN_NAMES = (
+    "nav",
+    "avoid",
+    "formation",
+    "multinav",
+    "track",
+    "paper_fig6",
+    "paper_fig7",
+)
 
 ConfigArg = str | os.PathLike[str] | None
 

@@ -344,6 +344,7 @@ globals().update({cls.__name__: cls for cls in VECTOR_ENV_CLASSES.values()})
 NavVectorEnv = VECTOR_ENV_CLASSES["nav"]
 AvoidVectorEnv = VECTOR_ENV_CLASSES["avoid"]
 FormationVectorEnv = VECTOR_ENV_CLASSES["formation"]
+TrackVectorEnv = VECTOR_ENV_CLASSES["track"]
 
 __all__ = [
     "AUTORESET_MODES",
@@ -352,6 +353,7 @@ __all__ = [
     "FormationVectorEnv",
     "KheperaVectorEnv",
     "NavVectorEnv",
+    "TrackVectorEnv",
     "resolve_autoreset_mode",
     "vector_env_class",
 ]

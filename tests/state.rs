@@ -106,6 +106,15 @@ fn test_restored_multinav_state_replays_bit_for_bit() {
 }
 
 #[test]
+fn test_restored_track_state_replays_bit_for_bit() {
+    // A spline reference (drawn at each reset) and a wide lost bound, so robots reach the walls.
+    check_replay(
+        "track",
+        "max_steps = 120\nreference = \"spline\"\nlost_distance = 3.0",
+    );
+}
+
+#[test]
 fn test_state_restores_randomised_robot_parameters() {
     // Domain randomisation draws the drive at every reset: a restored world keeps the saved draw.
     check_replay("nav", "max_steps = 50\nrobot.axle_length = [0.09, 0.12]");

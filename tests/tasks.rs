@@ -42,7 +42,12 @@ fn random_actions(len: usize, steps: usize, seed: u64) -> Vec<Vec<f32>> {
 
 #[test]
 fn test_every_task_world_equals_single_env_with_seed_plus_index() {
-    for task in [TaskKind::Avoid, TaskKind::Formation, TaskKind::MultiNav] {
+    for task in [
+        TaskKind::Avoid,
+        TaskKind::Formation,
+        TaskKind::MultiNav,
+        TaskKind::Track,
+    ] {
         let cfg = scenario(task.name(), None, "max_steps = 40");
         let (n, steps, seed) = (4, 120, 77u64);
         let mut batch =
@@ -88,7 +93,12 @@ fn test_every_task_world_equals_single_env_with_seed_plus_index() {
 
 #[test]
 fn test_every_task_is_identical_at_one_and_two_threads() {
-    for task in [TaskKind::Avoid, TaskKind::Formation, TaskKind::MultiNav] {
+    for task in [
+        TaskKind::Avoid,
+        TaskKind::Formation,
+        TaskKind::MultiNav,
+        TaskKind::Track,
+    ] {
         let cfg = scenario(task.name(), None, "max_steps = 50");
         let mut runs = Vec::new();
         for threads in [1, 2] {

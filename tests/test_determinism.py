@@ -5,15 +5,20 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, random_actions
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID, random_actions
 
-from khepera_gym.envs import AvoidEnv, FormationEnv, KheperaEnv, NavEnv
+from khepera_gym.envs import AvoidEnv, FormationEnv, KheperaEnv, NavEnv, TrackEnv
 from khepera_gym.vector import KheperaVectorEnv
 
 #: Short episodes so that several end (and autoreset) within the compared steps.
 SHORT_EPISODE = 60
 #: (registered id, single-env class) of every task.
-TASK_ENVS = [(NAV_ID, NavEnv), (AVOID_ID, AvoidEnv), (FORMATION_ID, FormationEnv)]
+TASK_ENVS = [
+    (NAV_ID, NavEnv),
+    (AVOID_ID, AvoidEnv),
+    (FORMATION_ID, FormationEnv),
+    (TRACK_ID, TrackEnv),
+]
 
 
 @pytest.mark.parametrize(("env_id", "env_class"), TASK_ENVS)
@@ -59,7 +64,7 @@ def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset(
     envs.close()
 
 
-@pytest.mark.parametrize("task", ["nav", "avoid", "formation"])
+@pytest.mark.parametrize("task", ["nav", "avoid", "formation", "track"])
 def test_batch_results_do_not_depend_on_thread_count(task: str) -> None:
     num_envs, seed, steps = 64, 99, 150
     runs = []

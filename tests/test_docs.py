@@ -14,11 +14,11 @@ except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID
 
 import khepera_gym
 from khepera_gym import _core, envs
-from khepera_gym.envs import AvoidEnv, FormationEnv, NavEnv
+from khepera_gym.envs import AvoidEnv, FormationEnv, NavEnv, TrackEnv
 
 MANUAL_SECTIONS = [
     "Description",
@@ -39,8 +39,9 @@ MANUALS = [
     (NavEnv, NAV_ID, "nav"),
     (AvoidEnv, AVOID_ID, "avoid"),
     (FormationEnv, FORMATION_ID, "formation"),
+    (TrackEnv, TRACK_ID, "track"),
 ]
-MANUAL_IDS = ["nav", "avoid", "formation"]
+MANUAL_IDS = ["nav", "avoid", "formation", "track"]
 
 
 def _section(manual: str, name: str) -> str:
@@ -145,7 +146,10 @@ def test_nav_manual_documents_every_scenario_key() -> None:
             assert f"`{section}.{key}`" in manual, f"{section}.{key} missing from the manual"
 
 
-@pytest.mark.parametrize(("env_class", "task"), [(AvoidEnv, "avoid"), (FormationEnv, "formation")])
+@pytest.mark.parametrize(
+    ("env_class", "task"),
+    [(AvoidEnv, "avoid"), (FormationEnv, "formation"), (TrackEnv, "track")],
+)
 def test_task_manual_documents_every_key_that_differs_from_nav(env_class: type, task: str) -> None:
     """A task manual tables the keys whose default differs from Nav's and its own sections; for
     the other keys it refers to NavEnv's table, which documents them (test above)."""

@@ -11,11 +11,19 @@ from khepera_gym import _core
 from khepera_gym.errors import ConfigError
 from khepera_gym.registration import registered_ids, resolve_env_id
 
+#: Tasks added with the v1 dynamics: only v1 exists (v0 means the paper's older dynamics).
+V1_ONLY_TASKS = {"track"}
+
 
 def test_every_task_registers_v0_and_v1_and_the_bare_id_is_the_latest() -> None:
-    for ids in registered_ids().values():
-        assert [i.rsplit("-v", 1)[1] for i in ids] == ["0", "1"]
+    for task, ids in registered_ids().items():
+        expected = ["1"] if task in V1_ONLY_TASKS else ["0", "1"]
+        assert [i.rsplit("-v", 1)[1] for i in ids] == expected, task
     assert resolve_env_id("KheperaIV-Nav") == "KheperaIV-Nav-v1"
+    assert resolve_env_id("KheperaIV-Track") == "KheperaIV-Track-v1"
+    assert "KheperaIV-Track-v0" not in gym.registry
+    with pytest.raises(ConfigError, match="version"):
+        gym.make("KheperaIV-Track-v1", version=0)
     assert _core.LATEST_VERSION == 1
 
 

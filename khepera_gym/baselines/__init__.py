@@ -2,7 +2,9 @@
 
 Farias et al., "A Khepera IV library for robotic control education using V-REP" (IFAC 2017),
 §3.3-3.5: :class:`PositionControl` (eqs. 1-4), :class:`Braitenberg` avoidance after it (eqs. 5-7,
-Fig. 5), :class:`VFH` (eqs. 8-11) and :class:`LeaderFollower` formation control (eq. 12). Each is
+Fig. 5), :class:`VFH` (eqs. 8-11) and :class:`LeaderFollower` formation control (eq. 12); for
+trajectory tracking, :class:`Kanayama` (Kanayama et al. 1990) and :class:`PositionChase` (eqs.
+1-4 chasing the moving reference). Each is
 a drop-in policy for the environments created with ``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
@@ -40,6 +42,7 @@ from khepera_gym.baselines.base import (
 )
 from khepera_gym.baselines.formation import LeaderFollower, formation_offsets
 from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, braitenberg_weights
+from khepera_gym.baselines.tracking import Kanayama, PositionChase
 
 __all__ = [
     "BRAITENBERG_WEIGHT_SETS",
@@ -49,7 +52,9 @@ __all__ = [
     "VFH",
     "BaselinePolicy",
     "Braitenberg",
+    "Kanayama",
     "LeaderFollower",
+    "PositionChase",
     "PositionControl",
     "braitenberg_weights",
     "formation_offsets",

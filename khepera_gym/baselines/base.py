@@ -31,8 +31,9 @@ def parameters(controller: str) -> list[tuple[str, Any, str]]:
     """The parameters of a controller of the Rust core, as declared there.
 
     Args:
-        controller: Its name: ``"position_control"``, ``"braitenberg"``, ``"vfh"`` or
-            ``"leader_follower"`` (``_core.controllers()`` lists them).
+        controller: Its name: ``"position_control"``, ``"braitenberg"``, ``"vfh"``,
+            ``"leader_follower"``, ``"kanayama"`` or ``"position_chase"``
+            (``_core.controllers()`` lists them).
 
     Returns:
         ``(name, default, comment)`` per parameter, in order; the comment gives units and source.

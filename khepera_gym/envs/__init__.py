@@ -24,9 +24,15 @@ from khepera_gym.envs.nav import (
     avoid_heuristic,
     nav_heuristic,
 )
+from khepera_gym.envs.track import TrackEnv, track_heuristic
 
 # The manuals' examples live in the task modules: doctest.testmod(khepera_gym.envs) runs them.
-__test__ = {"NavEnv": NavEnv, "AvoidEnv": AvoidEnv, "FormationEnv": FormationEnv}
+__test__ = {
+    "NavEnv": NavEnv,
+    "AvoidEnv": AvoidEnv,
+    "FormationEnv": FormationEnv,
+    "TrackEnv": TrackEnv,
+}
 
 __all__ = [
     "ACTION_TYPES",
@@ -36,8 +42,10 @@ __all__ = [
     "FormationEnv",
     "KheperaEnv",
     "NavEnv",
+    "TrackEnv",
     "avoid_heuristic",
     "formation_follower_heuristic",
     "formation_heuristic",
     "nav_heuristic",
+    "track_heuristic",
 ]

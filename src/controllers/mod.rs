@@ -16,6 +16,7 @@
 //! Units: metres, seconds, radians; robot frame x forward, y left, angles CCW.
 
 pub mod braitenberg;
+pub mod kanayama;
 pub mod leader_follower;
 pub mod position;
 pub mod vfh;
@@ -189,6 +190,8 @@ controller_registry! {
     Braitenberg: braitenberg::BraitenbergPolicy,
     Vfh: vfh::VfhPolicy,
     LeaderFollower: leader_follower::LeaderFollowerPolicy,
+    Kanayama: kanayama::KanayamaPolicy,
+    PositionChase: position::PositionChasePolicy,
 }
 
 impl Policy {

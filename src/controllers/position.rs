@@ -5,7 +5,12 @@
 //! both 0 once d < stop_radius (the library's 0.05 m).
 //!
 //! [`PositionControl`] is the law; [`PositionPolicy`] the controller reading a Nav-like
-//! observation (`goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`).
+//! observation (`goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`); [`PositionChasePolicy`]
+//! the same law chasing the moving reference point of a tracking observation
+//! (`tracking_error`: the point's x, y in the robot frame), the way the paper's scripts would
+//! track a trajectory. It lags: inside k_r the speed is d·v_max/k_r, so holding the reference's
+//! speed v_r needs a steady distance d = v_r·k_r/v_max (v_r over the loop's bandwidth
+//! v_max/k_r): 7.5 cm at 0.15 m/s with the defaults.
 //!
 //! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.
 
@@ -79,6 +84,47 @@ impl Controller for PositionPolicy {
     fn act(&self, obs: &[f32], out: &mut [f32]) {
         let (d, bearing) = goal_of(obs, self.goal);
         let (v, w) = self.law.twist(d, bearing);
+        out.copy_from_slice(
+            &self
+                .wheels
+                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
+        );
+    }
+}
+
+/// Position control chasing the reference point of a tracking observation (`tracking_error`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PositionChasePolicy {
+    /// The law.
+    pub law: PositionControl,
+    /// The drive.
+    pub wheels: WheelMap,
+    error: usize,
+    obs_dim: usize,
+}
+
+impl Controller for PositionChasePolicy {
+    const NAME: &'static str = "position_chase";
+    const READS: &'static str = "track";
+    type Params = PositionParams;
+
+    fn new(params: &PositionParams, layout: &ObsLayout) -> Result<Self> {
+        let (law, wheels) = params.law(Self::NAME)?;
+        Ok(Self {
+            law,
+            wheels,
+            error: layout.require("tracking_error", 2, Self::NAME)?,
+            obs_dim: layout.len(),
+        })
+    }
+
+    fn obs_dim(&self) -> usize {
+        self.obs_dim
+    }
+
+    fn act(&self, obs: &[f32], out: &mut [f32]) {
+        let (x, y) = (obs[self.error], obs[self.error + 1]);
+        let (v, w) = self.law.twist(x.hypot(y), y.atan2(x));
         out.copy_from_slice(
             &self
                 .wheels

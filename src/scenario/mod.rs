@@ -47,6 +47,8 @@ pub fn scene(name: &str) -> Option<&'static str> {
 pub struct TaskSchema {
     /// The task's name (`"avoid"`), in messages.
     pub name: &'static str,
+    /// The first behaviour version with this task (an older one is an error naming `version`).
+    pub since: u32,
     /// TOML overlaid on the shared defaults: the values this task changes (`[obstacles] count =
     /// 10`).
     pub defaults: &'static str,
@@ -163,6 +165,13 @@ impl TaskSchema {
         let own = config::parse(self.defaults, &origin)?;
         config::overlay(&mut table, &own, "", &origin)?;
         let version = version.unwrap_or(LATEST_VERSION);
+        if version < self.since {
+            let msg = format!(
+                "the {} task exists from version {} on",
+                self.name, self.since
+            );
+            return Err(Error::config("<built-in>", "version", msg));
+        }
         if version > LATEST_VERSION {
             return Err(Error::config(
                 "<built-in>",
@@ -437,6 +446,7 @@ mod tests {
 
     const NAV: TaskSchema = TaskSchema {
         name: "nav",
+        since: 0,
         defaults: "",
         section: None,
     };

@@ -176,7 +176,9 @@ impl Env {
         self.agent_rewards.fill(0.0);
         self.agent_terminated.fill(false);
         self.world.randomise(&self.cfg);
-        let layout = self.spawner.generate(&self.cfg, &mut self.world.rng);
+        let mut layout = self.spawner.generate(&self.cfg, &mut self.world.rng);
+        self.task
+            .arrange(&self.cfg, &mut self.world.rng, &mut layout);
         if self.cfg.obstacles.count > 0 {
             // New random obstacles: the fixed scene plus this episode's.
             let mut scene = self.spawner.base.clone();
@@ -269,8 +271,10 @@ impl Env {
         stats.path_length += self.world.robots.iter().map(|r| r.step_travel).sum::<f32>();
         stats.collisions += collided as u32;
         self.task.extra_stats(&mut stats.extra);
-        let terminated = success || (collided && self.cfg.task.terminate_on_collision);
-        let truncated = !terminated && stats.length >= self.cfg.task.max_steps;
+        // Every agent terminated by the task (the tracking robot lost) ends the episode too.
+        let all_out = self.agent_terminated.iter().all(|&t| t);
+        let terminated = success || all_out || (collided && self.cfg.task.terminate_on_collision);
+        let truncated = !terminated && stats.length >= self.task.max_steps(&self.cfg);
         if terminated {
             self.agent_terminated.fill(true);
         }

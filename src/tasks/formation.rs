@@ -40,6 +40,7 @@ pub const FORMATION: TaskInfo = TaskInfo {
               spawn.start/goal are the leader's, the robots start at rest in formation",
     schema: TaskSchema {
         name: "formation",
+        since: 0,
         defaults: r#"
 [arena]
 width = 3.0                  # m: room for a formation to travel

@@ -18,7 +18,10 @@ mod env;
 pub mod formation;
 pub mod multinav;
 pub mod nav;
+pub mod reference;
+pub mod track;
 
+use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 use serde::{de::DeserializeOwned, Serialize};
 
@@ -73,8 +76,18 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
     /// task's own).
     fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>>;
 
+    /// Before the robots are placed: may draw from the world's stream (after the spawner) and
+    /// change `layout` (the tracking task starts the robot relative to its reference).
+    fn arrange(&mut self, _cfg: &Scenario, _rng: &mut ChaCha8Rng, _layout: &mut Layout) {}
+
     /// Starts an episode; the robots are already placed at `layout`'s poses.
     fn reset(&mut self, world: &World, layout: &Layout);
+
+    /// Steps of the running episode before truncation (the tracking task: one period plus a
+    /// margin).
+    fn max_steps(&self, cfg: &Scenario) -> u32 {
+        cfg.task.max_steps
+    }
 
     /// Before the world moves (agents' commands are set): commands of scripted robots.
     fn before_step(&self, _world: &mut World) {}
@@ -178,9 +191,21 @@ macro_rules! task_registry {
                 }
             }
 
+            fn arrange(&mut self, cfg: &Scenario, rng: &mut ChaCha8Rng, layout: &mut Layout) {
+                match self {
+                    $(TaskState::$variant(t) => t.arrange(cfg, rng, layout),)*
+                }
+            }
+
             fn reset(&mut self, world: &World, layout: &Layout) {
                 match self {
                     $(TaskState::$variant(t) => t.reset(world, layout),)*
+                }
+            }
+
+            fn max_steps(&self, cfg: &Scenario) -> u32 {
+                match self {
+                    $(TaskState::$variant(t) => t.max_steps(cfg),)*
                 }
             }
 
@@ -250,10 +275,11 @@ task_registry! {
     Avoid(nav::Nav) = nav::AVOID,
     Formation(formation::Formation) = formation::FORMATION,
     MultiNav(multinav::MultiNav) = multinav::MULTINAV,
+    Track(track::Track) = track::TRACK,
 }
 
 impl TaskKind {
-    /// Parses a task name ("nav", "avoid", "formation", "multinav").
+    /// Parses a task name ("nav", "avoid", "formation", "multinav", "track").
     pub fn parse(name: &str) -> Option<Self> {
         Self::ALL.iter().copied().find(|k| k.name() == name)
     }

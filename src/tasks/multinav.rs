@@ -29,6 +29,7 @@ pub const MULTINAV: TaskInfo = TaskInfo {
     summary: "several robots, each driving to its own goal; they are obstacles to each other",
     schema: TaskSchema {
         name: "multinav",
+        since: 0,
         defaults: r#"
 [obstacles]
 placement = "anywhere"       # with count > 0, obstacles anywhere in the arena

@@ -27,6 +27,7 @@ pub const NAV: TaskInfo = TaskInfo {
     summary: "drive a Khepera IV to a goal in an empty walled arena (position control)",
     schema: TaskSchema {
         name: "nav",
+        since: 0,
         defaults: "",
         section: None,
     },
@@ -39,6 +40,7 @@ pub const AVOID: TaskInfo = TaskInfo {
               every episode",
     schema: TaskSchema {
         name: "avoid",
+        since: 0,
         defaults: r#"
 [obstacles]
 count = 10                   # random obstacles per episode
