@@ -1,11 +1,10 @@
 """``formation_v0``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents,
-with the v0
-dynamics (kinematic drive, frictionless contacts, instant wheel speeds) of the published v0
-numbers.
+with the v0 dynamics (kinematic drive, frictionless contacts, instant wheel speeds) of the
+published v0 numbers.
 
 The environment, its agents, spaces and rewards are documented in
 :mod:`khepera_gym.pettingzoo.formation`; the Version History of
-:class:`khepera_gym.envs.NavEnv` says what changed in v1::
+:class:`khepera_gym.envs.FormationEnv` says what changed in v1::
 
     from khepera_gym.pettingzoo import formation_v0
 

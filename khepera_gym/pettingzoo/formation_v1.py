@@ -1,6 +1,5 @@
 """``formation_v1``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents,
-with the latest dynamics
-(tyre grip, contact friction, the motor's speed profile).
+with the latest dynamics (tyre grip, contact friction, the motor's speed profile).
 
 The environment, its agents, spaces and rewards are documented in
 :mod:`khepera_gym.pettingzoo.formation`::

@@ -1,7 +1,6 @@
 """``multinav_v0``: robots driving to their own goals, as PettingZoo agents,
-with the v0
-dynamics (kinematic drive, frictionless contacts, instant wheel speeds) of the published v0
-numbers.
+with the v0 dynamics (kinematic drive, frictionless contacts, instant wheel speeds) of the
+published v0 numbers.
 
 The environment, its agents, spaces and rewards are documented in
 :mod:`khepera_gym.pettingzoo.multinav`; the Version History of

@@ -1,6 +1,5 @@
 """``multinav_v1``: robots driving to their own goals, as PettingZoo agents,
-with the latest dynamics
-(tyre grip, contact friction, the motor's speed profile).
+with the latest dynamics (tyre grip, contact friction, the motor's speed profile).
 
 The environment, its agents, spaces and rewards are documented in
 :mod:`khepera_gym.pettingzoo.multinav`::
