@@ -17,7 +17,7 @@ class Batch:
     """N independent seeded Khepera IV worlds of one task, stepped in parallel by a rayon pool.
 
     Args:
-        task: "nav", "avoid", "formation", "multinav" or "track".
+        task: "nav", "avoid", "formation", "multinav", "track" or "pathfollow".
         num_worlds: number of worlds N (>= 1).
         config_text: TOML text of a scenario file overlaid on the task's built-in defaults, or None.
         config_name: where config_text came from (a file path or built-in name), used in messages.
@@ -148,7 +148,8 @@ class Policy:
 
     Args:
         name: The controller ("position_control", "braitenberg", "vfh", "leader_follower",
-            "kanayama", "position_chase"; ``controllers()`` lists them).
+            "kanayama", "position_chase", "pure_pursuit", "samson", "waypoint_switching";
+            ``controllers()`` lists them).
         params: Its parameters by name (``controller_params(name)`` lists them with defaults);
             missing ones take their defaults; unknown or impossible ones raise ConfigError.
         layout: (name, start, stop) blocks of the observations it reads (for leader_follower:
@@ -187,7 +188,7 @@ def braitenberg_weights(name: str) -> list[list[float]]:
 
 def default_config(name: str) -> str:
     """A built-in scenario file (TOML text): a task's defaults ("nav", "avoid", "formation",
-    "multinav", "track", every key documented) or a scene ("paper_fig6", "paper_fig7")."""
+    "multinav", "track", "pathfollow", every key documented) or a scene ("paper_fig6", "paper_fig7")."""
 
 def _batch_from_state(
     task: str,

@@ -345,6 +345,7 @@ NavVectorEnv = VECTOR_ENV_CLASSES["nav"]
 AvoidVectorEnv = VECTOR_ENV_CLASSES["avoid"]
 FormationVectorEnv = VECTOR_ENV_CLASSES["formation"]
 TrackVectorEnv = VECTOR_ENV_CLASSES["track"]
+PathFollowVectorEnv = VECTOR_ENV_CLASSES["pathfollow"]
 
 __all__ = [
     "AUTORESET_MODES",
@@ -353,6 +354,7 @@ __all__ = [
     "FormationVectorEnv",
     "KheperaVectorEnv",
     "NavVectorEnv",
+    "PathFollowVectorEnv",
     "TrackVectorEnv",
     "resolve_autoreset_mode",
     "vector_env_class",

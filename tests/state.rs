@@ -115,6 +115,15 @@ fn test_restored_track_state_replays_bit_for_bit() {
 }
 
 #[test]
+fn test_restored_pathfollow_state_replays_bit_for_bit() {
+    // A spline path with obstacles on it (both drawn at each reset) and a wide lost bound.
+    check_replay(
+        "pathfollow",
+        "max_steps = 120\npath = \"spline\"\nobstacle_count = 3\nlost_distance = 0.5",
+    );
+}
+
+#[test]
 fn test_state_restores_randomised_robot_parameters() {
     // Domain randomisation draws the drive at every reset: a restored world keeps the saved draw.
     check_replay("nav", "max_steps = 50\nrobot.axle_length = [0.09, 0.12]");

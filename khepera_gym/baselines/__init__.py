@@ -4,8 +4,9 @@ Farias et al., "A Khepera IV library for robotic control education using V-REP" 
 §3.3-3.5: :class:`PositionControl` (eqs. 1-4), :class:`Braitenberg` avoidance after it (eqs. 5-7,
 Fig. 5), :class:`VFH` (eqs. 8-11) and :class:`LeaderFollower` formation control (eq. 12); for
 trajectory tracking, :class:`Kanayama` (Kanayama et al. 1990) and :class:`PositionChase` (eqs.
-1-4 chasing the moving reference). Each is
-a drop-in policy for the environments created with ``action_type="wheels"``::
+1-4 chasing the moving reference); for path following, :class:`Samson` (Samson 1992),
+:class:`PurePursuit` (Coulter 1992) and :class:`WaypointSwitching` (eqs. 1-4 toward successive
+waypoints). Each is a drop-in policy for the environments created with ``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
 
@@ -42,6 +43,7 @@ from khepera_gym.baselines.base import (
 )
 from khepera_gym.baselines.formation import LeaderFollower, formation_offsets
 from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, braitenberg_weights
+from khepera_gym.baselines.paths import PurePursuit, Samson, WaypointSwitching
 from khepera_gym.baselines.tracking import Kanayama, PositionChase
 
 __all__ = [
@@ -56,6 +58,9 @@ __all__ = [
     "LeaderFollower",
     "PositionChase",
     "PositionControl",
+    "PurePursuit",
+    "Samson",
+    "WaypointSwitching",
     "braitenberg_weights",
     "formation_offsets",
     "parameters",

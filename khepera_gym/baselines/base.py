@@ -32,8 +32,8 @@ def parameters(controller: str) -> list[tuple[str, Any, str]]:
 
     Args:
         controller: Its name: ``"position_control"``, ``"braitenberg"``, ``"vfh"``,
-            ``"leader_follower"``, ``"kanayama"`` or ``"position_chase"``
-            (``_core.controllers()`` lists them).
+            ``"leader_follower"``, ``"kanayama"``, ``"position_chase"``, ``"pure_pursuit"``,
+            ``"samson"`` or ``"waypoint_switching"`` (``_core.controllers()`` lists them).
 
     Returns:
         ``(name, default, comment)`` per parameter, in order; the comment gives units and source.

@@ -24,6 +24,7 @@ from khepera_gym.envs.nav import (
     avoid_heuristic,
     nav_heuristic,
 )
+from khepera_gym.envs.pathfollow import PathFollowEnv, pathfollow_heuristic
 from khepera_gym.envs.track import TrackEnv, track_heuristic
 
 # The manuals' examples live in the task modules: doctest.testmod(khepera_gym.envs) runs them.
@@ -32,6 +33,7 @@ __test__ = {
     "AvoidEnv": AvoidEnv,
     "FormationEnv": FormationEnv,
     "TrackEnv": TrackEnv,
+    "PathFollowEnv": PathFollowEnv,
 }
 
 __all__ = [
@@ -42,10 +44,12 @@ __all__ = [
     "FormationEnv",
     "KheperaEnv",
     "NavEnv",
+    "PathFollowEnv",
     "TrackEnv",
     "avoid_heuristic",
     "formation_follower_heuristic",
     "formation_heuristic",
     "nav_heuristic",
+    "pathfollow_heuristic",
     "track_heuristic",
 ]

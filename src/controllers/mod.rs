@@ -19,7 +19,10 @@ pub mod braitenberg;
 pub mod kanayama;
 pub mod leader_follower;
 pub mod position;
+pub mod pure_pursuit;
+pub mod samson;
 pub mod vfh;
+pub mod waypoints;
 
 pub use braitenberg::Braitenberg;
 pub use leader_follower::LeaderFollower;
@@ -192,7 +195,13 @@ controller_registry! {
     LeaderFollower: leader_follower::LeaderFollowerPolicy,
     Kanayama: kanayama::KanayamaPolicy,
     PositionChase: position::PositionChasePolicy,
+    PurePursuit: pure_pursuit::PurePursuitPolicy,
+    Samson: samson::SamsonPolicy,
+    WaypointSwitching: waypoints::WaypointPolicy,
 }
+
+/// Most preview points a path follower reads (`pathfollow.preview_points`' limit).
+pub const MAX_PATH_PREVIEW: usize = crate::tasks::pathfollow::MAX_PREVIEW_POINTS as usize;
 
 impl Policy {
     /// Actions for the rows of `obs`, `obs_dim` values each (row-major).

@@ -179,8 +179,9 @@ impl Env {
         let mut layout = self.spawner.generate(&self.cfg, &mut self.world.rng);
         self.task
             .arrange(&self.cfg, &mut self.world.rng, &mut layout);
-        if self.cfg.obstacles.count > 0 {
-            // New random obstacles: the fixed scene plus this episode's.
+        if self.cfg.obstacles.count > 0 || !layout.obstacles.is_empty() {
+            // New random obstacles (the spawner's, or the task's: PathFollow's on its path): the
+            // fixed scene plus this episode's.
             let mut scene = self.spawner.base.clone();
             scene.shapes.extend(layout.obstacles.iter().copied());
             self.world.set_scene(scene);

@@ -15,9 +15,11 @@
 //! Units: metres, seconds, radians; observations in each block's units (see the task's file).
 
 mod env;
+pub mod error_stats;
 pub mod formation;
 pub mod multinav;
 pub mod nav;
+pub mod pathfollow;
 pub mod reference;
 pub mod track;
 
@@ -276,10 +278,11 @@ task_registry! {
     Formation(formation::Formation) = formation::FORMATION,
     MultiNav(multinav::MultiNav) = multinav::MULTINAV,
     Track(track::Track) = track::TRACK,
+    PathFollow(pathfollow::PathFollow) = pathfollow::PATHFOLLOW,
 }
 
 impl TaskKind {
-    /// Parses a task name ("nav", "avoid", "formation", "multinav", "track").
+    /// Parses a task name ("nav", "avoid", "formation", "multinav", "track", "pathfollow").
     pub fn parse(name: &str) -> Option<Self> {
         Self::ALL.iter().copied().find(|k| k.name() == name)
     }

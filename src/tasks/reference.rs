@@ -262,6 +262,43 @@ impl Curve {
     }
 }
 
+/// Times a random spline's harmonics are halved, at most, to bring it within limits (then it is
+/// its mean circle, which the scenario's validation checked).
+pub const SPLINE_SHRINKS: usize = 8;
+
+/// A random spline around `base` (a spline curve, its mean circle): relative amplitudes aₖ =
+/// `irregularity`·wₖ/3 (wₖ uniform in [0, 1)) and phases ψₖ uniform, drawn from `rng` in the
+/// order w₂, ψ₂, w₃, ψ₃, w₄, ψ₄; then, while the curve does not `fit`, every aₖ is halved, and
+/// after [`SPLINE_SHRINKS`] halvings dropped (the mean circle).
+pub fn random_spline<R: rand::Rng>(
+    base: &Curve,
+    irregularity: f32,
+    rng: &mut R,
+    fits: impl Fn(&Curve) -> bool,
+) -> Curve {
+    let mut curve = base.clone();
+    for h in curve.harmonics.iter_mut() {
+        let weight: f64 = rng.random();
+        let psi: f64 = rng.random::<f64>() * TAU;
+        *h = (irregularity as f64 * weight / SPLINE_HARMONICS as f64, psi);
+    }
+    let mut shrinks = 0;
+    while !fits(&curve) {
+        shrinks += 1;
+        for h in curve.harmonics.iter_mut() {
+            h.0 = if shrinks >= SPLINE_SHRINKS {
+                0.0
+            } else {
+                0.5 * h.0
+            };
+        }
+        if shrinks >= SPLINE_SHRINKS {
+            break;
+        }
+    }
+    curve
+}
+
 /// A curve put in time: period, starting phase and direction.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Reference {
