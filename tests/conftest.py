@@ -21,6 +21,8 @@ AVOID_ID = "KheperaIV-Avoid-v1"
 FORMATION_ID = "KheperaIV-Formation-v1"
 #: Trajectory tracking exists only from v1 (it was added with the real robot's dynamics).
 TRACK_ID = "KheperaIV-Track-v1"
+#: Path following, likewise only from v1.
+PATHFOLLOW_ID = "KheperaIV-PathFollow-v1"
 #: The v0 ids: the paper's V-REP-like dynamics (kinematic drive, frictionless contacts, wheels at
 #: their command within a step), which the paper's controllers and gains were tuned for. Tests of
 #: those controllers' published success rates, and tests of the action mapping that read the wheel

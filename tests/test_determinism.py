@@ -5,9 +5,16 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID, random_actions
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID, random_actions
 
-from khepera_gym.envs import AvoidEnv, FormationEnv, KheperaEnv, NavEnv, TrackEnv
+from khepera_gym.envs import (
+    AvoidEnv,
+    FormationEnv,
+    KheperaEnv,
+    NavEnv,
+    PathFollowEnv,
+    TrackEnv,
+)
 from khepera_gym.vector import KheperaVectorEnv
 
 #: Short episodes so that several end (and autoreset) within the compared steps.
@@ -18,6 +25,7 @@ TASK_ENVS = [
     (AVOID_ID, AvoidEnv),
     (FORMATION_ID, FormationEnv),
     (TRACK_ID, TrackEnv),
+    (PATHFOLLOW_ID, PathFollowEnv),
 ]
 
 
@@ -64,7 +72,7 @@ def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset(
     envs.close()
 
 
-@pytest.mark.parametrize("task", ["nav", "avoid", "formation", "track"])
+@pytest.mark.parametrize("task", ["nav", "avoid", "formation", "track", "pathfollow"])
 def test_batch_results_do_not_depend_on_thread_count(task: str) -> None:
     num_envs, seed, steps = 64, 99, 150
     runs = []

@@ -14,11 +14,11 @@ except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
 
 import khepera_gym
 from khepera_gym import _core, envs
-from khepera_gym.envs import AvoidEnv, FormationEnv, NavEnv, TrackEnv
+from khepera_gym.envs import AvoidEnv, FormationEnv, NavEnv, PathFollowEnv, TrackEnv
 
 MANUAL_SECTIONS = [
     "Description",
@@ -40,8 +40,9 @@ MANUALS = [
     (AvoidEnv, AVOID_ID, "avoid"),
     (FormationEnv, FORMATION_ID, "formation"),
     (TrackEnv, TRACK_ID, "track"),
+    (PathFollowEnv, PATHFOLLOW_ID, "pathfollow"),
 ]
-MANUAL_IDS = ["nav", "avoid", "formation", "track"]
+MANUAL_IDS = ["nav", "avoid", "formation", "track", "pathfollow"]
 
 
 def _section(manual: str, name: str) -> str:
@@ -148,7 +149,12 @@ def test_nav_manual_documents_every_scenario_key() -> None:
 
 @pytest.mark.parametrize(
     ("env_class", "task"),
-    [(AvoidEnv, "avoid"), (FormationEnv, "formation"), (TrackEnv, "track")],
+    [
+        (AvoidEnv, "avoid"),
+        (FormationEnv, "formation"),
+        (TrackEnv, "track"),
+        (PathFollowEnv, "pathfollow"),
+    ],
 )
 def test_task_manual_documents_every_key_that_differs_from_nav(env_class: type, task: str) -> None:
     """A task manual tables the keys whose default differs from Nav's and its own sections; for

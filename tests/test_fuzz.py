@@ -46,7 +46,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
 from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -84,8 +84,14 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 # --- helpers ----------------------------------------------------------------------------------
 
-ENV_IDS = (NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID)
-TASKS = {NAV_ID: "nav", AVOID_ID: "avoid", FORMATION_ID: "formation", TRACK_ID: "track"}
+ENV_IDS = (NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID)
+TASKS = {
+    NAV_ID: "nav",
+    AVOID_ID: "avoid",
+    FORMATION_ID: "formation",
+    TRACK_ID: "track",
+    PATHFOLLOW_ID: "pathfollow",
+}
 #: Worlds of the vector envs and batches under test.
 N_VECTOR = 4
 N_BATCH = 3

@@ -11,12 +11,12 @@ import pickle
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
 
 from khepera_gym.errors import StateError
 from khepera_gym.pettingzoo import formation_v1
 
-IDS = [NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID]
+IDS = [NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID]
 
 
 def _forward_actions(seed: int, steps: int, shape: tuple[int, ...]) -> np.ndarray:

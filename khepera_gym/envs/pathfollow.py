@@ -63,7 +63,7 @@ class PathFollowEnv(KheperaEnv):
     |       |                    | when the robot is left of it                    |       |      |
     | 14-15 | path_heading_error | sin, cos of θ_p - θ, θ_p the path's direction   | -1    | 1    |
     |       |                    | of travel at p_c                                |       |      |
-    | 16-19 | curvature          | κ at p_c and at the 3 preview points (1/m, left | -19.0 | 19.0 |
+    | 16-19 | curvature          | κ at p_c and at the 3 preview points (1/m, left | -18.98 | 18.98 |
     |       |                    | turns positive)                                 |       |      |
     | 20-25 | preview            | x, y of the path points 0.1, 0.2, 0.3 m of arc  | -2.83 | 2.83 |
     |       |                    | ahead of p_c (m)                                |       |      |
@@ -71,7 +71,7 @@ class PathFollowEnv(KheperaEnv):
     | 28    | desired_speed      | v_d / 0.813 m/s                                 | 0     | 1    |
     | 29-30 | wheel_speeds       | left, right wheel speed / 0.813 m/s             | -1    | 1    |
 
-    IR and ultrasonic as in :class:`NavEnv`. Curvature is clipped to ±2 / axle (19 m⁻¹, a
+    IR and ultrasonic as in :class:`NavEnv`. Curvature is clipped to ±2 / axle (18.98 m⁻¹, a
     turn about one wheel); the square's is 0 (its corners show in the preview). At a corner,
     `cross_track_error` is the distance to the corner and `path_heading_error` the direction
     of the arc around it. Waypoints lie every `pathfollow.waypoint_spacing` (0.2 m) of arc from
