@@ -130,12 +130,14 @@ def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixtu
     measurements = bench.run(
         num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False, task_envs=3
     )
-    assert [m.num_envs for m in measurements] == [2, 2, 3, 3, 3, 3, 1]
-    assert [m.label for m in measurements][2:6] == [
+    assert [m.num_envs for m in measurements] == [2, 2, 3, 3, 3, 3, 3, 3, 1]
+    assert [m.label for m in measurements][2:8] == [
         "Avoid make_vec n=3",
         "Avoid make_vec n=3",
         "Formation make_vec n=3",
         "Formation make_vec n=3",
+        "Track make_vec n=3",
+        "Track make_vec n=3",
     ]
     assert all(m.steps > 0 and m.env_steps_per_second > 0 for m in measurements)
     assert "env-steps/s" in capsys.readouterr().out
