@@ -27,7 +27,7 @@ from khepera_gym.rollout import Rollout
 #: Width and height of one panel (inches).
 PANEL_SIZE = 4.8
 #: Characters per line of a panel title.
-TITLE_WIDTH = 52
+TITLE_WIDTH = 44
 #: Lowest error drawn on the log axis of the error plot (m): 0.01 mm; smaller errors are drawn
 #: at it.
 ERROR_FLOOR = 1e-5
