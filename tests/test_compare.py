@@ -373,3 +373,58 @@ def test_a_policy_that_cannot_read_track_observations_is_a_config_error() -> Non
         compare.compare(TRACK_ID, ["position_control"], episodes=1, progress=False)
     with pytest.raises(ConfigError, match="unknown policy"):
         compare.compare(TRACK_ID, ["kanayma"], episodes=1, progress=False)
+
+
+def test_a_task_scored_by_laps_and_cross_track_error_needs_one_metrics_entry(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    entry = compare.TaskMetrics(
+        success="lap", time="lap time", error_prefix="path", error="cross-track error"
+    )
+    monkeypatch.setitem(compare.TASK_METRICS, "pathfollow", entry)
+
+    def lap(world: int, success: bool, converge: float) -> compare.EpisodeResult:
+        length = 400 + 100 * world  # 20 s, 25 s, 30 s at dt = 0.05 s
+        return compare.EpisodeResult(
+            policy="follower",
+            world=world,
+            seed=world,
+            success=success,
+            length=length,
+            time_to_goal=length * 0.05 if success else None,
+            episode_return=0.0,
+            path_length=3.0,
+            collisions=0,
+            terminated=success,
+            mean_speed=3.0 / (length * 0.05),
+            task_stats={
+                "path_error_rms": 0.01,
+                "path_error_max": 0.03,
+                "path_iae": 0.2,
+                "path_converge_time": converge,
+            },
+        )
+
+    results = [lap(0, True, 2.0), lap(1, True, 3.0), lap(2, False, math.inf)]
+    summary = compare.summarize("follower", results, entry)
+    # Lap time and mean speed over the two laps: (20 + 25) / 2 s, (0.15 + 0.12) / 2 m/s.
+    assert summary.time_to_goal_mean.value == pytest.approx(22.5)
+    assert summary.mean_speed.value == pytest.approx(0.135)
+    assert summary.errors["converged"].value == pytest.approx(2 / 3)
+    assert summary.errors["converge_time"].value == 3.0  # the median of 2, 3 and never
+    comparison = compare.Comparison(
+        env_id="KheperaIV-PathFollow-v1",
+        config=None,
+        label="pathfollow",
+        seed=0,
+        episodes=3,
+        dt=0.05,
+        results={"follower": results},
+        summaries=[summary],
+        rollouts={"follower": []},
+        task="pathfollow",
+    )
+    header = compare.format_table(comparison).splitlines()[2]
+    for column in ("lap %", "lap time s", "RMS error mm", "converged %", "speed m/s"):
+        assert column in header
+    assert "lost %" not in header  # no termination entry: not reported
