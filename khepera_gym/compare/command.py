@@ -10,6 +10,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from khepera_gym.compare.metrics import task_metrics
 from khepera_gym.compare.policies import DEFAULT_POLICIES, POLICY_NAMES
 from khepera_gym.compare.report import report
 from khepera_gym.compare.run import compare, resolve_env_id
@@ -23,6 +24,8 @@ else:  # pragma: no cover - Python 3.10: tomli, a dependency there
 
 #: Registered id (latest version) of each task name of ``--task``.
 TASK_IDS = latest_ids()
+#: Worlds drawn per policy by default on a task with a moving reference (overlaid in a panel).
+PLOT_WORLDS_OVERLAID = 3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,7 +62,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--plot", action=argparse.BooleanOptionalAction, default=True, help="save trajectories"
     )
     parser.add_argument(
-        "--plot-worlds", type=int, default=1, help="worlds drawn per policy (first ones, 1)"
+        "--plot-worlds",
+        type=int,
+        default=None,
+        help="worlds drawn per policy (the first ones; 1, or 3 overlaid on Track)",
     )
     parser.add_argument(
         "--progress", action=argparse.BooleanOptionalAction, default=True, help="progress bars"
@@ -99,6 +105,9 @@ def run_from_args(args: argparse.Namespace) -> int:
         task = next((t for t, i in TASK_IDS.items() if i == env_id), None)
         policies = args.policy or list(DEFAULT_POLICIES.get(task or "", ("random",)))
         overrides = parse_overrides(getattr(args, "overrides", None) or [])
+        worlds = args.plot_worlds
+        if worlds is None:  # a moving reference's panels overlay a few episodes
+            worlds = PLOT_WORLDS_OVERLAID if task_metrics(task).moving_reference else 1
         comparison = compare(
             env_id,
             policies,
@@ -106,7 +115,7 @@ def run_from_args(args: argparse.Namespace) -> int:
             seed=args.seed,
             config=args.config,
             num_threads=args.num_threads,
-            record_worlds=args.plot_worlds if args.plot else 0,
+            record_worlds=worlds if args.plot else 0,
             progress=args.progress,
             algo=args.algo,
             overrides=overrides,
