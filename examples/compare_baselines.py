@@ -13,12 +13,16 @@ dynamics):
    random policy;
 4. from v1 on, the Fig. 6 scene and Avoid as K-Team's own Braitenberg demo drives the real robot:
    its speed profile (Acc_Inc 10 per 10 ms: ``wheel_accel_limit = 0.678`` m/s^2) and its cruise
-   speed (200 units, 0.136 m/s: the ``*_slow`` policies).
+   speed (200 units, 0.136 m/s: the ``*_slow`` policies);
+5. from v1 on, KheperaIV-Track on each built-in reference (circle, lemniscate, square, spline)
+   with Kanayama, PositionChase and random (``khepera-gym compare --task track --set
+   reference=square``).
 
 It prints each table, writes CSV, JSON and trajectory plots into ``--out``, and with ``--docs``
 saves the Fig. 6 (Braitenberg vs VFH) and Fig. 7 figures the README shows (``_v<version>`` in
-their names). The same runs from
-the shell: ``khepera-gym compare --task avoid --config paper_fig6 --policy braitenberg vfh``.
+their names) and the Track figure (reference vs robot on the square, ``track_square_v1.png``).
+The same runs from the shell: ``khepera-gym compare --task avoid --config paper_fig6 --policy
+braitenberg vfh``.
 """
 
 from __future__ import annotations
@@ -103,6 +107,31 @@ def kteam_demo(episodes: int, fig6_episodes: int, out: Path, version: int | None
         compare.report(result, out / "kteam_demo", plot=False)
 
 
+#: Track's built-in references compared (``waypoints`` needs a scenario's own points).
+TRACK_REFERENCES = ("circle", "lemniscate", "square", "spline")
+
+
+def track(episodes: int, out: Path, docs: Path | None) -> None:
+    """Kanayama, PositionChase and random on each built-in Track reference."""
+    for reference in TRACK_REFERENCES:
+        print(f"\n== {compare.TASK_IDS['track']}, reference={reference!r}\n")
+        result = compare.compare(
+            compare.TASK_IDS["track"],
+            list(compare.DEFAULT_POLICIES["track"]),
+            episodes=episodes,
+            record_worlds=3,
+            overrides={"reference": reference},
+        )
+        compare.report(result, out)
+        if docs is not None and reference == "square":
+            # The two controllers (random is lost within 4 s in every episode).
+            figure = compare.plot_reference_paths(
+                {name: result.rollouts[name] for name in ("kanayama", "position_chase")},
+                suptitle=f'{result.env_id}, reference="square": where smooth controllers fail',
+            )
+            _save(figure, docs / "track_square_v1.png")
+
+
 def _save(figure, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=DOCS_DPI)
@@ -135,6 +164,7 @@ def main() -> int:
         compare.report(result, args.out)
     if args.version is None or args.version >= 1:
         kteam_demo(args.episodes, args.fig6_episodes, args.out, args.version)
+        track(args.episodes, args.out, args.docs)
     return 0
 
 

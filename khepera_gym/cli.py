@@ -8,7 +8,7 @@ ONNX (:mod:`khepera_gym.export`).
 ``compare`` runs policies (the paper's controllers of :mod:`khepera_gym.baselines`, random, or a
 stable-baselines3 model) on the same seeded episodes and prints a table with 95% intervals,
 writing CSV, JSON and trajectory plots (:mod:`khepera_gym.compare`). ``demo`` runs that
-comparison on the paper's Fig. 6 and Fig. 7 scenes and on the three tasks, and says where the
+comparison on the paper's Fig. 6 and Fig. 7 scenes and on every task, and says where the
 plots are (``--out-dir``, demo_out/).
 """
 

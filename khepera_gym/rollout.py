@@ -125,6 +125,8 @@ class Rollout:
         us_cm: Ultrasonic readings (cm or codes 0/1000/2000), (T + 1, R, 5).
         env_id: The environment's id, when known.
         config: The resolved scenario (TOML text), when known.
+        goal_trace: The goals at reset and after every step, (T + 1, n_goals, 2) (m), when
+            recorded: a goal that moves, such as Track's reference point, leaves its path.
 
     :meth:`save` writes all of it to one compressed ``.npz`` file and :meth:`load` reads it back,
     so a run can be replayed or plotted later without simulating it again.
@@ -144,6 +146,7 @@ class Rollout:
     us_cm: np.ndarray | None = None
     env_id: str = ""
     config: str = ""
+    goal_trace: np.ndarray | None = None
 
     _ARRAYS: ClassVar[tuple[str, ...]] = (
         "poses",
@@ -153,6 +156,7 @@ class Rollout:
         "rewards",
         "ir_raw",
         "us_cm",
+        "goal_trace",
     )
 
     def save(self, path: str | Path) -> Path:
@@ -266,13 +270,14 @@ def record_rollout(
         raise ValueError("config and scenario overrides need an env id, not an env instance")
     env = env_id_or_env
     unwrapped = env.unwrapped
-    poses, targets, readings = [], [], []
+    poses, targets, readings, goal_trace = [], [], [], []
     actions: list[np.ndarray] = []
     rewards: list[float] = []
 
     def record_state() -> None:
         poses.append(unwrapped.poses())
         targets.append(unwrapped.targets())
+        goal_trace.append(unwrapped.goals())
         readings.append(unwrapped.sensor_readings())
 
     def act(observations: np.ndarray) -> np.ndarray:
@@ -308,6 +313,7 @@ def record_rollout(
         us_cm=np.array([r["us_cm"] for r in readings]),
         env_id=env.spec.id if env.spec is not None else "",
         config=unwrapped.config_toml(),
+        goal_trace=np.array(goal_trace),
     )
 
 

@@ -13,10 +13,11 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID
 
 from khepera_gym import cli, compare
 from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
+from khepera_gym.errors import ConfigError
 from khepera_gym.plot import plot_rollouts, record_rollout
 
 
@@ -100,6 +101,7 @@ def test_cli_compare_writes_table_csv_json_and_plots(
     assert 'KheperaIV-Avoid-v0, config="paper_fig6": 3 episodes per policy, seeds 5..7' in output
     for column in ("success %", "time to goal s", "p95 time s", "path m", "contact steps"):
         assert column in output
+    assert "speed m/s" in output and "RMS error" not in output  # Avoid has no reference
     rows = {line.split()[0]: line for line in output.splitlines() if line[:3] in ("bra", "vfh")}
     assert set(rows) == {"braitenberg", "vfh"}
     assert "100.0 [43.9, 100.0]" in rows["braitenberg"]  # 3/3 with its Wilson interval
@@ -143,6 +145,10 @@ def test_cli_compare_formation_reports_the_formation_error(
         (["--task", "nav", "--policy", "random", "random"], "listed twice"),
         (["--task", "nav", "--episodes", "0"], "episodes must be >= 1"),
         (["--task", "nav", "--config", "no_such_scene"], "no_such_scene"),
+        (["--task", "track", "--policy", "vfh"], "use kanayama, position_chase, random or sb3:"),
+        (["--task", "track", "--set", "refrence=square"], "refrence: unknown key"),
+        (["--task", "track", "--set", "reference"], "expected KEY=VALUE"),
+        (["--task", "track", "--set", "reference=bogus"], "bogus"),
     ],
 )
 def test_cli_compare_errors_name_the_problem(argv: list[str], message: str) -> None:
@@ -245,3 +251,180 @@ def test_sb3_follower_model_drives_every_follower_of_a_formation(
     model.write_bytes(b"")
     result = compare.compare(FORMATION_ID, [f"sb3:{model}"], episodes=3, progress=False)
     assert result.summaries[0].formation_error_mean.value < 0.1
+
+
+# --- Track: a task scored by its tracking error -------------------------------------------------
+
+
+def test_event_time_median_counts_never_as_inf_without_interpolating() -> None:
+    inf = math.inf
+    # The smallest time by which half of the episodes converged: 2 of [1, 2, never, never].
+    assert compare.event_time_median([1.0, 2.0, inf, inf]).value == 2.0
+    # Fewer than half converged: the median is "never", not a number between the times.
+    never = compare.event_time_median([1.0, inf, inf])
+    assert never.value == inf and never.high == inf
+    assert compare.event_time_median([inf] * 5).format() == "inf [inf, inf]"
+    assert compare.event_time_median([inf] * 5).to_json()["value"] == "inf"
+    assert compare.event_time_median([3.0] * 10).value == 3.0
+    assert compare.event_time_median([]).n == 0
+    with pytest.raises(ValueError, match="-inf"):
+        compare.event_time_median([1.0, -inf])
+
+
+def test_compare_track_tables_the_tracking_error_of_its_three_policies(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["compare", "--task", "track", "--episodes", "6", "--plot-worlds", "2"]
+    assert cli.main([*argv, "--no-progress", "--out", str(tmp_path)]) == 0
+    output = capsys.readouterr().out
+    header = next(line for line in output.splitlines() if line.startswith("policy"))
+    for column in ("RMS error mm", "max error mm", "IAE m·s", "converged %", "converge s"):
+        assert column in header
+    assert "lost %" in header and "speed m/s" in header
+    assert "success %" not in header and "time to goal" not in header  # Track has no success
+    rows = {line.split()[0] for line in output.splitlines()[4:7]}
+    assert rows == {"kanayama", "position_chase", "random"}  # the task's default policies
+    assert "nan" not in output.lower()
+    # Strict JSON (no NaN or Infinity literals); a converge time that never came is "inf".
+    text = (tmp_path / "track_results.json").read_text()
+    document = json.loads(text, parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    random = document["summaries"][2]
+    assert random["policy"] == "random" and random["errors"]["converge_time"]["value"] == "inf"
+    with (tmp_path / "track_episodes.csv").open() as file:
+        episodes = list(csv.DictReader(file))
+    assert len(episodes) == 18 and "track_converge_time" in episodes[0]
+    assert {e["track_converge_time"] for e in episodes if e["policy"] == "random"} == {"inf"}
+    for figure in ("track_references.png", "track_errors.png"):
+        assert (tmp_path / figure).stat().st_size > 10_000
+        assert f"saved {tmp_path / figure}" in output
+
+
+def test_kanayama_tracks_the_circle_far_below_random() -> None:
+    result = compare.compare(
+        TRACK_ID,
+        ["kanayama", "random"],
+        episodes=12,
+        record_worlds=1,
+        progress=False,
+        overrides={"reference": "circle"},
+    )
+    kanayama, random = (s.errors for s in result.summaries)
+    # Linearised, Kanayama's error decays as (1 + ω_n t) e^(-ω_n t) with ω_n = 1 rad/s from a
+    # 0.2 m offset: below 0.2 · 6 · e^-5 = 8 mm by the end of the 5 s transient, so its RMS
+    # after it is below the 2 cm convergence radius and every episode converges.
+    assert kanayama["error_rms"].high < 0.02
+    assert kanayama["converged"].value == 1.0
+    # Random wheel speeds have zero mean: the reference leaves at v_r until the robot is lost
+    # at 0.5 m, an error ramping up from at most 0.2 m: RMS >= 0.5 / sqrt(3) = 0.29 m if it
+    # started on the reference; 0.2 m leaves room for where it ends.
+    assert random["error_rms"].low > 0.2
+    assert random["error_rms"].value > 10 * kanayama["error_rms"].value
+    assert result.summaries[1].terminated_rate.value > 0.5  # lost
+    assert result.summaries[0].terminated_rate.value == 0.0
+    # Both followed the same reference, recorded step by step on the 0.6 m circle.
+    reference = result.rollouts["kanayama"][0].goal_trace[:, 0]
+    np.testing.assert_allclose(np.hypot(*reference.T), 0.6, atol=1e-3)
+    np.testing.assert_array_equal(
+        result.rollouts["random"][0].goal_trace[:, 0],
+        reference[: len(result.rollouts["random"][0].goal_trace)],
+    )
+    # The error traces: every world at reset and after every step, NaN once it ended.
+    trace = result.error_traces["kanayama"]
+    assert trace.shape[1] == 12 and np.all(trace[0] <= 0.2 + 1e-6)
+    assert np.nanmax(trace[-1]) < 0.02
+
+
+def test_a_policy_that_never_converges_reports_zero_converged_and_no_nan() -> None:
+    result = compare.compare(TRACK_ID, ["random"], episodes=5, record_worlds=0, progress=False)
+    summary = result.summaries[0]
+    assert summary.errors["converged"].value == 0.0
+    assert summary.errors["converge_time"].value == math.inf
+    table = compare.format_table(result)
+    assert "0.0 [0.0, 43.4]" in table  # 0 of 5: Wilson z²/(n + z²) = 3.84 / 8.84
+    assert "inf [inf, inf]" in table and "nan" not in table.lower()
+
+
+def test_set_chooses_the_reference_and_names_the_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert compare.parse_overrides(["reference=square", "track.speed=0.1", 'direction="ccw"']) == {
+        "reference": "square",
+        "track.speed": 0.1,
+        "direction": "ccw",
+    }
+    with pytest.raises(ConfigError, match="given twice"):
+        compare.parse_overrides(["speed=0.1", "speed=0.2"])
+    argv = ["compare", "--task", "track", "--set", "reference=square", "--episodes", "2"]
+    assert cli.main([*argv, "--no-progress", "--out", str(tmp_path)]) == 0
+    assert 'KheperaIV-Track-v1, reference="square": 2 episodes' in capsys.readouterr().out
+    document = json.loads((tmp_path / "track_reference-square_results.json").read_text())
+    assert document["overrides"] == {"reference": "square"}
+    assert (tmp_path / "track_reference-square_references.png").is_file()
+    # The reference ran on the square of half-side 0.6 m: the larger coordinate is 0.6 m.
+    result = compare.compare(
+        TRACK_ID, ["kanayama"], episodes=1, progress=False, overrides={"reference": "square"}
+    )
+    corners = np.abs(result.rollouts["kanayama"][0].goal_trace[:, 0]).max(axis=1)
+    np.testing.assert_allclose(corners, 0.6, atol=1e-3)
+
+
+def test_a_policy_that_cannot_read_track_observations_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match="'position_control' does not act on 'track'"):
+        compare.compare(TRACK_ID, ["position_control"], episodes=1, progress=False)
+    with pytest.raises(ConfigError, match="unknown policy"):
+        compare.compare(TRACK_ID, ["kanayma"], episodes=1, progress=False)
+
+
+def test_a_task_scored_by_laps_and_cross_track_error_needs_one_metrics_entry(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    entry = compare.TaskMetrics(
+        success="lap", time="lap time", error_prefix="path", error="cross-track error"
+    )
+    monkeypatch.setitem(compare.TASK_METRICS, "pathfollow", entry)
+
+    def lap(world: int, success: bool, converge: float) -> compare.EpisodeResult:
+        length = 400 + 100 * world  # 20 s, 25 s, 30 s at dt = 0.05 s
+        return compare.EpisodeResult(
+            policy="follower",
+            world=world,
+            seed=world,
+            success=success,
+            length=length,
+            time_to_goal=length * 0.05 if success else None,
+            episode_return=0.0,
+            path_length=3.0,
+            collisions=0,
+            terminated=success,
+            mean_speed=3.0 / (length * 0.05),
+            task_stats={
+                "path_error_rms": 0.01,
+                "path_error_max": 0.03,
+                "path_iae": 0.2,
+                "path_converge_time": converge,
+            },
+        )
+
+    results = [lap(0, True, 2.0), lap(1, True, 3.0), lap(2, False, math.inf)]
+    summary = compare.summarize("follower", results, entry)
+    # Lap time and mean speed over the two laps: (20 + 25) / 2 s, (0.15 + 0.12) / 2 m/s.
+    assert summary.time_to_goal_mean.value == pytest.approx(22.5)
+    assert summary.mean_speed.value == pytest.approx(0.135)
+    assert summary.errors["converged"].value == pytest.approx(2 / 3)
+    assert summary.errors["converge_time"].value == 3.0  # the median of 2, 3 and never
+    comparison = compare.Comparison(
+        env_id="KheperaIV-PathFollow-v1",
+        config=None,
+        label="pathfollow",
+        seed=0,
+        episodes=3,
+        dt=0.05,
+        results={"follower": results},
+        summaries=[summary],
+        rollouts={"follower": []},
+        task="pathfollow",
+    )
+    header = compare.format_table(comparison).splitlines()[2]
+    for column in ("lap %", "lap time s", "RMS error mm", "converged %", "speed m/s"):
+        assert column in header
+    assert "lost %" not in header  # no termination entry: not reported

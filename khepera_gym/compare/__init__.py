@@ -11,11 +11,20 @@ confidence intervals:
   length (m, successful episodes only), mean number of steps in contact per episode, the
   share of episodes with any contact (Wilson), and for formations the mean formation error (m);
   the intervals of means and percentiles are percentile bootstraps with a fixed seed, so a
-  comparison is deterministic.
+  comparison is deterministic;
+* the mean speed (m/s, path over duration) of single-robot tasks;
+* on a task scored by an error to a reference (Track), instead of success and time: the mean
+  RMS and largest error after the transient (mm), the IAE (m·s), the share of episodes that
+  converged below 2 cm (Wilson), the median converge time (an episode that never converged
+  counts as inf: never averaged), and the share lost (terminated).
+
+Which columns a task has is one entry of :data:`TASK_METRICS` (:mod:`khepera_gym.compare.metrics`).
 
 It writes the per-episode results as CSV and JSON and draws the first worlds' trajectories
 side by side, one panel per policy, in the style of the paper's Figs. 6 and 7
-(:func:`khepera_gym.plot.plot_rollouts`). Policies are named:
+(:func:`khepera_gym.plot.plot_rollouts`); on Track, the reference and the robot's path of the
+first worlds overlaid, one panel per policy, and each policy's error over time
+(:mod:`khepera_gym.compare.reference_plots`). Policies are named:
 
 * ``position_control``, ``braitenberg``, ``braitenberg_kteam`` (K-Team's weights), ``vfh``, and
   ``position_control_slow``, ``braitenberg_slow``, ``vfh_slow`` (cruising at K-Team's demo speed,
@@ -23,6 +32,8 @@ side by side, one panel per policy, in the style of the paper's Figs. 6 and 7
   :mod:`khepera_gym.baselines` on Nav/Avoid observations;
 * ``leader_follower``: :class:`khepera_gym.baselines.LeaderFollower` with the scenario's
   formation (Formation task);
+* ``kanayama``, ``position_chase``: :class:`khepera_gym.baselines.Kanayama` and
+  :class:`khepera_gym.baselines.PositionChase` (Track task);
 * ``random``: uniform actions in [-1, 1] from a generator seeded with the comparison's seed;
 * ``sb3:path/to/model.zip``: a stable-baselines3 model, loaded with ``--algo``'s class or by
   trying PPO, SAC, TD3, A2C and DQN in turn, acting deterministically (needs the ``sb3`` extra).
@@ -31,15 +42,26 @@ Command line (``khepera-gym compare --help``)::
 
     khepera-gym compare --task avoid --policy braitenberg vfh --episodes 200 --out results/
     khepera-gym compare --task avoid --config paper_fig6 --policy braitenberg vfh --episodes 20
+    khepera-gym compare --task track --set reference=square --episodes 200 --plot-worlds 3
 
-``khepera-gym demo`` (:func:`demo`) runs it on the paper's scenes and the three tasks.
+``--set KEY=VALUE`` (repeatable) overrides a scenario key as ``gym.make``'s keywords do; the
+output files' label gets ``_key-value`` (``track_reference-square_episodes.csv``).
 
-Units: seconds and metres (formation errors in the table in cm). Threading: the vector env
-steps its worlds on its own rayon pool (``--num-threads``, all cores by default) with the GIL
-released; policies run in the calling thread between steps.
+``khepera-gym demo`` (:func:`demo`) runs it on the paper's scenes and every task.
+
+Units: seconds and metres (formation errors in the table in cm, tracking errors in mm).
+Threading: the vector env steps its worlds on its own rayon pool (``--num-threads``, all cores
+by default) with the GIL released; policies run in the calling thread between steps.
 """
 
-from khepera_gym.compare.command import DEMO_RUNS, add_arguments, demo, run_from_args
+from khepera_gym.compare.command import (
+    DEMO_RUNS,
+    add_arguments,
+    demo,
+    parse_overrides,
+    run_from_args,
+)
+from khepera_gym.compare.metrics import TASK_METRICS, TaskMetrics, task_metrics
 from khepera_gym.compare.policies import (
     DEFAULT_POLICIES,
     POLICY_NAMES,
@@ -50,7 +72,14 @@ from khepera_gym.compare.policies import (
     load_sb3_policy,
     make_policy,
 )
-from khepera_gym.compare.report import format_table, plot_comparison, report, write_results
+from khepera_gym.compare.reference_plots import plot_error_over_time, plot_reference_paths
+from khepera_gym.compare.report import (
+    format_table,
+    plot_comparison,
+    plot_errors,
+    report,
+    write_results,
+)
 from khepera_gym.compare.run import (
     Comparison,
     EpisodeResult,
@@ -60,7 +89,13 @@ from khepera_gym.compare.run import (
     run_policy,
     summarize,
 )
-from khepera_gym.compare.stats import CONFIDENCE, Estimate, bootstrap_interval, wilson_interval
+from khepera_gym.compare.stats import (
+    CONFIDENCE,
+    Estimate,
+    bootstrap_interval,
+    event_time_median,
+    wilson_interval,
+)
 from khepera_gym.registration import latest_ids
 
 #: Registered id (latest version) of each task name of ``--task``.
@@ -74,25 +109,33 @@ __all__ = [
     "SB3_ALGORITHMS",
     "SB3_PREFIX",
     "TASK_IDS",
+    "TASK_METRICS",
     "Comparison",
     "EpisodeResult",
     "Estimate",
     "PolicySummary",
     "RandomPolicy",
     "SB3Policy",
+    "TaskMetrics",
     "add_arguments",
     "bootstrap_interval",
     "compare",
     "demo",
+    "event_time_median",
     "format_table",
     "load_sb3_policy",
     "make_policy",
+    "parse_overrides",
     "plot_comparison",
+    "plot_error_over_time",
+    "plot_errors",
+    "plot_reference_paths",
     "report",
     "resolve_env_id",
     "run_from_args",
     "run_policy",
     "summarize",
+    "task_metrics",
     "wilson_interval",
     "write_results",
 ]

@@ -5,25 +5,44 @@ comparisons on the paper's scenes and the tasks.
 from __future__ import annotations
 
 import argparse
+import sys
 import warnings
 from pathlib import Path
+from typing import Any
 
+from khepera_gym.compare.metrics import task_metrics
 from khepera_gym.compare.policies import DEFAULT_POLICIES, POLICY_NAMES
 from khepera_gym.compare.report import report
 from khepera_gym.compare.run import compare, resolve_env_id
-from khepera_gym.errors import KheperaError
+from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.registration import latest_ids
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 #: Registered id (latest version) of each task name of ``--task``.
 TASK_IDS = latest_ids()
+#: Worlds drawn per policy by default on a task with a moving reference (overlaid in a panel).
+PLOT_WORLDS_OVERLAID = 3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the options of ``khepera-gym compare`` to a parser."""
     target = parser.add_mutually_exclusive_group(required=True)
-    target.add_argument("--task", choices=sorted(TASK_IDS), help="nav, avoid or formation")
+    target.add_argument("--task", choices=sorted(TASK_IDS), help=", ".join(sorted(TASK_IDS)))
     target.add_argument("--env", help="a registered id, e.g. KheperaIV-Avoid-v1")
     parser.add_argument("--config", help="built-in scenario (e.g. paper_fig6) or TOML path")
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        help="scenario key overriding the config, as gym.make's keywords (repeatable): "
+        "reference=square, track.speed=0.1; VALUE is a TOML value, or else a string",
+    )
     parser.add_argument(
         "--policy",
         nargs="+",
@@ -43,11 +62,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--plot", action=argparse.BooleanOptionalAction, default=True, help="save trajectories"
     )
     parser.add_argument(
-        "--plot-worlds", type=int, default=1, help="worlds drawn per policy (first ones, 1)"
+        "--plot-worlds",
+        type=int,
+        default=None,
+        help="worlds drawn per policy (the first ones; 1, or 3 overlaid on Track)",
     )
     parser.add_argument(
         "--progress", action=argparse.BooleanOptionalAction, default=True, help="progress bars"
     )
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """``--set`` items ``KEY=VALUE`` as ``gym.make`` keywords: VALUE read as a TOML value
+    (``0.1``, ``true``, ``[1, 2]``, ``"ccw"``), or else taken as a string (``square``).
+
+    Raises:
+        ConfigError: An item without ``=`` or with an empty key, or a key given twice.
+    """
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, equals, text = item.partition("=")
+        key = key.strip()
+        if not equals or not key:
+            raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. reference=square")
+        if key in overrides:
+            raise ConfigError(f"--set: key {key!r} is given twice")
+        try:
+            overrides[key] = tomllib.loads(f"value = {text.strip()}")["value"]
+        except tomllib.TOMLDecodeError:
+            overrides[key] = text.strip()
+    return overrides
 
 
 def run_from_args(args: argparse.Namespace) -> int:
@@ -60,6 +104,10 @@ def run_from_args(args: argparse.Namespace) -> int:
         env_id = resolve_env_id(args.task, args.env)
         task = next((t for t, i in TASK_IDS.items() if i == env_id), None)
         policies = args.policy or list(DEFAULT_POLICIES.get(task or "", ("random",)))
+        overrides = parse_overrides(getattr(args, "overrides", None) or [])
+        worlds = args.plot_worlds
+        if worlds is None:  # a moving reference's panels overlay a few episodes
+            worlds = PLOT_WORLDS_OVERLAID if task_metrics(task).moving_reference else 1
         comparison = compare(
             env_id,
             policies,
@@ -67,9 +115,10 @@ def run_from_args(args: argparse.Namespace) -> int:
             seed=args.seed,
             config=args.config,
             num_threads=args.num_threads,
-            record_worlds=args.plot_worlds if args.plot else 0,
+            record_worlds=worlds if args.plot else 0,
             progress=args.progress,
             algo=args.algo,
+            overrides=overrides,
         )
     except (ValueError, ImportError, OSError, KheperaError) as error:
         raise SystemExit(f"khepera-gym compare: {error}") from error
@@ -122,11 +171,19 @@ DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], 
         None,
         1,
     ),
+    (
+        "Track: a reference point on a 0.6 m circle at 0.15 m/s",
+        TASK_IDS["track"],
+        None,
+        DEFAULT_POLICIES["track"],
+        None,
+        3,
+    ),
 )
 
 
 def demo(episodes: int = 50, out_dir: Path = Path("demo_out"), progress: bool = True) -> int:
-    """Runs the comparison on the paper's scenes and the three tasks; prints the tables.
+    """Runs the comparison on the paper's scenes and every task; prints the tables.
 
     Args:
         episodes: Episodes per policy and comparison.
@@ -160,4 +217,4 @@ def demo(episodes: int = 50, out_dir: Path = Path("demo_out"), progress: bool = 
     return 0
 
 
-__all__ = ["DEMO_RUNS", "add_arguments", "demo", "run_from_args"]
+__all__ = ["DEMO_RUNS", "add_arguments", "demo", "parse_overrides", "run_from_args"]

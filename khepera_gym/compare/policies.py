@@ -16,7 +16,8 @@ from khepera_gym import baselines
 from khepera_gym.errors import ConfigError, KheperaError
 
 #: The baselines by their controller's name (``position_control``, ``braitenberg``, ``vfh``,
-#: ``leader_follower``, and any controller added to the core with its class in baselines).
+#: ``leader_follower``, ``kanayama``, ``position_chase``, and any controller added to the core
+#: with its class in baselines).
 BASELINES: dict[str, type[baselines.BaselinePolicy]] = {
     cls.CONTROLLER: cls for cls in baselines.BaselinePolicy.__subclasses__() if cls.CONTROLLER
 }
@@ -42,6 +43,7 @@ DEFAULT_POLICIES = {
     "nav": ("position_control", "braitenberg", "vfh", "random"),
     "avoid": ("position_control", "braitenberg", "braitenberg_kteam", "vfh", "random"),
     "formation": ("leader_follower", "random"),
+    "track": ("kanayama", "position_chase", "random"),
 }
 
 Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]
@@ -172,14 +174,15 @@ def make_policy(
         A callable mapping a batch of observations (N, D) to actions (N, A).
 
     Raises:
-        ValueError: Unknown name, or a policy that does not fit the task.
+        ConfigError: Unknown name, or a policy that does not fit the task (it lacks an
+            observation block the policy reads); both are also ValueError.
         ImportError: ``sb3:`` without stable-baselines3 installed.
     """
     task = getattr(env.unwrapped, "task", None)
     if name.startswith(SB3_PREFIX):
         return load_sb3_policy(name[len(SB3_PREFIX) :], algo)
     if name not in POLICY_NAMES:
-        raise ValueError(
+        raise ConfigError(
             f"unknown policy {name!r}; known: {', '.join(POLICY_NAMES)} or sb3:path/to/model.zip"
         )
     if name == "random":
@@ -189,9 +192,10 @@ def make_policy(
         # A baseline fits the task if it finds the observation blocks it reads by name.
         return BASELINES[controller].for_env(env, **params)
     except ConfigError as error:
-        raise ValueError(
+        fitting = ", ".join(DEFAULT_POLICIES.get(task or "", ("random",)))
+        raise ConfigError(
             f"policy {name!r} does not act on {task!r} observations ({error}); for this task "
-            "use one that does, random, or sb3:path/to/model.zip"
+            f"use {fitting} or sb3:path/to/model.zip"
         ) from error
 
 

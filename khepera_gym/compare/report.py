@@ -1,31 +1,80 @@
-"""The comparison's outputs: the table, the CSV and JSON files, the trajectory figure."""
+"""The comparison's outputs: the table, the CSV and JSON files, the figures (trajectories; on a
+task with a moving reference, reference vs actual paths and the error over time).
+
+Which columns the table has is the task's entry of :data:`khepera_gym.compare.metrics.TASK_METRICS`.
+"""
 
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
-from khepera_gym.compare.run import TIME_PERCENTILE, Comparison, EpisodeResult
-from khepera_gym.compare.stats import CONFIDENCE
+from khepera_gym.compare.reference_plots import plot_error_over_time, plot_reference_paths
+from khepera_gym.compare.run import TIME_PERCENTILE, Comparison, EpisodeResult, PolicySummary
+from khepera_gym.compare.stats import CONFIDENCE, Estimate, json_number
 from khepera_gym.plot import panel_title, plot_rollouts
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 #: Resolution of the saved plots (dots per inch).
 PLOT_DPI = 100
 
+Column = tuple[str, Callable[[PolicySummary], str]]
+
+
+def _error_columns(comparison: Comparison) -> list[Column]:
+    """The columns of a task scored by an error (mm, m·s, %, s) and of its terminations."""
+    metrics = comparison.metrics
+    columns: list[Column] = []
+
+    def error(name: str, scale: float, digits: int) -> Callable[[PolicySummary], str]:
+        return lambda s: s.errors[name].format(scale, digits) if name in s.errors else "–"
+
+    if metrics.error_prefix is not None:
+        columns += [
+            ("RMS error mm", error("error_rms", 1000, 1)),
+            ("max error mm", error("error_max", 1000, 1)),
+            ("IAE m·s", error("iae", 1, 3)),
+            ("converged %", error("converged", 100, 1)),
+            ("converge s", error("converge_time", 1, 2)),
+        ]
+    if metrics.termination is not None:
+        columns.append(
+            (
+                f"{metrics.termination} %",
+                lambda s: _format(s.terminated_rate, 100, 1),
+            )
+        )
+    return columns
+
+
+def _format(estimate: Estimate | None, scale: float, digits: int) -> str:
+    return "–" if estimate is None else estimate.format(scale, digits)
+
 
 def format_table(comparison: Comparison) -> str:
     """The summary table: one row per policy, estimates with their 95% intervals."""
-    columns = [
-        ("policy", lambda s: s.policy),
-        ("success %", lambda s: s.success_rate.format(100, 1)),
-        ("time to goal s", lambda s: s.time_to_goal_mean.format(1, 1)),
-        (f"p{TIME_PERCENTILE:g} time s", lambda s: s.time_to_goal_p95.format(1, 1)),
-        ("path m", lambda s: s.path_length_mean.format(1, 2)),
-        ("contact steps", lambda s: s.contact_steps_mean.format(1, 1)),
-        ("contact %", lambda s: s.contact_rate.format(100, 0)),
-    ]
+    metrics = comparison.metrics
+    columns: list[Column] = [("policy", lambda s: s.policy)]
+    if metrics.success is not None:
+        columns += [
+            (f"{metrics.success} %", lambda s: s.success_rate.format(100, 1)),
+            (f"{metrics.time} s", lambda s: s.time_to_goal_mean.format(1, 1)),
+            (f"p{TIME_PERCENTILE:g} time s", lambda s: s.time_to_goal_p95.format(1, 1)),
+            ("path m", lambda s: s.path_length_mean.format(1, 2)),
+        ]
+    columns += _error_columns(comparison)
+    if metrics.speed:
+        columns.append(("speed m/s", lambda s: _format(s.mean_speed, 1, 3)))
+    columns.append(("contact steps", lambda s: s.contact_steps_mean.format(1, 1)))
+    if metrics.error_prefix is None:
+        columns.append(("contact %", lambda s: s.contact_rate.format(100, 0)))
     if comparison.is_formation:
         columns.append(
             (
@@ -45,16 +94,27 @@ def format_table(comparison: Comparison) -> str:
             for i, (cell, width) in enumerate(zip(row, widths, strict=True))
         )
 
-    config = f', config="{comparison.config}"' if comparison.config else ""
     title = (
-        f"{comparison.env_id}{config}: {comparison.episodes} episodes per policy, "
+        f"{comparison.env_id}{comparison.scenario}: {comparison.episodes} episodes per policy, "
         f"seeds {comparison.seed}..{comparison.seed + comparison.episodes - 1}"
     )
     rule = "-" * len(line(rows[0]))
-    notes = (
-        "estimate [95% interval]: Wilson for rates, bootstrap for means and percentiles; "
-        "time and path over successful episodes"
-    )
+    notes = "estimate [95% interval]: Wilson for rates, bootstrap for means and percentiles"
+    if metrics.success is not None:
+        notes += f"; {metrics.time}, path{' and speed' if metrics.speed else ''} over "
+        notes += "successful episodes"
+    elif metrics.speed:
+        notes += "; speed = path / duration, over all episodes"
+    if metrics.error_prefix is not None:
+        notes += (
+            f"\n{metrics.error}: RMS and max per episode after the task's transient (whole "
+            "episode if it ended sooner), averaged over episodes; IAE = integral of the error; "
+            "converged = error below the convergence radius (2 cm) until the end; converge s = "
+            "median over all episodes, one that never converged counting as inf (inf: fewer "
+            "than half converged)"
+        )
+    if metrics.termination is not None:
+        notes += f"\n{metrics.termination} = ended by termination, not truncation"
     if comparison.is_formation:
         notes += (
             "\nformation: success = the leader reached its goal, path summed over the robots, "
@@ -67,44 +127,85 @@ def write_results(comparison: Comparison, out_dir: Path) -> list[Path]:
     """Writes ``<label>_episodes.csv`` (one row per episode) and ``<label>_results.json``
     (settings, summaries with intervals, and every episode) into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    rows = [dataclasses.asdict(r) for results in comparison.results.values() for r in results]
+    rows = [r.row() for results in comparison.results.values() for r in results]
     csv_path = out_dir / f"{comparison.label}_episodes.csv"
     with csv_path.open("w", newline="") as file:
-        writer = csv.DictWriter(
-            file, fieldnames=[f.name for f in dataclasses.fields(EpisodeResult)]
-        )
+        # The fields, then every task statistic (a column each; inf written as "inf").
+        fieldnames = list(dict.fromkeys(name for row in rows for name in row))
+        writer = csv.DictWriter(file, fieldnames=fieldnames or _row_names())
         writer.writeheader()
         writer.writerows({k: "" if v is None else v for k, v in row.items()} for row in rows)
     json_path = out_dir / f"{comparison.label}_results.json"
     document = {
         "env_id": comparison.env_id,
         "config": comparison.config,
+        "overrides": comparison.overrides,
         "seed": comparison.seed,
         "episodes_per_policy": comparison.episodes,
         "dt": comparison.dt,
         "confidence": CONFIDENCE,
         "summaries": [s.to_json() for s in comparison.summaries],
-        "episodes": rows,
+        "episodes": [{k: json_number(v) for k, v in row.items()} for row in rows],
     }
     json_path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
     return [csv_path, json_path]
 
 
+def _row_names() -> list[str]:
+    """The CSV header of a comparison without episodes: the fields of a result."""
+    return [name for name in EpisodeResult.__dataclass_fields__ if name != "task_stats"]
+
+
 def plot_comparison(comparison: Comparison, out_dir: Path) -> Path | None:
     """Draws the recorded worlds, one row per world and one panel per policy (so the panels
-    of a row are the same episode), into ``<label>_trajectories.png``; None if none recorded."""
+    of a row are the same episode), into ``<label>_trajectories.png``; None if none recorded.
+
+    On a task with a moving reference it draws instead, one panel per policy, the reference
+    and the robot's path of every recorded world overlaid (``<label>_references.png``).
+    """
     names = list(comparison.rollouts)
     worlds = min((len(r) for r in comparison.rollouts.values()), default=0)
     if worlds == 0:
         return None
+    suptitle = f"{comparison.env_id}{comparison.scenario}"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if comparison.metrics.moving_reference:
+        figure = plot_reference_paths(
+            comparison.rollouts,
+            error_stat=comparison.metrics.stat_name("error_rms"),
+            suptitle=suptitle,
+        )
+        path = out_dir / f"{comparison.label}_references.png"
+        figure.savefig(path, dpi=PLOT_DPI)
+        return path
     rollouts = [comparison.rollouts[name][world] for world in range(worlds) for name in names]
     titles = [panel_title(f"{r.label} (seed {r.seed})", r) for r in rollouts]
-    config = f', config="{comparison.config}"' if comparison.config else ""
-    figure = plot_rollouts(
-        rollouts, titles, ncols=len(names), suptitle=f"{comparison.env_id}{config}"
+    figure = plot_rollouts(rollouts, titles, ncols=len(names), suptitle=suptitle)
+    path = out_dir / f"{comparison.label}_trajectories.png"
+    figure.savefig(path, dpi=PLOT_DPI)
+    return path
+
+
+def plot_errors(comparison: Comparison, out_dir: Path) -> Path | None:
+    """Draws each policy's error over time (median and quartiles over its episodes) into
+    ``<label>_errors.png``; None for a task without a moving reference."""
+    if not comparison.error_traces:
+        return None
+    metrics = comparison.metrics
+    try:
+        table = tomllib.loads(comparison.config_toml).get(metrics.error_prefix or "", {})
+        radius = float(table["converge_radius"])
+    except (tomllib.TOMLDecodeError, KeyError, TypeError, ValueError):
+        radius = None
+    figure = plot_error_over_time(
+        comparison.error_traces,
+        comparison.dt,
+        error=metrics.error,
+        radius=radius,
+        title=f"{comparison.env_id}{comparison.scenario}: {comparison.episodes} episodes",
     )
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"{comparison.label}_trajectories.png"
+    path = out_dir / f"{comparison.label}_errors.png"
     figure.savefig(path, dpi=PLOT_DPI)
     return path
 
@@ -116,12 +217,22 @@ def report(comparison: Comparison, out_dir: Path | None, plot: bool = True) -> l
     if out_dir is not None:
         paths += write_results(comparison, out_dir)
         if plot:
-            figure_path = plot_comparison(comparison, out_dir)
-            if figure_path is not None:
-                paths.append(figure_path)
+            for figure_path in (
+                plot_comparison(comparison, out_dir),
+                plot_errors(comparison, out_dir),
+            ):
+                if figure_path is not None:
+                    paths.append(figure_path)
         for path in paths:
             print(f"saved {path}")
     return paths
 
 
-__all__ = ["PLOT_DPI", "format_table", "plot_comparison", "report", "write_results"]
+__all__ = [
+    "PLOT_DPI",
+    "format_table",
+    "plot_comparison",
+    "plot_errors",
+    "report",
+    "write_results",
+]

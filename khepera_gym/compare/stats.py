@@ -1,6 +1,6 @@
 """Interval estimates for the comparison tool: Wilson score intervals for rates, seeded
 percentile bootstraps for means and percentiles (deterministic: the same results give the same
-intervals).
+intervals), and the median of times to an event that may never happen (inf-aware).
 """
 
 from __future__ import annotations
@@ -25,6 +25,9 @@ BOOTSTRAP_SEED = 0
 class Estimate:
     """A statistic with its confidence interval; NaN everywhere when there is no data.
 
+    A median of times to an event (:func:`event_time_median`) may be +inf: fewer than half the
+    episodes saw the event; its upper bound is inf when the data cannot exclude that.
+
     Attributes:
         value: The estimate.
         low: Lower bound of the interval.
@@ -38,18 +41,27 @@ class Estimate:
     n: int
 
     def format(self, scale: float = 1.0, digits: int = 2) -> str:
-        """``"value [low, high]"`` with every number multiplied by ``scale``; "–" without data."""
+        """``"value [low, high]"`` with every number multiplied by ``scale``; "–" without data,
+        "inf" for an infinite bound or value (a median time of an event that did not happen)."""
         if self.n == 0 or math.isnan(self.value):
             return "–"
-        value, low, high = (x * scale for x in (self.value, self.low, self.high))
-        return f"{value:.{digits}f} [{low:.{digits}f}, {high:.{digits}f}]"
+        value, low, high = (
+            "inf" if math.isinf(x) else f"{x * scale:.{digits}f}"
+            for x in (self.value, self.low, self.high)
+        )
+        return f"{value} [{low}, {high}]"
 
-    def to_json(self) -> dict[str, float | int | None]:
-        """A JSON-ready dict; NaN becomes None."""
-        return {
-            name: None if isinstance(x, float) and math.isnan(x) else x
-            for name, x in dataclasses.asdict(self).items()
-        }
+    def to_json(self) -> dict[str, float | int | str | None]:
+        """A JSON-ready dict (strict JSON, no NaN or Infinity): NaN becomes None, ±inf the
+        strings "inf" and "-inf"."""
+        return {name: json_number(x) for name, x in dataclasses.asdict(self).items()}
+
+
+def json_number(x: Any) -> Any:
+    """``x`` for strict JSON: a NaN float becomes None, ±inf "inf"/"-inf"; anything else as is."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    return x
 
 
 def _z(confidence: float) -> float:
@@ -135,4 +147,59 @@ def bootstrap_interval(
     return Estimate(value, float(min(low, value)), float(max(high, value)), int(sample.size))
 
 
-__all__ = ["CONFIDENCE", "Estimate", "bootstrap_interval", "wilson_interval"]
+def event_time_median(
+    times: npt.ArrayLike,
+    confidence: float = CONFIDENCE,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Estimate:
+    """The median time to an event that may never happen, with a percentile-bootstrap interval.
+
+    ``times`` holds one time per episode, +inf for an episode where the event never happened
+    (e.g. ``track_converge_time``: the error never stayed below 2 cm). No inf is ever averaged
+    or interpolated: the median is the empirical one without interpolation (numpy's
+    ``inverted_cdf``: the smallest time by which at least half of the episodes saw the event),
+    so it is finite exactly when at least half of the episodes saw the event, and inf
+    otherwise; each bootstrap resample's median is taken the same way, so the interval's upper
+    bound is inf when the share of events could be below one half.
+
+    Args:
+        times: Times (s), +inf for never; NaN values are dropped.
+        confidence: Confidence level.
+        resamples: Number of bootstrap resamples.
+        seed: Seed of the resampling generator.
+
+    Returns:
+        The median and its interval, any of them possibly inf (NaN for an empty sample).
+
+    Raises:
+        ValueError: A negative infinite time, or a confidence outside (0, 1).
+    """
+    _z(confidence)
+    sample = np.asarray(times, dtype=float).ravel()
+    sample = sample[~np.isnan(sample)]
+    if np.any(sample == -np.inf):
+        raise ValueError("times to an event must not be -inf")
+    if sample.size == 0:
+        return Estimate(math.nan, math.nan, math.nan, 0)
+    value = float(np.quantile(sample, 0.5, method="inverted_cdf"))
+    rng = np.random.default_rng(seed)
+    draws = np.quantile(
+        sample[rng.integers(0, sample.size, (resamples, sample.size))],
+        0.5,
+        axis=1,
+        method="inverted_cdf",
+    )
+    tail = (1 - confidence) / 2
+    low, high = np.quantile(draws, [tail, 1 - tail], method="inverted_cdf")
+    return Estimate(value, float(min(low, value)), float(max(high, value)), int(sample.size))
+
+
+__all__ = [
+    "CONFIDENCE",
+    "Estimate",
+    "bootstrap_interval",
+    "event_time_median",
+    "json_number",
+    "wilson_interval",
+]
