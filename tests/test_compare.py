@@ -412,6 +412,8 @@ def test_a_task_scored_by_laps_and_cross_track_error_needs_one_metrics_entry(
     assert summary.mean_speed.value == pytest.approx(0.135)
     assert summary.errors["converged"].value == pytest.approx(2 / 3)
     assert summary.errors["converge_time"].value == 3.0  # the median of 2, 3 and never
+    # Both terminations were laps: none counts as lost.
+    assert summary.terminated_rate.value == 0.0
     comparison = compare.Comparison(
         env_id="KheperaIV-PathFollow-v1",
         config=None,

@@ -60,6 +60,9 @@ class TaskMetrics:
             its robots).
         moving_reference: ``goals()`` moves along a reference during an episode: the plots
             draw it, and the error ``‖robot − goals()[0]‖`` over time.
+        path_trace: ``targets()[0]`` is the path's point closest to the robot (path
+            following): the trajectory plots draw its trace, the stretch of path the robot
+            followed, as a dashed line.
     """
 
     success: str | None = "success"
@@ -69,6 +72,7 @@ class TaskMetrics:
     termination: str | None = None
     speed: bool = True
     moving_reference: bool = False
+    path_trace: bool = False
 
     def stat_name(self, suffix: str) -> str:
         """The episode statistic ``<error_prefix>_<suffix>`` (e.g. ``track_error_rms``)."""
@@ -87,6 +91,14 @@ TASK_METRICS: dict[str, TaskMetrics] = {
         error="tracking error",
         termination="lost",
         moving_reference=True,
+    ),
+    "pathfollow": TaskMetrics(
+        success="lap",
+        time="lap time",
+        error_prefix="path",
+        error="cross-track error",
+        termination="lost",
+        path_trace=True,
     ),
 }
 

@@ -44,6 +44,7 @@ DEFAULT_POLICIES = {
     "avoid": ("position_control", "braitenberg", "braitenberg_kteam", "vfh", "random"),
     "formation": ("leader_follower", "random"),
     "track": ("kanayama", "position_chase", "random"),
+    "pathfollow": ("samson", "pure_pursuit", "waypoint_switching", "random"),
 }
 
 Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]

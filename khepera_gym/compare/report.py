@@ -12,6 +12,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from khepera_gym.compare.reference_plots import plot_error_over_time, plot_reference_paths
 from khepera_gym.compare.run import TIME_PERCENTILE, Comparison, EpisodeResult, PolicySummary
 from khepera_gym.compare.stats import CONFIDENCE, Estimate, json_number
@@ -114,7 +116,7 @@ def format_table(comparison: Comparison) -> str:
             "than half converged)"
         )
     if metrics.termination is not None:
-        notes += f"\n{metrics.termination} = ended by termination, not truncation"
+        notes += f"\n{metrics.termination} = ended by a termination that is not a success"
     if comparison.is_formation:
         notes += (
             "\nformation: success = the leader reached its goal, path summed over the robots, "
@@ -181,6 +183,11 @@ def plot_comparison(comparison: Comparison, out_dir: Path) -> Path | None:
     rollouts = [comparison.rollouts[name][world] for world in range(worlds) for name in names]
     titles = [panel_title(f"{r.label} (seed {r.seed})", r) for r in rollouts]
     figure = plot_rollouts(rollouts, titles, ncols=len(names), suptitle=suptitle)
+    if comparison.metrics.path_trace:
+        for ax, rollout in zip(figure.axes, rollouts, strict=False):
+            if rollout.targets is not None and len(rollout.targets):
+                closest = np.asarray(rollout.targets)[:, 0]
+                ax.plot(*closest.T, "--", color="0.45", linewidth=1.0, zorder=1, label="path")
     path = out_dir / f"{comparison.label}_trajectories.png"
     figure.savefig(path, dpi=PLOT_DPI)
     return path

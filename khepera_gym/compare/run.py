@@ -83,7 +83,8 @@ class PolicySummary:
 
     ``mean_speed`` (m/s) is over the successful episodes of a task with success, over all
     episodes otherwise, None for multi-robot tasks; ``terminated_rate`` is the share of episodes
-    ended by termination; ``errors`` holds the error columns of a task scored by an error
+    ended by a termination that is not a success (Track, PathFollow: lost); ``errors`` holds the
+    error columns of a task scored by an error
     (:func:`khepera_gym.compare.metrics.summarize_errors`), empty otherwise.
     """
 
@@ -140,7 +141,9 @@ def summarize(
         contact_steps_mean=bootstrap_interval([r.collisions for r in results], "mean"),
         contact_rate=wilson_interval(sum(r.collisions > 0 for r in results), len(results)),
         formation_error_mean=bootstrap_interval(formation, "mean") if formation else None,
-        terminated_rate=wilson_interval(sum(r.terminated for r in results), len(results)),
+        terminated_rate=wilson_interval(
+            sum(r.terminated and not r.success for r in results), len(results)
+        ),
         mean_speed=bootstrap_interval(speeds, "mean") if metrics.speed else None,
         errors=summarize_errors(metrics, [r.task_stats for r in results]),
     )

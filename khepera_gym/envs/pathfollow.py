@@ -54,22 +54,22 @@ class PathFollowEnv(KheperaEnv):
     last one). Errors and points are from the pose the robot believes it has
     (`task.localization`, as :class:`NavEnv`), in the robot frame (x forward, y left):
 
-    | Index | Name               | Observation                                     | Min   | Max  |
-    |-------|--------------------|-------------------------------------------------|-------|------|
-    | 0-7   | ir                 | IR proximity, K-Team order back-left ... back   | 0     | 1    |
-    | 8-12  | us                 | ultrasonic left, front-left, front,             | 0     | 1    |
-    |       |                    | front-right, right                              |       |      |
-    | 13    | cross_track_error  | d: signed distance from the path (m), positive  | -2.83 | 2.83 |
-    |       |                    | when the robot is left of it                    |       |      |
-    | 14-15 | path_heading_error | sin, cos of θ_p - θ, θ_p the path's direction   | -1    | 1    |
-    |       |                    | of travel at p_c                                |       |      |
-    | 16-19 | curvature          | κ at p_c and at the 3 preview points (1/m, left | -18.98 | 18.98 |
-    |       |                    | turns positive)                                 |       |      |
-    | 20-25 | preview            | x, y of the path points 0.1, 0.2, 0.3 m of arc  | -2.83 | 2.83 |
-    |       |                    | ahead of p_c (m)                                |       |      |
-    | 26-27 | waypoint           | x, y of the current waypoint (m)                | -2.83 | 2.83 |
-    | 28    | desired_speed      | v_d / 0.813 m/s                                 | 0     | 1    |
-    | 29-30 | wheel_speeds       | left, right wheel speed / 0.813 m/s             | -1    | 1    |
+    | Index | Name               | Observation                                   | Min    | Max   |
+    |-------|--------------------|-----------------------------------------------|--------|-------|
+    | 0-7   | ir                 | IR proximity, K-Team order back-left ... back | 0      | 1     |
+    | 8-12  | us                 | ultrasonic left, front-left, front,           | 0      | 1     |
+    |       |                    | front-right, right                            |        |       |
+    | 13    | cross_track_error  | d: signed distance from the path (m),         | -2.83  | 2.83  |
+    |       |                    | positive when the robot is left of it         |        |       |
+    | 14-15 | path_heading_error | sin, cos of θ_p - θ, θ_p the path's direction | -1     | 1     |
+    |       |                    | of travel at p_c                              |        |       |
+    | 16-19 | curvature          | κ at p_c and at the 3 preview points (1/m,    | -18.98 | 18.98 |
+    |       |                    | left turns positive)                          |        |       |
+    | 20-25 | preview            | x, y of the path points 0.1, 0.2, 0.3 m of    | -2.83  | 2.83  |
+    |       |                    | arc ahead of p_c (m)                          |        |       |
+    | 26-27 | waypoint           | x, y of the current waypoint (m)              | -2.83  | 2.83  |
+    | 28    | desired_speed      | v_d / 0.813 m/s                               | 0      | 1     |
+    | 29-30 | wheel_speeds       | left, right wheel speed / 0.813 m/s           | -1     | 1     |
 
     IR and ultrasonic as in :class:`NavEnv`. Curvature is clipped to ±2 / axle (18.98 m⁻¹, a
     turn about one wheel); the square's is 0 (its corners show in the preview). At a corner,
@@ -170,39 +170,37 @@ class PathFollowEnv(KheperaEnv):
     `configs/pathfollow.toml`). Defaults that differ from Nav, and the `[pathfollow]` keys ([E]:
     an estimate; sources in the default file's comments):
 
-    | Key                             | Default   | Meaning                                    |
-    |---------------------------------|-----------|--------------------------------------------|
-    | `task.max_steps`                | 4000      | cap; truncation is truncation_factor laps  |
-    | `pathfollow.path`               | circle    | circle, lemniscate, square, spline or      |
-    |                                 |           | waypoints                                  |
-    | `pathfollow.size`               | 0.6       | m: radius, half-width, half-side, or the   |
-    |                                 |           | spline's largest radius                    |
-    | `pathfollow.speed`              | 0.15      | m/s, desired speed v_d (observed)          |
-    | `pathfollow.direction`          | random    | random, ccw (the curve's own) or cw        |
-    | `pathfollow.random_start`       | true      | uniform start point; false: phase 0        |
-    | `pathfollow.start_offset`       | 0.1       | m, largest start distance from the path    |
-    |                                 |           | [E]                                        |
-    | `pathfollow.start_heading_offset` | 0.7853982 | rad, largest start heading error (45°)   |
-    | `pathfollow.spline_irregularity` | 0.3      | spline: harmonics' amplitudes, 0..0.5 [E]  |
-    | `pathfollow.max_wheel_fraction` | 0.5       | wheel speeds the path's curvature may ask  |
-    |                                 |           | at v_d, of robot.max_wheel_speed [E]       |
-    | `pathfollow.lost_distance`      | 0.3       | m, terminated as lost beyond this |d|      |
-    | `pathfollow.truncation_factor`  | 2.0       | laps at v_d before truncation              |
-    | `pathfollow.preview_points`     | 3         | path points previewed, 0..16               |
-    | `pathfollow.preview_spacing`    | 0.1       | m of arc between previewed points          |
-    | `pathfollow.progress_weight`    | 10.0      | reward per metre of progress               |
-    | `pathfollow.error_weight`       | 1.0       | reward per metre of |d|, every step        |
-    | `pathfollow.time_penalty`       | 0.01      | reward lost every step                     |
-    | `pathfollow.transient`          | 5.0       | s excluded from the RMS and max statistics |
-    | `pathfollow.converge_radius`    | 0.02      | m, the convergence statistic's radius      |
-    | `pathfollow.waypoint_spacing`   | 0.2       | m of arc between waypoints [E]             |
-    | `pathfollow.waypoint_radius`    | 0.1       | m, the next waypoint within this (IR-SIM)  |
-    | `pathfollow.obstacle_count`     | 0         | cylinders on or near the path, 0..16       |
-    | `pathfollow.obstacle_radius`    | 0.04      | m, their radius [E]                        |
-    | `pathfollow.obstacle_offset`    | 0.05      | m, largest distance of their centres from  |
-    |                                 |           | the path [E]                               |
-    | `pathfollow.points`             | []        | path = "waypoints": [[x, y], ...] (m),     |
-    |                                 |           | the last repeating the first               |
+    | Key                                | Default   | Meaning                                     |
+    |------------------------------------|-----------|---------------------------------------------|
+    | `task.max_steps`                   | 4000      | cap; truncation is truncation_factor laps   |
+    | `pathfollow.path`                  | circle    | circle, lemniscate, square, spline or       |
+    |                                    |           | waypoints                                   |
+    | `pathfollow.size`                  | 0.6       | m: radius, half-width, half-side, or the    |
+    |                                    |           | spline's largest radius                     |
+    | `pathfollow.speed`                 | 0.15      | m/s, desired speed v_d (observed)           |
+    | `pathfollow.direction`             | random    | random, ccw (the curve's own) or cw         |
+    | `pathfollow.random_start`          | true      | uniform start point; false: phase 0         |
+    | `pathfollow.start_offset`          | 0.1       | m, largest start distance from the path [E] |
+    | `pathfollow.start_heading_offset`  | 0.7853982 | rad, largest start heading error (45°)      |
+    | `pathfollow.spline_irregularity`   | 0.3       | spline: harmonics' amplitudes, 0..0.5 [E]   |
+    | `pathfollow.max_wheel_fraction`    | 0.5       | wheel speed the path's curvature may ask at |
+    |                                    |           | v_d, of robot.max_wheel_speed [E]           |
+    | `pathfollow.lost_distance`         | 0.3       | m, terminated as lost beyond this error     |
+    | `pathfollow.truncation_factor`     | 2.0       | laps at v_d before truncation               |
+    | `pathfollow.preview_points`        | 3         | path points previewed, 0..16                |
+    | `pathfollow.preview_spacing`       | 0.1       | m of arc between previewed points           |
+    | `pathfollow.progress_weight`       | 10.0      | reward per metre of progress                |
+    | `pathfollow.error_weight`          | 1.0       | reward per metre of cross-track error       |
+    | `pathfollow.time_penalty`          | 0.01      | reward lost every step                      |
+    | `pathfollow.transient`             | 5.0       | s excluded from the RMS and max statistics  |
+    | `pathfollow.converge_radius`       | 0.02      | m, the convergence statistic's radius       |
+    | `pathfollow.waypoint_spacing`      | 0.2       | m of arc between waypoints [E]              |
+    | `pathfollow.waypoint_radius`       | 0.1       | m, next waypoint within this (IR-SIM)       |
+    | `pathfollow.obstacle_count`        | 0         | cylinders on or near the path, 0..16        |
+    | `pathfollow.obstacle_radius`       | 0.04      | m, their radius [E]                         |
+    | `pathfollow.obstacle_offset`       | 0.05      | m, their largest distance from the path [E] |
+    | `pathfollow.points`                | []        | path = "waypoints": [[x, y], ...] (m), the  |
+    |                                    |           | last repeating the first                    |
 
     A path outside the arena (with the start offset or obstacles, the robot's radius and
     `spawn.wall_margin`) raises `khepera_gym.errors.ConfigError` naming `pathfollow.size`; one
