@@ -3,7 +3,8 @@
 Measures env-steps per second of
 
 * the native vector env, ``gym.make_vec("KheperaIV-Nav-v1", num_envs=n, num_threads=t)``, for
-  n in 1, 64, 1024, 4096 and t in 1, 2; then Avoid, Formation and Track for n = 1024;
+  n in 1, 64, 1024, 4096 and t in 1, 2; then Avoid, Formation, Track and PathFollow for
+  n = 1024;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
 
 with uniform random actions generated beforehand, a warm-up, then a fixed wall time per
@@ -31,9 +32,15 @@ NAV_ID = f"KheperaIV-Nav-v{_core.LATEST_VERSION}"
 _ACTION_SETS = 8
 #: The other tasks' native vector envs timed after Nav (with ``task_envs`` worlds). Avoid has 10
 #: random obstacles, Formation 5 robots (a leader and 4 followers), Track a reference point
-#: moving on a circle (its observation adds the reference and its preview). A task whose
-#: version does not exist (Track has only v1) is left out of ``--version 0``.
-OTHER_TASKS = ("KheperaIV-Avoid", "KheperaIV-Formation", "KheperaIV-Track")
+#: moving on a circle (its observation adds the reference and its preview), PathFollow a lap of a
+#: circle (its closest point tracked along the path, a preview of three points). A task whose
+#: version does not exist (Track and PathFollow have only v1) is left out of ``--version 0``.
+OTHER_TASKS = (
+    "KheperaIV-Avoid",
+    "KheperaIV-Formation",
+    "KheperaIV-Track",
+    "KheperaIV-PathFollow",
+)
 #: Worlds of the batch whose memory is measured.
 _MEMORY_WORLDS = 4096
 

@@ -196,7 +196,8 @@ fn test_lap_time_and_return_follow_from_progress() {
     // Samson on the circle drives at v_d: a lap of L = 2π·0.6 m takes L/v_d plus the start at
     // rest, v_d/(2a); starting up to 0.1 m and 45° off the path changes the closest point's
     // progress rate v cos θ̃ / (1 − κd) by at most ~20% for the first ~2 s (≤ 4% of the lap).
-    let cfg = scenario("path = \"circle\"");
+    // Without the speed term (tested below), the return is the progress and error terms'.
+    let cfg = scenario("path = \"circle\"\nspeed_weight = 0.0");
     let (dt, a) = (cfg.physics.dt, cfg.robot.wheel_accel_limit.bounds().0);
     let length = std::f32::consts::TAU * 0.6;
     let expected = length / 0.15 + 0.15 / (2.0 * a);
@@ -418,4 +419,54 @@ fn test_a_scenarios_own_points_make_a_path_the_followers_lap() {
     ));
     let r = run(&cfg, &policy("samson", &cfg), 8, 15);
     assert!(r.success.iter().all(|s| *s));
+}
+
+#[test]
+fn test_the_speed_term_costs_driving_faster_or_slower_than_desired() {
+    // Driving along the circle (wheel speeds v (1 ∓ axle / 2R)) at a constant speed v, once at
+    // speed (after v / a ≤ 1.5 s): the closest point moves at v R / (R − d) (cos θ̃ ≈ 1: the
+    // start at rest turns the robot a little less than the circle, so it settles a little
+    // outside), and the reward with the term minus without is speed_weight·|that − v_d|/v_d.
+    let half = 0.5 * 0.1054 / 0.6;
+    for v in [0.075f32, 0.15] {
+        let action = [v * (1.0 - half) / 0.813, v * (1.0 + half) / 0.813];
+        let mut rewards = Vec::new();
+        let mut offsets = Vec::new();
+        for weight in [0.0f32, 0.1] {
+            let cfg = scenario(&format!(
+                "speed_weight = {weight}\nrandom_start = false\nstart_offset = 0.0\n\
+                 start_heading_offset = 0.0\ndirection = \"ccw\""
+            ));
+            let d = layout(&cfg).find("cross_track_error").expect("d").start;
+            let mut batch = Batch::new(
+                TaskKind::PathFollow,
+                cfg,
+                1,
+                ActionType::Wheels,
+                Some(1),
+                true,
+            )
+            .expect("batch");
+            batch.reset(Some(0));
+            let (mut r, mut o) = (Vec::new(), Vec::new());
+            for _ in 0..60 {
+                let before = batch.obs()[d];
+                batch.step(&action).expect("step");
+                r.push(batch.outcomes()[0].reward);
+                o.push(0.5 * (before + batch.obs()[d]));
+            }
+            rewards.push(r);
+            offsets.push(o);
+        }
+        for k in 40..60 {
+            let term = rewards[0][k] - rewards[1][k];
+            let along = v * 0.6 / (0.6 - offsets[1][k]);
+            let expected = 0.1 * (along - 0.15).abs() / 0.15;
+            assert!(
+                (term - expected).abs() <= 2e-3,
+                "v {v} step {k}: {term} vs {expected} (d {})",
+                offsets[1][k]
+            );
+        }
+    }
 }

@@ -19,7 +19,7 @@ pytest.importorskip(
 )
 
 import torch
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, random_actions
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID, random_actions
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.env_checker import check_env
@@ -307,7 +307,7 @@ def test_sb3_eval_callback_records_success_rates_on_the_batch(tmp_path: Path) ->
 def test_hyperparameter_files_build_every_algorithm_they_list() -> None:
     env = make_vec_env(NAV_ID, 2, seed=0)
     for algo, env_ids in {
-        "ppo": [NAV_ID, AVOID_ID, FORMATION_ID],
+        "ppo": [NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID],
         "sac": [NAV_ID, AVOID_ID],
     }.items():
         for env_id in env_ids:

@@ -112,14 +112,16 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
 ) -> None:
     assert cli.main(["demo", "--episodes", "2", "--out-dir", str(tmp_path)]) == 0
     output = capsys.readouterr().out
-    # The paper's Fig. 6 and Fig. 7 scenes, then Nav, Avoid, Formation and Track.
-    assert output.count("2 episodes per policy") == 6
+    # The paper's Fig. 6 and Fig. 7 scenes, then Nav, Avoid, Formation, Track and PathFollow.
+    assert output.count("2 episodes per policy") == 7
     for task in ("KheperaIV-Nav-v1", "KheperaIV-Avoid-v1", "KheperaIV-Formation-v1"):
         assert task in output
-    assert "KheperaIV-Track-v1" in output
+    assert "KheperaIV-Track-v1" in output and "KheperaIV-PathFollow-v1" in output
     for policy in ("position_control", "braitenberg", "vfh", "leader_follower", "random"):
         assert policy in output
     assert "kanayama" in output and "position_chase" in output
+    for policy in ("samson", "pure_pursuit", "waypoint_switching"):
+        assert policy in output
     assert "formation err cm" in output and "RMS error mm" in output
     for name in ("paper_fig6", "paper_fig7", "nav", "avoid", "formation"):
         plot = tmp_path / f"{name}_trajectories.png"
@@ -128,20 +130,23 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
         assert (tmp_path / f"{name}_episodes.csv").is_file()
     for figure in ("track_references.png", "track_errors.png"):  # reference vs robot, error
         assert str((tmp_path / figure).resolve()) in output
+    assert str((tmp_path / "pathfollow_trajectories.png").resolve()) in output
 
 
 def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:
     measurements = bench.run(
         num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False, task_envs=3
     )
-    assert [m.num_envs for m in measurements] == [2, 2, 3, 3, 3, 3, 3, 3, 1]
-    assert [m.label for m in measurements][2:8] == [
+    assert [m.num_envs for m in measurements] == [2, 2, 3, 3, 3, 3, 3, 3, 3, 3, 1]
+    assert [m.label for m in measurements][2:10] == [
         "Avoid make_vec n=3",
         "Avoid make_vec n=3",
         "Formation make_vec n=3",
         "Formation make_vec n=3",
         "Track make_vec n=3",
         "Track make_vec n=3",
+        "PathFollow make_vec n=3",
+        "PathFollow make_vec n=3",
     ]
     assert all(m.steps > 0 and m.env_steps_per_second > 0 for m in measurements)
     assert "env-steps/s" in capsys.readouterr().out

@@ -179,6 +179,14 @@ DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], 
         None,
         3,
     ),
+    (
+        "PathFollow: one lap of a 0.6 m circle at 0.15 m/s, no clock",
+        TASK_IDS["pathfollow"],
+        None,
+        DEFAULT_POLICIES["pathfollow"],
+        None,
+        1,
+    ),
 )
 
 

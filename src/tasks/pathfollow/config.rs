@@ -61,6 +61,8 @@ crate::config_table! {
         error_weight: f32 = 1.0,
         /// reward lost every step [tasks.md §4]
         time_penalty: f32 = 0.01,
+        /// reward lost per unit of relative speed error along the path, |ds/dt - speed| / speed, every step: without it progress pays for any speed, and a learned policy laps at twice the desired speed [E]
+        speed_weight: f32 = 0.1,
         /// s, start-up excluded from the RMS and maximum error statistics [tasks.md §3]
         transient: f32 = 5.0,
         /// m, converged once the cross-track error stays below this [issue 14]
@@ -192,6 +194,7 @@ impl PathFollowConfig {
             ("pathfollow.progress_weight", self.progress_weight),
             ("pathfollow.error_weight", self.error_weight),
             ("pathfollow.time_penalty", self.time_penalty),
+            ("pathfollow.speed_weight", self.speed_weight),
             ("pathfollow.transient", self.transient),
             ("pathfollow.spline_irregularity", self.spline_irregularity),
             ("pathfollow.obstacle_offset", self.obstacle_offset),
