@@ -188,7 +188,8 @@ impl TrackConfig {
         Ok(())
     }
 
-    fn validate(&self, origin: &str, cfg: &Scenario) -> Result<()> {
+    /// Checks the table against the scenario; errors name `track.<key>` and `origin`.
+    pub(crate) fn validate(&self, origin: &str, cfg: &Scenario) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
         for (key, v) in [
             ("track.size", self.size),
