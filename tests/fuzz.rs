@@ -18,7 +18,7 @@ use proptest::test_runner::Config;
 use std::sync::atomic::{AtomicU64, Ordering};
 use toml::{Table, Value};
 
-const TASKS: [&str; 5] = ["nav", "avoid", "formation", "multinav", "track"];
+const TASKS: [&str; 6] = ["nav", "avoid", "formation", "multinav", "track", "platoon"];
 
 /// Outcomes so far (scenarios loaded, refused; buffers stepped, refused), printed every 10^4 cases
 /// of a property when `FUZZ_STATS` is set: a fuzzer whose inputs are all refused tests little.

@@ -18,6 +18,7 @@ mod env;
 pub mod formation;
 pub mod multinav;
 pub mod nav;
+pub mod platoon;
 pub mod reference;
 pub mod track;
 
@@ -276,6 +277,7 @@ task_registry! {
     Formation(formation::Formation) = formation::FORMATION,
     MultiNav(multinav::MultiNav) = multinav::MULTINAV,
     Track(track::Track) = track::TRACK,
+    Platoon(platoon::Platoon) = platoon::PLATOON,
 }
 
 impl TaskKind {
