@@ -32,6 +32,7 @@ _CANDIDATE_BUILTIN_NAMES = (
     "formation",
     "multinav",
     "track",
+    "platoon",
     "paper_fig6",
     "paper_fig7",
 )
