@@ -82,9 +82,10 @@ class PlatoonParallelEnv(KheperaParallelEnv):
     direction drawn (`platoon.direction`). Robot k starts at rest up to `platoon.start_offset`
     (0.2 m) from its own reference point p_r(−k·τ) with a heading up to
     `platoon.start_heading_offset` (45°) from its reference's, and at least a diameter plus
-    `obstacles.spawn_clearance` (0.05 m) from the robots before it (the platoon is redrawn
-    otherwise; after 64 draws every robot starts on its reference point). All of it comes from
-    the world's random stream: `reset(seed=s)` reproduces it bit for bit.
+    `obstacles.spawn_clearance` (0.05 m) from the robots before it (its start is drawn again
+    otherwise, up to 64 times, then the whole platoon, up to 16 times; then every robot starts
+    on its reference point). All of it comes from the world's random stream: `reset(seed=s)`
+    reproduces it bit for bit.
 
     ## Episode End
 
@@ -108,12 +109,14 @@ class PlatoonParallelEnv(KheperaParallelEnv):
 
     Measured: Kanayama (default gains) on every agent of the default platoon (3 robots on the
     circle), 20 episodes seeded 0..19 (`python examples/platoon_kanayama.py`): no robot lost,
-    no contact; each robot's RMS error after 5 s averages 0.9, 0.6 and 1.2 mm (robots 0, 1, 2;
-    worst episode 3.2 mm), its largest error after 5 s is at most 20 mm, `track_error_rms`
-    averages 1.0 mm, `track_iae` 0.84 m·s, and `track_converge_time` 4.0 s (5.0 s at worst).
-    With 5 robots on the lemniscate (`--robots 5 --reference lemniscate`) the starts are
-    tighter where the curve slows down: up to 38 steps with a robot in contact, the largest
-    error after 5 s 0.14 m, the per-robot RMS after 5 s 1.5 to 2.9 mm on average.
+    no contact; each robot's RMS error after 5 s averages 0.9, 0.9 and 1.1 mm (robots 0, 1, 2;
+    worst episode 3.0 mm), its largest error after 5 s is at most 20 mm, `track_error_rms`
+    averages 1.1 mm, `track_iae` 0.91 m·s, and `track_converge_time` 4.0 s (5.0 s at worst).
+    With 5 robots on the lemniscate (`--robots 5 --reference lemniscate`) neighbours are
+    closer where the curve slows down and the 0.2 m start offsets make them meet during the
+    transient: 20 steps with a robot in contact per episode on average (119 at most), the
+    largest error after 5 s 0.25 m, the per-robot RMS after 5 s 1.4 to 6.8 mm on average, no
+    robot lost.
 
     ## Arguments
 

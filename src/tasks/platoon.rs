@@ -14,9 +14,9 @@
 //!
 //! Reset: each robot is placed up to `start_offset` from its own reference point at t = 0 with a
 //! heading up to `start_heading_offset` from its reference heading, at rest, at least a diameter
-//! plus `obstacles.spawn_clearance` from the robots placed before it (redrawn if not; after
-//! [`START_TRIES`] failed platoons every robot starts on its reference point, which the checks
-//! keep apart).
+//! plus `obstacles.spawn_clearance` from the robots placed before it (its start is drawn again
+//! if not, up to [`START_TRIES`] times, then the whole platoon, up to [`PLATOON_TRIES`] times;
+//! then every robot starts on its reference point, which the checks keep apart).
 //!
 //! End: an agent whose error exceeds `lost_distance` is terminated (lost) and parks (zero wheel
 //! commands), still an obstacle; the episode terminates when every robot is lost and is
@@ -50,8 +50,11 @@ use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 pub use config::{PlatoonConfig, PlatoonKeys, KEYS, MAX_ROBOTS, SPACING_MARGIN};
 
-/// Platoons drawn at reset before every robot is put on its reference point.
+/// Draws of one robot's start before the platoon is drawn again.
 pub const START_TRIES: usize = 64;
+
+/// Platoons drawn at reset before every robot is put on its reference point.
+pub const PLATOON_TRIES: usize = 16;
 
 /// platoon: Track's defaults and the `[platoon]` table.
 pub const PLATOON: TaskInfo = TaskInfo {
@@ -188,17 +191,25 @@ impl Platoon {
         let references: Vec<_> = (0..self.robots.len())
             .map(|k| self.reference.at(-self.cfg.lag(k)))
             .collect();
-        'platoon: for _ in 0..START_TRIES {
+        'platoon: for _ in 0..PLATOON_TRIES {
             let mut poses: Vec<(Vector, f32)> = Vec::with_capacity(references.len());
             for r in &references {
-                let distance = c.start_offset * rng.random::<f32>();
-                let bearing = rng.random::<f32>() * std::f32::consts::TAU;
-                let heading = c.start_heading_offset * (2.0 * rng.random::<f32>() - 1.0);
-                let position = r.position + Vector::new(bearing.cos(), bearing.sin()) * distance;
-                if poses.iter().any(|(p, _)| (*p - position).length() < apart) {
-                    continue 'platoon;
+                let mut start = None;
+                for _ in 0..START_TRIES {
+                    let distance = c.start_offset * rng.random::<f32>();
+                    let bearing = rng.random::<f32>() * std::f32::consts::TAU;
+                    let heading = c.start_heading_offset * (2.0 * rng.random::<f32>() - 1.0);
+                    let offset = Vector::new(bearing.cos(), bearing.sin()) * distance;
+                    let position = r.position + offset;
+                    if poses.iter().all(|(p, _)| (*p - position).length() >= apart) {
+                        start = Some((position, wrap_angle(r.heading + heading)));
+                        break;
+                    }
                 }
-                poses.push((position, wrap_angle(r.heading + heading)));
+                match start {
+                    Some(pose) => poses.push(pose),
+                    None => continue 'platoon,
+                }
             }
             return poses;
         }
