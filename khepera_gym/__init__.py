@@ -19,7 +19,8 @@ that it did so), made from the task list the Rust core exports (:mod:`khepera_gy
   :class:`khepera_gym.vector.FormationVectorEnv`.
 
 Multi-agent versions (PettingZoo) live in :mod:`khepera_gym.pettingzoo`: ``formation_v1`` (one
-agent per follower) and ``multinav_v1`` (several robots, each with its own goal).
+agent per follower), ``multinav_v1`` (several robots, each with its own goal) and ``platoon_v1``
+(several robots tracking time-shifted copies of one reference trajectory).
 
 No ``max_episode_steps`` is registered: the Rust core truncates episodes itself at the scenario's
 ``max_steps``. ``gym.make(id, max_episode_steps=k)`` still adds Gymnasium's ``TimeLimit`` wrapper

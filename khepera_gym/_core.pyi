@@ -17,7 +17,8 @@ class Batch:
     """N independent seeded Khepera IV worlds of one task, stepped in parallel by a rayon pool.
 
     Args:
-        task: "nav", "avoid", "formation", "multinav", "track" or "pathfollow".
+        task: "nav", "avoid", "formation", "multinav", "track", "pathfollow" or
+            "platoon".
         num_worlds: number of worlds N (>= 1).
         config_text: TOML text of a scenario file overlaid on the task's built-in defaults, or None.
         config_name: where config_text came from (a file path or built-in name), used in messages.
@@ -55,13 +56,14 @@ class Batch:
         """The agents in joint order: (name, robot index, obs start, obs stop, own layout as
         (name, start, stop) within its block). Agent i's action is joint columns 2i, 2i+1.
         nav/avoid: ["robot"]; formation: ["leader" if leader = "agent"] + "follower_0".."_K-1";
-        multinav: "robot_0".."robot_N-1"."""
+        multinav, platoon: "robot_0".."robot_N-1"."""
     def agent_rewards(self) -> npt.NDArray[np.float32]:
         """Each agent's reward on the last step, shape (N, n_agents); the joint reward returned
         by step() is their mean."""
     def agent_terminated(self) -> npt.NDArray[np.bool_]:
         """Each agent's termination on the last step, shape (N, n_agents) (multinav: its robot
-        reached its goal and parks; all True when the episode terminated)."""
+        reached its goal and parks; platoon: its robot is lost and parks; all True when the
+        episode terminated)."""
     def targets(self) -> npt.NDArray[np.float64]:
         """The task's target points other than goals (formation: the followers' eq. 12 targets),
         shape (N, K, 2); K = 0 for tasks without any."""
@@ -188,7 +190,8 @@ def braitenberg_weights(name: str) -> list[list[float]]:
 
 def default_config(name: str) -> str:
     """A built-in scenario file (TOML text): a task's defaults ("nav", "avoid", "formation",
-    "multinav", "track", "pathfollow", every key documented) or a scene ("paper_fig6", "paper_fig7")."""
+    "multinav", "track", "pathfollow", "platoon", every key
+    documented) or a scene ("paper_fig6", "paper_fig7")."""
 
 def _batch_from_state(
     task: str,

@@ -33,6 +33,7 @@ _CANDIDATE_BUILTIN_NAMES = (
     "multinav",
     "track",
     "pathfollow",
+    "platoon",
     "paper_fig6",
     "paper_fig7",
 )

@@ -30,7 +30,8 @@ def obs_layout(task: str) -> dict[str, slice]:
     """Observation layout of a task as an ordered mapping name → slice.
 
     Args:
-        task: Task name: "nav", "avoid", "formation" or "multinav" (default scenarios).
+        task: Task name: "nav", "avoid", "formation", "multinav", "track" or "platoon" (default
+            scenarios).
 
     Returns:
         A new dict (callers may modify it) whose slices cover ``0..obs_dim`` contiguously.

@@ -18,13 +18,14 @@ use proptest::test_runner::Config;
 use std::sync::atomic::{AtomicU64, Ordering};
 use toml::{Table, Value};
 
-const TASKS: [&str; 6] = [
+const TASKS: [&str; 7] = [
     "nav",
     "avoid",
     "formation",
     "multinav",
     "track",
     "pathfollow",
+    "platoon",
 ];
 
 /// Outcomes so far (scenarios loaded, refused; buffers stepped, refused), printed every 10^4 cases

@@ -124,6 +124,15 @@ fn test_restored_pathfollow_state_replays_bit_for_bit() {
 }
 
 #[test]
+fn test_restored_platoon_state_replays_bit_for_bit() {
+    // Three robots on a spline, lost robots parked: the per-robot tracking state is restored.
+    check_replay(
+        "platoon",
+        "max_steps = 120\nreference = \"spline\"\nlost_distance = 0.3",
+    );
+}
+
+#[test]
 fn test_state_restores_randomised_robot_parameters() {
     // Domain randomisation draws the drive at every reset: a restored world keeps the saved draw.
     check_replay("nav", "max_steps = 50\nrobot.axle_length = [0.09, 0.12]");

@@ -48,6 +48,7 @@ fn test_every_task_world_equals_single_env_with_seed_plus_index() {
         TaskKind::MultiNav,
         TaskKind::Track,
         TaskKind::PathFollow,
+        TaskKind::Platoon,
     ] {
         let cfg = scenario(task.name(), None, "max_steps = 40");
         let (n, steps, seed) = (4, 120, 77u64);
@@ -100,6 +101,7 @@ fn test_every_task_is_identical_at_one_and_two_threads() {
         TaskKind::MultiNav,
         TaskKind::Track,
         TaskKind::PathFollow,
+        TaskKind::Platoon,
     ] {
         let cfg = scenario(task.name(), None, "max_steps = 50");
         let mut runs = Vec::new();

@@ -1110,19 +1110,21 @@ def test_config_overrides_build_a_working_env_or_raise_config_error(
         env.close()
 
 
+@pytest.mark.parametrize("task", ["multinav", "platoon"])
 @given(data=st.data())
-def test_multinav_batch_overrides_build_a_working_batch_or_raise_config_error(
-    data: st.DataObject,
+def test_multi_robot_batch_overrides_build_a_working_batch_or_raise_config_error(
+    task: str, data: st.DataObject
 ) -> None:
-    """The multinav task (PettingZoo's) through the raw Batch: several robots, own goals."""
+    """The PettingZoo-only tasks through the raw Batch: several robots, own goals (multinav) or
+    time-shifted references (platoon)."""
     overrides = data.draw(
-        st.one_of(_overrides("multinav", wild=False), _overrides("multinav")), label="overrides"
+        st.one_of(_overrides(task, wild=False), _overrides(task)), label="overrides"
     )
     with _watchdog():
-        batch, error = _attempt(lambda: _core.Batch("multinav", 2, overrides=overrides))
+        batch, error = _attempt(lambda: _core.Batch(task, 2, overrides=overrides))
         if error is not None:
             event("ConfigError")
-            _assert_config_error_names_a_key(error, "<override>", "multinav", list(overrides))
+            _assert_config_error_names_a_key(error, "<override>", task, list(overrides))
             _check_override_message(error, overrides)
             return
         event("built")

@@ -1,4 +1,5 @@
-"""PettingZoo: formation_v1 and multinav_v1 pass PettingZoo's own tests and keep the contract."""
+"""PettingZoo: formation_v1, multinav_v1 and platoon_v1 pass PettingZoo's own tests and keep the
+contract."""
 
 from __future__ import annotations
 
@@ -11,9 +12,20 @@ from conftest import FORMATION_ID
 from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, seed_test
 
-from khepera_gym.envs import formation_follower_heuristic, formation_heuristic, nav_heuristic
+from khepera_gym.envs import (
+    formation_follower_heuristic,
+    formation_heuristic,
+    nav_heuristic,
+    track_heuristic,
+)
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
-from khepera_gym.pettingzoo import formation_v0, formation_v1, multinav_v0, multinav_v1
+from khepera_gym.pettingzoo import (
+    formation_v0,
+    formation_v1,
+    multinav_v0,
+    multinav_v1,
+    platoon_v1,
+)
 
 FOLLOWERS = ["follower_0", "follower_1", "follower_2", "follower_3"]
 ROBOTS = ["robot_0", "robot_1", "robot_2", "robot_3"]
@@ -26,6 +38,8 @@ ENVS = [
     (multinav_v1, {"n_robots": 2, "count": 4}),
     (formation_v0, {}),
     (multinav_v0, {}),
+    (platoon_v1, {}),
+    (platoon_v1, {"robots": 5, "reference": "lemniscate", "max_cycles": 200}),
 ]
 ENV_IDS = [
     "formation",
@@ -35,12 +49,16 @@ ENV_IDS = [
     "multinav-obstacles",
     "formation-v0",
     "multinav-v0",
+    "platoon",
+    "platoon-lemniscate",
 ]
 
 
 def _heuristic_actions(env: ParallelEnv, observations: dict) -> dict:
     if env.metadata["name"].startswith("multinav"):
         return {agent: nav_heuristic(observations[agent]) for agent in env.agents}
+    if env.metadata["name"].startswith("platoon"):
+        return {agent: track_heuristic(observations[agent]) for agent in env.agents}
     return {agent: formation_follower_heuristic(observations[agent]) for agent in env.agents}
 
 

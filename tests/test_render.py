@@ -108,9 +108,9 @@ def test_gif_of_a_rollout_is_written(tmp_path) -> None:
 
 
 def test_pettingzoo_envs_render_frames() -> None:
-    from khepera_gym.pettingzoo import formation_v1, multinav_v1
+    from khepera_gym.pettingzoo import formation_v1, multinav_v1, platoon_v1
 
-    for module in (formation_v1, multinav_v1):
+    for module in (formation_v1, multinav_v1, platoon_v1):
         env = module.parallel_env(render_mode="rgb_array", frame_size=(200, 160))
         env.reset(seed=0)
         frame = env.render()

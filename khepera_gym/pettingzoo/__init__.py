@@ -4,7 +4,9 @@
   (agents ``follower_0``.., plus ``leader`` with ``leader="agent"``; the manual:
   :mod:`khepera_gym.pettingzoo.formation`);
 * :mod:`khepera_gym.pettingzoo.multinav_v1`: robots driving to their own goals
-  (agents ``robot_0``..; the manual: :mod:`khepera_gym.pettingzoo.multinav`).
+  (agents ``robot_0``..; the manual: :mod:`khepera_gym.pettingzoo.multinav`);
+* :mod:`khepera_gym.pettingzoo.platoon_v1`: robots tracking time-shifted copies of one reference
+  trajectory (agents ``robot_0``..; the manual: its ``PlatoonParallelEnv``; no v0).
 
 The ``_v0`` modules keep the v0 dynamics (kinematic drive, frictionless contacts, instant wheel
 speeds) so that published v0 numbers reproduce; see the Version History of
@@ -16,6 +18,12 @@ Each module has ``parallel_env(**kwargs)`` (a ``pettingzoo.ParallelEnv``) and ``
 
 from __future__ import annotations
 
-from khepera_gym.pettingzoo import formation_v0, formation_v1, multinav_v0, multinav_v1
+from khepera_gym.pettingzoo import (
+    formation_v0,
+    formation_v1,
+    multinav_v0,
+    multinav_v1,
+    platoon_v1,
+)
 
-__all__ = ["formation_v0", "formation_v1", "multinav_v0", "multinav_v1"]
+__all__ = ["formation_v0", "formation_v1", "multinav_v0", "multinav_v1", "platoon_v1"]

@@ -31,7 +31,13 @@ from ray.rllib.env.env_context import EnvContext
 from ray.tune.registry import register_env
 
 from khepera_gym.errors import ConfigError
-from khepera_gym.pettingzoo import formation_v0, formation_v1, multinav_v0, multinav_v1
+from khepera_gym.pettingzoo import (
+    formation_v0,
+    formation_v1,
+    multinav_v0,
+    multinav_v1,
+    platoon_v1,
+)
 from khepera_gym.registration import registered_ids, resolve_env_id
 from khepera_gym.rllib.followers import FormationFollowersVectorEnv
 from khepera_gym.rllib.multi_agent import KheperaMultiAgentEnv
@@ -53,6 +59,7 @@ MULTI_AGENT_ENVS: dict[str, ModuleType] = {
     f"{ENV_PREFIX}formation_v1": formation_v1,
     f"{ENV_PREFIX}multinav_v0": multinav_v0,
     f"{ENV_PREFIX}multinav_v1": multinav_v1,
+    f"{ENV_PREFIX}platoon_v1": platoon_v1,
 }
 
 

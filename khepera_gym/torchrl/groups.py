@@ -3,9 +3,9 @@
 Everything here comes from the Rust core: its task list (``_core.tasks()``), Gymnasium ids
 (:mod:`khepera_gym.registration`), each batch's agents (``Batch.agents()``: names and
 observation columns) and observation bounds. A task whose default scenario has one agent (nav,
-avoid) gets flat keys, as TorchRL's Gym envs; the others (formation, multinav) get agent groups,
-by default one per agent kind: ``follower_0``.. → ``"followers"``, ``robot_0``.. → ``"robots"``,
-``leader`` → ``"leader"``.
+avoid, track) gets flat keys, as TorchRL's Gym envs; the others (formation, multinav, platoon)
+get agent groups, by default one per agent kind: ``follower_0``.. → ``"followers"``,
+``robot_0``.. → ``"robots"``, ``leader`` → ``"leader"``.
 
 Units: none (indices and shapes); observation bounds are those of the layout. Threading: pure
 functions; the default agents of each task are computed once per process (a 1-world batch).
@@ -32,8 +32,9 @@ from khepera_gym.registration import latest_ids, task_of, version_of
 #: Actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle".
 ACTION_DIM = 2
 #: Tasks whose agents end separately (an agent's ``agent_terminated()`` may be True while the
-#: episode goes on: a multinav robot parks at its goal); their groups carry their own done flags.
-AGENTS_END_SEPARATELY = frozenset({"multinav"})
+#: episode goes on: a multinav robot parks at its goal, a lost platoon robot parks where it is);
+#: their groups carry their own done flags.
+AGENTS_END_SEPARATELY = frozenset({"multinav", "platoon"})
 #: Root keys a group may not be named after.
 RESERVED_KEYS = ("done", "terminated", "truncated", "state", "_reset", "observation", "action")
 

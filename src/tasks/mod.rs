@@ -20,6 +20,7 @@ pub mod formation;
 pub mod multinav;
 pub mod nav;
 pub mod pathfollow;
+pub mod platoon;
 pub mod reference;
 pub mod track;
 
@@ -279,6 +280,7 @@ task_registry! {
     MultiNav(multinav::MultiNav) = multinav::MULTINAV,
     Track(track::Track) = track::TRACK,
     PathFollow(pathfollow::PathFollow) = pathfollow::PATHFOLLOW,
+    Platoon(platoon::Platoon) = platoon::PLATOON,
 }
 
 impl TaskKind {

@@ -38,7 +38,6 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Shape};
-use super::track::Direction;
 use super::{Agent, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
@@ -237,17 +236,7 @@ impl Task for PathFollow {
     /// Draws this episode's path, the robot's start beside it and the obstacles along it.
     fn arrange(&mut self, cfg: &Scenario, rng: &mut ChaCha8Rng, layout: &mut Layout) {
         let pf = self.cfg.clone();
-        let direction = match pf.direction {
-            Direction::Ccw => 1.0,
-            Direction::Cw => -1.0,
-            Direction::Random => {
-                if rng.random::<bool>() {
-                    1.0
-                } else {
-                    -1.0
-                }
-            }
-        };
+        let direction = pf.direction.draw(rng);
         let mut path = pf.base_path(direction);
         if pf.path == Shape::Spline {
             let curve = random_spline(&path.curve, pf.spline_irregularity, rng, |curve| {

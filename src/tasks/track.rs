@@ -29,7 +29,7 @@ use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
 use super::nav;
-use super::reference::{Posture, Reference, Shape, SPLINE_HARMONICS};
+use super::reference::{random_spline, Posture, Reference, Shape};
 use super::{Agent, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
@@ -41,10 +41,6 @@ use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 use config::check_section;
 pub use config::{Direction, TrackConfig, MAX_PREVIEW_POINTS};
-
-/// Times the spline's harmonics are halved, at most, to bring it within the robot's limits
-/// (then it is the circle, which validation checked).
-const SPLINE_SHRINKS: usize = 8;
 
 /// KheperaIV-Track: the shared defaults and the `[track]` table.
 pub const TRACK: TaskInfo = TaskInfo {
@@ -205,51 +201,7 @@ impl Task for Track {
     /// Draws this episode's reference and the robot's start relative to it.
     fn arrange(&mut self, cfg: &Scenario, rng: &mut ChaCha8Rng, layout: &mut Layout) {
         let c = self.cfg.clone();
-        let phase = if c.random_phase {
-            rng.random::<f64>()
-        } else {
-            0.0
-        };
-        let direction = match c.direction {
-            Direction::Ccw => 1.0,
-            Direction::Cw => -1.0,
-            Direction::Random => {
-                if rng.random::<bool>() {
-                    1.0
-                } else {
-                    -1.0
-                }
-            }
-        };
-        let mut reference = c.base_reference(phase, direction);
-        if c.reference == Shape::Spline {
-            // Shrunk toward its mean circle (at most SPLINE_SHRINKS times) until it fits.
-            let mut curve = reference.curve.clone();
-            for h in curve.harmonics.iter_mut() {
-                let weight: f64 = rng.random();
-                let psi: f64 = rng.random::<f64>() * std::f64::consts::TAU;
-                *h = (
-                    c.spline_irregularity as f64 * weight / SPLINE_HARMONICS as f64,
-                    psi,
-                );
-            }
-            reference = Reference::new(curve.clone(), c.speed, phase, direction);
-            let mut shrinks = 0;
-            while c.within_limits(&reference, cfg).is_err() {
-                shrinks += 1;
-                for h in curve.harmonics.iter_mut() {
-                    h.0 = if shrinks >= SPLINE_SHRINKS {
-                        0.0
-                    } else {
-                        0.5 * h.0
-                    };
-                }
-                reference = Reference::new(curve.clone(), c.speed, phase, direction);
-                if shrinks >= SPLINE_SHRINKS {
-                    break;
-                }
-            }
-        }
+        let reference = draw_reference(&c, cfg, rng);
         let start = reference.at(0.0);
         let laps = (reference.period + c.truncation_margin as f64) / self.dt as f64;
         self.reference = reference;
@@ -387,4 +339,26 @@ impl Task for Track {
             colour: [214, 39, 40],
         });
     }
+}
+
+/// This episode's reference for `c`, drawn from the world's stream: its phase
+/// (`random_phase`), direction, and a spline's harmonics, shrunk toward its mean circle (at most
+/// [`super::reference::SPLINE_SHRINKS`] times) until it fits the robot's limits. Shared with the platoon task,
+/// which draws one reference for all its robots.
+pub(crate) fn draw_reference(c: &TrackConfig, cfg: &Scenario, rng: &mut ChaCha8Rng) -> Reference {
+    let phase = if c.random_phase {
+        rng.random::<f64>()
+    } else {
+        0.0
+    };
+    let direction = c.direction.draw(rng);
+    let mut reference = c.base_reference(phase, direction);
+    if c.reference == Shape::Spline {
+        let curve = random_spline(&reference.curve, c.spline_irregularity, rng, |curve| {
+            let candidate = Reference::new(curve.clone(), c.speed, phase, direction);
+            c.within_limits(&candidate, cfg).is_ok()
+        });
+        reference = Reference::new(curve, c.speed, phase, direction);
+    }
+    reference
 }

@@ -30,6 +30,23 @@ pub enum Direction {
     Cw,
 }
 
+impl Direction {
+    /// +1 (the curve's own direction) or −1; "random" draws one boolean from `rng`.
+    pub fn draw<R: rand::Rng>(self, rng: &mut R) -> f64 {
+        match self {
+            Direction::Ccw => 1.0,
+            Direction::Cw => -1.0,
+            Direction::Random => {
+                if rng.random::<bool>() {
+                    1.0
+                } else {
+                    -1.0
+                }
+            }
+        }
+    }
+}
+
 crate::config_table! {
     /// `[track]`: the reference trajectory, start offsets, reward, end and statistics.
     pub struct TrackConfig {
@@ -188,7 +205,8 @@ impl TrackConfig {
         Ok(())
     }
 
-    fn validate(&self, origin: &str, cfg: &Scenario) -> Result<()> {
+    /// Checks the table against the scenario; errors name `track.<key>` and `origin`.
+    pub(crate) fn validate(&self, origin: &str, cfg: &Scenario) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
         for (key, v) in [
             ("track.size", self.size),
