@@ -12,7 +12,12 @@
 //! After each step (true pose; [`geometry`] tracks the closest point p_c): cross-track error
 //! d = (p − p_c)·n, left of the path positive; progress Δs = arc length travelled by p_c (m,
 //! negative when going backwards). Reward per step: `progress_weight·Δs − error_weight·|d| −
-//! time_penalty − speed_weight·|Δs/dt − v_d|/v_d − collision_penalty·[in contact]`. Terminated as a success once the progress
+//! time_penalty − speed_weight·max(0, Δs/dt − v_d)/v_d − collision_penalty·[in contact]`. Over
+//! a lap the progress terms sum to `progress_weight`·length whatever the speed, so the time
+//! penalty favours fast laps and the speed term slow ones: a lap at v ≥ v_d costs
+//! (length/dt)·(speed_weight/v_d − (speed_weight − time_penalty)/v), least at v = v_d. A
+//! two-sided speed term would also cost standing still, making early loss (termination) the
+//! cheapest start for a learner. Terminated as a success once the progress
 //! sums to one lap; as lost when |d| > `lost_distance`; truncated after `truncation_factor` ×
 //! length / v_d (or `task.max_steps` if sooner).
 //!
@@ -316,11 +321,11 @@ impl Task for PathFollow {
         self.stats
             .record(error, self.steps, self.dt, pf.transient, pf.converge_radius);
         let contact = robot.in_contact as u8 as f32;
-        let speed_error = (progress as f32 / self.dt - pf.speed).abs() / pf.speed;
+        let speeding = (progress as f32 / self.dt - pf.speed).max(0.0) / pf.speed;
         rewards[0] = pf.progress_weight * progress as f32
             - pf.error_weight * error
             - pf.time_penalty
-            - pf.speed_weight * speed_error
+            - pf.speed_weight * speeding
             - cfg.task.collision_penalty * contact;
         let lost = error > pf.lost_distance;
         let lap = self.progress >= self.path.length;
