@@ -102,6 +102,8 @@ pub struct PathFollow {
     pub cross_track: f32,
     /// Phase and arc position (m from the start) of the current waypoint.
     waypoint_phase: f64,
+    /// The current waypoint's position (m), kept with its phase.
+    waypoint_at: Vector,
     waypoint_along: f64,
     stats: ErrorStats,
 }
@@ -136,7 +138,7 @@ impl PathFollow {
 
     /// The current waypoint (m, world frame).
     pub fn waypoint(&self) -> Vector {
-        self.path.at(self.waypoint_phase).position
+        self.waypoint_at
     }
 
     /// The previewed path points ahead of the closest point to `phase` (world frame).
@@ -160,6 +162,7 @@ impl PathFollow {
                 break;
             }
             self.waypoint_phase = self.path.advance(self.waypoint_phase, spacing);
+            self.waypoint_at = self.path.at(self.waypoint_phase).position;
             self.waypoint_along += spacing;
         }
     }
@@ -219,6 +222,7 @@ impl Task for PathFollow {
             progress: 0.0,
             cross_track: 0.0,
             waypoint_phase: 0.0,
+            waypoint_at: Vector::ZERO,
             waypoint_along: 0.0,
             stats: ErrorStats::default(),
             cfg: pf,
@@ -287,6 +291,7 @@ impl Task for PathFollow {
         self.waypoint_phase = self
             .path
             .advance(self.phase, self.cfg.waypoint_spacing as f64);
+        self.waypoint_at = self.path.at(self.waypoint_phase).position;
         self.waypoint_along = self.cfg.waypoint_spacing as f64;
         self.stats = ErrorStats::start(self.cross_track.abs(), self.cfg.converge_radius);
     }
@@ -349,10 +354,19 @@ impl Task for PathFollow {
         out.put(heading_error.cos());
         let bound = |k: f32| k.clamp(-CURVATURE_BOUND, CURVATURE_BOUND);
         out.put(bound(c.curvature));
-        for p in self.preview_from(self.believed_phase) {
+        // The preview once (at most MAX_PREVIEW_POINTS points): curvatures, then positions.
+        let mut preview = [c; MAX_PREVIEW_POINTS as usize];
+        let n = self.cfg.preview_points as usize;
+        for (slot, p) in preview
+            .iter_mut()
+            .zip(self.preview_from(self.believed_phase))
+        {
+            *slot = p;
+        }
+        for p in &preview[..n] {
             out.put(bound(p.curvature));
         }
-        for p in self.preview_from(self.believed_phase) {
+        for p in &preview[..n] {
             let local = nav::to_robot_frame(world, 0, p.position);
             out.put(local.x.clamp(-reach, reach));
             out.put(local.y.clamp(-reach, reach));

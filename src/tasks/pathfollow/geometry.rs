@@ -22,8 +22,8 @@ use crate::tasks::reference::Curve;
 
 /// Half-width of the closest-point search window (m of arc).
 pub const WINDOW: f64 = 0.15;
-/// Samples on each side of the last closest phase.
-const SAMPLES_PER_SIDE: i32 = 5;
+/// Samples on each side of the last closest phase (every 5 cm of arc; Newton refines).
+const SAMPLES_PER_SIDE: i32 = 3;
 /// Newton refinements after sampling.
 const NEWTON_STEPS: usize = 3;
 /// Halvings of a Newton step that does not bring the point closer.
@@ -33,8 +33,9 @@ const BACKTRACKS: i32 = 4;
 const CORNER_COSINE: f32 = 0.999;
 /// Arc length (m) either side of a corner where its legs' normals are taken.
 const CORNER_PROBE: f64 = 1.0e-4;
-/// Longest step of arc-length integration (m).
-pub const ARC_STEP: f64 = 0.05;
+/// Longest step of arc-length integration (m): the preview's spacing, one midpoint step per
+/// previewed point (relative error about (step·κ)²/24, 0.1 mm per 0.1 m on the 0.6 m circle).
+pub const ARC_STEP: f64 = 0.1;
 
 /// A point of the path with its Frenet frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,7 +75,9 @@ impl Path {
     /// |p'(u)|: metres of arc per unit phase.
     fn rate(&self, u: f64) -> f64 {
         let [_, d1, _] = self.curve.eval(u);
-        d1[0].hypot(d1[1])
+        // √(x² + y²): no overflow to guard against here, and libm's hypot is several times
+        // slower (it was 14% of a PathFollow step).
+        (d1[0] * d1[0] + d1[1] * d1[1]).sqrt()
     }
 
     /// The path point at phase `u`.
