@@ -50,7 +50,7 @@ impl Direction {
 crate::config_table! {
     /// `[track]`: the reference trajectory, start offsets, reward, end and statistics.
     pub struct TrackConfig {
-        /// circle, lemniscate (Gerono's figure eight), square (corners: the limit of smooth controllers), spline (a random smooth closed curve from the world's stream) or waypoints (track.waypoints)
+        /// circle, lemniscate (Gerono's figure eight), square (corners: the limit of smooth controllers), spline (a random smooth closed curve from the world's stream) or waypoints (the waypoints key)
         reference: Shape = "circle",
         /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [tasks.md §3: R = 0.6 m]
         size: f32 = 0.6,
@@ -86,7 +86,7 @@ crate::config_table! {
         transient: f32 = 5.0,
         /// m, converged once the error stays below this [issue 14]
         converge_radius: f32 = 0.02,
-        /// reference = "waypoints": [[t, x, y], ...] (s, m, m), times strictly rising from 0; the last point repeats the first and its time is the period (track.speed is then unused)
+        /// reference = "waypoints": [[t, x, y], ...] (s, m, m), times strictly rising from 0; the last point repeats the first and its time is the period (speed is then unused)
         waypoints: Vec<[f32; 3]> = [],
     }
 }
