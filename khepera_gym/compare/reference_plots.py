@@ -101,14 +101,16 @@ def plot_reference_paths(
             ax.plot(*reference.T, color=colour, linestyle="--", linewidth=0.9, alpha=0.8)
             ax.scatter(*reference[0], marker="*", s=70, color=colour, zorder=7)
     handles, labels = axes[0].get_legend_handles_labels()
-    figure.legend(
+    # One legend, in the last panel's lower margin (the references stay within ±0.6 m): a
+    # figure legend "outside" the axes needs matplotlib 3.7, and the floor is 3.6.
+    axes[-1].legend(
         handles[:worlds],
         labels[:worlds],
-        loc="outside lower center",
+        loc="lower center",
         ncols=min(worlds, 6),
-        fontsize="small",
-        title="robot solid, reference dashed, star: the reference point at the start",
-        title_fontsize="small",
+        fontsize="x-small",
+        title="robot solid, reference dashed, star: reference at the start",
+        title_fontsize="x-small",
     )
     if suptitle is not None:
         figure.suptitle(suptitle)
@@ -162,7 +164,9 @@ def plot_error_over_time(
         time = np.arange(len(held)) * dt
         low, median, high = np.nanpercentile(held, [25, 50, 75], axis=1)
         colour = f"C{index % 10}"
-        ax.fill_between(time, low, high, color=colour, alpha=0.2, linewidth=0)
+        # An explicit `where` (an array): matplotlib 3.6, the floor, fails on the default one.
+        band = np.isfinite(low) & np.isfinite(high)
+        ax.fill_between(time, low, high, where=band, color=colour, alpha=0.2, linewidth=0)
         ax.plot(time, median, color=colour, label=f"{name} (median, quartiles)")
     if radius is not None:
         ax.axhline(radius, color="0.3", linestyle=":", linewidth=1)
