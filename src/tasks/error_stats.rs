@@ -1,4 +1,4 @@
-//! Error statistics of an episode, shared by the tracking and path-following tasks: the RMS
+//! Error statistics of an episode, shared by the tracking, platoon and path-following tasks: the RMS
 //! and largest error after a transient, the integral of the absolute error (IAE), and the time
 //! the error fell below a radius for good.
 //!
@@ -50,22 +50,42 @@ impl ErrorStats {
         }
     }
 
-    /// RMS and maximum (m), IAE (m·s) and convergence time (s; infinite if above the radius
-    /// now) for a control step of `dt` s.
-    pub fn write(&self, dt: f32, out: &mut [f32]) {
+    /// The RMS (m, in f64) and largest error (m): after the transient, or over every step if
+    /// the episode ended within it.
+    pub fn rms_max(&self) -> (f64, f32) {
         if self.samples > 0 {
-            out[0] = (self.square_sum / self.samples as f64).sqrt() as f32;
-            out[1] = self.max;
+            ((self.square_sum / self.samples as f64).sqrt(), self.max)
         } else {
-            out[0] = (self.square_sum_all / self.steps.max(1) as f64).sqrt() as f32;
-            out[1] = self.max_all;
+            (
+                (self.square_sum_all / self.steps.max(1) as f64).sqrt(),
+                self.max_all,
+            )
         }
-        out[2] = self.iae as f32;
-        out[3] = match (self.above_now, self.last_above) {
+    }
+
+    /// Σ error·dt (m·s).
+    pub fn iae(&self) -> f64 {
+        self.iae
+    }
+
+    /// When the error fell below the radius for good (s), for a control step of `dt` s;
+    /// infinite if it is above the radius now.
+    pub fn converge_time(&self, dt: f32) -> f32 {
+        match (self.above_now, self.last_above) {
             (true, _) => f32::INFINITY,
             (false, None) => 0.0,
             // Below the radius since the step after the last one above it.
             (false, Some(k)) => ((k as f64 + 1.0) * dt as f64) as f32,
-        };
+        }
+    }
+
+    /// RMS and maximum (m), IAE (m·s) and convergence time (s; infinite if above the radius
+    /// now) for a control step of `dt` s.
+    pub fn write(&self, dt: f32, out: &mut [f32]) {
+        let (rms, max) = self.rms_max();
+        out[0] = rms as f32;
+        out[1] = max;
+        out[2] = self.iae as f32;
+        out[3] = self.converge_time(dt);
     }
 }

@@ -37,6 +37,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
+use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::Reference;
 use super::track::{draw_reference, Track};
@@ -85,16 +86,8 @@ struct Follower {
     error: f32,
     /// Lost (terminated): its statistics stopped, its wheels get zero commands.
     lost: bool,
-    /// Steps recorded (until lost).
-    steps: u32,
-    iae: f64,
-    square_sum: f64,
-    samples: u32,
-    error_max: f32,
-    square_sum_all: f64,
-    error_max_all: f32,
-    last_above: Option<u32>,
-    above_now: bool,
+    /// Its error statistics, recorded until it is lost (Track's).
+    stats: ErrorStats,
 }
 
 impl Follower {
@@ -102,43 +95,12 @@ impl Follower {
         Vector::new(self.now[0], self.now[1])
     }
 
-    /// Records the error after step `step` (Track's rules).
-    fn record(&mut self, error: f32, step: u32, dt: f64, transient: f32, radius: f32) {
-        self.error = error;
-        self.steps = step;
-        self.iae += error as f64 * dt;
-        self.square_sum_all += (error as f64).powi(2);
-        self.error_max_all = self.error_max_all.max(error);
-        if step as f64 * dt >= transient as f64 - 1e-9 {
-            self.square_sum += (error as f64).powi(2);
-            self.samples += 1;
-            self.error_max = self.error_max.max(error);
-        }
-        self.above_now = error >= radius;
-        if self.above_now {
-            self.last_above = Some(step);
-        }
-    }
-
-    /// Its RMS and maximum error (after the transient; over every step if it ended within it).
-    fn rms_max(&self) -> (f64, f32) {
-        if self.samples > 0 {
-            (
-                (self.square_sum / self.samples as f64).sqrt(),
-                self.error_max,
-            )
-        } else {
-            let rms = (self.square_sum_all / self.steps.max(1) as f64).sqrt();
-            (rms, self.error_max_all)
-        }
-    }
-
     /// When its error fell below the radius for good (s); infinite if above it now or lost.
-    fn converge_time(&self, dt: f64) -> f32 {
-        match (self.above_now || self.lost, self.last_above) {
-            (true, _) => f32::INFINITY,
-            (false, None) => 0.0,
-            (false, Some(k)) => ((k as f64 + 1.0) * dt) as f32,
+    fn converge_time(&self, dt: f32) -> f32 {
+        if self.lost {
+            f32::INFINITY
+        } else {
+            self.stats.converge_time(dt)
         }
     }
 }
@@ -284,8 +246,7 @@ impl Task for Platoon {
         let radius = self.cfg.track.converge_radius;
         for (f, robot) in self.robots.iter_mut().zip(&world.robots) {
             f.error = (f.position() - robot.position).length();
-            f.above_now = f.error >= radius;
-            f.last_above = f.above_now.then_some(0);
+            f.stats = ErrorStats::start(f.error, radius);
         }
     }
 
@@ -312,7 +273,6 @@ impl Task for Platoon {
         self.steps = self.steps.saturating_add(1);
         self.set_now();
         let c = &self.cfg.track;
-        let dt = self.dt as f64;
         for (k, (f, robot)) in self.robots.iter_mut().zip(&world.robots).enumerate() {
             if f.lost {
                 rewards[k] = 0.0;
@@ -321,7 +281,9 @@ impl Task for Platoon {
             }
             let error = (f.position() - robot.position).length();
             let heading_error = wrap_angle(f.now[2] - robot.heading);
-            f.record(error, self.steps, dt, c.transient, c.converge_radius);
+            f.error = error;
+            f.stats
+                .record(error, self.steps, self.dt, c.transient, c.converge_radius);
             let contact = robot.in_contact as u8 as f32;
             rewards[k] = -c.error_weight * error
                 - c.heading_weight * (1.0 - heading_error.cos())
@@ -336,11 +298,11 @@ impl Task for Platoon {
         let n = self.robots.len().max(1) as f64;
         let (mut square_sum, mut max, mut iae, mut converge) = (0.0, 0.0f32, 0.0, 0.0f32);
         for f in &self.robots {
-            let (rms, error_max) = f.rms_max();
+            let (rms, error_max) = f.stats.rms_max();
             square_sum += rms * rms;
             max = max.max(error_max);
-            iae += f.iae;
-            converge = converge.max(f.converge_time(self.dt as f64));
+            iae += f.stats.iae();
+            converge = converge.max(f.converge_time(self.dt));
         }
         out[0] = (square_sum / n).sqrt() as f32;
         out[1] = max;

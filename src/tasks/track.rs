@@ -28,6 +28,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
+use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Posture, Reference, Shape};
 use super::{Agent, Task, TaskInfo};
@@ -75,16 +76,7 @@ pub struct Track {
     now: [f32; 5],
     /// Position error after the last step (m).
     pub error: f32,
-    iae: f64,
-    square_sum: f64,
-    samples: u32,
-    error_max: f32,
-    /// The same over every step, for episodes that end within the transient.
-    square_sum_all: f64,
-    error_max_all: f32,
-    /// Step of the last error at or above the convergence radius (0: the start), if any.
-    last_above: Option<u32>,
-    above_now: bool,
+    stats: ErrorStats,
 }
 
 impl Track {
@@ -134,23 +126,6 @@ impl Track {
         blocks.push(Block::new("wheel_speeds", 2, -1.0, 1.0));
         ObsLayout::new(blocks)
     }
-
-    fn record(&mut self, error: f32, cfg: &TrackConfig) {
-        self.error = error;
-        let dt = self.dt as f64;
-        self.iae += error as f64 * dt;
-        self.square_sum_all += (error as f64).powi(2);
-        self.error_max_all = self.error_max_all.max(error);
-        if self.steps as f64 * dt >= cfg.transient as f64 - 1e-9 {
-            self.square_sum += (error as f64).powi(2);
-            self.samples += 1;
-            self.error_max = self.error_max.max(error);
-        }
-        self.above_now = error >= cfg.converge_radius;
-        if self.above_now {
-            self.last_above = Some(self.steps);
-        }
-    }
 }
 
 impl Task for Track {
@@ -171,14 +146,7 @@ impl Task for Track {
             max_steps: cfg.task.max_steps,
             now: [0.0; 5],
             error: 0.0,
-            iae: 0.0,
-            square_sum: 0.0,
-            samples: 0,
-            error_max: 0.0,
-            square_sum_all: 0.0,
-            error_max_all: 0.0,
-            last_above: None,
-            above_now: true,
+            stats: ErrorStats::default(),
             cfg: track,
         };
         state.set_now();
@@ -220,16 +188,9 @@ impl Task for Track {
 
     fn reset(&mut self, world: &World, _layout: &Layout) {
         self.steps = 0;
-        self.iae = 0.0;
-        self.square_sum = 0.0;
-        self.samples = 0;
-        self.error_max = 0.0;
-        self.square_sum_all = 0.0;
-        self.error_max_all = 0.0;
         self.set_now();
         self.error = (self.reference_point() - world.robots[0].position).length();
-        self.above_now = self.error >= self.cfg.converge_radius;
-        self.last_above = self.above_now.then_some(0);
+        self.stats = ErrorStats::start(self.error, self.cfg.converge_radius);
     }
 
     fn max_steps(&self, _cfg: &Scenario) -> u32 {
@@ -248,8 +209,15 @@ impl Task for Track {
         let robot = &world.robots[0];
         let error = (self.reference_point() - robot.position).length();
         let heading_error = wrap_angle(self.now[2] - robot.heading);
-        let track = self.cfg.clone();
-        self.record(error, &track);
+        let track = &self.cfg;
+        self.error = error;
+        self.stats.record(
+            error,
+            self.steps,
+            self.dt,
+            track.transient,
+            track.converge_radius,
+        );
         let contact = robot.in_contact as u8 as f32;
         rewards[0] = -track.error_weight * error
             - track.heading_weight * (1.0 - heading_error.cos())
@@ -259,21 +227,7 @@ impl Task for Track {
     }
 
     fn extra_stats(&self, out: &mut [f32]) {
-        if self.samples > 0 {
-            out[0] = (self.square_sum / self.samples as f64).sqrt() as f32;
-            out[1] = self.error_max;
-        } else {
-            // Ended within the transient (lost): over every step it lasted.
-            out[0] = (self.square_sum_all / self.steps.max(1) as f64).sqrt() as f32;
-            out[1] = self.error_max_all;
-        }
-        out[2] = self.iae as f32;
-        out[3] = match (self.above_now, self.last_above) {
-            (true, _) => f32::INFINITY,
-            (false, None) => 0.0,
-            // Below the radius since the step after the last one above it.
-            (false, Some(k)) => ((k as f64 + 1.0) * self.dt as f64) as f32,
-        };
+        self.stats.write(self.dt, out);
     }
 
     fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
