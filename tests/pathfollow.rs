@@ -392,6 +392,8 @@ fn test_bad_paths_are_config_errors_naming_the_key() {
             "pathfollow.obstacle_count",
         ),
         ("preview_points = 17", "pathfollow.preview_points"),
+        ("preview_spacing = 1e30", "pathfollow.preview_spacing"),
+        ("waypoint_spacing = 4.0", "pathfollow.waypoint_spacing"),
         (
             "spline_irregularity = 0.6",
             "pathfollow.spline_irregularity",

@@ -214,7 +214,8 @@ class PathFollowEnv(KheperaEnv):
     too sharp for the wheels at the desired speed names `pathfollow.speed` (for a scenario's
     own path, `pathfollow.points` names both, and also an open loop, repeated points, fewer
     than 4 points, or points given with another path); too many obstacles for the lap names
-    `pathfollow.obstacle_count`.
+    `pathfollow.obstacle_count`; a preview or waypoint spacing longer than the path names its
+    key.
 
     ## Version History
 

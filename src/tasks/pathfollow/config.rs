@@ -295,6 +295,22 @@ impl PathFollowConfig {
                 format!("a lap would take {:.3e} steps", steps),
             );
         }
+        // Arc lengths walked every step: at most a lap (a longer one would only repeat it, and
+        // an unbounded one would integrate for ever).
+        for (key, v) in [
+            ("pathfollow.preview_spacing", self.preview_spacing),
+            ("pathfollow.waypoint_spacing", self.waypoint_spacing),
+        ] {
+            if v as f64 > path.length {
+                return bad(
+                    key,
+                    format!(
+                        "must be at most the path's length, {:.3} m, got {v}",
+                        path.length
+                    ),
+                );
+            }
+        }
         if self.obstacle_count > MAX_PATH_OBSTACLES {
             return bad(
                 "pathfollow.obstacle_count",
