@@ -16,7 +16,6 @@
 //!
 //! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.
 
-use super::position::twist_to_wheels;
 use super::{non_negative, Controller, WheelMap};
 use crate::error::Result;
 use crate::obs::ObsLayout;
@@ -108,11 +107,7 @@ impl Controller for KanayamaPolicy {
             obs[self.heading + 1],
         ];
         let (v, w) = self.law.twist(error, v_r, w_r);
-        out.copy_from_slice(
-            &self
-                .wheels
-                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
-        );
+        out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }
 

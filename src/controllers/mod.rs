@@ -69,6 +69,11 @@ impl WheelMap {
     pub fn action(&self, wheels: [f32; 2]) -> [f32; 2] {
         wheels.map(|w| (w / self.max_wheel_speed).clamp(-1.0, 1.0))
     }
+
+    /// Normalised actions of a twist: speed `v` (m/s) and turn rate `w` (rad/s).
+    pub fn twist_action(&self, v: f32, w: f32) -> [f32; 2] {
+        self.action(position::twist_to_wheels(v, w, self.axle_length))
+    }
 }
 
 /// The contract every controller implements.
@@ -314,5 +319,47 @@ impl GoalBlocks {
             sin: layout.require("goal_bearing_sin", 1, who)?,
             cos: layout.require("goal_bearing_cos", 1, who)?,
         })
+    }
+}
+
+/// Where a path-following observation keeps the blocks a path follower reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PathBlocks {
+    cross_track: usize,
+    heading: usize,
+    curvature: usize,
+    preview: usize,
+    preview_points: usize,
+    speed: usize,
+}
+
+impl PathBlocks {
+    fn find(layout: &ObsLayout, who: &str) -> Result<Self> {
+        let preview_points = layout.find("preview").map_or(0, |r| r.len() / 2);
+        if preview_points > MAX_PATH_PREVIEW {
+            return Err(Error::Param(format!(
+                "{who}: reads at most {MAX_PATH_PREVIEW} preview points, the layout has \
+                 {preview_points}"
+            )));
+        }
+        Ok(Self {
+            cross_track: layout.require("cross_track_error", 1, who)?,
+            heading: layout.require("path_heading_error", 2, who)?,
+            curvature: layout.require("curvature", 1 + preview_points, who)?,
+            preview: if preview_points > 0 {
+                layout.require("preview", 2 * preview_points, who)?
+            } else {
+                0
+            },
+            preview_points,
+            speed: layout.require("desired_speed", 1, who)?,
+        })
+    }
+
+    /// The closest path point in the robot frame.
+    fn closest(&self, obs: &[f32]) -> [f32; 2] {
+        let d = obs[self.cross_track];
+        let (sin_e, cos_e) = (obs[self.heading], obs[self.heading + 1]);
+        [d * sin_e, -d * cos_e]
     }
 }

@@ -84,11 +84,7 @@ impl Controller for PositionPolicy {
     fn act(&self, obs: &[f32], out: &mut [f32]) {
         let (d, bearing) = goal_of(obs, self.goal);
         let (v, w) = self.law.twist(d, bearing);
-        out.copy_from_slice(
-            &self
-                .wheels
-                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
-        );
+        out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }
 
@@ -125,11 +121,7 @@ impl Controller for PositionChasePolicy {
     fn act(&self, obs: &[f32], out: &mut [f32]) {
         let (x, y) = (obs[self.error], obs[self.error + 1]);
         let (v, w) = self.law.twist(x.hypot(y), y.atan2(x));
-        out.copy_from_slice(
-            &self
-                .wheels
-                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
-        );
+        out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }
 

@@ -17,8 +17,7 @@
 //!
 //! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.
 
-use super::position::twist_to_wheels;
-use super::{positive, Controller, WheelMap};
+use super::{positive, Controller, PathBlocks, WheelMap};
 use crate::error::Result;
 use crate::obs::ObsLayout;
 
@@ -31,48 +30,6 @@ crate::config_table! {
         axle_length: f32 = 0.1054,
         /// wheel speed that an action of 1 stands for (m/s)
         max_wheel_speed: f32 = 0.813,
-    }
-}
-
-/// Where a path-following observation keeps the blocks a path follower reads.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct PathBlocks {
-    pub cross_track: usize,
-    pub heading: usize,
-    pub curvature: usize,
-    pub preview: usize,
-    pub preview_points: usize,
-    pub speed: usize,
-}
-
-impl PathBlocks {
-    pub(super) fn find(layout: &ObsLayout, who: &str) -> Result<Self> {
-        let preview_points = layout.find("preview").map_or(0, |r| r.len() / 2);
-        if preview_points > super::MAX_PATH_PREVIEW {
-            return Err(crate::error::Error::Param(format!(
-                "{who}: reads at most {} preview points, the layout has {preview_points}",
-                super::MAX_PATH_PREVIEW
-            )));
-        }
-        Ok(Self {
-            cross_track: layout.require("cross_track_error", 1, who)?,
-            heading: layout.require("path_heading_error", 2, who)?,
-            curvature: layout.require("curvature", 1 + preview_points, who)?,
-            preview: if preview_points > 0 {
-                layout.require("preview", 2 * preview_points, who)?
-            } else {
-                0
-            },
-            preview_points,
-            speed: layout.require("desired_speed", 1, who)?,
-        })
-    }
-
-    /// The closest path point in the robot frame.
-    pub fn closest(&self, obs: &[f32]) -> [f32; 2] {
-        let d = obs[self.cross_track];
-        let (sin_e, cos_e) = (obs[self.heading], obs[self.heading + 1]);
-        [d * sin_e, -d * cos_e]
     }
 }
 
@@ -152,11 +109,7 @@ impl Controller for PurePursuitPolicy {
         let l2 = x * x + y * y;
         let v = obs[self.at.speed] * self.wheels.max_wheel_speed;
         let w = if l2 > 0.0 { 2.0 * v * y / l2 } else { 0.0 };
-        out.copy_from_slice(
-            &self
-                .wheels
-                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
-        );
+        out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }
 

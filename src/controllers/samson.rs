@@ -16,9 +16,7 @@
 //!
 //! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.
 
-use super::position::twist_to_wheels;
-use super::pure_pursuit::PathBlocks;
-use super::{non_negative, Controller, WheelMap};
+use super::{non_negative, Controller, PathBlocks, WheelMap};
 use crate::error::Result;
 use crate::obs::ObsLayout;
 
@@ -99,11 +97,7 @@ impl Controller for SamsonPolicy {
         // θ̃ = θ − θ_p = −(θ_p − θ).
         let theta = -obs[self.at.heading].atan2(obs[self.at.heading + 1]);
         let w = self.law.turn_rate(v, d, theta, obs[self.at.curvature]);
-        out.copy_from_slice(
-            &self
-                .wheels
-                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
-        );
+        out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }
 

@@ -36,7 +36,6 @@
 
 use std::f32::consts::PI;
 
-use super::position::twist_to_wheels;
 use super::{goal_of, non_negative, positive, Controller, GoalBlocks, WheelMap};
 use crate::error::{Error, Result};
 use crate::obs::ObsLayout;
@@ -216,11 +215,7 @@ impl Controller for VfhPolicy {
         let us = &obs[self.us..self.us + US_COUNT];
         let wheels = &obs[self.wheel_speeds..self.wheel_speeds + 2];
         let (v, w) = self.vfh.twist(ir, us, d, bearing, wheels[1] - wheels[0]);
-        out.copy_from_slice(
-            &self
-                .wheels
-                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
-        );
+        out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }
 

@@ -11,7 +11,7 @@
 //!
 //! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.
 
-use super::position::{twist_to_wheels, PositionControl};
+use super::position::PositionControl;
 use super::{positive, Controller, WheelMap};
 use crate::error::Result;
 use crate::obs::ObsLayout;
@@ -73,10 +73,6 @@ impl Controller for WaypointPolicy {
         };
         let (x, y) = (obs[self.waypoint], obs[self.waypoint + 1]);
         let (v, w) = law.twist(x.hypot(y), y.atan2(x));
-        out.copy_from_slice(
-            &self
-                .wheels
-                .action(twist_to_wheels(v, w, self.wheels.axle_length)),
-        );
+        out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }

@@ -326,6 +326,12 @@ impl TaskKind {
     }
 }
 
+/// Steps of an episode that lasts `seconds` (s) at `dt` (s) per step, rounded up, capped at
+/// `cap` (`task.max_steps`): the tasks whose episodes last a lap.
+pub(crate) fn episode_steps(cap: u32, seconds: f64, dt: f32) -> u32 {
+    cap.min((seconds / dt as f64).ceil().min(u32::MAX as f64) as u32)
+}
+
 /// Loads the scenario of the task named `task` (its defaults, then the file, then the
 /// overrides); an unknown task is a [`crate::error::Error::Config`] listing the known ones.
 pub fn load_scenario(task: &str, source: &Source) -> Result<Scenario> {

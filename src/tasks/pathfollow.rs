@@ -274,10 +274,7 @@ impl Task for PathFollow {
         }
         self.phase = start;
         let lap = pf.truncation_factor as f64 * self.path.length / pf.speed as f64;
-        self.max_steps = cfg
-            .task
-            .max_steps
-            .min((lap / self.dt as f64).ceil().min(u32::MAX as f64) as u32);
+        self.max_steps = super::episode_steps(cfg.task.max_steps, lap, self.dt);
     }
 
     fn reset(&mut self, world: &World, _layout: &Layout) {

@@ -229,12 +229,8 @@ impl Task for Platoon {
         for (slot, pose) in layout.poses.iter_mut().zip(poses) {
             *slot = pose;
         }
-        let laps =
-            (self.reference.period + self.cfg.track.truncation_margin as f64) / self.dt as f64;
-        self.max_steps = cfg
-            .task
-            .max_steps
-            .min(laps.ceil().min(u32::MAX as f64) as u32);
+        let seconds = self.reference.period + self.cfg.track.truncation_margin as f64;
+        self.max_steps = super::episode_steps(cfg.task.max_steps, seconds, self.dt);
     }
 
     fn reset(&mut self, world: &World, _layout: &Layout) {

@@ -171,7 +171,7 @@ impl Task for Track {
         let c = self.cfg.clone();
         let reference = draw_reference(&c, cfg, rng);
         let start = reference.at(0.0);
-        let laps = (reference.period + c.truncation_margin as f64) / self.dt as f64;
+        let seconds = reference.period + c.truncation_margin as f64;
         self.reference = reference;
         let distance = c.start_offset * rng.random::<f32>();
         let bearing = rng.random::<f32>() * std::f32::consts::TAU;
@@ -180,10 +180,7 @@ impl Task for Track {
         if let Some(pose) = layout.poses.first_mut() {
             *pose = (position, wrap_angle(start.heading + heading));
         }
-        self.max_steps = cfg
-            .task
-            .max_steps
-            .min(laps.ceil().min(u32::MAX as f64) as u32);
+        self.max_steps = super::episode_steps(cfg.task.max_steps, seconds, self.dt);
     }
 
     fn reset(&mut self, world: &World, _layout: &Layout) {
