@@ -161,7 +161,10 @@ class NavEnv(KheperaEnv):
     right) from 0.25 m to 2 m in whole centimetres, noise `sensors.us_noise_sigma` m, with the
     K-Team codes 0 (too close), 1000 (nothing), 2000 (disabled). Raw values in the real robot's
     units: `env.unwrapped.sensor_readings()` ("ir_raw", "us_cm", "wheel_speeds" m/s, "encoders",
-    "gyro_z" rad/s).
+    "gyro_z" rad/s). Carried on request (`carry`, `observe`): the IMU (`imu`, the LSM330DLC:
+    accelerometer ±2 g in 1 mg counts, z negative with gravity, from the body's real acceleration
+    with contacts; gyroscope on three axes), readings "accel_raw", "accel_g", "imu_gyro_raw",
+    "imu_gyro", observation block `imu` of 6 values in [-1, 1].
 
     ## Scenario file
 
@@ -222,8 +225,10 @@ class NavEnv(KheperaEnv):
     | `sensors.us_acceptance`       | 22.5°   | rad; no echo from a surface hit further from |
     |                               |         | its normal [S: Webots]; π/2 = any (v0)       |
     | `sensors.gyro_noise_sigma`    | 0.2     | °/s, Gaussian [E]                            |
-    | `sensors.carry`               | ir, us, | sensors each robot has (others cost nothing; |
-    |                               | gyro    | v0: ir, us)                                  |
+    | `sensors.imu_accel_noise_sigma` | 0.002 | g, Gaussian, per axis (imu) [E]              |
+    | `sensors.imu_gyro_noise_sigma` | 0.2    | °/s, Gaussian, per axis (imu) [E]            |
+    | `sensors.carry`               | ir, us, | sensors each robot has (ir, us, gyro, imu;   |
+    |                               | gyro    | others cost nothing; v0: ir, us)             |
     | `sensors.observe`             | ir, us  | carried sensors whose blocks the observation |
     |                               |         | holds (in this order whatever the list's)    |
     | `task.goal_radius`            | 0.05    | success distance (m)                         |

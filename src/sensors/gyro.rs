@@ -119,6 +119,7 @@ mod tests {
             others: &[],
             robot_reflectance: 1.0,
             yaw_rate: 1.0,
+            acceleration: rapier2d::math::Vector::ZERO,
             dt: 0.05,
             fresh: false,
         };

@@ -16,6 +16,7 @@
 //! sensor in registry order (so a world's results do not depend on the thread count).
 
 pub mod gyro;
+pub mod imu;
 pub mod ir;
 pub mod ultrasonic;
 
@@ -31,6 +32,7 @@ use crate::obs::{Block, ObsWriter};
 use crate::world::scene::Scene;
 
 pub use gyro::Gyro;
+pub use imu::Imu;
 pub use ir::{IrRing, IR_BEARINGS, IR_COUNT};
 pub use ultrasonic::{Ultrasonic, US_BEARINGS, US_COUNT, US_DISABLED, US_NOTHING, US_TOO_CLOSE};
 
@@ -50,6 +52,9 @@ pub struct SenseContext<'a> {
     pub robot_reflectance: f32,
     /// The robot's yaw rate over the last step (rad/s).
     pub yaw_rate: f32,
+    /// The body's planar acceleration around the start of the last step, in the robot frame
+    /// (m/s²); kept only while the robot carries the IMU, else zero.
+    pub acceleration: Vector,
     /// The control step (s): the time since the sensors were last read.
     pub dt: f32,
     /// A new episode: every sensor takes a new reading, whatever its refresh period.
@@ -189,7 +194,7 @@ const SUITE_KEYS: &[KeyDoc] = &[
     KeyDoc {
         name: "carry",
         default: "[\"ir\", \"us\", \"gyro\"]",
-        comment: "sensors each robot has (ir, us, gyro); others cost nothing",
+        comment: "sensors each robot has (ir, us, gyro, imu); others cost nothing",
     },
     KeyDoc {
         name: "observe",
@@ -421,6 +426,7 @@ sensor_registry! {
     ir: IrRing,
     us: Ultrasonic,
     gyro: Gyro,
+    imu: Imu,
 }
 
 fn strings(list: &[String]) -> Value {

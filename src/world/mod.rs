@@ -51,11 +51,18 @@ pub struct Robot {
     pub yaw_rate: f32,
     /// Distance the centre moved during the last step (m).
     pub step_travel: f32,
+    /// Mean velocity of the centre over the last step (m/s, world frame), kept only while the
+    /// robot carries the IMU.
+    pub step_velocity: Vector,
+    /// Acceleration of the centre around the start of the last step (m/s², robot frame): the
+    /// change of `step_velocity` over the last two steps; kept only while it carries the IMU.
+    pub acceleration: Vector,
     /// Whether the robot touched a wall, obstacle or robot during the last step.
     pub in_contact: bool,
     /// Its sensors' last readings, in the real robot's units.
     pub readings: Readings,
     step_start_heading: f32,
+    step_start_position: Vector,
 }
 
 /// A world: scene, physics, robots, sensors and random stream. It serialises whole (scratch
@@ -238,6 +245,7 @@ impl World {
                 others: &self.others,
                 robot_reflectance: self.robot_reflectance,
                 yaw_rate: robot.yaw_rate,
+                acceleration: robot.acceleration,
                 dt: self.dt,
                 fresh,
             };

@@ -61,6 +61,7 @@ impl World {
             r.step_travel = 0.0;
             r.in_contact = false;
             r.step_start_heading = r.heading;
+            r.step_start_position = r.position;
         }
         match self.drive_model {
             DriveModel::Kinematic => self.advance_kinematic(),
@@ -110,9 +111,20 @@ impl World {
     }
 
     fn finish_step(&mut self) {
+        let inertial = self.sensors.imu.is_some();
         for r in &mut self.robots {
             r.heading = wrap_angle(r.heading);
             r.yaw_rate = wrap_angle(r.heading - r.step_start_heading) / self.dt;
+            if inertial {
+                // The difference of the mean velocities of the last two steps is the mean
+                // acceleration around their boundary, the start of this step: rotated into the
+                // robot's frame at that moment.
+                let velocity = (r.position - r.step_start_position) / self.dt;
+                let (s, c) = r.step_start_heading.sin_cos();
+                let a = (velocity - r.step_velocity) / self.dt;
+                r.acceleration = Vector::new(c * a.x + s * a.y, c * a.y - s * a.x);
+                r.step_velocity = velocity;
+            }
         }
     }
 
