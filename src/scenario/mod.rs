@@ -13,6 +13,7 @@
 //! Units: metres, seconds, radians, m/s, raw sensor counts where stated. Frame: the world frame,
 //! arena centred at the origin.
 
+mod scenes;
 mod sections;
 
 use serde::Serialize;
@@ -25,22 +26,11 @@ use crate::robot::RobotConfig;
 use crate::sensors::SensorsConfig;
 
 pub use crate::config::Param;
+pub use scenes::{scene, SCENES};
 pub use sections::{
     ArenaConfig, DriveModel, Localization, ObstacleConfig, ObstacleKind, ObstacleSpec,
     PhysicsConfig, Placement, SpawnConfig, TaskConfig,
 };
-
-/// Built-in scenes: scenario files overlaid on a task's defaults like a user's file, embedded so
-/// an installed wheel has them: (name, text).
-pub const SCENES: &[(&str, &str)] = &[
-    ("paper_fig6", include_str!("../../configs/paper_fig6.toml")),
-    ("paper_fig7", include_str!("../../configs/paper_fig7.toml")),
-];
-
-/// The text of a built-in scene.
-pub fn scene(name: &str) -> Option<&'static str> {
-    SCENES.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
-}
 
 /// What a task adds to the shared schema: its own defaults and its own table.
 #[derive(Debug, Clone, Copy)]

@@ -97,6 +97,10 @@ impl Sensor for Gyro {
     }
 
     fn draw(&self, _at: &DrawContext, _reading: &GyroReading, _marks: &mut Vec<Mark>) {}
+
+    fn reach(&self, _radius: f32) -> f32 {
+        0.0
+    }
 }
 
 #[cfg(test)]

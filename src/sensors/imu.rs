@@ -167,6 +167,10 @@ impl Sensor for Imu {
     }
 
     fn draw(&self, _at: &DrawContext, _reading: &ImuReading, _marks: &mut Vec<Mark>) {}
+
+    fn reach(&self, _radius: f32) -> f32 {
+        0.0
+    }
 }
 
 #[cfg(test)]

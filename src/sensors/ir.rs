@@ -207,6 +207,11 @@ impl Sensor for IrRing {
         self.model.noise_sigma = cfg.ir_noise_sigma.sample(rng);
     }
 
+    fn reach(&self, radius: f32) -> f32 {
+        // A ray of `range` from the rim meets discs whose centre is within this.
+        2.0 * radius + self.model.range
+    }
+
     fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut IrReading) {
         let (pos, radius) = (ctx.position, ctx.radius);
         // The IR rays are short: only obstacles and robots within reach of the rim can be hit.

@@ -46,7 +46,8 @@ pub struct SenseContext<'a> {
     pub sin_cos: (f32, f32),
     /// Body radius of every robot (m); sensors sit on the rim.
     pub radius: f32,
-    /// Centres of the other robots of the world (m), in robot order.
+    /// Centres of the other robots of the world (m), in robot order: all of them, or in a
+    /// world of many robots those within the suite's [`Sensor::reach`].
     pub others: &'a [Vector],
     /// Infrared reflectance of the robots' shells (relative to white paper).
     pub robot_reflectance: f32,
@@ -178,6 +179,13 @@ pub trait Sensor: Clone + Serialize + DeserializeOwned {
 
     /// Appends what the renderer draws for one robot's reading.
     fn draw(&self, at: &DrawContext, reading: &Self::Reading, marks: &mut Vec<Mark>);
+
+    /// How far (m) from the robot's centre another robot's centre can be and still change this
+    /// sensor's reading, robots being discs of `radius`: worlds of many robots show the sensor
+    /// only the robots within it (`SenseContext::others`). Infinite (the default): all of them.
+    fn reach(&self, _radius: f32) -> f32 {
+        f32::INFINITY
+    }
 }
 
 /// A sensor a robot carries, and whether its observation holds it.
@@ -408,6 +416,18 @@ macro_rules! sensor_registry {
                         c.sensor.readout(&readings.$field, out);
                     }
                 )*
+            }
+
+            /// The largest [`Sensor::reach`] of the carried sensors (0 when none looks at
+            /// other robots).
+            pub fn reach(&self, radius: f32) -> f32 {
+                let mut reach = 0.0f32;
+                $(
+                    if let Some(c) = &self.$field {
+                        reach = reach.max(c.sensor.reach(radius));
+                    }
+                )*
+                reach
             }
 
             /// Appends what every carried sensor of one robot draws.

@@ -194,6 +194,11 @@ impl Sensor for Ultrasonic {
         self.model.noise_sigma = cfg.us_noise_sigma.sample(rng);
     }
 
+    fn reach(&self, radius: f32) -> f32 {
+        // The cast (max range + 1 cm) starts on the rim and meets discs of `radius`.
+        2.0 * radius + self.model.max_range + 0.01
+    }
+
     fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut UsReading) {
         // The five readings hold until the sweep comes round again.
         reading.age += ctx.dt;

@@ -20,8 +20,13 @@ use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 
-/// Largest number of robots in a multinav world.
-pub const MAX_ROBOTS: u32 = 32;
+/// Largest number of robots in a multinav world (a swarm; issue 16).
+pub const MAX_ROBOTS: u32 = 1024;
+
+/// Share of the spawn region random sequential placement can cover with the robots' exclusion
+/// discs before it jams: 0.547 for discs in the plane (Feder, J. Theor. Biol. 87, 1980); 0.5
+/// leaves room for the finite number of tries per robot.
+const PLACEMENT_COVERAGE: f32 = 0.5;
 
 /// multinav: the Nav defaults and the `[multinav]` table.
 pub const MULTINAV: TaskInfo = TaskInfo {
@@ -52,12 +57,12 @@ collision_penalty = 0.5      # contacts (with walls and other robots) cost as in
 crate::config_table! {
     /// `[multinav]`: several robots, each with its own goal.
     pub struct MultiNavConfig {
-        /// robots, each with its own goal; they are obstacles to each other (1..32)
+        /// robots, each with its own goal; they are obstacles to each other (1..1024; a swarm needs an arena to match, see `configs/swarm.toml`)
         n_robots: u32 = 4,
     }
 }
 
-fn check_section(table: &Table, _scenario: &Scenario, origin: &str) -> Result<()> {
+fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()> {
     let m = MultiNavConfig::from_table(table, origin, "multinav")?;
     if m.n_robots == 0 || m.n_robots > MAX_ROBOTS {
         return Err(Error::config(
@@ -66,7 +71,34 @@ fn check_section(table: &Table, _scenario: &Scenario, origin: &str) -> Result<()
             format!("must be in 1..={MAX_ROBOTS}, got {}", m.n_robots),
         ));
     }
+    let fit = robots_that_fit(scenario);
+    if m.n_robots as usize > fit {
+        let a = &scenario.arena;
+        return Err(Error::config(
+            origin,
+            "multinav.n_robots",
+            format!(
+                "{} robots do not fit in a {} m x {} m arena: random placement fits about {fit} \
+                 (centres and goals at least 2 radii + obstacles.spawn_clearance apart); use \
+                 fewer robots or a larger arena.width and arena.height",
+                m.n_robots, a.width, a.height
+            ),
+        ));
+    }
     Ok(())
+}
+
+/// About how many robots (and as many goals) random sequential placement fits in the spawn
+/// region, each excluding a disc of half their least spacing.
+pub fn robots_that_fit(cfg: &Scenario) -> usize {
+    let radius = cfg.robot.radius;
+    let apart = 2.0 * radius + cfg.obstacles.spawn_clearance;
+    let margin = radius + cfg.spawn.wall_margin;
+    // Centres range over the arena less the margins; their discs reach half a spacing beyond.
+    let side = |length: f32| (length - 2.0 * margin).max(0.0) + apart;
+    let area = side(cfg.arena.width) * side(cfg.arena.height);
+    let per_robot = std::f32::consts::PI * 0.25 * apart * apart;
+    (PLACEMENT_COVERAGE * area / per_robot) as usize
 }
 
 /// Per-world state of the multi-robot navigation task.

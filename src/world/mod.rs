@@ -8,6 +8,7 @@
 //!
 //! Units: metres, seconds, radians; world frame with the arena centred at the origin.
 
+pub mod grid;
 pub mod layout;
 mod motion;
 pub mod physics;
@@ -21,6 +22,7 @@ use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::{DriveModel, Localization, Scenario};
 use crate::sensors::{Readings, SenseContext, Suite};
+use grid::Grid;
 pub use motion::integrate_arc;
 use physics::{BodyState, Physics, PhysicsParams, TractionBody};
 pub use scene::{Scene, SceneShape};
@@ -96,7 +98,26 @@ pub struct World {
     traction: Vec<TractionBody>,
     #[serde(skip)]
     others: Vec<Vector>,
+    #[serde(skip)]
+    grid: Grid,
+    #[serde(skip)]
+    near: Vec<u32>,
+    #[serde(skip)]
+    speeds: Vec<f32>,
+    /// Worlds of more robots than this find neighbours through the grid ([`GRID_MIN_ROBOTS`];
+    /// tests set it to compare both ways).
+    #[serde(skip, default = "grid_min_robots")]
+    pub grid_min_robots: usize,
 }
+
+fn grid_min_robots() -> usize {
+    GRID_MIN_ROBOTS
+}
+
+/// Worlds of more robots than this find each robot's neighbours through a [`Grid`]; smaller
+/// ones loop over every robot (32 was the largest world before swarms; both ways give the same
+/// readings).
+pub const GRID_MIN_ROBOTS: usize = 32;
 
 impl World {
     /// A world of `n_robots` robots in `scene`, configured by `cfg`.
@@ -131,6 +152,10 @@ impl World {
             bodies: Vec::with_capacity(n_robots),
             traction: Vec::with_capacity(n_robots),
             others: Vec::with_capacity(n_robots),
+            grid: Grid::default(),
+            near: Vec::new(),
+            speeds: Vec::new(),
+            grid_min_robots: GRID_MIN_ROBOTS,
         }
     }
 
@@ -229,11 +254,29 @@ impl World {
     /// Reads every robot's sensors (with noise from the world's stream), robot after robot.
     /// `fresh` (at reset) makes every sensor take a new reading, whatever its refresh period.
     pub fn sense(&mut self, fresh: bool) {
+        // How far from a robot's centre another robot's centre can change its readings.
+        // (1 mm more, so that rounding never drops a robot a sensor could just reach.)
+        let reach = self.sensors.reach(self.drive.radius) + 0.001;
+        let swarm = self.robots.len() > self.grid_min_robots && reach.is_finite();
+        if swarm {
+            self.grid
+                .build(self.robots.iter().map(|r| r.position), reach.max(0.01));
+        }
         for i in 0..self.robots.len() {
             self.others.clear();
-            for (j, other) in self.robots.iter().enumerate() {
-                if j != i {
-                    self.others.push(other.position);
+            if swarm {
+                self.near.clear();
+                let p = self.robots[i].position;
+                let (robots, near) = (&self.robots, &mut self.near);
+                let positions = |j: usize| robots[j].position;
+                self.grid.near_by(p, reach, i, positions, near);
+                self.others
+                    .extend(self.near.iter().map(|&j| self.robots[j as usize].position));
+            } else {
+                for (j, other) in self.robots.iter().enumerate() {
+                    if j != i {
+                        self.others.push(other.position);
+                    }
                 }
             }
             let robot = &mut self.robots[i];

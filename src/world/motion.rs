@@ -22,7 +22,7 @@ impl World {
     /// Whether some robot could touch the scene or another robot within `duration` seconds.
     /// A robot's centre moves no faster than its fastest wheel, and a ramping wheel never
     /// exceeds the larger of its current and commanded speeds.
-    fn contact_possible(&self, duration: f32) -> bool {
+    fn contact_possible(&mut self, duration: f32) -> bool {
         // (In the traction model a body may also move faster than its wheels, pushed or
         // sliding: its own speed counts too; it is 0 in the kinematic model. There the wheels
         // also follow a speed profile: within `duration` a wheel's speed and setpoint gain at
@@ -40,6 +40,42 @@ impl World {
             r.velocity.length().max(wheel(0)).max(wheel(1))
         };
         let radius = self.drive.radius;
+        if self.robots.len() > self.grid_min_robots {
+            // The same test, pairs found through the grid: no pair farther apart than the two
+            // fastest robots' reach can pass it.
+            self.speeds.clear();
+            self.speeds.extend(self.robots.iter().map(speed));
+            let fastest = self.speeds.iter().fold(0.0f32, |a, &b| a.max(b));
+            let cutoff = 2.0 * radius + 2.0 * fastest * duration + CONTACT_MARGIN + 0.001;
+            if !cutoff.is_finite() {
+                return true;
+            }
+            self.grid
+                .build(self.robots.iter().map(|r| r.position), cutoff);
+            for (i, r) in self.robots.iter().enumerate() {
+                let reach = self.speeds[i] * duration + CONTACT_MARGIN;
+                if self.scene.clearance(r.position) - radius <= reach {
+                    return true;
+                }
+                self.near.clear();
+                let robots = &self.robots;
+                self.grid.near_by(
+                    r.position,
+                    cutoff,
+                    i,
+                    |j| robots[j].position,
+                    &mut self.near,
+                );
+                for &j in self.near.iter().filter(|&&j| j as usize > i) {
+                    let other = &self.robots[j as usize];
+                    let gap = (other.position - r.position).length() - 2.0 * radius;
+                    if gap <= reach + self.speeds[j as usize] * duration {
+                        return true;
+                    }
+                }
+            }
+            return false;
+        }
         for (i, r) in self.robots.iter().enumerate() {
             let reach = speed(r) * duration + CONTACT_MARGIN;
             if self.scene.clearance(r.position) - radius <= reach {
@@ -149,8 +185,31 @@ impl World {
     }
 
     fn mark_contacts(&mut self) {
+        if self.robots.len() <= self.grid_min_robots {
+            for i in 0..self.robots.len() {
+                if self.clearance(i) < CONTACT_TOLERANCE {
+                    self.robots[i].in_contact = true;
+                }
+            }
+            return;
+        }
+        // The same test with the robots found through the grid: one farther than this cannot
+        // be within the tolerance.
+        let radius = self.drive.radius;
+        let cutoff = 2.0 * radius + CONTACT_TOLERANCE + 0.001;
+        self.grid
+            .build(self.robots.iter().map(|r| r.position), cutoff);
         for i in 0..self.robots.len() {
-            if self.clearance(i) < CONTACT_TOLERANCE {
+            let p = self.robots[i].position;
+            let mut gap = self.scene.clearance(p) - radius;
+            self.near.clear();
+            let robots = &self.robots;
+            self.grid
+                .near_by(p, cutoff, i, |j| robots[j].position, &mut self.near);
+            for &j in &self.near {
+                gap = gap.min((self.robots[j as usize].position - p).length() - 2.0 * radius);
+            }
+            if gap < CONTACT_TOLERANCE {
                 self.robots[i].in_contact = true;
             }
         }

@@ -1,0 +1,112 @@
+//! Swarm specification (issue 16): worlds of up to 1,024 robots spawn without overlaps and step
+//! with finite observations; finding neighbours through the grid gives the very results of
+//! looking at every robot; too many robots for the arena is a configuration error that says how
+//! many fit.
+//!
+//! Units: metres; world frame.
+
+use std::sync::Arc;
+
+use _core::robot::ActionType;
+use _core::scenario::{scene, Source};
+use _core::tasks::load_scenario;
+use _core::tasks::{Env, TaskKind};
+use rand::{Rng, SeedableRng};
+
+/// A multinav env on the built-in `swarm` scene with `overrides`, seeded and reset.
+fn swarm(overrides: &str, seed: u64) -> Env {
+    let source = Source {
+        file: Some((
+            scene("swarm").expect("the swarm scene is built in"),
+            "swarm",
+        )),
+        overrides: overrides.parse().expect("overrides"),
+        version: None,
+    };
+    let cfg = load_scenario("multinav", &source).expect("scenario");
+    let spawner = Arc::new(Env::spawner(TaskKind::MultiNav, &cfg).expect("spawner"));
+    let mut env = Env::new(
+        TaskKind::MultiNav,
+        Arc::new(cfg),
+        spawner,
+        ActionType::Wheels,
+    )
+    .expect("env");
+    env.seed(seed);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut obs);
+    env
+}
+
+/// Steps `env` with random actions from `seed`; returns every step's observation.
+fn run(env: &mut Env, steps: usize, seed: u64) -> Vec<Vec<f32>> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let n = env.world.robots.len();
+    let mut obs = vec![0.0; env.obs_dim()];
+    (0..steps)
+        .map(|_| {
+            let action: Vec<f32> = (0..2 * n).map(|_| rng.random_range(-0.2..1.0)).collect();
+            env.step(&action, &mut obs);
+            obs.clone()
+        })
+        .collect()
+}
+
+#[test]
+fn test_a_world_of_1024_robots_spawns_apart_and_steps_with_finite_observations() {
+    let mut env = swarm("n_robots = 1024", 1);
+    let robots = &env.world.robots;
+    assert_eq!(robots.len(), 1024);
+    // Spawned at least two radii + obstacles.spawn_clearance (5 cm) apart.
+    let least = 2.0 * env.world.drive.radius + 0.05;
+    for (i, a) in robots.iter().enumerate() {
+        for b in &robots[i + 1..] {
+            assert!((a.position - b.position).length() >= least - 1e-5);
+        }
+    }
+    for obs in run(&mut env, 20, 2) {
+        assert!(obs.iter().all(|v| v.is_finite()));
+    }
+}
+
+#[test]
+fn test_the_grid_gives_the_results_of_looking_at_every_robot() {
+    // A crowded 100-robot world (6 m arena: 2.8 robots per m²), so that sensors see robots and
+    // contacts happen; once through the grid, once through the plain loops.
+    let overrides = "n_robots = 100\nwidth = 6.0\nheight = 6.0";
+    let mut grid = swarm(overrides, 3);
+    let mut plain = swarm(overrides, 3);
+    plain.world.grid_min_robots = usize::MAX;
+    let a = run(&mut grid, 120, 4);
+    let b = run(&mut plain, 120, 4);
+    assert!(a == b, "the grid changed the trajectory");
+    let touched = grid.world.robots.iter().filter(|r| r.in_contact).count();
+    let seen = a.last().expect("steps")[..8].iter().any(|&ir| ir > 0.05);
+    assert!(
+        touched > 0 || seen,
+        "the test world never brought robots near each other"
+    );
+}
+
+#[test]
+fn test_too_many_robots_for_the_arena_says_how_many_fit() {
+    let source = Source {
+        file: None,
+        overrides: "n_robots = 1024".parse().expect("overrides"),
+        version: None,
+    };
+    let err = load_scenario("multinav", &source)
+        .expect_err("1,024 robots in a 2 m arena")
+        .to_string();
+    assert!(err.contains("multinav.n_robots"), "{err}");
+    assert!(err.contains("fits about"), "{err}");
+    let source = Source {
+        file: None,
+        overrides: "n_robots = 1025".parse().expect("overrides"),
+        version: None,
+    };
+    let err = load_scenario("multinav", &source)
+        .expect_err("past the limit")
+        .to_string();
+    assert!(err.contains("1..=1024"), "{err}");
+}
