@@ -6,6 +6,7 @@ Measures env-steps per second of
   n in 1, 64, 1024, 4096 and t in 1, 2; then Avoid, Formation, Track and PathFollow for
   n = 1024;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
+* (v1) world-steps/s of swarms of 4 to 1,000 robots per world (:mod:`khepera_gym.swarm_bench`);
 
 with uniform random actions generated beforehand, a warm-up, then a fixed wall time per
 configuration; and the resident memory per world of a 4096-world batch (Linux ``/proc``).
@@ -26,6 +27,7 @@ import numpy as np
 
 import khepera_gym
 from khepera_gym import _core
+from khepera_gym.swarm_bench import swarm_rows
 
 NAV_ID = f"KheperaIV-Nav-v{_core.LATEST_VERSION}"
 #: Distinct pregenerated action arrays cycled through while timing.
@@ -157,6 +159,7 @@ def run(
     memory: bool = True,
     task_envs: int = 1024,
     version: int = _core.LATEST_VERSION,
+    swarm: Sequence[int] = (),
 ) -> list[Measurement]:
     """Runs the benchmark of behaviour ``version``'s envs and prints a table; returns the
     measurements."""
@@ -209,6 +212,8 @@ def run(
                 f"memory per world: {per_world / 1024:.1f} KiB "
                 f"(resident-set growth of a {_MEMORY_WORLDS}-world Nav batch)"
             )
+    if swarm and version >= 1:
+        swarm_rows(swarm, num_threads, duration)
     return measurements
 
 
@@ -259,6 +264,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         single=not args.no_single,
         memory=not args.no_memory,
         version=args.version,
+        swarm=(4, 1000) if quick else (4, 32, 100, 300, 1000),
     )
     return 0
 

@@ -110,7 +110,10 @@ impl Batch {
             Some(n) => n,
             None => cores,
         };
-        let pool = if num_threads > 1 && num_worlds > 1 {
+        // A swarm's robots are read in parallel (world/swarm.rs): one world is then enough to
+        // share among threads.
+        let swarm = kind.spawn(&cfg)?.n_robots() > crate::world::GRID_MIN_ROBOTS;
+        let pool = if num_threads > 1 && (num_worlds > 1 || swarm) {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(num_threads)
                 .thread_name(|i| format!("khepera-gym-{i}"))

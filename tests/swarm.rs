@@ -110,3 +110,54 @@ fn test_too_many_robots_for_the_arena_says_how_many_fit() {
         .to_string();
     assert!(err.contains("1..=1024"), "{err}");
 }
+
+/// A batch of `worlds` swarm worlds (`overrides` on the built-in scene) on `threads` threads.
+fn batch(overrides: &str, worlds: usize, threads: usize) -> _core::batch::Batch {
+    let source = Source {
+        file: Some((
+            scene("swarm").expect("the swarm scene is built in"),
+            "swarm",
+        )),
+        overrides: overrides.parse().expect("overrides"),
+        version: None,
+    };
+    let cfg = load_scenario("multinav", &source).expect("scenario");
+    let mut batch = _core::batch::Batch::new(
+        TaskKind::MultiNav,
+        cfg,
+        worlds,
+        ActionType::Wheels,
+        Some(threads),
+        true,
+    )
+    .expect("batch");
+    batch.reset(Some(9));
+    batch
+}
+
+#[test]
+fn test_a_swarm_gives_the_same_results_on_one_thread_or_two() {
+    // Two threads read one world's robots in parallel; the results may not depend on it.
+    let overrides = "n_robots = 300\nwidth = 11.0\nheight = 11.0";
+    let mut one = batch(overrides, 1, 1);
+    let mut two = batch(overrides, 1, 2);
+    assert_eq!(two.num_threads(), 2);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    for _ in 0..40 {
+        let action: Vec<f32> = (0..one.act_dim())
+            .map(|_| rng.random_range(-0.2..1.0))
+            .collect();
+        one.step(&action).expect("step");
+        two.step(&action).expect("step");
+        assert!(one.obs() == two.obs());
+    }
+    let poses = |b: &_core::batch::Batch| {
+        b.envs()[0]
+            .world
+            .robots
+            .iter()
+            .map(|r| (r.position, r.heading))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(poses(&one), poses(&two));
+}

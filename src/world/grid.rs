@@ -20,6 +20,8 @@ pub struct Grid {
     starts: Vec<u32>,
     /// Robot indices, sorted by cell, then by index.
     order: Vec<u32>,
+    /// Their centres, in the same order (contiguous for the queries).
+    points: Vec<Vector>,
     /// Each robot's cell.
     cell_of: Vec<u32>,
 }
@@ -58,9 +60,13 @@ impl Grid {
         }
         self.order.clear();
         self.order.resize(self.cell_of.len(), 0);
+        self.points.clear();
+        self.points.resize(self.cell_of.len(), Vector::ZERO);
         let mut next: Vec<u32> = self.starts[..cells].to_vec();
-        for (i, &c) in self.cell_of.iter().enumerate() {
-            self.order[next[c as usize] as usize] = i as u32;
+        for ((i, &c), p) in self.cell_of.iter().enumerate().zip(positions) {
+            let slot = next[c as usize] as usize;
+            self.order[slot] = i as u32;
+            self.points[slot] = p;
             next[c as usize] += 1;
         }
     }
@@ -77,36 +83,21 @@ impl Grid {
     }
 
     /// Appends to `out`, in increasing order, the indices of the robots other than `me` whose
-    /// centre lies within `radius` (≤ the cell size) of `p`.
-    pub fn near(
-        &self,
-        p: Vector,
-        radius: f32,
-        me: usize,
-        positions: &[Vector],
-        out: &mut Vec<u32>,
-    ) {
-        self.near_by(p, radius, me, |j| positions[j], out);
-    }
-
-    /// [`Grid::near`] with the positions given by `position_of(index)`.
-    pub fn near_by(
-        &self,
-        p: Vector,
-        radius: f32,
-        me: usize,
-        position_of: impl Fn(usize) -> Vector,
-        out: &mut Vec<u32>,
-    ) {
+    /// centre lies within `radius` of `p` (squared distances compared: |q − p|² ≤ radius²).
+    pub fn near(&self, p: Vector, radius: f32, me: usize, out: &mut Vec<u32>) {
         let start = out.len();
         let (x, y) = self.coords(p);
-        for row in y.saturating_sub(1)..(y + 2).min(self.rows) {
-            for column in x.saturating_sub(1)..(x + 2).min(self.columns) {
-                let c = row * self.columns + column;
-                for &j in &self.order[self.starts[c] as usize..self.starts[c + 1] as usize] {
-                    if j as usize != me && (position_of(j as usize) - p).length() <= radius {
-                        out.push(j);
-                    }
+        // Cells within `rings` of the robot's cover every point within `radius` of it.
+        let rings = ((radius / self.cell).ceil() as usize).max(1);
+        let limit = radius * radius;
+        for row in y.saturating_sub(rings)..(y + rings + 1).min(self.rows) {
+            // The cells of a row are contiguous in `order`.
+            let first = row * self.columns + x.saturating_sub(rings);
+            let last = row * self.columns + (x + rings + 1).min(self.columns);
+            let span = self.starts[first] as usize..self.starts[last] as usize;
+            for (&j, q) in self.order[span.clone()].iter().zip(&self.points[span]) {
+                if j as usize != me && (*q - p).length_squared() <= limit {
+                    out.push(j);
                 }
             }
         }
@@ -131,13 +122,15 @@ mod tests {
             .map(|_| Vector::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0)))
             .collect();
         let mut grid = Grid::default();
-        grid.build(positions.iter().copied(), 1.5);
+        grid.build(positions.iter().copied(), 0.7);
         let mut got = Vec::new();
         for (i, &p) in positions.iter().enumerate() {
             got.clear();
-            grid.near(p, 1.5, i, &positions, &mut got);
+            grid.near(p, 1.5, i, &mut got);
             let want: Vec<u32> = (0..positions.len() as u32)
-                .filter(|&j| j as usize != i && (positions[j as usize] - p).length() <= 1.5)
+                .filter(|&j| {
+                    j as usize != i && (positions[j as usize] - p).length_squared() <= 2.25
+                })
                 .collect();
             assert_eq!(got, want);
         }

@@ -13,6 +13,7 @@ pub mod layout;
 mod motion;
 pub mod physics;
 pub mod scene;
+mod swarm;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -104,6 +105,8 @@ pub struct World {
     near: Vec<u32>,
     #[serde(skip)]
     speeds: Vec<f32>,
+    #[serde(skip)]
+    positions: Vec<Vector>,
     /// Worlds of more robots than this find neighbours through the grid ([`GRID_MIN_ROBOTS`];
     /// tests set it to compare both ways).
     #[serde(skip, default = "grid_min_robots")]
@@ -114,9 +117,10 @@ fn grid_min_robots() -> usize {
     GRID_MIN_ROBOTS
 }
 
-/// Worlds of more robots than this find each robot's neighbours through a [`Grid`]; smaller
-/// ones loop over every robot (32 was the largest world before swarms; both ways give the same
-/// readings).
+/// Worlds of more robots than this are swarms: they find each robot's neighbours through a
+/// [`Grid`] (smaller ones loop over every robot; both ways give the same results) and read
+/// their sensors in parallel, each robot with its own random stream (`swarm.rs`). 32 was the
+/// largest world before swarms, so every earlier scenario keeps its random stream.
 pub const GRID_MIN_ROBOTS: usize = 32;
 
 impl World {
@@ -155,6 +159,7 @@ impl World {
             grid: Grid::default(),
             near: Vec::new(),
             speeds: Vec::new(),
+            positions: Vec::new(),
             grid_min_robots: GRID_MIN_ROBOTS,
         }
     }
@@ -251,32 +256,19 @@ impl World {
         gap
     }
 
-    /// Reads every robot's sensors (with noise from the world's stream), robot after robot.
+    /// Reads every robot's sensors (with noise from the world's stream), robot after robot; a
+    /// swarm (more than [`GRID_MIN_ROBOTS`] robots) reads them as [`World::sense_swarm`] says.
     /// `fresh` (at reset) makes every sensor take a new reading, whatever its refresh period.
     pub fn sense(&mut self, fresh: bool) {
-        // How far from a robot's centre another robot's centre can change its readings.
-        // (1 mm more, so that rounding never drops a robot a sensor could just reach.)
-        let reach = self.sensors.reach(self.drive.radius) + 0.001;
-        let swarm = self.robots.len() > self.grid_min_robots && reach.is_finite();
-        if swarm {
-            self.grid
-                .build(self.robots.iter().map(|r| r.position), reach.max(0.01));
+        if self.robots.len() > GRID_MIN_ROBOTS {
+            self.sense_swarm(fresh);
+            return;
         }
         for i in 0..self.robots.len() {
             self.others.clear();
-            if swarm {
-                self.near.clear();
-                let p = self.robots[i].position;
-                let (robots, near) = (&self.robots, &mut self.near);
-                let positions = |j: usize| robots[j].position;
-                self.grid.near_by(p, reach, i, positions, near);
-                self.others
-                    .extend(self.near.iter().map(|&j| self.robots[j as usize].position));
-            } else {
-                for (j, other) in self.robots.iter().enumerate() {
-                    if j != i {
-                        self.others.push(other.position);
-                    }
+            for (j, other) in self.robots.iter().enumerate() {
+                if j != i {
+                    self.others.push(other.position);
                 }
             }
             let robot = &mut self.robots[i];

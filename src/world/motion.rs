@@ -15,6 +15,9 @@ use crate::scenario::DriveModel;
 const CONTACT_MARGIN: f32 = 0.002;
 /// A robot whose clearance falls below this (m) after a substep is in contact.
 const CONTACT_TOLERANCE: f32 = 0.001;
+/// Least cell side (m) of the contact checks' grid: cells as small as a contact's reach would
+/// cost more to clear and count than the few more robots larger ones hold.
+const MIN_CELL: f32 = 0.5;
 /// Slip (m/s at the centre or the wheels) under which a body counts as rolling on its wheels.
 const ROLLING_TOLERANCE: f32 = 1e-4;
 
@@ -51,21 +54,14 @@ impl World {
                 return true;
             }
             self.grid
-                .build(self.robots.iter().map(|r| r.position), cutoff);
+                .build(self.robots.iter().map(|r| r.position), cutoff.max(MIN_CELL));
             for (i, r) in self.robots.iter().enumerate() {
                 let reach = self.speeds[i] * duration + CONTACT_MARGIN;
                 if self.scene.clearance(r.position) - radius <= reach {
                     return true;
                 }
                 self.near.clear();
-                let robots = &self.robots;
-                self.grid.near_by(
-                    r.position,
-                    cutoff,
-                    i,
-                    |j| robots[j].position,
-                    &mut self.near,
-                );
+                self.grid.near(r.position, cutoff, i, &mut self.near);
                 for &j in self.near.iter().filter(|&&j| j as usize > i) {
                     let other = &self.robots[j as usize];
                     let gap = (other.position - r.position).length() - 2.0 * radius;
@@ -193,26 +189,7 @@ impl World {
             }
             return;
         }
-        // The same test with the robots found through the grid: one farther than this cannot
-        // be within the tolerance.
-        let radius = self.drive.radius;
-        let cutoff = 2.0 * radius + CONTACT_TOLERANCE + 0.001;
-        self.grid
-            .build(self.robots.iter().map(|r| r.position), cutoff);
-        for i in 0..self.robots.len() {
-            let p = self.robots[i].position;
-            let mut gap = self.scene.clearance(p) - radius;
-            self.near.clear();
-            let robots = &self.robots;
-            self.grid
-                .near_by(p, cutoff, i, |j| robots[j].position, &mut self.near);
-            for &j in &self.near {
-                gap = gap.min((self.robots[j as usize].position - p).length() - 2.0 * radius);
-            }
-            if gap < CONTACT_TOLERANCE {
-                self.robots[i].in_contact = true;
-            }
-        }
+        self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL);
     }
 
     /// The traction model (v1): the motors follow their speed profile; while a robot rolls

@@ -1,13 +1,15 @@
 //! Throughput of one world of many robots (the swarm scale of issue 16): world-steps/s and
-//! robot-steps/s of MultiNav worlds of 4 to 1,024 robots with IR, sonar and contacts, in arenas
-//! scaled to keep the same density. `cargo bench --bench swarm` prints figures, asserts nothing.
-//! `cargo bench --bench swarm -- 1000` runs only that robot count.
+//! robot-steps/s of MultiNav worlds of 4 to 1,000 robots with IR, sonar and contacts, random
+//! actions, in arenas scaled to keep multinav's density (4 robots in 2 m x 2 m), then the
+//! built-in `swarm` scene (1,000 robots in 20 m x 20 m, 2.5 times as dense). Worlds per batch:
+//! 1,024 robots' worth. `cargo bench --bench swarm_scale` prints figures and asserts nothing;
+//! `-- 1000` runs only that robot count; `SWARM_THREADS=1` sets the threads (default 2).
 
 use std::time::Instant;
 
 use _core::batch::Batch;
 use _core::robot::ActionType;
-use _core::scenario::Source;
+use _core::scenario::{scene, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use rand::{Rng, SeedableRng};
@@ -19,29 +21,28 @@ fn main() {
         .and_then(|t| t.parse().ok())
         .unwrap_or(2);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-    for robots in [4usize, 16, 32, 100, 300, 1000] {
+    let scaled = [4usize, 16, 32, 100, 300, 1000].map(|n| (n, false));
+    for (robots, built_in) in scaled.into_iter().chain([(1000, true)]) {
         if only.is_some_and(|n| n != robots) {
             continue;
         }
         // 4 robots in the default 2 m × 2 m arena; the side grows with √robots.
         let side = 2.0 * (robots as f32 / 4.0).sqrt();
         let worlds = (1024 / robots).max(1);
-        let text =
-            format!("n_robots = {robots}\nwidth = {side}\nheight = {side}\nmax_steps = 100000");
+        let text = if built_in {
+            "max_steps = 100000".to_string()
+        } else {
+            format!("n_robots = {robots}\nwidth = {side}\nheight = {side}\nmax_steps = 100000")
+        };
         let source = Source {
+            file: built_in.then(|| (scene("swarm").expect("built in"), "swarm")),
             overrides: text.parse().expect("toml"),
             ..Default::default()
         };
         let cfg = load_scenario("multinav", &source).expect("scenario");
-        let mut batch = Batch::new(
-            TaskKind::MultiNav,
-            cfg,
-            worlds,
-            ActionType::Wheels,
-            Some(threads),
-            true,
-        )
-        .expect("batch");
+        let kind = TaskKind::MultiNav;
+        let mut batch =
+            Batch::new(kind, cfg, worlds, ActionType::Wheels, Some(threads), true).expect("batch");
         batch.reset(Some(0));
         let actions: Vec<Vec<f32>> = (0..16)
             .map(|_| {
@@ -61,10 +62,11 @@ fn main() {
         }
         let world_steps = (steps * worlds) as f64 / start.elapsed().as_secs_f64();
         println!(
-            "robots {robots:5}  worlds {worlds:4}  threads {threads}  {world_steps:10.0} world-steps/s  \
-             {:10.0} robot-steps/s  {:8.1}x real time",
+            "{:6} robots {robots:5}  worlds {worlds:4}  threads {threads}  {world_steps:8.0} \
+             world-steps/s  {:9.0} robot-steps/s  {:5.1}x real time",
+            if built_in { "swarm" } else { "scaled" },
             world_steps * robots as f64,
-            world_steps / worlds as f64 * 0.05
+            world_steps / worlds as f64 * 0.05,
         );
     }
 }

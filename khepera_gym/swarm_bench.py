@@ -1,0 +1,79 @@
+"""Swarm scale (issue 16): world-steps/s and robot-steps/s of multinav worlds of 4 to 1,000
+robots with IR, sonar and contacts, through the array env
+(:func:`khepera_gym.pettingzoo.multinav_v1.array_env`), uniform random actions.
+
+Arenas grow with √robots to keep multinav's density (4 robots in 2 m × 2 m); a batch holds 1,024
+robots' worth of worlds. The last row is the built-in ``swarm`` scene (1,000 robots in a 20 m
+arena, 2.5 times as dense). "× real time" is one world's simulated seconds per second (control
+step 0.05 s). Called by :func:`khepera_gym.bench.run`; prints, asserts nothing.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from khepera_gym.pettingzoo import multinav_v1
+
+#: Control step of the scenes (s), for "× real time".
+_DT = 0.05
+
+
+def bench_swarm(robots: int, threads: int, duration: float, scene: bool = False) -> float:
+    """World-steps/s of worlds of ``robots`` robots on ``threads`` threads over ``duration`` s
+    (``scene``: the built-in ``swarm`` scene instead of an arena scaled to multinav's density)."""
+    worlds = max(1, 1024 // robots)
+    if scene:
+        env = multinav_v1.array_env(worlds, config="swarm", num_threads=threads, max_steps=100000)
+    else:
+        side = 2.0 * (robots / 4.0) ** 0.5
+        env = multinav_v1.array_env(
+            worlds,
+            num_threads=threads,
+            n_robots=robots,
+            width=side,
+            height=side,
+            max_steps=100000,
+        )
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = [rng.uniform(-1, 1, (worlds, robots, 2)).astype(np.float32) for _ in range(16)]
+    for action in actions[:5]:
+        env.step(action)
+    steps = 0
+    start = time.perf_counter()
+    while time.perf_counter() - start < duration:
+        env.step(actions[steps % len(actions)])
+        steps += 1
+    return steps * worlds / (time.perf_counter() - start)
+
+
+def swarm_rows(
+    robot_counts: Sequence[int] = (4, 32, 100, 300, 1000),
+    num_threads: Sequence[int] = (1, 2),
+    duration: float = 1.5,
+) -> None:
+    """Prints the scaling table: one row per robot count and thread count, then the scene."""
+    header = (
+        f"{'robots per world':<22} {'threads':>7} {'world-steps/s':>13} "
+        f"{'robot-steps/s':>13} {'× real time':>11}"
+    )
+    print("\nswarm scale (multinav through the array env, uniform random actions)")
+    print(header)
+    print("-" * len(header))
+    cases = [(n, False) for n in robot_counts] + [(1000, True)]
+    for robots, scene in cases:
+        for threads in num_threads:
+            rate = bench_swarm(robots, threads, duration, scene)
+            label = f"{robots} (swarm scene)" if scene else f"{robots}"
+            worlds = max(1, 1024 // robots)
+            print(
+                f"{label:<22} {threads:>7} {rate:>13,.0f} {rate * robots:>13,.0f} "
+                f"{rate / worlds * _DT:>11.1f}",
+                flush=True,
+            )
+
+
+__all__ = ["bench_swarm", "swarm_rows"]

@@ -1,0 +1,137 @@
+//! Sensing in a swarm (a world of more than [`GRID_MIN_ROBOTS`](super::GRID_MIN_ROBOTS) robots): every robot reads its
+//! sensors seeing only the robots within the sensors' reach, found through the world's grid, and
+//! with noise from its own random stream: ChaCha8 seeded by one number the world's stream draws
+//! per reading, on stream `robot index`. A robot's readings then depend only on the world's state
+//! and its index, so the robots are read in parallel (inside a batch's thread pool, when the
+//! world runs in one) with the same results whatever the number of threads.
+//!
+//! Units: metres; world frame.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rapier2d::math::Vector;
+use rayon::prelude::*;
+
+use super::{Robot, World};
+use crate::sensors::{SenseContext, Suite};
+
+/// Robots a thread reads at least at a time (smaller shares cost more to hand out than to read).
+const MIN_ROBOTS_PER_TASK: usize = 32;
+
+impl World {
+    /// Reads every robot's sensors, a swarm's way (module doc).
+    pub(super) fn sense_swarm(&mut self, fresh: bool) {
+        // How far from a robot's centre another robot's centre can change its readings (1 mm
+        // more, so that rounding never drops a robot a sensor could just reach).
+        let reach = self.sensors.reach(self.drive.radius) + 0.001;
+        let use_grid = self.robots.len() > self.grid_min_robots && reach.is_finite();
+        if use_grid {
+            // Cells of half the reach: the 5 × 5 cells around a robot hold fewer robots than
+            // the 3 × 3 of cells as wide as the reach.
+            let cell = (0.5 * reach).max(0.01);
+            self.grid
+                .build(self.robots.iter().map(|r| r.position), cell);
+        }
+        self.positions.clear();
+        self.positions
+            .extend(self.robots.iter().map(|r| r.position));
+        let base: u64 = self.rng.random();
+        let (grid, positions) = (&self.grid, &self.positions);
+        let (scene, radius, dt) = (&self.scene, self.drive.radius, self.dt);
+        let robot_reflectance = self.robot_reflectance;
+        let read = |scratch: &mut Scratch, (i, robot): (usize, &mut Robot)| {
+            scratch.others.clear();
+            if use_grid {
+                scratch.near.clear();
+                grid.near(robot.position, reach, i, &mut scratch.near);
+                let near = scratch.near.iter().map(|&j| positions[j as usize]);
+                scratch.others.extend(near);
+            } else {
+                let all = positions.iter().enumerate().filter(|(j, _)| *j != i);
+                scratch.others.extend(all.map(|(_, p)| *p));
+            }
+            let mut rng = ChaCha8Rng::seed_from_u64(base);
+            rng.set_stream(i as u64);
+            let ctx = SenseContext {
+                scene,
+                position: robot.position,
+                sin_cos: robot.heading.sin_cos(),
+                radius,
+                others: &scratch.others,
+                robot_reflectance,
+                yaw_rate: robot.yaw_rate,
+                acceleration: robot.acceleration,
+                dt,
+                fresh,
+            };
+            scratch.suite.read(&ctx, &mut rng, &mut robot.readings);
+        };
+        let sensors = &self.sensors;
+        let scratch = || Scratch {
+            suite: sensors.clone(),
+            others: Vec::new(),
+            near: Vec::new(),
+        };
+        if rayon::current_thread_index().is_some() {
+            // Inside a batch's pool: share the robots among its threads.
+            self.robots
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(MIN_ROBOTS_PER_TASK)
+                .for_each_init(scratch, read);
+        } else {
+            let mut one = scratch();
+            self.robots
+                .iter_mut()
+                .enumerate()
+                .for_each(|item| read(&mut one, item));
+        }
+    }
+
+    /// Marks the robots closer than `tolerance` (m) to the scene or another robot as in
+    /// contact, finding the robots through the grid (cells of at least `min_cell` m), in
+    /// parallel inside a batch's pool: the same marks as `World::clearance` of every robot.
+    pub(super) fn mark_contacts_swarm(&mut self, tolerance: f32, min_cell: f32) {
+        let radius = self.drive.radius;
+        // A robot farther than this cannot be within the tolerance.
+        let cutoff = 2.0 * radius + tolerance + 0.001;
+        self.grid
+            .build(self.robots.iter().map(|r| r.position), cutoff.max(min_cell));
+        self.positions.clear();
+        self.positions
+            .extend(self.robots.iter().map(|r| r.position));
+        let (grid, positions, scene) = (&self.grid, &self.positions, &self.scene);
+        let mark = |near: &mut Vec<u32>, (i, robot): (usize, &mut Robot)| {
+            let p = robot.position;
+            let mut gap = scene.clearance(p) - radius;
+            near.clear();
+            grid.near(p, cutoff, i, near);
+            for &j in near.iter() {
+                gap = gap.min((positions[j as usize] - p).length() - 2.0 * radius);
+            }
+            if gap < tolerance {
+                robot.in_contact = true;
+            }
+        };
+        if rayon::current_thread_index().is_some() {
+            self.robots
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(MIN_ROBOTS_PER_TASK)
+                .for_each_init(Vec::new, mark);
+        } else {
+            let mut near = Vec::new();
+            self.robots
+                .iter_mut()
+                .enumerate()
+                .for_each(|item| mark(&mut near, item));
+        }
+    }
+}
+
+/// A thread's copy of the sensor models (whose `read` uses scratch buffers) and its buffers.
+struct Scratch {
+    suite: Suite,
+    others: Vec<Vector>,
+    near: Vec<u32>,
+}
