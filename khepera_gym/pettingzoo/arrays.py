@@ -28,6 +28,7 @@ from khepera_gym._inputs import check_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.face import BatchFace, first_seed
+from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
 #: Actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle".
 ACTION_DIM = 2
@@ -43,6 +44,8 @@ class MultiAgentArrayEnv(BatchFace):
         config: None (the task's defaults), a built-in scenario name ("swarm") or a TOML path.
         action_type: "wheels" or "unicycle".
         num_threads: Threads stepping the worlds and a swarm's robots; None uses every core.
+        render_mode: None or "rgb_array" (``render()`` returns world 0's frame).
+        frame_size: (width, height) of the frame in pixels.
         **overrides: Scenario keys overriding the file, as for the Gymnasium envs.
 
     Raises:
@@ -59,8 +62,12 @@ class MultiAgentArrayEnv(BatchFace):
         config: ConfigArg = None,
         action_type: str = "wheels",
         num_threads: int | None = None,
+        render_mode: str | None = None,
+        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
         **overrides: Any,
     ) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self._batch = make_batch(
             task,
             num_envs,
@@ -97,6 +104,8 @@ class MultiAgentArrayEnv(BatchFace):
         )
         self._shape = (self.num_envs, len(self.agents))
         self._has_reset = False
+        self.render_mode = render_mode
+        self._renderer = Renderer(self._batch, render_mode, frame_size)
 
     @property
     def n_agents(self) -> int:
@@ -156,6 +165,11 @@ class MultiAgentArrayEnv(BatchFace):
         ended = terminations | truncations
         info = self._vector_episode_info(ended) if ended.any() else {}
         return self._observations(observations), rewards, terminated, truncations, info
+
+    def render(self) -> npt.NDArray[np.uint8] | None:
+        """World 0's frame (height, width, 3) uint8 with ``render_mode="rgb_array"``, else
+        None."""
+        return self._renderer.render()
 
 
 __all__ = ["ACTION_DIM", "MultiAgentArrayEnv"]
