@@ -23,6 +23,8 @@ FORMATION_ID = "KheperaIV-Formation-v1"
 TRACK_ID = "KheperaIV-Track-v1"
 #: Path following, likewise only from v1.
 PATHFOLLOW_ID = "KheperaIV-PathFollow-v1"
+#: The quadcopter of Fig. 8 following a Khepera IV, likewise only from v1.
+DRONE_ID = "KheperaIV-DroneFollow-v1"
 #: The v0 ids: the paper's V-REP-like dynamics (kinematic drive, frictionless contacts, wheels at
 #: their command within a step), which the paper's controllers and gains were tuned for. Tests of
 #: those controllers' published success rates, and tests of the action mapping that read the wheel

@@ -14,11 +14,18 @@ except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
+from conftest import AVOID_ID, DRONE_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
 
 import khepera_gym
 from khepera_gym import _core, envs
-from khepera_gym.envs import AvoidEnv, FormationEnv, NavEnv, PathFollowEnv, TrackEnv
+from khepera_gym.envs import (
+    AvoidEnv,
+    DroneFollowEnv,
+    FormationEnv,
+    NavEnv,
+    PathFollowEnv,
+    TrackEnv,
+)
 
 MANUAL_SECTIONS = [
     "Description",
@@ -41,8 +48,9 @@ MANUALS = [
     (FormationEnv, FORMATION_ID, "formation"),
     (TrackEnv, TRACK_ID, "track"),
     (PathFollowEnv, PATHFOLLOW_ID, "pathfollow"),
+    (DroneFollowEnv, DRONE_ID, "dronefollow"),
 ]
-MANUAL_IDS = ["nav", "avoid", "formation", "track", "pathfollow"]
+MANUAL_IDS = ["nav", "avoid", "formation", "track", "pathfollow", "dronefollow"]
 
 
 def _section(manual: str, name: str) -> str:

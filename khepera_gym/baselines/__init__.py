@@ -6,7 +6,8 @@ Fig. 5), :class:`VFH` (eqs. 8-11) and :class:`LeaderFollower` formation control 
 trajectory tracking, :class:`Kanayama` (Kanayama et al. 1990) and :class:`PositionChase` (eqs.
 1-4 chasing the moving reference); for path following, :class:`Samson` (Samson 1992),
 :class:`PurePursuit` (Coulter 1992) and :class:`WaypointSwitching` (eqs. 1-4 toward successive
-waypoints). Each is a drop-in policy for the environments created with ``action_type="wheels"``::
+waypoints); for the quadcopter of Fig. 8, :class:`DronePursuit` (PD pursuit). Each is a drop-in
+policy for the environments created with ``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
 
@@ -44,6 +45,7 @@ from khepera_gym.baselines.base import (
 from khepera_gym.baselines.formation import LeaderFollower, formation_offsets
 from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, braitenberg_weights
 from khepera_gym.baselines.paths import PurePursuit, Samson, WaypointSwitching
+from khepera_gym.baselines.quadcopter import DronePursuit
 from khepera_gym.baselines.tracking import Kanayama, PositionChase
 
 __all__ = [
@@ -54,6 +56,7 @@ __all__ = [
     "VFH",
     "BaselinePolicy",
     "Braitenberg",
+    "DronePursuit",
     "Kanayama",
     "LeaderFollower",
     "PositionChase",

@@ -12,6 +12,7 @@ below; registration with Gymnasium comes from the task list the Rust core export
 
 from khepera_gym.config import ACTION_TYPES
 from khepera_gym.envs.base import ENV_CLASSES, KheperaEnv
+from khepera_gym.envs.drone import DroneFollowEnv, dronefollow_heuristic
 from khepera_gym.envs.formation import (
     FormationEnv,
     formation_follower_heuristic,
@@ -34,6 +35,7 @@ __test__ = {
     "FormationEnv": FormationEnv,
     "TrackEnv": TrackEnv,
     "PathFollowEnv": PathFollowEnv,
+    "DroneFollowEnv": DroneFollowEnv,
 }
 
 __all__ = [
@@ -41,12 +43,14 @@ __all__ = [
     "BRAITENBERG_WEIGHTS",
     "ENV_CLASSES",
     "AvoidEnv",
+    "DroneFollowEnv",
     "FormationEnv",
     "KheperaEnv",
     "NavEnv",
     "PathFollowEnv",
     "TrackEnv",
     "avoid_heuristic",
+    "dronefollow_heuristic",
     "formation_follower_heuristic",
     "formation_heuristic",
     "nav_heuristic",

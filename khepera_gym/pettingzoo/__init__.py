@@ -5,6 +5,8 @@
   :mod:`khepera_gym.pettingzoo.formation`);
 * :mod:`khepera_gym.pettingzoo.multinav_v1`: robots driving to their own goals
   (agents ``robot_0``..; the manual: :mod:`khepera_gym.pettingzoo.multinav`);
+* :mod:`khepera_gym.pettingzoo.drone_follow_v1`: a quadcopter following a Khepera IV (agent
+  ``drone``; the manual: :class:`khepera_gym.envs.DroneFollowEnv`);
 * :mod:`khepera_gym.pettingzoo.platoon_v1`: robots tracking time-shifted copies of one reference
   trajectory (agents ``robot_0``..; the manual: its ``PlatoonParallelEnv``; no v0).
 
@@ -19,6 +21,7 @@ Each module has ``parallel_env(**kwargs)`` (a ``pettingzoo.ParallelEnv``) and ``
 from __future__ import annotations
 
 from khepera_gym.pettingzoo import (
+    drone_follow_v1,
     formation_v0,
     formation_v1,
     multinav_v0,
@@ -26,4 +29,11 @@ from khepera_gym.pettingzoo import (
     platoon_v1,
 )
 
-__all__ = ["formation_v0", "formation_v1", "multinav_v0", "multinav_v1", "platoon_v1"]
+__all__ = [
+    "drone_follow_v1",
+    "formation_v0",
+    "formation_v1",
+    "multinav_v0",
+    "multinav_v1",
+    "platoon_v1",
+]

@@ -16,6 +16,7 @@
 //! Units: metres, seconds, radians; robot frame x forward, y left, angles CCW.
 
 pub mod braitenberg;
+pub mod drone_pursuit;
 pub mod kanayama;
 pub mod leader_follower;
 pub mod position;
@@ -203,6 +204,7 @@ controller_registry! {
     PurePursuit: pure_pursuit::PurePursuitPolicy,
     Samson: samson::SamsonPolicy,
     WaypointSwitching: waypoints::WaypointPolicy,
+    DronePursuit: drone_pursuit::DronePursuitPolicy,
 }
 
 /// Most preview points a path follower reads (`pathfollow.preview_points`' limit).

@@ -234,8 +234,13 @@ impl Env {
     /// Applies `action` (normalised, two numbers per agent, already checked finite), advances
     /// one control step and writes the next observation.
     pub fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
+        let robots = self.world.robots.len();
         if self.cfg.task.action_delay == 0 {
             for (robot, pair) in self.agent_robots.iter().zip(action.chunks_exact(2)) {
+                if *robot >= robots {
+                    self.task.act(robot - robots, [pair[0], pair[1]]);
+                    continue;
+                }
                 let command = self
                     .world
                     .drive
@@ -248,6 +253,10 @@ impl Env {
             self.pending_actions.push_back(sent);
             if let Some(arrived) = self.pending_actions.pop_front() {
                 for (robot, pair) in self.agent_robots.iter().zip(arrived) {
+                    if *robot >= robots {
+                        self.task.act(robot - robots, pair);
+                        continue;
+                    }
                     let command = self.world.drive.wheel_command(pair, self.action_type);
                     self.world.robots[*robot].wheel_command = command;
                 }

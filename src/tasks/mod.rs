@@ -14,6 +14,7 @@
 //!
 //! Units: metres, seconds, radians; observations in each block's units (see the task's file).
 
+pub mod drone;
 mod env;
 pub mod error_stats;
 pub mod formation;
@@ -53,7 +54,8 @@ pub struct TaskInfo {
 pub struct Agent {
     /// Its name (PettingZoo agent id).
     pub name: String,
-    /// The robot it drives.
+    /// The robot it drives, or, from the number of robots on, the task's own vehicle
+    /// `robot - n_robots` (a drone), whose actions go to [`Task::act`].
     pub robot: usize,
     /// Its observation block's layout.
     pub layout: ObsLayout,
@@ -94,6 +96,10 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
 
     /// Before the world moves (agents' commands are set): commands of scripted robots.
     fn before_step(&self, _world: &mut World) {}
+
+    /// The action of an agent that drives no robot of the world (its [`Agent::robot`] is
+    /// `n_robots + vehicle`: a drone), normalised to [-1, 1]; called before `before_step`.
+    fn act(&mut self, _vehicle: usize, _action: [f32; 2]) {}
 
     /// After the world moved and sensed: each agent's reward and termination; returns whether
     /// the task succeeded (which terminates the episode).
@@ -218,6 +224,12 @@ macro_rules! task_registry {
                 }
             }
 
+            fn act(&mut self, vehicle: usize, action: [f32; 2]) {
+                match self {
+                    $(TaskState::$variant(t) => t.act(vehicle, action),)*
+                }
+            }
+
             #[inline]
             fn judge(
                 &mut self,
@@ -281,6 +293,7 @@ task_registry! {
     Track(track::Track) = track::TRACK,
     PathFollow(pathfollow::PathFollow) = pathfollow::PATHFOLLOW,
     Platoon(platoon::Platoon) = platoon::PLATOON,
+    DroneFollow(drone::DroneFollow) = drone::DRONE_FOLLOW,
 }
 
 impl TaskKind {
