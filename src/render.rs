@@ -74,6 +74,7 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
             None,
         );
     }
+    draw_floor(&mut pixmap, env, transform);
     for shape in &scene.shapes {
         fill_shape(&mut pixmap, shape, paint([120, 120, 120], 255), transform);
     }
@@ -251,6 +252,55 @@ fn fill_shape(
             if let Some(l) = line(shape.center + g.a, shape.center + g.b) {
                 pixmap.stroke_path(&l, &paint, &stroke(0.02), transform, None);
             }
+        }
+    }
+}
+
+/// The floor's image and marks (grey levels as greys), under everything else.
+fn draw_floor(pixmap: &mut Pixmap, env: &Env, transform: Transform) {
+    let floor = &env.world.floor;
+    let grey = |g: f32| {
+        let v = (g.clamp(0.0, 1.0) * 255.0) as u8;
+        [v, v, v]
+    };
+    if let Some(image) = &floor.image {
+        let (w, h) = image.size;
+        if let Some(mut pixels) = Pixmap::new(w, h) {
+            for (px, g) in pixels.pixels_mut().iter_mut().zip(&image.grey) {
+                let v = (g.clamp(0.0, 1.0) * 255.0) as u8;
+                *px = tiny_skia::PremultipliedColorU8::from_rgba(v, v, v, 255)
+                    .unwrap_or(tiny_skia::PremultipliedColorU8::TRANSPARENT);
+            }
+            // Pixel (column, row) covers origin + (column, h − 1 − row) · scale.
+            let s = image.scale;
+            let place = Transform::from_row(
+                s,
+                0.0,
+                0.0,
+                -s,
+                image.origin.x,
+                image.origin.y + h as f32 * s,
+            );
+            pixmap.draw_pixmap(
+                0,
+                0,
+                pixels.as_ref(),
+                &tiny_skia::PixmapPaint::default(),
+                transform.pre_concat(place),
+                None,
+            );
+        }
+    }
+    let segments = floor
+        .marks
+        .segments()
+        .iter()
+        .chain(env.world.floor_marks.segments());
+    for segment in segments {
+        if let Some(l) = line(segment.a, segment.b) {
+            let mut pen = stroke(2.0 * segment.half_width);
+            pen.line_cap = tiny_skia::LineCap::Round;
+            pixmap.stroke_path(&l, &paint(grey(segment.grey), 255), &pen, transform, None);
         }
     }
 }

@@ -14,7 +14,15 @@ except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, DRONE_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
+from conftest import (
+    AVOID_ID,
+    DRONE_ID,
+    FORMATION_ID,
+    LINEFOLLOW_ID,
+    NAV_ID,
+    PATHFOLLOW_ID,
+    TRACK_ID,
+)
 
 import khepera_gym
 from khepera_gym import _core, envs
@@ -22,6 +30,7 @@ from khepera_gym.envs import (
     AvoidEnv,
     DroneFollowEnv,
     FormationEnv,
+    LineFollowEnv,
     NavEnv,
     PathFollowEnv,
     TrackEnv,
@@ -49,8 +58,9 @@ MANUALS = [
     (TrackEnv, TRACK_ID, "track"),
     (PathFollowEnv, PATHFOLLOW_ID, "pathfollow"),
     (DroneFollowEnv, DRONE_ID, "dronefollow"),
+    (LineFollowEnv, LINEFOLLOW_ID, "linefollow"),
 ]
-MANUAL_IDS = ["nav", "avoid", "formation", "track", "pathfollow", "dronefollow"]
+MANUAL_IDS = ["nav", "avoid", "formation", "track", "pathfollow", "dronefollow", "linefollow"]
 
 
 def _section(manual: str, name: str) -> str:

@@ -6,7 +6,8 @@ Fig. 5), :class:`VFH` (eqs. 8-11) and :class:`LeaderFollower` formation control 
 trajectory tracking, :class:`Kanayama` (Kanayama et al. 1990) and :class:`PositionChase` (eqs.
 1-4 chasing the moving reference); for path following, :class:`Samson` (Samson 1992),
 :class:`PurePursuit` (Coulter 1992) and :class:`WaypointSwitching` (eqs. 1-4 toward successive
-waypoints); for the quadcopter of Fig. 8, :class:`DronePursuit` (PD pursuit). Each is a drop-in
+waypoints); for the quadcopter of Fig. 8, :class:`DronePursuit` (PD pursuit); for line
+following, :class:`LineThreshold` (K-Team's demo) and :class:`LineProportional`. Each is a drop-in
 policy for the environments created with ``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
@@ -43,6 +44,7 @@ from khepera_gym.baselines.base import (
     parameters,
 )
 from khepera_gym.baselines.formation import LeaderFollower, formation_offsets
+from khepera_gym.baselines.lines import LineProportional, LineThreshold
 from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, braitenberg_weights
 from khepera_gym.baselines.paths import PurePursuit, Samson, WaypointSwitching
 from khepera_gym.baselines.quadcopter import DronePursuit
@@ -59,6 +61,8 @@ __all__ = [
     "DronePursuit",
     "Kanayama",
     "LeaderFollower",
+    "LineProportional",
+    "LineThreshold",
     "PositionChase",
     "PositionControl",
     "PurePursuit",

@@ -187,6 +187,22 @@ DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], 
         None,
         1,
     ),
+    (
+        "LineFollow: one lap of a black line on the floor, seen by the ground sensors",
+        TASK_IDS["linefollow"],
+        None,
+        DEFAULT_POLICIES["linefollow"],
+        None,
+        1,
+    ),
+    (
+        "DroneFollow: a quadcopter keeps a Khepera IV in its downward camera's view",
+        TASK_IDS["dronefollow"],
+        None,
+        DEFAULT_POLICIES["dronefollow"],
+        None,
+        1,
+    ),
 )
 
 

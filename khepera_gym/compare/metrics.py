@@ -100,6 +100,8 @@ TASK_METRICS: dict[str, TaskMetrics] = {
         termination="lost",
         path_trace=True,
     ),
+    "linefollow": TaskMetrics(success="lap", time="lap time", termination="lost"),
+    "dronefollow": TaskMetrics(success=None, termination="lost", speed=False),
 }
 
 

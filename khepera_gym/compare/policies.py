@@ -45,6 +45,8 @@ DEFAULT_POLICIES = {
     "formation": ("leader_follower", "random"),
     "track": ("kanayama", "position_chase", "random"),
     "pathfollow": ("samson", "pure_pursuit", "waypoint_switching", "random"),
+    "linefollow": ("line_threshold", "line_proportional", "random"),
+    "dronefollow": ("drone_pursuit", "random"),
 }
 
 Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]

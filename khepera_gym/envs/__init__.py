@@ -18,6 +18,7 @@ from khepera_gym.envs.formation import (
     formation_follower_heuristic,
     formation_heuristic,
 )
+from khepera_gym.envs.linefollow import LineFollowEnv, linefollow_heuristic
 from khepera_gym.envs.nav import (
     BRAITENBERG_WEIGHTS,
     AvoidEnv,
@@ -36,6 +37,7 @@ __test__ = {
     "TrackEnv": TrackEnv,
     "PathFollowEnv": PathFollowEnv,
     "DroneFollowEnv": DroneFollowEnv,
+    "LineFollowEnv": LineFollowEnv,
 }
 
 __all__ = [
@@ -46,6 +48,7 @@ __all__ = [
     "DroneFollowEnv",
     "FormationEnv",
     "KheperaEnv",
+    "LineFollowEnv",
     "NavEnv",
     "PathFollowEnv",
     "TrackEnv",
@@ -53,6 +56,7 @@ __all__ = [
     "dronefollow_heuristic",
     "formation_follower_heuristic",
     "formation_heuristic",
+    "linefollow_heuristic",
     "nav_heuristic",
     "pathfollow_heuristic",
     "track_heuristic",

@@ -227,8 +227,13 @@ class NavEnv(KheperaEnv):
     | `sensors.gyro_noise_sigma`    | 0.2     | °/s, Gaussian [E]                            |
     | `sensors.imu_accel_noise_sigma` | 0.002 | g, Gaussian, per axis (imu) [E]              |
     | `sensors.imu_gyro_noise_sigma` | 0.2    | °/s, Gaussian, per axis (imu) [E]            |
-    | `sensors.carry`               | ir, us, | sensors each robot has (ir, us, gyro, imu;   |
-    |                               | gyro    | others cost nothing; v0: ir, us)             |
+    | `sensors.ground_white`        | 954.0   | ground sensors' raw count over white paper   |
+    |                               |         | [S: Webots at 4.5 mm]                        |
+    | `sensors.ground_black`        | 300.0   | raw count over black tape [E]                |
+    | `sensors.ground_noise_sigma`  | 4.0     | raw counts, Gaussian [S: Webots]             |
+    | `sensors.ground_spot_radius`  | 0.003   | m, floor spot a ground sensor averages [E]   |
+    | `sensors.carry`               | ir, us, | sensors each robot has (ir, us, gyro, imu,   |
+    |                               | gyro    | ground; others cost nothing; v0: ir, us)     |
     | `sensors.observe`             | ir, us  | carried sensors whose blocks the observation |
     |                               |         | holds (in this order whatever the list's)    |
     | `task.goal_radius`            | 0.05    | success distance (m)                         |
@@ -253,6 +258,16 @@ class NavEnv(KheperaEnv):
     | `odometry.radius_error`       | 0.01    | believed wheel radius error, per episode [E] |
     | `odometry.axle_error`         | 0.007   | believed axle error, per episode [D]         |
     | `odometry.slip_noise`         | 0.029   | per-step wheel travel noise [E: Enki]        |
+    | `floor.background`            | 1.0     | grey level of the bare floor, 0 black ..     |
+    |                               |         | 1 white paper (for the ground sensors)       |
+    | `floor.lines`                 | []      | straight marks {a, b, width, grey}           |
+    | `floor.arcs`                  | []      | arcs {center, radius, start, end, width,     |
+    |                               |         | grey}, counter-clockwise                     |
+    | `floor.tracks`                | []      | polylines {points, closed, width, grey}      |
+    | `floor.image`                 | ""      | grey-scale PNG under the marks, a path       |
+    |                               |         | relative to the scenario file                |
+    | `floor.image_scale`           | 0.01    | m per pixel                                  |
+    | `floor.image_origin`          | [-1, -1] | m, the image's lower-left corner            |
 
     ## Version History
 

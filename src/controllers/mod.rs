@@ -19,6 +19,8 @@ pub mod braitenberg;
 pub mod drone_pursuit;
 pub mod kanayama;
 pub mod leader_follower;
+pub mod line_proportional;
+pub mod line_threshold;
 pub mod position;
 pub mod pure_pursuit;
 pub mod samson;
@@ -205,6 +207,8 @@ controller_registry! {
     Samson: samson::SamsonPolicy,
     WaypointSwitching: waypoints::WaypointPolicy,
     DronePursuit: drone_pursuit::DronePursuitPolicy,
+    LineThreshold: line_threshold::LineThresholdPolicy,
+    LineProportional: line_proportional::LineProportionalPolicy,
 }
 
 /// Most preview points a path follower reads (`pathfollow.preview_points`' limit).

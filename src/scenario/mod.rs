@@ -15,6 +15,7 @@
 
 mod scenes;
 mod sections;
+mod versions;
 
 use serde::Serialize;
 use toml::{Table, Value};
@@ -24,6 +25,7 @@ use crate::error::{Error, Result};
 use crate::odometry::OdometryConfig;
 use crate::robot::RobotConfig;
 use crate::sensors::SensorsConfig;
+use crate::world::floor::{FloorConfig, SharedFloor};
 
 pub use crate::config::Param;
 pub use scenes::{scene, SCENES};
@@ -31,6 +33,7 @@ pub use sections::{
     ArenaConfig, DriveModel, Localization, ObstacleConfig, ObstacleKind, ObstacleSpec,
     PhysicsConfig, Placement, SpawnConfig, TaskConfig,
 };
+pub use versions::VERSION_DEFAULTS;
 
 /// What a task adds to the shared schema: its own defaults and its own table.
 #[derive(Debug, Clone, Copy)]
@@ -69,6 +72,10 @@ pub struct Scenario {
     pub task: TaskConfig,
     pub physics: PhysicsConfig,
     pub odometry: OdometryConfig,
+    /// `[floor]`: what the ground sensors see.
+    pub floor: FloorConfig,
+    /// The floor built from it (image decoded, marks as segments), shared by every world.
+    pub floor_model: SharedFloor,
     /// The task's own table (name, checked values), if it has one.
     pub own: Option<(String, Table)>,
     /// Where the last part of the scenario came from (a file's name, `<override>` or
@@ -91,27 +98,6 @@ pub struct Source<'a> {
 /// The behaviour version of the current defaults (the `-v1` environments).
 pub const LATEST_VERSION: u32 = 1;
 
-/// What an earlier behaviour version's defaults were, as an overlay on the next version's:
-/// (version, TOML). Applied, newest first, down to the version asked for, after a task's own
-/// defaults, so that `KheperaIV-*-v0` keeps the behaviour its published numbers came from.
-pub const VERSION_DEFAULTS: &[(u32, &str)] = &[(
-    0,
-    r#"
-[robot]
-wheel_accel_limit = inf      # v0: wheels reached any commanded speed within one step
-
-[physics]
-substeps = 4                 # v0: four 12.5 ms substeps
-drive = "kinematic"          # v0: velocity imposed on the body, no tyre model
-friction = 0.0               # v0: frictionless shell: robots slid along walls
-
-[sensors]
-carry = ["ir", "us"]         # v0: no gyroscope model (sensor_readings' gyro_z is exact)
-us_period = 0.0              # v0: the sonars refreshed at every control step
-us_acceptance = 1.5707963267948966 # v0: an echo from any incidence angle
-"#,
-)];
-
 /// Largest action or observation delay (control steps): 5 s at the default 50 ms, far beyond
 /// the real robot's latencies; each pending step keeps an observation per world.
 pub const MAX_DELAY_STEPS: u32 = 100;
@@ -131,6 +117,7 @@ fn shared_sections() -> Vec<(&'static str, Vec<KeyDoc>)> {
         ("task", TaskConfig::KEYS.to_vec()),
         ("physics", PhysicsConfig::KEYS.to_vec()),
         ("odometry", OdometryConfig::KEYS.to_vec()),
+        ("floor", FloorConfig::KEYS.to_vec()),
     ]
 }
 
@@ -212,6 +199,13 @@ impl TaskSchema {
             config::overlay(&mut table, &over, "", OVERRIDE_ORIGIN)?;
             scenario = Scenario::from_table(&table, self, OVERRIDE_ORIGIN)?;
         }
+        // A floor image's relative path starts at the scenario file's folder.
+        let dir = source
+            .file
+            .map(|(_, name)| std::path::Path::new(name))
+            .filter(|path| path.is_file())
+            .and_then(|path| path.parent());
+        scenario.floor_model = SharedFloor::new(scenario.floor.build(dir, &scenario.origin)?);
         Ok(scenario)
     }
 }
@@ -238,6 +232,8 @@ impl Scenario {
             task: TaskConfig::from_table(&section("task"), origin, "task")?,
             physics: PhysicsConfig::from_table(&section("physics"), origin, "physics")?,
             odometry: OdometryConfig::from_table(&section("odometry"), origin, "odometry")?,
+            floor: FloorConfig::from_table(&section("floor"), origin, "floor")?,
+            floor_model: SharedFloor::default(),
             own: schema
                 .section
                 .map(|s| (s.name.to_string(), section(s.name))),
@@ -286,6 +282,7 @@ impl Scenario {
                 OdometryConfig::KEYS.to_vec(),
                 as_table(&self.odometry),
             ),
+            ("floor", FloorConfig::KEYS.to_vec(), as_table(&self.floor)),
         ];
         if let Some((name, table)) = &self.own {
             sections.push((name.as_str(), Vec::new(), table.clone()));

@@ -124,6 +124,8 @@ mod tests {
             robot_reflectance: 1.0,
             yaw_rate: 1.0,
             acceleration: rapier2d::math::Vector::ZERO,
+            floor: &crate::world::floor::Floor::default(),
+            floor_marks: &crate::world::floor::FloorMarks::default(),
             dt: 0.05,
             fresh: false,
         };

@@ -197,6 +197,8 @@ mod tests {
             robot_reflectance: 1.0,
             yaw_rate,
             acceleration,
+            floor: &crate::world::floor::Floor::default(),
+            floor_marks: &crate::world::floor::FloorMarks::default(),
             dt: 0.05,
             fresh: false,
         };

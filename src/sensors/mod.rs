@@ -15,6 +15,7 @@
 //! from that world's random stream only, robot after robot and, for each robot, sensor after
 //! sensor in registry order (so a world's results do not depend on the thread count).
 
+pub mod ground;
 pub mod gyro;
 pub mod imu;
 pub mod ir;
@@ -29,8 +30,10 @@ use crate::config::{self, ConfigTable, KeyDoc};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::{Block, ObsWriter};
+use crate::world::floor::{Floor, FloorMarks};
 use crate::world::scene::Scene;
 
+pub use ground::GroundSensors;
 pub use gyro::Gyro;
 pub use imu::Imu;
 pub use ir::{IrRing, IR_BEARINGS, IR_COUNT};
@@ -56,6 +59,10 @@ pub struct SenseContext<'a> {
     /// The body's planar acceleration around the start of the last step, in the robot frame
     /// (m/s²); kept only while the robot carries the IMU, else zero.
     pub acceleration: Vector,
+    /// The scenario's floor (for the ground sensors).
+    pub floor: &'a Floor,
+    /// The task's marks on it this episode.
+    pub floor_marks: &'a FloorMarks,
     /// The control step (s): the time since the sensors were last read.
     pub dt: f32,
     /// A new episode: every sensor takes a new reading, whatever its refresh period.
@@ -202,7 +209,7 @@ const SUITE_KEYS: &[KeyDoc] = &[
     KeyDoc {
         name: "carry",
         default: "[\"ir\", \"us\", \"gyro\"]",
-        comment: "sensors each robot has (ir, us, gyro, imu); others cost nothing",
+        comment: "sensors each robot has (ir, us, gyro, imu, ground); others cost nothing",
     },
     KeyDoc {
         name: "observe",
@@ -447,6 +454,7 @@ sensor_registry! {
     us: Ultrasonic,
     gyro: Gyro,
     imu: Imu,
+    ground: GroundSensors,
 }
 
 fn strings(list: &[String]) -> Value {

@@ -21,6 +21,7 @@ use crate::error::{Error, Result};
 use crate::obs::ObsWriter;
 use crate::robot::ActionType;
 use crate::scenario::Scenario;
+use crate::world::floor::FloorMarks;
 use crate::world::layout::Spawner;
 use crate::world::World;
 
@@ -185,6 +186,9 @@ impl Env {
             let mut scene = self.spawner.base.clone();
             scene.shapes.extend(layout.obstacles.iter().copied());
             self.world.set_scene(scene);
+        }
+        if !layout.floor.is_empty() || !self.world.floor_marks.segments().is_empty() {
+            self.world.floor_marks = FloorMarks::new(std::mem::take(&mut layout.floor));
         }
         for (i, (position, heading)) in layout.poses.iter().enumerate() {
             self.world.place_robot(i, *position, *heading);
@@ -371,7 +375,9 @@ impl Env {
                 "the state does not fit this env (other task, number of robots or delays)".into(),
             ));
         }
+        let floor = self.world.floor.clone();
         self.world = state.world;
+        self.world.floor = floor;
         self.task = state.task;
         self.agent_rewards = state.agent_rewards;
         self.agent_terminated = state.agent_terminated;

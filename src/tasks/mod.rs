@@ -18,6 +18,7 @@ pub mod drone;
 mod env;
 pub mod error_stats;
 pub mod formation;
+pub mod linefollow;
 pub mod multinav;
 pub mod nav;
 pub mod pathfollow;
@@ -294,6 +295,7 @@ task_registry! {
     PathFollow(pathfollow::PathFollow) = pathfollow::PATHFOLLOW,
     Platoon(platoon::Platoon) = platoon::PLATOON,
     DroneFollow(drone::DroneFollow) = drone::DRONE_FOLLOW,
+    LineFollow(linefollow::LineFollow) = linefollow::LINEFOLLOW,
 }
 
 impl TaskKind {

@@ -13,6 +13,7 @@
 use rand::Rng;
 use rapier2d::math::Vector;
 
+use super::floor::Segment;
 use super::scene::{Scene, SceneShape};
 use crate::error::{Error, Result};
 use crate::scenario::{ObstacleKind, Placement, Scenario};
@@ -66,6 +67,8 @@ pub struct Layout {
     pub goals: Vec<Vector>,
     /// The random obstacles (the fixed ones are in the spawner's base scene).
     pub obstacles: Vec<SceneShape>,
+    /// Marks the task draws on the floor this episode (a line-following track).
+    pub floor: Vec<Segment>,
 }
 
 /// Components of the free space left by the walls and fixed obstacles.
@@ -300,6 +303,7 @@ impl Spawner {
             poses,
             goals,
             obstacles: Vec::new(),
+            floor: Vec::new(),
         }
     }
 
@@ -325,6 +329,7 @@ impl Spawner {
             poses,
             goals,
             obstacles,
+            floor: Vec::new(),
         })
     }
 

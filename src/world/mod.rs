@@ -8,6 +8,7 @@
 //!
 //! Units: metres, seconds, radians; world frame with the arena centred at the origin.
 
+pub mod floor;
 pub mod grid;
 pub mod layout;
 mod motion;
@@ -23,6 +24,7 @@ use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::{DriveModel, Localization, Scenario};
 use crate::sensors::{Readings, SenseContext, Suite};
+use floor::{FloorMarks, SharedFloor};
 use grid::Grid;
 pub use motion::integrate_arc;
 use physics::{BodyState, Physics, PhysicsParams, TractionBody};
@@ -78,6 +80,11 @@ pub struct World {
     pub sensors: Suite,
     /// Static geometry.
     pub scene: Scene,
+    /// The scenario's floor (not state: a loaded state keeps its env's).
+    #[serde(skip)]
+    pub floor: SharedFloor,
+    /// Marks the task draws on the floor this episode (a line-following track).
+    pub floor_marks: FloorMarks,
     /// The robots.
     pub robots: Vec<Robot>,
     /// The world's random stream (ChaCha8), the only randomness it uses.
@@ -144,6 +151,8 @@ impl World {
             drive,
             sensors: Suite::new(&cfg.sensors),
             scene,
+            floor: cfg.floor_model.clone(),
+            floor_marks: FloorMarks::default(),
             robots: vec![Robot::default(); n_robots],
             rng: ChaCha8Rng::seed_from_u64(0),
             physics,
@@ -281,6 +290,8 @@ impl World {
                 robot_reflectance: self.robot_reflectance,
                 yaw_rate: robot.yaw_rate,
                 acceleration: robot.acceleration,
+                floor: &self.floor,
+                floor_marks: &self.floor_marks,
                 dt: self.dt,
                 fresh,
             };

@@ -39,6 +39,7 @@ impl World {
         let (grid, positions) = (&self.grid, &self.positions);
         let (scene, radius, dt) = (&self.scene, self.drive.radius, self.dt);
         let robot_reflectance = self.robot_reflectance;
+        let (floor, floor_marks) = (&*self.floor, &self.floor_marks);
         let read = |scratch: &mut Scratch, (i, robot): (usize, &mut Robot)| {
             scratch.others.clear();
             if use_grid {
@@ -61,6 +62,8 @@ impl World {
                 robot_reflectance,
                 yaw_rate: robot.yaw_rate,
                 acceleration: robot.acceleration,
+                floor,
+                floor_marks,
                 dt,
                 fresh,
             };

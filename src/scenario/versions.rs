@@ -1,0 +1,22 @@
+//! The defaults of earlier behaviour versions, as overlays on the latest's.
+
+/// What an earlier behaviour version's defaults were, as an overlay on the next version's:
+/// (version, TOML). Applied, newest first, down to the version asked for, after a task's own
+/// defaults, so that `KheperaIV-*-v0` keeps the behaviour its published numbers came from.
+pub const VERSION_DEFAULTS: &[(u32, &str)] = &[(
+    0,
+    r#"
+[robot]
+wheel_accel_limit = inf      # v0: wheels reached any commanded speed within one step
+
+[physics]
+substeps = 4                 # v0: four 12.5 ms substeps
+drive = "kinematic"          # v0: velocity imposed on the body, no tyre model
+friction = 0.0               # v0: frictionless shell: robots slid along walls
+
+[sensors]
+carry = ["ir", "us"]         # v0: no gyroscope model (sensor_readings' gyro_z is exact)
+us_period = 0.0              # v0: the sonars refreshed at every control step
+us_acceptance = 1.5707963267948966 # v0: an echo from any incidence angle
+"#,
+)];
