@@ -3,8 +3,8 @@
 Measures env-steps per second of
 
 * the native vector env, ``gym.make_vec("KheperaIV-Nav-v1", num_envs=n, num_threads=t)``, for
-  n in 1, 64, 1024, 4096 and t in 1, 2; then Avoid, Formation, Track, PathFollow, LineFollow
-  and DroneFollow for n = 1024;
+  n in 1, 64, 1024, 4096 and t in 1, 2; then Avoid, Formation, Track, PathFollow, LineFollow,
+  Seek and DroneFollow for n = 1024;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
 * (v1) world-steps/s of swarms of 4 to 1,000 robots per world (:mod:`khepera_gym.swarm_bench`);
 
@@ -43,6 +43,7 @@ OTHER_TASKS = (
     "KheperaIV-Track",
     "KheperaIV-PathFollow",
     "KheperaIV-LineFollow",
+    "KheperaIV-Seek",
     "KheperaIV-DroneFollow",
 )
 #: Worlds of the batch whose memory is measured.

@@ -76,7 +76,13 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
     }
     draw_floor(&mut pixmap, env, transform);
     for shape in &scene.shapes {
-        fill_shape(&mut pixmap, shape, paint([120, 120, 120], 255), transform);
+        // Grey as always, or the colour the camera sees when the scenario gives one.
+        let colour = if shape.color == crate::world::scene::OBSTACLE_GREY {
+            [120, 120, 120]
+        } else {
+            shape.color.map(|c| (c.clamp(0.0, 1.0) * 255.0) as u8)
+        };
+        fill_shape(&mut pixmap, shape, paint(colour, 255), transform);
     }
     // What the task draws: goals, targets.
     let mut marks = Vec::new();

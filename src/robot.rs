@@ -45,6 +45,8 @@ crate::config_table! {
         tyre_friction: Param = 1.0,
         /// infrared reflectance of the shell relative to white paper (1 = K-Team's curve) [E]
         shell_reflectance: f32 = 1.0,
+        /// RGB in [0, 1] the camera sees of a robot: its top LEDs (3 RGB LEDs, 6 bits a colour, spec §6) [E: green]
+        led_color: [f32; 3] = [0.0, 0.8, 0.0],
     }
 }
 

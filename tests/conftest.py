@@ -27,6 +27,8 @@ PATHFOLLOW_ID = "KheperaIV-PathFollow-v1"
 DRONE_ID = "KheperaIV-DroneFollow-v1"
 #: Line following with the ground sensors, likewise only from v1.
 LINEFOLLOW_ID = "KheperaIV-LineFollow-v1"
+#: Seeking a colour with the camera, likewise only from v1.
+SEEK_ID = "KheperaIV-Seek-v1"
 #: The v0 ids: the paper's V-REP-like dynamics (kinematic drive, frictionless contacts, wheels at
 #: their command within a step), which the paper's controllers and gains were tuned for. Tests of
 #: those controllers' published success rates, and tests of the action mapping that read the wheel

@@ -21,6 +21,7 @@ from conftest import (
     LINEFOLLOW_ID,
     NAV_ID,
     PATHFOLLOW_ID,
+    SEEK_ID,
     TRACK_ID,
 )
 
@@ -33,6 +34,7 @@ from khepera_gym.envs import (
     LineFollowEnv,
     NavEnv,
     PathFollowEnv,
+    SeekEnv,
     TrackEnv,
 )
 
@@ -59,8 +61,18 @@ MANUALS = [
     (PathFollowEnv, PATHFOLLOW_ID, "pathfollow"),
     (DroneFollowEnv, DRONE_ID, "dronefollow"),
     (LineFollowEnv, LINEFOLLOW_ID, "linefollow"),
+    (SeekEnv, SEEK_ID, "seek"),
 ]
-MANUAL_IDS = ["nav", "avoid", "formation", "track", "pathfollow", "dronefollow", "linefollow"]
+MANUAL_IDS = [
+    "nav",
+    "avoid",
+    "formation",
+    "track",
+    "pathfollow",
+    "dronefollow",
+    "linefollow",
+    "seek",
+]
 
 
 def _section(manual: str, name: str) -> str:

@@ -113,8 +113,8 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
     assert cli.main(["demo", "--episodes", "2", "--out-dir", str(tmp_path)]) == 0
     output = capsys.readouterr().out
     # The paper's Fig. 6 and Fig. 7 scenes, then Nav, Avoid, Formation, Track, PathFollow,
-    # LineFollow and DroneFollow.
-    assert output.count("2 episodes per policy") == 9
+    # LineFollow, Seek and DroneFollow.
+    assert output.count("2 episodes per policy") == 10
     for task in ("KheperaIV-Nav-v1", "KheperaIV-Avoid-v1", "KheperaIV-Formation-v1"):
         assert task in output
     assert "KheperaIV-Track-v1" in output and "KheperaIV-PathFollow-v1" in output
@@ -133,15 +133,15 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
         assert str((tmp_path / figure).resolve()) in output
     assert str((tmp_path / "pathfollow_trajectories.png").resolve()) in output
     assert "line_threshold" in output and "line_proportional" in output
-    assert "drone_pursuit" in output
+    assert "drone_pursuit" in output and "blob_servo" in output
 
 
 def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:
     measurements = bench.run(
         num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False, task_envs=3
     )
-    assert [m.num_envs for m in measurements] == [2, 2] + [3] * 12 + [1]
-    assert [m.label for m in measurements][2:14] == [
+    assert [m.num_envs for m in measurements] == [2, 2] + [3] * 14 + [1]
+    assert [m.label for m in measurements][2:16] == [
         "Avoid make_vec n=3",
         "Avoid make_vec n=3",
         "Formation make_vec n=3",
@@ -152,6 +152,8 @@ def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixtu
         "PathFollow make_vec n=3",
         "LineFollow make_vec n=3",
         "LineFollow make_vec n=3",
+        "Seek make_vec n=3",
+        "Seek make_vec n=3",
         "DroneFollow make_vec n=3",
         "DroneFollow make_vec n=3",
     ]

@@ -12,7 +12,7 @@ from khepera_gym.errors import ConfigError
 from khepera_gym.registration import registered_ids, resolve_env_id
 
 #: Tasks added with the v1 dynamics: only v1 exists (v0 means the paper's older dynamics).
-V1_ONLY_TASKS = {"track", "pathfollow", "dronefollow", "linefollow"}
+V1_ONLY_TASKS = {"track", "pathfollow", "dronefollow", "linefollow", "seek"}
 
 
 def test_every_task_registers_v0_and_v1_and_the_bare_id_is_the_latest() -> None:

@@ -7,8 +7,9 @@ trajectory tracking, :class:`Kanayama` (Kanayama et al. 1990) and :class:`Positi
 1-4 chasing the moving reference); for path following, :class:`Samson` (Samson 1992),
 :class:`PurePursuit` (Coulter 1992) and :class:`WaypointSwitching` (eqs. 1-4 toward successive
 waypoints); for the quadcopter of Fig. 8, :class:`DronePursuit` (PD pursuit); for line
-following, :class:`LineThreshold` (K-Team's demo) and :class:`LineProportional`. Each is a drop-in
-policy for the environments created with ``action_type="wheels"``::
+following, :class:`LineThreshold` (K-Team's demo) and :class:`LineProportional`; for the camera,
+:class:`BlobServo`. Each is a drop-in policy for the environments created with
+``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
 
@@ -49,6 +50,7 @@ from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, 
 from khepera_gym.baselines.paths import PurePursuit, Samson, WaypointSwitching
 from khepera_gym.baselines.quadcopter import DronePursuit
 from khepera_gym.baselines.tracking import Kanayama, PositionChase
+from khepera_gym.baselines.vision import BlobServo
 
 __all__ = [
     "BRAITENBERG_WEIGHT_SETS",
@@ -57,6 +59,7 @@ __all__ = [
     "KHEPERA_MAX_WHEEL_SPEED",
     "VFH",
     "BaselinePolicy",
+    "BlobServo",
     "Braitenberg",
     "DronePursuit",
     "Kanayama",

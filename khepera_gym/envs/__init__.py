@@ -27,6 +27,7 @@ from khepera_gym.envs.nav import (
     nav_heuristic,
 )
 from khepera_gym.envs.pathfollow import PathFollowEnv, pathfollow_heuristic
+from khepera_gym.envs.seek import SeekEnv, seek_heuristic
 from khepera_gym.envs.track import TrackEnv, track_heuristic
 
 # The manuals' examples live in the task modules: doctest.testmod(khepera_gym.envs) runs them.
@@ -38,6 +39,7 @@ __test__ = {
     "PathFollowEnv": PathFollowEnv,
     "DroneFollowEnv": DroneFollowEnv,
     "LineFollowEnv": LineFollowEnv,
+    "SeekEnv": SeekEnv,
 }
 
 __all__ = [
@@ -51,6 +53,7 @@ __all__ = [
     "LineFollowEnv",
     "NavEnv",
     "PathFollowEnv",
+    "SeekEnv",
     "TrackEnv",
     "avoid_heuristic",
     "dronefollow_heuristic",
@@ -59,5 +62,6 @@ __all__ = [
     "linefollow_heuristic",
     "nav_heuristic",
     "pathfollow_heuristic",
+    "seek_heuristic",
     "track_heuristic",
 ]

@@ -190,15 +190,19 @@ class NavEnv(KheperaEnv):
     | `robot.mass`                  | 0.54    | kg                                           |
     | `robot.tyre_friction`         | 1.0     | tyre-floor friction (grip) [E: Webots]       |
     | `robot.shell_reflectance`     | 1.0     | shell's IR reflectance (1 = white paper) [E] |
+    | `robot.led_color`             | [0.0, 0.8, 0.0] | RGB of its top LEDs, what a camera   |
+    |                               |         | sees of a robot [E]                          |
     | `arena.width`, `arena.height` | 2.0     | inner arena size (m), centred at the origin  |
     | `arena.wall_thickness`        | 0.05    | m, outside the inner rectangle               |
     | `arena.walls`                 | true    | false: open floor (size bounds spawning only) |
     | `arena.wall_reflectance`      | 1.0     | walls' IR reflectance (1 = white paper) [E]  |
+    | `arena.wall_color`            | [0.8, 0.8, 0.8] | walls' RGB for the camera            |
     | `obstacles.fixed`             | []      | fixed obstacles: inline tables `{kind =      |
     |                               |         | "circle", center, radius}`, `{kind = "box",  |
     |                               |         | center, half_extents, angle}`, `{kind =      |
     |                               |         | "segment", a, b}`; each may add a            |
-    |                               |         | `reflectance` (IR, 1 = white paper)          |
+    |                               |         | `reflectance` (IR, 1 = white paper) and a    |
+    |                               |         | `color` (RGB in [0, 1], for the camera)      |
     | `obstacles.count`             | 0       | random obstacles drawn at every reset        |
     | `obstacles.kinds`             | all 3   | shapes of the random obstacles               |
     | `obstacles.circle_radius`     | [0.04, 0.10] | range of random circle radii (m)        |
@@ -232,8 +236,16 @@ class NavEnv(KheperaEnv):
     | `sensors.ground_black`        | 300.0   | raw count over black tape [E]                |
     | `sensors.ground_noise_sigma`  | 4.0     | raw counts, Gaussian [S: Webots]             |
     | `sensors.ground_spot_radius`  | 0.003   | m, floor spot a ground sensor averages [E]   |
+    | `sensors.camera_pixels`       | 32      | camera scanline pixels over its field [D]    |
+    | `sensors.camera_fov`          | 2.287   | rad, horizontal field of view (131°)         |
+    | `sensors.camera_range`        | 2.0     | m, farthest surface a pixel sees [E]         |
+    | `sensors.camera_noise_sigma`  | 0.0     | per colour channel, Gaussian [E]             |
+    | `sensors.camera_depth`        | true    | the observation holds each pixel's depth     |
+    | `sensors.camera_rays_per_pixel` | 4     | rays across a pixel; it shows the nearest    |
+    |                               |         | surface they meet [E]                        |
     | `sensors.carry`               | ir, us, | sensors each robot has (ir, us, gyro, imu,   |
-    |                               | gyro    | ground; others cost nothing; v0: ir, us)     |
+    |                               | gyro    | ground, camera; others cost nothing; v0: ir, |
+    |                               |         | us)                                          |
     | `sensors.observe`             | ir, us  | carried sensors whose blocks the observation |
     |                               |         | holds (in this order whatever the list's)    |
     | `task.goal_radius`            | 0.05    | success distance (m)                         |

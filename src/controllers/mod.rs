@@ -15,6 +15,7 @@
 //!
 //! Units: metres, seconds, radians; robot frame x forward, y left, angles CCW.
 
+pub mod blob_servo;
 pub mod braitenberg;
 pub mod drone_pursuit;
 pub mod kanayama;
@@ -209,6 +210,7 @@ controller_registry! {
     DronePursuit: drone_pursuit::DronePursuitPolicy,
     LineThreshold: line_threshold::LineThresholdPolicy,
     LineProportional: line_proportional::LineProportionalPolicy,
+    BlobServo: blob_servo::BlobServoPolicy,
 }
 
 /// Most preview points a path follower reads (`pathfollow.preview_points`' limit).

@@ -14,7 +14,7 @@
 //! arena centred at the origin.
 
 mod scenes;
-mod sections;
+pub mod sections;
 mod versions;
 
 use serde::Serialize;
@@ -347,6 +347,8 @@ impl Scenario {
         self.physics
             .robot_friction
             .check(origin, "physics.robot_friction", false)?;
+        sections::check_color(self.arena.wall_color, origin, "arena.wall_color")?;
+        sections::check_color(self.robot.led_color, origin, "robot.led_color")?;
         self.odometry.validate(origin)?;
         if self.task.max_steps == 0 {
             return bad("task.max_steps", "must be >= 1, got 0".into());

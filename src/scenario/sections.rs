@@ -27,6 +27,8 @@ crate::config_table! {
         walls: bool = true,
         /// infrared reflectance of the walls relative to white paper (1 = K-Team's curve) [E]
         wall_reflectance: f32 = 1.0,
+        /// RGB in [0, 1] of the walls for the camera (a light grey)
+        wall_color: [f32; 3] = [0.8, 0.8, 0.8],
     }
 }
 
@@ -36,6 +38,7 @@ impl ArenaConfig {
         Scene {
             walled: self.walls,
             wall_reflectance: self.wall_reflectance,
+            wall_color: self.wall_color,
             ..Scene::arena(self.width, self.height, self.wall_thickness)
         }
     }
@@ -51,6 +54,9 @@ pub enum ObstacleSpec {
         radius: f32,
         #[serde(default = "white", skip_serializing_if = "is_white")]
         reflectance: f32,
+        /// RGB in [0, 1] for the camera; grey when not given.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        color: Option<[f32; 3]>,
     },
     /// A rectangle rotated by `angle` (rad).
     Box {
@@ -60,6 +66,9 @@ pub enum ObstacleSpec {
         angle: f32,
         #[serde(default = "white", skip_serializing_if = "is_white")]
         reflectance: f32,
+        /// RGB in [0, 1] for the camera; grey when not given.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        color: Option<[f32; 3]>,
     },
     /// A thin wall from `a` to `b`.
     Segment {
@@ -67,6 +76,9 @@ pub enum ObstacleSpec {
         b: [f32; 2],
         #[serde(default = "white", skip_serializing_if = "is_white")]
         reflectance: f32,
+        /// RGB in [0, 1] for the camera; grey when not given.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        color: Option<[f32; 3]>,
     },
 }
 
@@ -83,22 +95,58 @@ impl ObstacleSpec {
     /// The obstacle as a scene shape.
     pub fn shape(&self) -> SceneShape {
         let v = |p: [f32; 2]| rapier2d::math::Vector::new(p[0], p[1]);
-        match *self {
+        let (shape, reflectance, color) = match *self {
             ObstacleSpec::Circle {
                 center,
                 radius,
                 reflectance,
-            } => SceneShape::circle(v(center), radius).with_reflectance(reflectance),
+                color,
+            } => (SceneShape::circle(v(center), radius), reflectance, color),
             ObstacleSpec::Box {
                 center,
                 half_extents,
                 angle,
                 reflectance,
-            } => SceneShape::rect(v(center), v(half_extents), angle).with_reflectance(reflectance),
-            ObstacleSpec::Segment { a, b, reflectance } => {
-                SceneShape::segment(v(a), v(b)).with_reflectance(reflectance)
-            }
+                color,
+            } => (
+                SceneShape::rect(v(center), v(half_extents), angle),
+                reflectance,
+                color,
+            ),
+            ObstacleSpec::Segment {
+                a,
+                b,
+                reflectance,
+                color,
+            } => (SceneShape::segment(v(a), v(b)), reflectance, color),
+        };
+        let shape = shape.with_reflectance(reflectance);
+        match color {
+            Some(color) => shape.with_color(color),
+            None => shape,
         }
+    }
+
+    /// Its colour, if given.
+    pub fn color(&self) -> Option<[f32; 3]> {
+        match *self {
+            ObstacleSpec::Circle { color, .. }
+            | ObstacleSpec::Box { color, .. }
+            | ObstacleSpec::Segment { color, .. } => color,
+        }
+    }
+}
+
+/// Checks an RGB colour: three numbers in [0, 1].
+pub fn check_color(color: [f32; 3], origin: &str, key: &str) -> Result<()> {
+    if color.iter().all(|c| (0.0..=1.0).contains(c)) {
+        Ok(())
+    } else {
+        Err(Error::config(
+            origin,
+            key,
+            format!("a colour is [r, g, b] with each in [0, 1], got {color:?}"),
+        ))
     }
 }
 
@@ -214,6 +262,9 @@ impl ObstacleConfig {
                     &key,
                     format!("reflectance must be a finite number >= 0, got {reflectance}"),
                 );
+            }
+            if let Some(color) = spec.color() {
+                check_color(color, origin, &key)?;
             }
         }
         if o.count > 64 {

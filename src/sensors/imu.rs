@@ -194,6 +194,7 @@ mod tests {
             sin_cos: (0.0, 1.0),
             radius: 0.07,
             others: &[],
+            other_leds: &[],
             robot_reflectance: 1.0,
             yaw_rate,
             acceleration,

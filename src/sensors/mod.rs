@@ -15,6 +15,7 @@
 //! from that world's random stream only, robot after robot and, for each robot, sensor after
 //! sensor in registry order (so a world's results do not depend on the thread count).
 
+pub mod camera;
 pub mod ground;
 pub mod gyro;
 pub mod imu;
@@ -33,6 +34,7 @@ use crate::obs::{Block, ObsWriter};
 use crate::world::floor::{Floor, FloorMarks};
 use crate::world::scene::Scene;
 
+pub use camera::Camera;
 pub use ground::GroundSensors;
 pub use gyro::Gyro;
 pub use imu::Imu;
@@ -52,6 +54,8 @@ pub struct SenseContext<'a> {
     /// Centres of the other robots of the world (m), in robot order: all of them, or in a
     /// world of many robots those within the suite's [`Sensor::reach`].
     pub others: &'a [Vector],
+    /// Their LED colours (RGB in [0, 1]), in the same order: what a camera sees of them.
+    pub other_leds: &'a [[f32; 3]],
     /// Infrared reflectance of the robots' shells (relative to white paper).
     pub robot_reflectance: f32,
     /// The robot's yaw rate over the last step (rad/s).
@@ -209,7 +213,7 @@ const SUITE_KEYS: &[KeyDoc] = &[
     KeyDoc {
         name: "carry",
         default: "[\"ir\", \"us\", \"gyro\"]",
-        comment: "sensors each robot has (ir, us, gyro, imu, ground); others cost nothing",
+        comment: "sensors each robot has (ir, us, gyro, imu, ground, camera); others cost nothing",
     },
     KeyDoc {
         name: "observe",
@@ -455,6 +459,7 @@ sensor_registry! {
     gyro: Gyro,
     imu: Imu,
     ground: GroundSensors,
+    camera: Camera,
 }
 
 fn strings(list: &[String]) -> Value {

@@ -24,6 +24,7 @@ pub mod nav;
 pub mod pathfollow;
 pub mod platoon;
 pub mod reference;
+pub mod seek;
 pub mod track;
 
 use rand_chacha::ChaCha8Rng;
@@ -296,6 +297,7 @@ task_registry! {
     Platoon(platoon::Platoon) = platoon::PLATOON,
     DroneFollow(drone::DroneFollow) = drone::DRONE_FOLLOW,
     LineFollow(linefollow::LineFollow) = linefollow::LINEFOLLOW,
+    Seek(seek::Seek) = seek::SEEK,
 }
 
 impl TaskKind {

@@ -66,6 +66,8 @@ pub struct Robot {
     pub in_contact: bool,
     /// Its sensors' last readings, in the real robot's units.
     pub readings: Readings,
+    /// The colour of its top LEDs (RGB in [0, 1]): what cameras see of it.
+    pub led: [f32; 3],
     step_start_heading: f32,
     step_start_position: Vector,
 }
@@ -97,6 +99,8 @@ pub struct World {
     tyre_friction: f32,
     /// Infrared reflectance of the robots' shells.
     robot_reflectance: f32,
+    /// The robots' LED colour at placement (`robot.led_color`).
+    robot_led: [f32; 3],
     /// Whether robots keep an odometry estimate (`localization = "odometry"`).
     odometry: bool,
     // Scratch buffers and constants: not state.
@@ -106,6 +110,8 @@ pub struct World {
     traction: Vec<TractionBody>,
     #[serde(skip)]
     others: Vec<Vector>,
+    #[serde(skip)]
+    other_leds: Vec<[f32; 3]>,
     #[serde(skip)]
     grid: Grid,
     #[serde(skip)]
@@ -161,10 +167,12 @@ impl World {
             drive_model: cfg.physics.drive,
             tyre_friction: cfg.robot.tyre_friction.bounds().0,
             robot_reflectance: cfg.robot.shell_reflectance,
+            robot_led: cfg.robot.led_color,
             odometry: cfg.task.localization == Localization::Odometry,
             bodies: Vec::with_capacity(n_robots),
             traction: Vec::with_capacity(n_robots),
             others: Vec::with_capacity(n_robots),
+            other_leds: Vec::with_capacity(n_robots),
             grid: Grid::default(),
             near: Vec::new(),
             speeds: Vec::new(),
@@ -207,6 +215,7 @@ impl World {
         self.robots[i] = Robot {
             position,
             heading: wrap_angle(heading),
+            led: self.robot_led,
             ..Robot::default()
         };
     }
@@ -275,9 +284,11 @@ impl World {
         }
         for i in 0..self.robots.len() {
             self.others.clear();
+            self.other_leds.clear();
             for (j, other) in self.robots.iter().enumerate() {
                 if j != i {
                     self.others.push(other.position);
+                    self.other_leds.push(other.led);
                 }
             }
             let robot = &mut self.robots[i];
@@ -287,6 +298,7 @@ impl World {
                 sin_cos: robot.heading.sin_cos(),
                 radius: self.drive.radius,
                 others: &self.others,
+                other_leds: &self.other_leds,
                 robot_reflectance: self.robot_reflectance,
                 yaw_rate: robot.yaw_rate,
                 acceleration: robot.acceleration,

@@ -36,11 +36,18 @@ pub struct SceneShape {
     /// Infrared reflectance relative to white paper (1 = K-Team's response curve).
     #[serde(default = "white")]
     pub reflectance: f32,
+    /// Colour the camera sees, RGB in [0, 1].
+    pub color: [f32; 3],
 }
 
 fn white() -> f32 {
     1.0
 }
+
+/// The colour of obstacles that give none (a mid grey).
+pub const OBSTACLE_GREY: [f32; 3] = [0.5, 0.5, 0.5];
+/// The colour of walls that give none (a light grey).
+pub const WALL_GREY: [f32; 3] = [0.8, 0.8, 0.8];
 
 impl SceneShape {
     /// Places `geometry` at `center`, rotated by `angle`.
@@ -58,7 +65,14 @@ impl SceneShape {
             sin: angle.sin(),
             bound_radius,
             reflectance: 1.0,
+            color: OBSTACLE_GREY,
         }
+    }
+
+    /// The same shape with the camera colour `color` (RGB in [0, 1]).
+    pub fn with_color(mut self, color: [f32; 3]) -> Self {
+        self.color = color;
+        self
     }
 
     /// The same shape with infrared `reflectance` (relative to white paper).
@@ -186,6 +200,8 @@ pub struct Scene {
     /// Infrared reflectance of the walls relative to white paper.
     #[serde(default = "white")]
     pub wall_reflectance: f32,
+    /// Colour of the walls for the camera (RGB in [0, 1]).
+    pub wall_color: [f32; 3],
     /// Obstacles (not the walls).
     pub shapes: Vec<SceneShape>,
 }
@@ -198,6 +214,7 @@ impl Scene {
             wall_thickness: thickness,
             walled: true,
             wall_reflectance: 1.0,
+            wall_color: WALL_GREY,
             shapes: Vec::new(),
         }
     }

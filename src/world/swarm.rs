@@ -35,6 +35,9 @@ impl World {
         self.positions.clear();
         self.positions
             .extend(self.robots.iter().map(|r| r.position));
+        self.other_leds.clear();
+        self.other_leds.extend(self.robots.iter().map(|r| r.led));
+        let leds = &self.other_leds;
         let base: u64 = self.rng.random();
         let (grid, positions) = (&self.grid, &self.positions);
         let (scene, radius, dt) = (&self.scene, self.drive.radius, self.dt);
@@ -42,14 +45,20 @@ impl World {
         let (floor, floor_marks) = (&*self.floor, &self.floor_marks);
         let read = |scratch: &mut Scratch, (i, robot): (usize, &mut Robot)| {
             scratch.others.clear();
+            scratch.leds.clear();
             if use_grid {
                 scratch.near.clear();
                 grid.near(robot.position, reach, i, &mut scratch.near);
                 let near = scratch.near.iter().map(|&j| positions[j as usize]);
                 scratch.others.extend(near);
+                scratch
+                    .leds
+                    .extend(scratch.near.iter().map(|&j| leds[j as usize]));
             } else {
                 let all = positions.iter().enumerate().filter(|(j, _)| *j != i);
                 scratch.others.extend(all.map(|(_, p)| *p));
+                let all = leds.iter().enumerate().filter(|(j, _)| *j != i);
+                scratch.leds.extend(all.map(|(_, c)| *c));
             }
             let mut rng = ChaCha8Rng::seed_from_u64(base);
             rng.set_stream(i as u64);
@@ -59,6 +68,7 @@ impl World {
                 sin_cos: robot.heading.sin_cos(),
                 radius,
                 others: &scratch.others,
+                other_leds: &scratch.leds,
                 robot_reflectance,
                 yaw_rate: robot.yaw_rate,
                 acceleration: robot.acceleration,
@@ -73,6 +83,7 @@ impl World {
         let scratch = || Scratch {
             suite: sensors.clone(),
             others: Vec::new(),
+            leds: Vec::new(),
             near: Vec::new(),
         };
         if rayon::current_thread_index().is_some() {
@@ -136,5 +147,6 @@ impl World {
 struct Scratch {
     suite: Suite,
     others: Vec<Vector>,
+    leds: Vec<[f32; 3]>,
     near: Vec<u32>,
 }
