@@ -1,7 +1,7 @@
 """Line following with the ground sensors (KheperaIV-LineFollow-v1): K-Team's threshold follower
 laps a random spline track drawn on the floor; prints the lap and saves a frame.
 
-Usage: ``python examples/line_follow.py [--track spline] [--seed 3] [--frame out.png]``.
+Usage: ``python examples/line_follow.py [--track spline] [--seed 3] [--frame out.png] [--camera]``.
 The 200-episode tables of the README come from ``khepera-gym compare --task linefollow``.
 """
 
@@ -20,10 +20,18 @@ def main() -> None:
     parser.add_argument("--track", default="spline")
     parser.add_argument("--seed", type=int, default=3)
     parser.add_argument("--frame", default=None, help="save a frame half way round to this PNG")
+    parser.add_argument(
+        "--camera", action="store_true", help="carry the camera too (its field shows in frames)"
+    )
     args = parser.parse_args()
     mode = "rgb_array" if args.frame else None
+    carry = ["ir", "us", "gyro", "ground"] + (["camera"] if args.camera else [])
     env = gym.make(
-        "KheperaIV-LineFollow-v1", track=args.track, render_mode=mode, frame_size=(600, 600)
+        "KheperaIV-LineFollow-v1",
+        track=args.track,
+        carry=carry,
+        render_mode=mode,
+        frame_size=(600, 600),
     )
     obs, _ = env.reset(seed=args.seed)
     frame = None

@@ -4,7 +4,7 @@ Measures env-steps per second of
 
 * the native vector env, ``gym.make_vec("KheperaIV-Nav-v1", num_envs=n, num_threads=t)``, for
   n in 1, 64, 1024, 4096 and t in 1, 2; then Avoid, Formation, Track, PathFollow, LineFollow,
-  Seek and DroneFollow for n = 1024;
+  Seek, DroneFollow and Nav with the camera (4 rays a pixel, and 1) for n = 1024;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
 * (v1) world-steps/s of swarms of 4 to 1,000 robots per world (:mod:`khepera_gym.swarm_bench`);
 
@@ -46,6 +46,18 @@ OTHER_TASKS = (
     "KheperaIV-Seek",
     "KheperaIV-DroneFollow",
 )
+#: Nav with the camera observed (4 rays a pixel, then 1): what the sensor costs (issue 15).
+CAMERA_ROWS: tuple[tuple[str, dict[str, object]], ...] = (
+    ("Nav+camera", {"carry": ["ir", "us", "gyro", "camera"], "observe": ["ir", "us", "camera"]}),
+    (
+        "Nav+camera 1 ray",
+        {
+            "carry": ["ir", "us", "gyro", "camera"],
+            "observe": ["ir", "us", "camera"],
+            "camera_rays_per_pixel": 1,
+        },
+    ),
+)
 #: Worlds of the batch whose memory is measured.
 _MEMORY_WORLDS = 4096
 
@@ -80,9 +92,12 @@ def bench_vector(
     duration: float,
     warmup: int = 20,
     env_id: str = NAV_ID,
+    label: str | None = None,
+    **overrides: object,
 ) -> Measurement:
-    """Times ``step`` of the native vector env for about ``duration`` seconds."""
-    envs = gym.make_vec(env_id, num_envs=num_envs, num_threads=num_threads)
+    """Times ``step`` of the native vector env for about ``duration`` seconds (``overrides``:
+    scenario keys, as ``gym.make_vec``'s; ``label`` names the row instead of the task)."""
+    envs = gym.make_vec(env_id, num_envs=num_envs, num_threads=num_threads, **overrides)
     act_dim = envs.single_action_space.shape[0]
     actions = _random_actions(np.random.default_rng(0), (num_envs, act_dim))
     envs.reset(seed=0)
@@ -99,7 +114,7 @@ def bench_vector(
         now = time.perf_counter()
     envs.close()
     task = env_id.removeprefix("KheperaIV-").rsplit("-v", 1)[0]
-    name = "" if task == "Nav" else task + " "
+    name = label + " " if label else "" if task == "Nav" else task + " "
     return Measurement(f"{name}make_vec n={num_envs}", num_envs, num_threads, steps, now - start)
 
 
@@ -176,11 +191,15 @@ def run(
     print("-" * len(header))
     measurements: list[Measurement] = []
 
-    def thread_rows(count: int, env_id: str) -> None:
+    def thread_rows(
+        count: int, env_id: str, label: str | None = None, overrides: dict | None = None
+    ) -> None:
         """Times one batch size at every thread count and prints a row each."""
         single_thread_rate: float | None = None
         for threads in num_threads:
-            result = bench_vector(count, threads, duration, env_id=env_id)
+            result = bench_vector(
+                count, threads, duration, env_id=env_id, label=label, **(overrides or {})
+            )
             measurements.append(result)
             rate = result.env_steps_per_second
             if threads == 1:
@@ -197,6 +216,8 @@ def run(
     for env_id in OTHER_TASKS if task_envs else ():
         if f"{env_id}-v{version}" in gym.registry:
             thread_rows(task_envs, f"{env_id}-v{version}")
+    for label, overrides in CAMERA_ROWS if task_envs and version >= 1 else ():
+        thread_rows(task_envs, nav_id, label, overrides)
     if single:
         result = bench_single(duration, env_id=nav_id)
         measurements.append(result)

@@ -116,7 +116,10 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
             radius,
         };
         env.world.sensors.draw(&at, &robot.readings, &mut marks);
-        for mark in &marks {
+        // Rays under the body; markers (the ground sensors' spots, under the body's front) on
+        // top of it.
+        let on_top = |m: &Mark| matches!(m, Mark::Cross { .. });
+        for mark in marks.iter().filter(|m| !on_top(m)) {
             draw_mark(&mut pixmap, mark, transform);
         }
         let colour = PALETTE[k % 8];
@@ -143,6 +146,9 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
                 transform,
                 None,
             );
+        }
+        for mark in marks.iter().filter(|m| on_top(m)) {
+            draw_mark(&mut pixmap, mark, transform);
         }
     }
     // Premultiplied RGBA over an opaque background is plain RGB.

@@ -132,10 +132,19 @@ fn test_the_image_maps_pixels_to_metres_with_row_zero_at_the_top() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A teacher's own line: a hexagon-like loop, 1.4 m across.
+const OWN_LINE: &str = "track = \"waypoints\"\npoints = [[-0.6, -0.4], [0.0, -0.7], [0.6, -0.4], \
+                        [0.7, 0.3], [0.0, 0.6], [-0.7, 0.3], [-0.6, -0.4]]";
+
 fn laps(track: &str, policy: &str, seeds: usize) -> Vec<(bool, u32)> {
+    let overrides = if track == "waypoints" {
+        OWN_LINE.to_string()
+    } else {
+        format!("track = {track:?}")
+    };
     let source = Source {
         file: None,
-        overrides: format!("track = {track:?}").parse().expect("overrides"),
+        overrides: overrides.parse().expect("overrides"),
         version: None,
     };
     let cfg = load_scenario("linefollow", &source).expect("scenario");
@@ -182,10 +191,10 @@ fn laps(track: &str, policy: &str, seeds: usize) -> Vec<(bool, u32)> {
 }
 
 #[test]
-fn test_both_line_followers_lap_the_smooth_tracks() {
+fn test_both_line_followers_lap_the_smooth_tracks_and_a_teachers_own() {
     // A lap of the 0.6 m circle at the demo's 61.02 mm/s takes 3.770 / 0.06102 = 61.8 s (1235.6
     // steps); both followers start on the line and keep it.
-    for track in ["circle", "lemniscate", "spline"] {
+    for track in ["circle", "lemniscate", "spline", "waypoints"] {
         for policy in ["line_threshold", "line_proportional"] {
             for (seed, (success, length)) in laps(track, policy, 8).into_iter().enumerate() {
                 assert!(success, "{policy} on the {track}, seed {seed}: no lap");
@@ -252,8 +261,15 @@ fn test_bad_floors_and_keys_are_config_errors_naming_them() {
         (
             "linefollow",
             "track = \"waypoints\"".into(),
-            "linefollow.track",
+            "linefollow.points",
         ),
+        (
+            "linefollow",
+            "track = \"waypoints\"\npoints = [[-2.0, 0.0], [0.0, 1.0], [1.0, 0.0], [0.0, -1.0], [-2.0, 0.0]]"
+                .into(),
+            "linefollow.points",
+        ),
+        ("linefollow", "points = [[0.0, 0.0]]".into(), "linefollow.points"),
         (
             "linefollow",
             "carry = [\"ir\"]\nobserve = [\"ir\"]".into(),

@@ -140,8 +140,8 @@ def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixtu
     measurements = bench.run(
         num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False, task_envs=3
     )
-    assert [m.num_envs for m in measurements] == [2, 2] + [3] * 14 + [1]
-    assert [m.label for m in measurements][2:16] == [
+    assert [m.num_envs for m in measurements] == [2, 2] + [3] * 18 + [1]
+    assert [m.label for m in measurements][2:20] == [
         "Avoid make_vec n=3",
         "Avoid make_vec n=3",
         "Formation make_vec n=3",
@@ -156,6 +156,10 @@ def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixtu
         "Seek make_vec n=3",
         "DroneFollow make_vec n=3",
         "DroneFollow make_vec n=3",
+        "Nav+camera make_vec n=3",
+        "Nav+camera make_vec n=3",
+        "Nav+camera 1 ray make_vec n=3",
+        "Nav+camera 1 ray make_vec n=3",
     ]
     assert all(m.steps > 0 and m.env_steps_per_second > 0 for m in measurements)
     assert "env-steps/s" in capsys.readouterr().out

@@ -26,7 +26,8 @@ class LineFollowEnv(KheperaEnv):
     wide (K-Team's demo needs at least that) is drawn on the white floor of the 2 m × 2 m
     arena along a closed curve (`linefollow.track`): `"circle"` (radius `linefollow.size` =
     0.6 m, a 3.77 m lap), `"lemniscate"` (a figure eight that crosses itself), `"spline"` (a
-    random smooth closed curve per seed) or `"square"` (sharp 90° corners: the hard case). The
+    random smooth closed curve per seed), `"square"` (sharp 90° corners: the hard case) or
+    `"waypoints"` (a teacher's own line: the smooth closed curve through `linefollow.points`). The
     robot must lap it seeing only the floor under its sensors, its IR ring and its wheels.
 
     :func:`linefollow_heuristic` (K-Team's demo logic,
@@ -141,6 +142,7 @@ class LineFollowEnv(KheperaEnv):
     | `task.max_steps`                  | 4000           | cap; truncation is laps at the       |
     |                                   |                | reference speed                      |
     | `linefollow.track`                | circle         | circle, lemniscate, square, spline   |
+    |                                   |                | or waypoints (`linefollow.points`)   |
     | `linefollow.size`                 | 0.6            | m: radius, half-width or half-side   |
     | `linefollow.width`                | 0.027          | m, the line's width                  |
     | `linefollow.grey`                 | 0.0            | the line's grey level (black)        |
@@ -153,10 +155,12 @@ class LineFollowEnv(KheperaEnv):
     | `linefollow.error_weight`         | 1.0            | reward per metre from the line       |
     | `linefollow.reference_speed`      | 0.061          | m/s, the demo's speed                |
     | `linefollow.truncation_factor`    | 2.0            | laps at reference_speed              |
+    | `linefollow.points`               | []             | waypoints: [[x, y], ...] (m), the    |
+    |                                   |                | last repeating the first             |
 
-    A size that leaves the arena, a width outside [5 mm, 20 cm], `track = "waypoints"` (draw your
-    own line with `[floor] tracks` instead) or a scenario that does not carry the ground sensors
-    raise `khepera_gym.errors.ConfigError` naming the key.
+    A size that leaves the arena, a width outside [5 mm, 20 cm], waypoints that are fewer than 4,
+    not closed, closer than 1 mm or whose line leaves the arena, or a scenario that does not carry
+    the ground sensors raise `khepera_gym.errors.ConfigError` naming the key.
 
     ## Version History
 

@@ -2,8 +2,9 @@
 //! (issue 15; research/tasks.md §5.2). One closed line per episode, `linefollow.width` wide
 //! (2.7 cm: K-Team's demo asks for a line at least 2.7 cm wide, spec §4), drawn on the floor
 //! (the world's [`FloorMarks`]) along a closed curve: a circle, a figure eight (Gerono's
-//! lemniscate, which crosses itself), a square with sharp corners, or a random smooth closed
-//! spline per seed (the curves of the tracking tasks, `reference.rs`). The robot starts on the
+//! lemniscate, which crosses itself), a square with sharp corners, a random smooth closed
+//! spline per seed (the curves of the tracking tasks, `reference.rs`), or the scenario's own
+//! line through its `points` (`track = "waypoints"`). The robot starts on the
 //! line, heading along it up to `start_heading_offset` (±10°: a front sensor starts over the
 //! line) off, at rest.
 //!
@@ -71,7 +72,7 @@ max_steps = 4000             # cap; truncation is truncation_factor laps at refe
 crate::config_table! {
     /// `[linefollow]`: the line and the episode.
     pub struct LineFollowConfig {
-        /// circle, lemniscate (a figure eight), square (sharp corners) or spline (random per seed)
+        /// circle, lemniscate (a figure eight), square (sharp corners), spline (random per seed) or waypoints (the points below)
         track: Shape = "circle",
         /// m: radius, half-width, half-side, or the spline's largest radius
         size: f32 = 0.6,
@@ -97,6 +98,8 @@ crate::config_table! {
         reference_speed: f32 = 0.061,
         /// laps at reference_speed before truncation
         truncation_factor: f32 = 2.0,
+        /// track = "waypoints": the scenario's own line, a smooth closed curve through [[x, y], ...] (m), the last point repeating the first
+        points: Vec<[f32; 2]> = [],
     }
 }
 
@@ -104,14 +107,33 @@ fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()>
     let lf = LineFollowConfig::from_table(table, origin, "linefollow")?;
     let bad =
         |key: &str, msg: String| Err(Error::config(origin, &format!("linefollow.{key}"), msg));
-    if lf.track == Shape::Waypoints {
-        return bad(
-            "track",
-            "must be circle, lemniscate, square or spline (draw your own with [floor] tracks)"
-                .into(),
-        );
-    }
     let limit = 0.5 * scenario.arena.width.min(scenario.arena.height) - scenario.robot.radius;
+    if lf.track == Shape::Waypoints {
+        let p = &lf.points;
+        let closed = p.len() >= 5 && p.first() == p.last();
+        let apart = p
+            .windows(2)
+            .all(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]) > 0.001);
+        if !closed || !apart || p.iter().flatten().any(|v| !v.is_finite()) {
+            return bad(
+                "points",
+                "track = \"waypoints\" needs at least 4 finite points [x, y], 1 mm apart or \
+                 more, and the first repeated last (a closed line)"
+                    .into(),
+            );
+        }
+        let half = (0.5 * scenario.arena.width, 0.5 * scenario.arena.height);
+        let line = LineFollow::waypoint_curve(p);
+        let e = extent_xy(&line);
+        if e[0] > half.0 - scenario.robot.radius || e[1] > half.1 - scenario.robot.radius {
+            return bad(
+                "points",
+                "the line through them leaves the arena (less the robot's radius)".into(),
+            );
+        }
+    } else if !lf.points.is_empty() {
+        return bad("points", "are only for track = \"waypoints\"".into());
+    }
     if !(lf.size >= 0.1 && lf.size <= limit) {
         return bad(
             "size",
@@ -165,14 +187,18 @@ fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()>
     Ok(())
 }
 
-/// The largest |x| or |y| of a curve (m), from 720 samples.
+/// The largest |x| and |y| of a curve (m), from 720 samples.
+fn extent_xy(curve: &Curve) -> [f32; 2] {
+    (0..720).fold([0.0f32; 2], |e, k| {
+        let [p, _, _] = curve.eval(k as f64 / 720.0);
+        [e[0].max(p[0].abs() as f32), e[1].max(p[1].abs() as f32)]
+    })
+}
+
+/// The largest |x| or |y| of a curve (m).
 fn extent(curve: &Curve) -> f32 {
-    (0..720)
-        .map(|k| {
-            let [p, _, _] = curve.eval(k as f64 / 720.0);
-            p[0].abs().max(p[1].abs()) as f32
-        })
-        .fold(0.0, f32::max)
+    let [x, y] = extent_xy(curve);
+    x.max(y)
 }
 
 /// Per-world state of the line-following task.
@@ -196,8 +222,25 @@ pub struct LineFollow {
 }
 
 impl LineFollow {
+    /// The smooth closed curve through a scenario's points, timed by the chord length so far
+    /// (an even pace), as PathFollow's own paths.
+    fn waypoint_curve(points: &[[f32; 2]]) -> Curve {
+        let mut along = 0.0;
+        let mut previous = points.first().copied().unwrap_or([0.0; 2]);
+        let timed: Vec<[f32; 3]> = points
+            .iter()
+            .map(|p| {
+                along += (p[0] - previous[0]).hypot(p[1] - previous[1]);
+                previous = *p;
+                [along, p[0], p[1]]
+            })
+            .collect();
+        Curve::waypoints(&timed).0
+    }
+
     fn base_curve(&self) -> Curve {
         match self.cfg.track {
+            Shape::Waypoints => Self::waypoint_curve(&self.cfg.points),
             Shape::Spline => Curve::new(
                 Shape::Spline,
                 self.cfg.size / (1.0 + self.cfg.spline_irregularity),
