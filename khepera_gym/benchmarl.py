@@ -1,7 +1,8 @@
-"""BenchMARL tasks over the Rust batch: Formation, MultiNav and Platoon, without touching BenchMARL.
+"""BenchMARL tasks over the Rust batch: Formation, MultiNav, Platoon and Consensus, without touching
+BenchMARL.
 
-:class:`KheperaTask` is a BenchMARL ``Task`` enum (members ``FORMATION``, ``MULTINAV`` and
-``PLATOON``) whose :class:`KheperaTaskClass` builds a
+:class:`KheperaTask` is a BenchMARL ``Task`` enum (members ``FORMATION``, ``MULTINAV``,
+``PLATOON`` and ``CONSENSUS``) whose :class:`KheperaTaskClass` builds a
 :class:`khepera_gym.torchrl.KheperaTorchEnv` of ``num_envs`` worlds (``batch_size=[num_envs]``,
 so BenchMARL uses the batch as it is, with no ``SerialEnv`` or ``ParallelEnv`` around it)::
 
@@ -28,9 +29,9 @@ and ``config`` (a scenario file or built-in name), ``group_map``, ``action_type`
 the task's own keys and ``max_steps`` as the Rust core's built-in scenario sets them
 (BenchMARL's own YAML folder is not used); ``get_from_yaml(path)`` reads a YAML file of such
 keys. The members of :class:`KheperaTask` are the core's multi-agent tasks. Groups: formation
-``"followers"`` (and ``"leader"`` with ``leader: agent``), multinav and platoon ``"robots"``
-with per-robot done flags; the ``state`` (every agent's observation) feeds centralised critics
-(MAPPO, MASAC, QMIX-style mixers). Actions are continuous only.
+``"followers"`` (and ``"leader"`` with ``leader: agent``), multinav, platoon and consensus
+``"robots"`` with per-robot done flags; the ``state`` (every agent's observation) feeds
+centralised critics (MAPPO, MASAC, QMIX-style mixers). Actions are continuous only.
 BenchMARL's Hydra command line does not know these tasks (they are not in its registry);
 use the Python API.
 
@@ -85,7 +86,8 @@ class KheperaTaskClass(TaskClass):
     """A Khepera IV task of BenchMARL: how to build its env and read its specs.
 
     Args:
-        name: The task's name, "FORMATION", "MULTINAV" or "PLATOON" (the enum member's).
+        name: The task's name, "FORMATION", "MULTINAV", "PLATOON" or "CONSENSUS" (the enum
+            member's).
         config: Arguments of :class:`~khepera_gym.torchrl.KheperaTorchEnv` (see the module
             docstring).
     """
@@ -176,6 +178,7 @@ class KheperaTask(Task):
     FORMATION = None
     MULTINAV = None
     PLATOON = None
+    CONSENSUS = None
 
     @staticmethod
     def associated_class() -> type[KheperaTaskClass]:

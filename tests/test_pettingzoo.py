@@ -1,5 +1,5 @@
-"""PettingZoo: formation_v1, multinav_v1 and platoon_v1 pass PettingZoo's own tests and keep the
-contract."""
+"""PettingZoo: formation_v1, multinav_v1, platoon_v1 and consensus_v1 pass PettingZoo's own tests
+and keep the contract."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ from khepera_gym.envs import (
 )
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.pettingzoo import (
+    consensus_v1,
     formation_v0,
     formation_v1,
     multinav_v0,
@@ -40,6 +41,11 @@ ENVS = [
     (multinav_v0, {}),
     (platoon_v1, {}),
     (platoon_v1, {"robots": 5, "reference": "lemniscate", "max_cycles": 200}),
+    (consensus_v1, {}),
+    (
+        consensus_v1,
+        {"n_robots": 6, "graph": "geometric", "trigger": "event", "drop": 0.2, "delay_steps": 3},
+    ),
 ]
 ENV_IDS = [
     "formation",
@@ -51,6 +57,8 @@ ENV_IDS = [
     "multinav-v0",
     "platoon",
     "platoon-lemniscate",
+    "consensus",
+    "consensus-geometric-event-lossy",
 ]
 
 

@@ -46,6 +46,7 @@ ENV_KINDS = [
     ("formation", {"leader": "agent", "n_followers": 3, "shape": "wedge"}),
     ("multinav", {"n_robots": 3}),
     ("platoon", {"robots": 2}),
+    ("consensus", {"n_robots": 3, "trigger": "event"}),
 ]
 
 
@@ -580,7 +581,7 @@ def test_benchmarl_task_builds_a_batched_env(task: KheperaTask) -> None:
 
 def test_benchmarl_tasks_are_the_cores_multi_agent_tasks() -> None:
     assert [task.name.lower() for task in KheperaTask] == multi_agent_tasks()
-    assert multi_agent_tasks() == ["formation", "multinav", "platoon"]
+    assert multi_agent_tasks() == ["formation", "multinav", "platoon", "consensus"]
     # The default config is the built-in scenario's: an env built from it is the default env.
     for task in KheperaTask:
         name = task.name.lower()

@@ -8,8 +8,8 @@ trajectory tracking, :class:`Kanayama` (Kanayama et al. 1990) and :class:`Positi
 :class:`PurePursuit` (Coulter 1992) and :class:`WaypointSwitching` (eqs. 1-4 toward successive
 waypoints); for the quadcopter of Fig. 8, :class:`DronePursuit` (PD pursuit); for line
 following, :class:`LineThreshold` (K-Team's demo) and :class:`LineProportional`; for the camera,
-:class:`BlobServo`. Each is a drop-in policy for the environments created with
-``action_type="wheels"``::
+:class:`BlobServo`; for consensus with messages, :class:`ConsensusLaw`. Each is a drop-in
+policy for the environments created with ``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
 
@@ -44,6 +44,7 @@ from khepera_gym.baselines.base import (
     BaselinePolicy,
     parameters,
 )
+from khepera_gym.baselines.consensus import ConsensusLaw
 from khepera_gym.baselines.formation import LeaderFollower, formation_offsets
 from khepera_gym.baselines.lines import LineProportional, LineThreshold
 from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, braitenberg_weights
@@ -61,6 +62,7 @@ __all__ = [
     "BaselinePolicy",
     "BlobServo",
     "Braitenberg",
+    "ConsensusLaw",
     "DronePursuit",
     "Kanayama",
     "LeaderFollower",

@@ -83,6 +83,9 @@ class BaselinePolicy:
 
     #: The controller's name in the Rust core.
     CONTROLLER: ClassVar[str] = ""
+    #: Whether ``khepera-gym compare`` offers it by name on the Gymnasium envs (False for a
+    #: controller of a PettingZoo-only task).
+    COMPARABLE: ClassVar[bool] = True
     #: Its parameters: (name, default, comment), from the Rust core.
     PARAMETERS: ClassVar[list[tuple[str, Any, str]]] = []
     _policy: _core.Policy
@@ -145,7 +148,7 @@ class BaselinePolicy:
 
     def __getattr__(self, name: str) -> Any:
         # Parameters read as attributes (policy.vmax); only called for missing attributes.
-        if name.startswith("_") or name in ("params", "PARAMETERS", "CONTROLLER"):
+        if name.startswith("_") or name in ("params", "PARAMETERS", "CONTROLLER", "COMPARABLE"):
             raise AttributeError(name)
         values = self.params
         if name in values:

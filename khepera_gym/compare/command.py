@@ -10,6 +10,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from khepera_gym.compare.consensus import report as consensus_report
+from khepera_gym.compare.consensus import sweep as consensus_sweep
 from khepera_gym.compare.metrics import task_metrics
 from khepera_gym.compare.policies import DEFAULT_POLICIES, POLICY_NAMES
 from khepera_gym.compare.report import report
@@ -31,7 +33,13 @@ PLOT_WORLDS_OVERLAID = 3
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the options of ``khepera-gym compare`` to a parser."""
     target = parser.add_mutually_exclusive_group(required=True)
-    target.add_argument("--task", choices=sorted(TASK_IDS), help=", ".join(sorted(TASK_IDS)))
+    tasks = sorted([*TASK_IDS, "consensus"])
+    target.add_argument(
+        "--task",
+        choices=tasks,
+        help=", ".join(tasks) + " (consensus: the consensus law under a range of message "
+        "triggers, error against messages; --policy does not apply)",
+    )
     target.add_argument("--env", help="a registered id, e.g. KheperaIV-Avoid-v1")
     parser.add_argument("--config", help="built-in scenario (e.g. paper_fig6) or TOML path")
     parser.add_argument(
@@ -100,6 +108,8 @@ def run_from_args(args: argparse.Namespace) -> int:
     Raises:
         SystemExit: With a message naming the problem (unknown policy, missing extra, ...).
     """
+    if args.task == "consensus":
+        return _run_consensus(args)
     try:
         env_id = resolve_env_id(args.task, args.env)
         task = next((t for t, i in TASK_IDS.items() if i == env_id), None)
@@ -123,6 +133,28 @@ def run_from_args(args: argparse.Namespace) -> int:
     except (ValueError, ImportError, OSError, KheperaError) as error:
         raise SystemExit(f"khepera-gym compare: {error}") from error
     report(comparison, args.out, plot=args.plot)
+    return 0
+
+
+def _run_consensus(args: argparse.Namespace) -> int:
+    """``compare --task consensus``: the trigger sweep of :mod:`khepera_gym.compare.consensus`."""
+    try:
+        if args.policy:
+            raise ConfigError(
+                "--task consensus runs the consensus law (ConsensusLaw) under every trigger "
+                "setting; --policy does not apply"
+            )
+        rows = consensus_sweep(
+            episodes=args.episodes,
+            seed=args.seed,
+            config=args.config,
+            overrides=parse_overrides(getattr(args, "overrides", None) or []),
+            num_threads=args.num_threads,
+            progress=args.progress,
+        )
+    except (ValueError, OSError, KheperaError) as error:
+        raise SystemExit(f"khepera-gym compare: {error}") from error
+    consensus_report(rows, args.out, plot=args.plot)
     return 0
 
 

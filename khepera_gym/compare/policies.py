@@ -19,7 +19,9 @@ from khepera_gym.errors import ConfigError, KheperaError
 #: ``leader_follower``, ``kanayama``, ``position_chase``, and any controller added to the core
 #: with its class in baselines).
 BASELINES: dict[str, type[baselines.BaselinePolicy]] = {
-    cls.CONTROLLER: cls for cls in baselines.BaselinePolicy.__subclasses__() if cls.CONTROLLER
+    cls.CONTROLLER: cls
+    for cls in baselines.BaselinePolicy.__subclasses__()
+    if cls.CONTROLLER and cls.COMPARABLE
 }
 #: Named variants of the baselines: parameters other than the defaults.
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {

@@ -5,6 +5,9 @@
   :mod:`khepera_gym.pettingzoo.formation`);
 * :mod:`khepera_gym.pettingzoo.multinav_v1`: robots driving to their own goals
   (agents ``robot_0``..; the manual: :mod:`khepera_gym.pettingzoo.multinav`);
+* :mod:`khepera_gym.pettingzoo.consensus_v1`: robots reaching a rendezvous or a formation from
+  their neighbours' messages (agents ``robot_0``..; the manual: its ``ConsensusParallelEnv``;
+  no v0);
 * :mod:`khepera_gym.pettingzoo.drone_follow_v1`: a quadcopter following a Khepera IV (agent
   ``drone``; the manual: :class:`khepera_gym.envs.DroneFollowEnv`);
 * :mod:`khepera_gym.pettingzoo.platoon_v1`: robots tracking time-shifted copies of one reference
@@ -21,6 +24,7 @@ Each module has ``parallel_env(**kwargs)`` (a ``pettingzoo.ParallelEnv``) and ``
 from __future__ import annotations
 
 from khepera_gym.pettingzoo import (
+    consensus_v1,
     drone_follow_v1,
     formation_v0,
     formation_v1,
@@ -30,6 +34,7 @@ from khepera_gym.pettingzoo import (
 )
 
 __all__ = [
+    "consensus_v1",
     "drone_follow_v1",
     "formation_v0",
     "formation_v1",

@@ -12,7 +12,7 @@ env, e.g. ``{"max_steps": 300, "config": "paper_fig6"}``):
   ``num_envs_per_env_runner / K`` Formation worlds as the rows of one vector env
   (:class:`FormationFollowersVectorEnv`), for one policy shared by every follower;
 * ``khepera_gym/formation_v1``, ``khepera_gym/multinav_v1`` (and their ``_v0``),
-  ``khepera_gym/platoon_v1``: one
+  ``khepera_gym/platoon_v1``, ``khepera_gym/consensus_v1``: one
   :class:`KheperaMultiAgentEnv` (one world) per env copy, run by RLlib's
   ``MultiAgentEnvRunner``, with the agents of :mod:`khepera_gym.pettingzoo` (shared or
   separate policies: :func:`policy_mapping`).

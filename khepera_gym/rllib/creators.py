@@ -32,6 +32,7 @@ from ray.tune.registry import register_env
 
 from khepera_gym.errors import ConfigError
 from khepera_gym.pettingzoo import (
+    consensus_v1,
     formation_v0,
     formation_v1,
     multinav_v0,
@@ -60,6 +61,7 @@ MULTI_AGENT_ENVS: dict[str, ModuleType] = {
     f"{ENV_PREFIX}multinav_v0": multinav_v0,
     f"{ENV_PREFIX}multinav_v1": multinav_v1,
     f"{ENV_PREFIX}platoon_v1": platoon_v1,
+    f"{ENV_PREFIX}consensus_v1": consensus_v1,
 }
 
 

@@ -3,22 +3,22 @@
 :class:`KheperaTorchEnv` is a ``torchrl.envs.EnvBase`` with ``batch_size=[N]`` whose row i is
 world i of one ``_core.Batch`` (built without autoreset). TorchRL drives it as any batched env:
 ``env.rollout(...)``, ``SyncDataCollector``, BenchMARL (see :mod:`khepera_gym.benchmarl`). Its
-task is one of the Rust core's ("nav", "avoid", "formation", "multinav", "track", "platoon") or
-a khepera_gym Gymnasium id ("KheperaIV-Nav-v0").
+task is one of the Rust core's ("nav", "avoid", "formation", "multinav", "track", "platoon",
+"consensus", ...) or a khepera_gym Gymnasium id ("KheperaIV-Nav-v0").
 
 TensorDict layout (N worlds; K agents in a group; D values of an agent's observation):
 
 * tasks with one agent ("nav", "avoid"): flat keys, as TorchRL's Gym wrappers give:
   ``"observation"`` [N, 18] float32, ``"action"`` [N, 2] in [-1, 1], ``"reward"`` [N, 1];
-* multi-agent tasks ("formation", "multinav", "platoon"): one sub-TensorDict per agent group,
-  of batch size [N, K]: ``(group, "observation")`` [N, K, D], ``(group, "action")`` [N, K, 2] in
-  [-1, 1], ``(group, "reward")`` [N, K, 1] (each agent's own reward), and ``"state"``
+* multi-agent tasks ("formation", "multinav", "platoon", "consensus"): one sub-TensorDict per
+  agent group, of batch size [N, K]: ``(group, "observation")`` [N, K, D], ``(group, "action")``
+  [N, K, 2] in [-1, 1], ``(group, "reward")`` [N, K, 1] (each agent's own reward), and ``"state"``
   [N, S] at the root, the joint observation of every agent, for centralised critics. Default
-  groups, one per agent kind: formation ``{"followers": ["follower_0", ...]}`` plus
-  ``{"leader": ["leader"]}`` when the scenario's ``formation.leader = "agent"`` (its
-  observation is the 18-value Nav one, a follower's has 23 values); multinav and platoon
-  ``{"robots": ["robot_0", ...]}``. ``group_map=`` regroups them (a dict group → agent names,
-  or ``torchrl.envs.utils.MarlGroupMapType``);
+  groups, one per agent kind: formation ``{"followers": ["follower_0", ...]}`` plus ``{"leader":
+  ["leader"]}`` when the scenario's ``formation.leader = "agent"`` (its observation is the
+  18-value Nav one, a follower's has 23 values); multinav, platoon and consensus ``{"robots":
+  ["robot_0", ...]}``. ``group_map=`` regroups them (a dict group → agent names, or
+  ``torchrl.envs.utils.MarlGroupMapType``);
 * ``"done"``, ``"terminated"``, ``"truncated"`` [N, 1] bool at the root: the world's episode
   ended (reached the goal, or the leader did, or every multinav robot did; truncated after the
   scenario's ``max_steps``). Multinav and platoon robots end separately, so each of their

@@ -17,6 +17,7 @@
 
 pub mod blob_servo;
 pub mod braitenberg;
+pub mod consensus;
 pub mod drone_pursuit;
 pub mod kanayama;
 pub mod leader_follower;
@@ -211,6 +212,7 @@ controller_registry! {
     LineThreshold: line_threshold::LineThresholdPolicy,
     LineProportional: line_proportional::LineProportionalPolicy,
     BlobServo: blob_servo::BlobServoPolicy,
+    Consensus: consensus::ConsensusPolicy,
 }
 
 /// Most preview points a path follower reads (`pathfollow.preview_points`' limit).

@@ -14,6 +14,7 @@
 //!
 //! Units: metres, seconds, radians; observations in each block's units (see the task's file).
 
+pub mod consensus;
 pub mod drone;
 mod env;
 pub mod error_stats;
@@ -298,6 +299,7 @@ task_registry! {
     DroneFollow(drone::DroneFollow) = drone::DRONE_FOLLOW,
     LineFollow(linefollow::LineFollow) = linefollow::LINEFOLLOW,
     Seek(seek::Seek) = seek::SEEK,
+    Consensus(consensus::Consensus) = consensus::CONSENSUS,
 }
 
 impl TaskKind {
