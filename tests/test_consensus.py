@@ -7,7 +7,9 @@ trigger's economy, delay and drop statistics."""
 
 from __future__ import annotations
 
+import doctest
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -146,3 +148,29 @@ def test_compare_task_consensus_rejects_policies_and_trigger_keys(
         monkeypatch.setattr(sys, "argv", argv)
         with pytest.raises(SystemExit, match="consensus"):
             cli.main()
+
+
+def test_the_manual_has_its_sections_its_layout_and_running_examples() -> None:
+    manual = consensus_v1.ConsensusParallelEnv.__doc__ or ""
+    sections = [
+        "Description",
+        "Agents",
+        "Action Space",
+        "Observation Space",
+        "Rewards",
+        "Starting State",
+        "Episode End",
+        "Arguments",
+        "Scenario file",
+        "Version History",
+    ]
+    positions = [manual.index(f"## {section}\n") for section in sections]
+    assert positions == sorted(positions)
+    # The table's rows name the blocks of an agent's layout, in order.
+    rows = re.findall(r"^\s*\| [\d…last][^|]*\| (\w+)\s*\|", manual, re.M)
+    layout = consensus_v1.parallel_env().agent_obs_layout("robot_0")
+    assert rows == list(layout)
+    assert layout["neighbours"] == slice(13, 25) and len(range(29)[layout["wheel_speeds"]]) == 2
+    assert "v1: Initial version" in manual
+    results = doctest.testmod(consensus_v1, optionflags=doctest.ELLIPSIS)
+    assert results.attempted >= 4 and results.failed == 0

@@ -134,6 +134,9 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
     assert str((tmp_path / "pathfollow_trajectories.png").resolve()) in output
     assert "line_threshold" in output and "line_proportional" in output
     assert "drone_pursuit" in output and "blob_servo" in output
+    # The consensus sweep: one row per trigger setting, and its figure.
+    assert "| periodic 0.05 s |" in output and "| event 0.01 m |" in output
+    assert str((tmp_path / "consensus_tradeoff.png").resolve()) in output
 
 
 def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:

@@ -247,7 +247,8 @@ DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], 
 
 
 def demo(episodes: int = 50, out_dir: Path = Path("demo_out"), progress: bool = True) -> int:
-    """Runs the comparison on the paper's scenes and every task; prints the tables.
+    """Runs the comparison on the paper's scenes and every task, then the consensus trigger
+    sweep; prints the tables.
 
     Args:
         episodes: Episodes per policy and comparison.
@@ -272,6 +273,12 @@ def demo(episodes: int = 50, out_dir: Path = Path("demo_out"), progress: bool = 
                 progress=progress,
             )
         saved += report(comparison, out_dir)
+    print(
+        "\n== consensus_v1: four robots on a ring agree on a square formation from their "
+        "neighbours' messages, periodic vs event-triggered\n"
+    )
+    rows = consensus_sweep(episodes=episodes, progress=progress)
+    saved += consensus_report(rows, out_dir)
     print(
         f"\nplots (trajectories of the first worlds, one panel per policy) in {out_dir.resolve()}:"
     )
