@@ -13,7 +13,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, TRACK_ID
+from conftest import AVOID_ID, DRONE_ID, FORMATION_ID, LINEFOLLOW_ID, NAV_ID, TRACK_ID
 
 from khepera_gym import cli, compare
 from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
@@ -430,3 +430,27 @@ def test_a_task_scored_by_laps_and_cross_track_error_needs_one_metrics_entry(
     for column in ("lap %", "lap time s", "RMS error mm", "converged %", "speed m/s"):
         assert column in header
     assert "lost %" not in header  # no termination entry: not reported
+
+
+def test_a_tasks_own_statistics_are_columns_of_its_table() -> None:
+    # DroneFollow: the PD pursuit keeps the robot in view (its footprint is 0.29 m wide at
+    # 0.5 m, the PD's lag in the robot's turns is a/k_p = 4 cm); random does not.
+    result = compare.compare(
+        DRONE_ID, ["drone_pursuit", "random"], episodes=4, record_worlds=0, progress=False
+    )
+    pursuit, random = (s.errors for s in result.summaries)
+    assert pursuit["in_view_share"].value == 1.0 and random["in_view_share"].value < 1.0
+    assert pursuit["horizontal_error_rms"].high < 0.04
+    episodes = result.results["drone_pursuit"]
+    expected = np.mean([r.task_stats["horizontal_error_rms"] for r in episodes])
+    assert pursuit["horizontal_error_rms"].value == pytest.approx(expected)
+    table = compare.format_table(result)
+    assert "in view %" in table and "horizontal RMS cm" in table
+    # LineFollow: the demo's follower stays over its line on the circle.
+    lines = compare.compare(
+        LINEFOLLOW_ID, ["line_threshold"], episodes=2, record_worlds=0, progress=False
+    )
+    (summary,) = lines.summaries
+    assert summary.errors["on_line_share"].value == 1.0
+    assert summary.errors["line_offset_rms"].value < 0.0135  # within the tape's half-width
+    assert "on line %" in compare.format_table(lines)

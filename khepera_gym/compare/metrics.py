@@ -63,6 +63,9 @@ class TaskMetrics:
         path_trace: ``targets()[0]`` is the path's point closest to the robot (path
             following): the trajectory plots draw its trace, the stretch of path the robot
             followed, as a dashed line.
+        columns: Further statistics of the task reported as their mean over the episodes
+            (bootstrap interval): ``(statistic, header, scale, digits)``, e.g.
+            ``("on_line_share", "on line %", 100, 1)``.
     """
 
     success: str | None = "success"
@@ -73,6 +76,7 @@ class TaskMetrics:
     speed: bool = True
     moving_reference: bool = False
     path_trace: bool = False
+    columns: tuple[tuple[str, str, float, int], ...] = ()
 
     def stat_name(self, suffix: str) -> str:
         """The episode statistic ``<error_prefix>_<suffix>`` (e.g. ``track_error_rms``)."""
@@ -100,8 +104,24 @@ TASK_METRICS: dict[str, TaskMetrics] = {
         termination="lost",
         path_trace=True,
     ),
-    "linefollow": TaskMetrics(success="lap", time="lap time", termination="lost"),
-    "dronefollow": TaskMetrics(success=None, termination="lost", speed=False),
+    "linefollow": TaskMetrics(
+        success="lap",
+        time="lap time",
+        termination="lost",
+        columns=(
+            ("on_line_share", "on line %", 100, 1),
+            ("line_offset_rms", "offset RMS mm", 1000, 1),
+        ),
+    ),
+    "dronefollow": TaskMetrics(
+        success=None,
+        termination="lost",
+        speed=False,
+        columns=(
+            ("in_view_share", "in view %", 100, 1),
+            ("horizontal_error_rms", "horizontal RMS cm", 100, 2),
+        ),
+    ),
 }
 
 
@@ -121,14 +141,19 @@ def summarize_errors(
 
     Returns:
         ``{"error_rms", "error_max", "iae"}`` (bootstrap means), ``"converged"`` (Wilson share
-        of finite converge times) and ``"converge_time"`` (inf-aware median); empty when the
-        task has no error statistics.
+        of finite converge times) and ``"converge_time"`` (inf-aware median) for a task with
+        error statistics; and the bootstrap mean of each statistic of ``metrics.columns``,
+        under its name.
 
     Raises:
         KeyError: An episode lacks one of the statistics (the entry names a wrong prefix).
     """
+    extra = {
+        name: bootstrap_interval([float(s[name]) for s in stats], "mean")
+        for name, *_ in metrics.columns
+    }
     if metrics.error_prefix is None:
-        return {}
+        return extra
     column = {
         suffix: [float(s[metrics.stat_name(suffix)]) for s in stats] for suffix in ERROR_STATS
     }
@@ -139,6 +164,7 @@ def summarize_errors(
         "iae": bootstrap_interval(column["iae"], "mean"),
         "converged": wilson_interval(sum(math.isfinite(t) for t in converge), len(converge)),
         "converge_time": event_time_median(converge),
+        **extra,
     }
 
 

@@ -46,6 +46,8 @@ def _error_columns(comparison: Comparison) -> list[Column]:
             ("converged %", error("converged", 100, 1)),
             ("converge s", error("converge_time", 1, 2)),
         ]
+    for name, header, scale, digits in metrics.columns:
+        columns.append((header, error(name, scale, digits)))
     if metrics.termination is not None:
         columns.append(
             (
