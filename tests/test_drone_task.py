@@ -87,3 +87,71 @@ def test_the_pettingzoo_env_passes_the_api_test() -> None:
 def test_a_bad_key_is_a_config_error_naming_it(key: str, value: float) -> None:
     with pytest.raises(ConfigError, match=rf"drone\.{key}"):
         gym.make(DRONE_ID, **{key: value})
+
+
+def _waypoints_reached(env, seed: int, policies: dict) -> tuple[int, dict, dict]:
+    """Runs one PettingZoo episode; returns the robot's waypoint switches (from ``goals()``),
+    the episode's statistics and each agent's return."""
+    observations, _ = env.reset(seed=seed)
+    goal = env.goals()[0].copy()
+    switches, returns, stats = 0, dict.fromkeys(env.agents, 0.0), {}
+    while env.agents:
+        actions = {agent: policies[agent](observations[agent]) for agent in env.agents}
+        observations, rewards, _, _, infos = env.step(actions)
+        for agent, reward in rewards.items():
+            returns[agent] += reward
+        if len(env.goals()) and not np.array_equal(env.goals()[0], goal):
+            switches += 1
+            goal = env.goals()[0].copy()
+        stats = next(iter(infos.values())).get("episode_stats", stats)
+    return switches, stats, returns
+
+
+def test_an_agent_applying_the_script_s_law_drives_the_route_as_the_script_does() -> None:
+    from khepera_gym.baselines import Braitenberg
+
+    scripted = drone_follow_v1.parallel_env()
+    driven = drone_follow_v1.parallel_env(driver="agent")
+    assert driven.possible_agents == ["drone", "robot"]
+    # The robot observes Nav's blocks toward its waypoint, after none of the drone's.
+    assert list(driven.agent_obs_layout("robot"))[-4:] == [
+        "goal_distance",
+        "goal_bearing_sin",
+        "goal_bearing_cos",
+        "wheel_speeds",
+    ]
+    # The script's own law: position control (v_max 0.15 m/s, omega_max 1 rad/s, k_r 0.15 m,
+    # no stop radius) then Braitenberg avoidance on the IR ring.
+    law = Braitenberg(
+        vmax=0.15, wmax=1.0, kr=0.15, stop_radius=0.0, layout=driven.agent_obs_layout("robot")
+    )
+    for seed in range(3):
+        n_script, _, _ = _waypoints_reached(scripted, seed, {"drone": dronefollow_heuristic})
+        idle, _, idle_returns = _waypoints_reached(
+            driven, seed, {"drone": dronefollow_heuristic, "robot": lambda _: np.zeros(2, "f")}
+        )
+        n_agent, stats, returns = _waypoints_reached(
+            driven, seed, {"drone": dronefollow_heuristic, "robot": law}
+        )
+        # 40 s at 0.15 m/s is 6 m: several waypoints of a route whose legs are about 0.8 m
+        # (the mean distance between two uniform points of the 1.6 m square). The agent's
+        # wheels go through the normalised action, so it drives the script's path to rounding
+        # and reaches the same waypoints, give or take the last one.
+        assert n_script >= 3 and abs(n_agent - n_script) <= 1
+        assert stats["in_view_share"] == 1.0
+        # A robot that stays put reaches no waypoint but the one it may start on (within
+        # 0.1 m) and pays the time cost every step; the driving one earns the progress of every
+        # leg and task.success_bonus (10) per waypoint.
+        assert idle <= 1
+        assert returns["robot"] > idle_returns["robot"] + (n_agent - idle) * 10.0
+
+
+def test_the_agent_driver_passes_the_api_test_and_keeps_the_joint_env_consistent() -> None:
+    parallel_api_test(drone_follow_v1.parallel_env(driver="agent"), num_cycles=200)
+    env = gym.make(DRONE_ID, driver="agent")
+    # The joint action: the drone's two numbers, then the robot's wheels.
+    assert env.action_space.shape == (4,)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == env.observation_space.shape and obs.shape[0] > 8
+    with pytest.raises(ConfigError, match=r"drone\.driver"):
+        gym.make(DRONE_ID, driver="autopilot")

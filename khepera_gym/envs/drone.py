@@ -40,11 +40,24 @@ class DroneFollowEnv(KheperaEnv):
     :func:`dronefollow_heuristic` (PD pursuit, :class:`khepera_gym.baselines.DronePursuit`)
     keeps the robot in view on every route (tests/drone.rs).
 
+    With `drone.driver = "agent"` the Khepera is a second agent, `robot`, instead of the script
+    (the paper's "or an agent"): its action is a wheel command as in :class:`NavEnv`
+    (`action_type` applies to it), its observation Nav's blocks toward its current waypoint
+    (its observed sensors, `goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`,
+    `wheel_speeds`, after the drone's 8 numbers), its reward Nav's toward that waypoint
+    (progress, time cost, collision penalty) plus `task.success_bonus` at each waypoint
+    reached. Its episode ends with the drone's. The joint env then takes (4,) actions (the
+    drone's, then the robot's) and returns the mean of the two rewards; the PettingZoo form
+    (`drone_follow_v1.parallel_env(driver="agent")`) keeps them apart. An agent applying the
+    script's own law (:class:`khepera_gym.baselines.Braitenberg` with `vmax=0.15, wmax=1.0,
+    kr=0.15, stop_radius=0`) reaches the same waypoints as the script (tests).
+
     ## Action Space
 
     `Box(-1, 1, (2,), float32)`: the drone's normalised horizontal acceleration command (x, y
     in the world frame; the drone holds its yaw). `action_type` does not apply (the drone has
-    no wheels).
+    no wheels). With `drone.driver = "agent"`, `Box(-1, 1, (4,), float32)`: the drone's two
+    numbers, then the robot's wheel command.
 
     ## Observation Space
 
@@ -152,6 +165,7 @@ class DroneFollowEnv(KheperaEnv):
     | `drone.waypoint_radius` | 0.1     | m, next waypoint within this                       |
     | `drone.robot_vmax`      | 0.15    | m/s, the robot's cruise speed (eqs. 1-4)           |
     | `drone.robot_wmax`      | 1.0     | rad/s, the robot's largest turn rate               |
+    | `drone.driver`          | scripted| who drives the robot: `"scripted"` or `"agent"`    |
 
     A tilt outside (0, 1.2) rad, a camera cone outside (0, 3) rad, a non-positive speed, time or
     altitude, a search altitude below the tracking one, a start offset that would leave the robot
@@ -160,7 +174,8 @@ class DroneFollowEnv(KheperaEnv):
 
     ## Version History
 
-    * v1: Initial version (issue 16), on the v1 dynamics. There is no v0.
+    * v1: Initial version (issue 16), on the v1 dynamics. There is no v0. `drone.driver`
+      (default `"scripted"`, the behaviour unchanged) was added later within v1.
     """
 
     TASK: ClassVar[str] = "dronefollow"

@@ -15,14 +15,15 @@
 //! `in_view_share`, `altitude_error_rms` (m, against the tracking height). `targets()` gives
 //! the drone's horizontal position; `goals()` the robot's current waypoint.
 //!
+//! With `drone.driver = "agent"` the Khepera is a second agent, `robot`, instead of the script:
+//! it observes Nav's blocks toward its current waypoint (sensors, distance, bearing, wheel
+//! speeds) and earns Nav's reward toward it (progress, time cost, collision penalty) plus
+//! `task.success_bonus` at each waypoint reached; its episode ends with the drone's.
+//!
 //! Units: metres, seconds, radians; world frame (x right, y up), z up.
 
+pub mod config;
 pub mod model;
-
-use rand::Rng;
-use rand_chacha::ChaCha8Rng;
-use rapier2d::math::Vector;
-use toml::Table;
 
 use super::nav;
 use super::{Agent, Task, TaskInfo};
@@ -30,17 +31,20 @@ use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
 use crate::draw::{Mark, PALETTE};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
+use config::check_section;
+pub use config::{Driver, DroneConfig, MAX_ROUTE_POINTS};
 use model::{Drone, DroneParams};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rapier2d::math::Vector;
 
 /// Substeps of the drone's dynamics per control step.
 const DRONE_SUBSTEPS: u32 = 4;
-/// Most route waypoints.
-pub const MAX_ROUTE_POINTS: u32 = 32;
 
 /// DroneFollow: a drone follows a Khepera IV driving a route.
 pub const DRONE_FOLLOW: TaskInfo = TaskInfo {
@@ -61,113 +65,6 @@ max_steps = 800              # 40 s (research/tasks.md §7)
         }),
     },
 };
-
-crate::config_table! {
-    /// `[drone]`: the quadcopter, its camera and the robot's route.
-    pub struct DroneConfig {
-        /// rad, largest tilt: a_max = g tan(tilt_max) = 2.63 m/s^2 [D/E: 15 deg, research/tasks.md §7; VMAS resets beyond 30 deg]
-        tilt_max: f32 = 0.2618,
-        /// m/s, terminal horizontal speed (drag c = a_max / speed_max) [E]
-        speed_max: f32 = 1.0,
-        /// s, altitude time constant of the autopilot [E: Crazyflie attitude constants are 0.12-0.2 s]
-        altitude_tau: f32 = 0.3,
-        /// m, height while the robot is in view [S: the UNED course's quadcopter descends to 0.5 m]
-        track_altitude: f32 = 0.5,
-        /// m, height while searching [E: the course climbs to 4 m in a larger scene]
-        search_altitude: f32 = 1.5,
-        /// s out of view before the autopilot climbs to search [E]
-        search_delay: f32 = 0.5,
-        /// rad, full angle of the downward camera's cone [D/E: 60 deg, research/tasks.md §7]
-        fov: f32 = 1.0472,
-        /// s out of view before the episode ends (lost) [E: research/tasks.md §7]
-        lost_time: f32 = 3.0,
-        /// reward subtracted per step out of view
-        unseen_penalty: f32 = 0.5,
-        /// m, the drone starts this far at most from above the robot
-        start_offset: f32 = 0.1,
-        /// waypoints of the robot's closed route, drawn at every reset
-        route_points: u32 = 6,
-        /// m, the robot heads for the next waypoint within this of the current one
-        waypoint_radius: f32 = 0.1,
-        /// m/s, the robot's cruise speed v_max (position control, eqs. 1-4)
-        robot_vmax: f32 = 0.15,
-        /// rad/s, the robot's omega_max
-        robot_wmax: f32 = 1.0,
-    }
-}
-
-impl DroneConfig {
-    fn params(&self) -> DroneParams {
-        DroneParams::new(
-            self.tilt_max,
-            self.speed_max,
-            self.altitude_tau,
-            (self.track_altitude, self.search_altitude),
-            self.search_delay,
-            self.fov,
-        )
-    }
-}
-
-fn check_section(table: &Table, _scenario: &Scenario, origin: &str) -> Result<()> {
-    let d = DroneConfig::from_table(table, origin, "drone")?;
-    let bad = |key: &str, msg: String| Err(Error::config(origin, &format!("drone.{key}"), msg));
-    if !(d.tilt_max > 0.0 && d.tilt_max < 1.2) {
-        return bad(
-            "tilt_max",
-            format!("must be in (0, 1.2) rad, got {}", d.tilt_max),
-        );
-    }
-    if !(d.fov > 0.0 && d.fov < 3.0) {
-        return bad("fov", format!("must be in (0, 3) rad, got {}", d.fov));
-    }
-    for (key, v) in [
-        ("speed_max", d.speed_max),
-        ("altitude_tau", d.altitude_tau),
-        ("track_altitude", d.track_altitude),
-        ("search_altitude", d.search_altitude),
-        ("lost_time", d.lost_time),
-        ("waypoint_radius", d.waypoint_radius),
-        ("robot_vmax", d.robot_vmax),
-        ("robot_wmax", d.robot_wmax),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            return bad(key, format!("must be a finite number > 0, got {v}"));
-        }
-    }
-    for (key, v) in [
-        ("search_delay", d.search_delay),
-        ("unseen_penalty", d.unseen_penalty),
-        ("start_offset", d.start_offset),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return bad(key, format!("must be a finite number >= 0, got {v}"));
-        }
-    }
-    if d.search_altitude < d.track_altitude {
-        return bad(
-            "search_altitude",
-            format!(
-                "must be at least drone.track_altitude ({}), got {}",
-                d.track_altitude, d.search_altitude
-            ),
-        );
-    }
-    if d.start_offset > d.track_altitude * (0.5 * d.fov).tan() {
-        return bad(
-            "start_offset",
-            "the robot would start out of view: keep it within track_altitude * tan(fov / 2)"
-                .to_string(),
-        );
-    }
-    if d.route_points < 2 || d.route_points > MAX_ROUTE_POINTS {
-        return bad(
-            "route_points",
-            format!("must be in 2..={MAX_ROUTE_POINTS}, got {}", d.route_points),
-        );
-    }
-    Ok(())
-}
 
 /// Per-world state of the drone-following task.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -196,6 +93,16 @@ pub struct DroneFollow {
     altitude_squares: f64,
     in_view: u32,
     frames: u32,
+    /// Who drives the robot (saved states from before the key: the script).
+    #[serde(default = "scripted")]
+    driver: Driver,
+    /// The agent-driven robot's distance to its waypoint at the last step (m).
+    #[serde(default)]
+    prev_distance: f32,
+}
+
+fn scripted() -> Driver {
+    Driver::Scripted
 }
 
 impl DroneFollow {
@@ -222,6 +129,22 @@ impl DroneFollow {
         self.previous = metres;
         self.drone
             .update_search(self.seen.is_some(), dt, &self.params);
+    }
+
+    /// The agent-driven robot's reward: Nav's toward its waypoint (`distance` from it now),
+    /// plus `task.success_bonus` when it `reached` it (the next waypoint is then current).
+    fn robot_reward(&mut self, world: &World, cfg: &Scenario, distance: f32, reached: bool) -> f32 {
+        let task = &cfg.task;
+        let mut reward = task.progress_weight * (self.prev_distance - distance) - task.time_cost;
+        if world.robots[0].in_contact {
+            reward -= task.collision_penalty;
+        }
+        self.prev_distance = distance;
+        if reached {
+            reward += task.success_bonus;
+            self.prev_distance = (self.route[self.next] - world.robots[0].position).length();
+        }
+        reward
     }
 }
 
@@ -259,6 +182,8 @@ impl Task for DroneFollow {
             altitude_squares: 0.0,
             in_view: 0,
             frames: 0,
+            driver: d.driver,
+            prev_distance: 0.0,
         })
     }
 
@@ -266,14 +191,22 @@ impl Task for DroneFollow {
         Ok(Spawn::Single)
     }
 
-    fn agents(cfg: &Scenario, _sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
         let d: DroneConfig = cfg.own()?;
         // The drone is the task's vehicle 0, after the one robot.
-        Ok(vec![Agent {
+        let mut agents = vec![Agent {
             name: "drone".into(),
             robot: 1,
             layout: Self::drone_blocks(&d),
-        }])
+        }];
+        if d.driver == Driver::Agent {
+            agents.push(Agent {
+                name: "robot".into(),
+                robot: 0,
+                layout: nav::nav_blocks(cfg, sensors),
+            });
+        }
+        Ok(agents)
     }
 
     /// Draws the route (inside the arena, 0.2 m from the walls) and the drone's start offset.
@@ -305,10 +238,15 @@ impl Task for DroneFollow {
         self.altitude_squares = 0.0;
         self.in_view = 0;
         self.frames = 0;
+        self.prev_distance = (self.route[0] - robot).length();
     }
 
-    /// The scripted robot: position control toward its waypoint, then Braitenberg avoidance.
+    /// The scripted robot: position control toward its waypoint, then Braitenberg avoidance
+    /// (nothing when an agent drives it: its action set the wheels).
     fn before_step(&self, world: &mut World) {
+        if self.driver == Driver::Agent {
+            return;
+        }
         let Some(&waypoint) = self.route.get(self.next) else {
             return;
         };
@@ -339,7 +277,7 @@ impl Task for DroneFollow {
     fn judge(
         &mut self,
         world: &World,
-        _cfg: &Scenario,
+        cfg: &Scenario,
         rewards: &mut [f32],
         terminated: &mut [bool],
     ) -> bool {
@@ -349,14 +287,21 @@ impl Task for DroneFollow {
             self.drone.advance(self.command, h, &self.params);
         }
         let robot = world.robots[0].position;
-        if (self.route[self.next] - robot).length() < self.waypoint_radius {
+        let distance = (self.route[self.next] - robot).length();
+        let reached = distance < self.waypoint_radius;
+        if reached {
             self.next = (self.next + 1) % self.route.len();
+        }
+        if self.driver == Driver::Agent {
+            rewards[1] = self.robot_reward(world, cfg, distance, reached);
         }
         self.look(robot, dt);
         let error = (self.drone.position - robot).length();
         let seen = self.seen.is_some();
         rewards[0] = -error - if seen { 0.0 } else { self.unseen_penalty };
-        terminated[0] = self.drone.unseen_for > self.lost_time - 1e-4;
+        let lost = self.drone.unseen_for > self.lost_time - 1e-4;
+        // The robot's episode (when an agent drives it) ends with the drone's.
+        terminated.fill(lost);
         self.error_squares += f64::from(error * error);
         let dz = self.drone.altitude - self.params.track_altitude;
         self.altitude_squares += f64::from(dz * dz);
@@ -372,7 +317,7 @@ impl Task for DroneFollow {
         out[2] = (self.altitude_squares / n).sqrt() as f32;
     }
 
-    fn observe(&self, _world: &World, _cfg: &Scenario, out: &mut ObsWriter) {
+    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
         let offset = self.seen.unwrap_or(Vector::ZERO);
         let v = self.params.speed_max;
         out.put(offset.x.clamp(-1.0, 1.0));
@@ -383,6 +328,9 @@ impl Task for DroneFollow {
         out.put(self.drone.velocity.x.clamp(-v, v));
         out.put(self.drone.velocity.y.clamp(-v, v));
         out.put(self.drone.altitude.clamp(0.0, self.params.search_altitude));
+        if self.driver == Driver::Agent {
+            nav::observe_robot(world, 0, self.route[self.next], cfg, out);
+        }
     }
 
     fn goals(&self) -> Vec<Vector> {
