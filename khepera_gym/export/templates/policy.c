@@ -9,7 +9,10 @@
 #define POLICY_MAX_WIDTH $max_width
 
 $constants
-/* output = weight * input + bias, accumulated in float in input order. */
+/* output = weight * input + bias, accumulated in double (each product of two floats is exact
+ * in double) and rounded once to float: every output is the float nearest the exact sum, so the
+ * only rounding left is the training framework's own float32 rounding (a few 1e-6 for wide
+ * layers), whatever order its kernels add in. */
 static void dense(const float *weight, const float *bias, int inputs, int outputs,
                   const float *input, float *output)
 {
@@ -17,11 +20,11 @@ static void dense(const float *weight, const float *bias, int inputs, int output
     int i;
     for (o = 0; o < outputs; ++o) {
         const float *row = weight + o * inputs;
-        float sum = bias[o];
+        double sum = (double)bias[o];
         for (i = 0; i < inputs; ++i) {
-            sum += row[i] * input[i];
+            sum += (double)row[i] * (double)input[i];
         }
-        output[o] = sum;
+        output[o] = (float)sum;
     }
 }
 
