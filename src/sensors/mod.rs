@@ -197,6 +197,14 @@ pub trait Sensor: Clone + Serialize + DeserializeOwned {
     fn reach(&self, _radius: f32) -> f32 {
         f32::INFINITY
     }
+
+    /// Its reach (as [`Sensor::reach`]) at the coming reading, whose `reading` is the last one,
+    /// `dt` s old, or none if it is `fresh` (a new episode): 0 when the sensor will hold its
+    /// last reading rather than look at other robots (the sonars between two sweeps), so that a
+    /// swarm then looks only as far as its other sensors need.
+    fn reach_now(&self, radius: f32, _reading: &Self::Reading, _dt: f32, _fresh: bool) -> f32 {
+        self.reach(radius)
+    }
 }
 
 /// A sensor a robot carries, and whether its observation holds it.
@@ -436,6 +444,19 @@ macro_rules! sensor_registry {
                 $(
                     if let Some(c) = &self.$field {
                         reach = reach.max(c.sensor.reach(radius));
+                    }
+                )*
+                reach
+            }
+
+            /// The largest [`Sensor::reach_now`] of the carried sensors at one robot's coming
+            /// reading (0 when none will look at other robots).
+            #[inline]
+            pub fn reach_now(&self, radius: f32, readings: &Readings, dt: f32, fresh: bool) -> f32 {
+                let mut reach = 0.0f32;
+                $(
+                    if let Some(c) = &self.$field {
+                        reach = reach.max(c.sensor.reach_now(radius, &readings.$field, dt, fresh));
                     }
                 )*
                 reach

@@ -119,6 +119,18 @@ pub struct Ultrasonic {
     pub acceptance_cos: f32,
     #[serde(skip, default = "us_dirs")]
     dirs: [Vector; US_COUNT],
+    /// Scratch: the other robots a ray can meet (not behind the robot), in robot order.
+    #[serde(skip)]
+    ahead: Vec<Vector>,
+}
+
+impl Ultrasonic {
+    /// Whether the sweep takes new readings when the last ones are `age` s old (always at a
+    /// new episode).
+    #[inline]
+    fn due(&self, age: f32, fresh: bool) -> bool {
+        fresh || age >= self.period - 1e-6
+    }
 }
 
 fn us_dirs() -> [Vector; US_COUNT] {
@@ -145,6 +157,7 @@ impl Sensor for Ultrasonic {
                 cfg.us_acceptance.cos()
             },
             dirs: us_dirs(),
+            ahead: Vec::new(),
         }
     }
 
@@ -199,15 +212,35 @@ impl Sensor for Ultrasonic {
         2.0 * radius + self.model.max_range + 0.01
     }
 
+    fn reach_now(&self, radius: f32, reading: &UsReading, dt: f32, fresh: bool) -> f32 {
+        if self.due(reading.age + dt, fresh) {
+            self.reach(radius)
+        } else {
+            0.0
+        }
+    }
+
     fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut UsReading) {
         // The five readings hold until the sweep comes round again.
         reading.age += ctx.dt;
-        if !ctx.fresh && reading.age < self.period - 1e-6 {
+        if !self.due(reading.age, ctx.fresh) {
             return;
         }
         reading.age = 0.0;
         let cast_range = self.model.max_range + 0.01;
         let (s, c) = ctx.sin_cos;
+        // Every beam points ahead or sideways (bearings within ±90°) from the rim: a robot whose
+        // centre lies more than a radius (plus 1 mm for rounding) behind the robot's centre
+        // cannot be met, so the rays skip it; the robots kept are in the same order, and the
+        // readings are those of a cast against all of them.
+        let forward = Vector::new(c, s);
+        let behind = -(ctx.radius + 0.001);
+        self.ahead.clear();
+        self.ahead.extend(
+            ctx.others
+                .iter()
+                .filter(|&&q| (q - ctx.position).dot(forward) >= behind),
+        );
         for k in 0..US_COUNT {
             let dir = rotate(self.dirs[k], c, s);
             let origin = ctx.position + ctx.radius * dir;
@@ -216,7 +249,7 @@ impl Sensor for Ultrasonic {
                 dir,
                 cast_range,
                 ctx.scene.shapes.iter(),
-                ctx.others,
+                &self.ahead,
                 ctx.radius,
             );
             // A surface hit at a grazing angle reflects the ping away: no echo from it.

@@ -21,9 +21,14 @@ const MIN_ROBOTS_PER_TASK: usize = 32;
 impl World {
     /// Reads every robot's sensors, a swarm's way (module doc).
     pub(super) fn sense_swarm(&mut self, fresh: bool) {
-        // How far from a robot's centre another robot's centre can change its readings (1 mm
-        // more, so that rounding never drops a robot a sensor could just reach).
-        let reach = self.sensors.reach(self.drive.radius) + 0.001;
+        // How far from a robot's centre another robot's centre can change its coming readings
+        // (1 mm more, so that rounding never drops a robot a sensor could just reach): the
+        // sonars look 2.15 m away when their sweep comes round (every 0.1 s) and not at all in
+        // between, when only the IR ring's 0.39 m matter.
+        let (sensors, radius, dt) = (&self.sensors, self.drive.radius, self.dt);
+        let reach_of =
+            |robot: &Robot| sensors.reach_now(radius, &robot.readings, dt, fresh) + 0.001;
+        let reach = self.robots.iter().map(reach_of).fold(0.0f32, f32::max);
         let use_grid = self.robots.len() > self.grid_min_robots && reach.is_finite();
         if use_grid {
             // Cells of half the reach: the 5 × 5 cells around a robot hold fewer robots than
@@ -40,7 +45,7 @@ impl World {
         let leds = &self.other_leds;
         let base: u64 = self.rng.random();
         let (grid, positions) = (&self.grid, &self.positions);
-        let (scene, radius, dt) = (&self.scene, self.drive.radius, self.dt);
+        let scene = &self.scene;
         let robot_reflectance = self.robot_reflectance;
         let (floor, floor_marks) = (&*self.floor, &self.floor_marks);
         let read = |scratch: &mut Scratch, (i, robot): (usize, &mut Robot)| {
@@ -48,7 +53,7 @@ impl World {
             scratch.leds.clear();
             if use_grid {
                 scratch.near.clear();
-                grid.near(robot.position, reach, i, &mut scratch.near);
+                grid.near(robot.position, reach_of(robot), i, &mut scratch.near);
                 let near = scratch.near.iter().map(|&j| positions[j as usize]);
                 scratch.others.extend(near);
                 scratch
@@ -79,7 +84,6 @@ impl World {
             };
             scratch.suite.read(&ctx, &mut rng, &mut robot.readings);
         };
-        let sensors = &self.sensors;
         let scratch = || Scratch {
             suite: sensors.clone(),
             others: Vec::new(),
