@@ -33,6 +33,7 @@ from khepera_gym.sb3 import (
     FormationFollowersVecEnv,
     KheperaSB3VecEnv,
     NormalizedPolicy,
+    SharedAgentsVecEnv,
     evaluate_episodes,
     load_policy,
     make_formation_vec_env,
@@ -272,6 +273,38 @@ def test_formation_rows_are_world_follower_pairs_with_their_own_rewards() -> Non
     assert env.seed(9) == [9, 9, 9, 10, 10, 10]
     with pytest.raises(ConfigError, match="scripted"):
         make_formation_vec_env(1, leader="agent")
+
+
+def test_shared_agents_rows_are_a_consensus_worlds_robots() -> None:
+    from khepera_gym.baselines import ConsensusLaw
+    from khepera_gym.pettingzoo import consensus_v1
+
+    n_worlds, seed = 2, 5
+    env = SharedAgentsVecEnv("consensus", n_worlds, seed=seed, max_steps=30)
+    single = consensus_v1.parallel_env(max_steps=30)
+    assert env.num_envs == n_worlds * 4 and env.agent_names == single.possible_agents
+    assert env.observation_space == single.observation_space("robot_0")
+    rows = env.reset()
+    observations, _ = single.reset(seed=seed + 1)  # world 1's rows are its robots
+    law = ConsensusLaw.for_env(single)
+    for _ in range(40):
+        world_1 = np.stack([observations[a] for a in single.possible_agents])
+        np.testing.assert_array_equal(rows[4:], world_1)
+        actions = np.concatenate([law(rows[:4]), law(world_1)])
+        rows, rewards, dones, infos = env.step(actions)
+        observations, single_rewards, _, truncations, _ = single.step(
+            dict(zip(single.possible_agents, law(world_1), strict=True))
+        )
+        np.testing.assert_array_equal(
+            rewards[4:], [single_rewards[a] for a in single.possible_agents]
+        )
+        if dones[4]:
+            assert all(truncations.values())
+            assert "consensus_error_final" in infos[4]["episode_stats"]
+            observations, _ = single.reset()
+    # A drone and a robot observe blocks of different lengths: no policy reads both.
+    with pytest.raises(ConfigError, match="one length"):
+        SharedAgentsVecEnv("dronefollow", 1, driver="agent")
 
 
 def test_evaluate_episodes_plays_the_episodes_seeded_seed_plus_index() -> None:

@@ -3,7 +3,9 @@
 :func:`make_vec_env` gives an SB3 ``VecEnv`` whose rows are the N worlds of one ``_core.Batch``
 (``KheperaIV-Nav``, ``-Avoid`` or ``-Formation``); :func:`make_formation_vec_env` one whose rows
 are the (world, follower) pairs of a Formation batch, so one policy drives every follower
-(parameter sharing). :func:`load_policy` loads a model saved by ``khepera-gym train``.
+(parameter sharing); :class:`SharedAgentsVecEnv` does the same for the agents of any multi-agent
+task whose agents' observations have one length (``SharedAgentsVecEnv("consensus", 16)``).
+:func:`load_policy` loads a model saved by ``khepera-gym train``.
 
 SB3 semantics, and how they are met on a batch that autoresets on the *next* step:
 
@@ -53,6 +55,7 @@ from khepera_gym.sb3.policy import (
 from khepera_gym.sb3.vec_env import (
     FormationFollowersVecEnv,
     KheperaSB3VecEnv,
+    SharedAgentsVecEnv,
     make_formation_vec_env,
     make_vec_env,
     resolve_env_id,
@@ -66,6 +69,7 @@ __all__ = [
     "KheperaSB3VecEnv",
     "NormalizedPolicy",
     "Predictor",
+    "SharedAgentsVecEnv",
     "SuccessEvalCallback",
     "algorithm_of",
     "evaluate_episodes",

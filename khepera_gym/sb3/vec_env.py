@@ -361,7 +361,73 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
             raise KheperaError(f"{type(self).__name__} is closed")
 
 
-class FormationFollowersVecEnv(KheperaSB3VecEnv):
+class SharedAgentsVecEnv(KheperaSB3VecEnv):
+    """An SB3 ``VecEnv`` whose rows are the (world, agent) pairs of a multi-agent task.
+
+    Row ``w · K + k`` is agent k of world w: it observes its own block of the joint observation,
+    acts with its own two numbers and earns its own reward (``batch.agent_rewards()``), so one
+    policy trained on these rows drives every agent (parameter sharing, as in MAPPO/IPPO with a
+    shared network). A world's episode ends for all its agents together: their rows are done at
+    the same step and share its ``"episode_stats"``. ``seed(s)`` seeds world w with ``s + w``,
+    so world w's rows are the agents of the PettingZoo env reset with seed ``s + w``.
+
+    Args:
+        task: A task whose agents' observation blocks have the same length ("consensus",
+            "multinav", "platoon", "formation" with its scripted leader, ...).
+        num_worlds: Number of worlds N; the env has N · K rows.
+        **kwargs: As :class:`KheperaSB3VecEnv` (``config=``, scenario overrides such as
+            ``n_robots=6`` or ``trigger="event"``).
+
+    Raises:
+        ConfigError: The task's agents observe blocks of different lengths (a drone and a
+            robot), so no one policy reads them all.
+    """
+
+    def _configure_rows(self) -> None:
+        agents = self._batch.agents()
+        block = agents[0][3] - agents[0][2]
+        same = all(
+            start == k * block and stop == start + block
+            for k, (_, _, start, stop, _) in enumerate(agents)
+        )
+        if not same or agents[-1][3] != self._batch.obs_dim:
+            sizes = {name: stop - start for name, _, start, stop, _ in agents}
+            raise ConfigError(
+                f"a shared policy needs agents with observation blocks of one length; task "
+                f"{self.task!r} has {sizes}"
+            )
+        self.rows_per_world = len(agents)
+        #: Length of one agent's observation block.
+        self.agent_obs_dim = block
+        #: The layout of one agent's block, name → slice.
+        self.agent_layout = layout_dict(agents[0][4])
+        #: Agent names of the rows of one world, in order.
+        self.agent_names = [name for name, *_ in agents]
+
+    def _row_observation_space(self) -> gym.spaces.Box:
+        # Each element's widest bounds over the agents' blocks (they are equal in every task).
+        low, high = (
+            bounds.reshape(self.rows_per_world, self.agent_obs_dim)
+            for bounds in self._batch.obs_bounds()
+        )
+        return gym.spaces.Box(
+            low.min(axis=0).astype(np.float32), high.max(axis=0).astype(np.float32)
+        )
+
+    def _row_action_space(self) -> gym.spaces.Box:
+        return gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+
+    def row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        return joint.reshape(-1, self.agent_obs_dim)
+
+    def row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        return self._batch.agent_rewards().reshape(-1)
+
+    def joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        return actions.reshape(self.num_worlds, -1)
+
+
+class FormationFollowersVecEnv(SharedAgentsVecEnv):
     """An SB3 ``VecEnv`` whose rows are the (world, follower) pairs of a Formation batch.
 
     Row ``w · K + k`` is follower k of world w: it observes its own 23-value block (IR,
@@ -391,39 +457,13 @@ class FormationFollowersVecEnv(KheperaSB3VecEnv):
                 "FormationFollowersVecEnv needs the scripted leader (formation.leader = "
                 f"'scripted'); the agents here are {[name for name, *_ in agents]}"
             )
-        block = agents[0][3] - agents[0][2]
-        contiguous = all(
-            start == k * block and stop == start + block
-            for k, (_, _, start, stop, _) in enumerate(agents)
-        )
-        if not contiguous or agents[-1][3] != self._batch.obs_dim:
-            raise KheperaError(f"unexpected follower blocks in the joint observation: {agents}")
-        self.rows_per_world = len(agents)
+        super()._configure_rows()
         #: Length of one follower's observation block.
-        self.follower_obs_dim = block
+        self.follower_obs_dim = self.agent_obs_dim
         #: The layout of one follower's block, name → slice.
-        self.follower_layout = layout_dict(agents[0][4])
+        self.follower_layout = self.agent_layout
         #: Agent names of the rows of one world, in order ("follower_0", ...).
-        self.follower_names = [name for name, *_ in agents]
-
-    def _row_observation_space(self) -> gym.spaces.Box:
-        low, high = self._batch.obs_bounds()
-        block = slice(0, self.follower_obs_dim)
-        return gym.spaces.Box(
-            low[block].astype(np.float32), high[block].astype(np.float32), dtype=np.float32
-        )
-
-    def _row_action_space(self) -> gym.spaces.Box:
-        return gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
-
-    def row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        return joint.reshape(-1, self.follower_obs_dim)
-
-    def row_rewards(self, rewards: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        return self._batch.agent_rewards().reshape(-1)
-
-    def joint_actions(self, actions: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        return actions.reshape(self.num_worlds, -1)
+        self.follower_names = self.agent_names
 
     def formation_targets(self) -> npt.NDArray[np.float64]:
         """The followers' target points (eq. 12) of every world, shape (num_worlds, K, 2)."""
@@ -486,6 +526,7 @@ def make_formation_vec_env(
 __all__ = [
     "FormationFollowersVecEnv",
     "KheperaSB3VecEnv",
+    "SharedAgentsVecEnv",
     "make_formation_vec_env",
     "make_vec_env",
     "resolve_env_id",
