@@ -25,8 +25,12 @@
 pub mod config;
 pub mod model;
 
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rapier2d::math::Vector;
+
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Driver, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -37,11 +41,8 @@ use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 use config::check_section;
-pub use config::{Driver, DroneConfig, MAX_ROUTE_POINTS};
+pub use config::{DroneConfig, MAX_ROUTE_POINTS};
 use model::{Drone, DroneParams};
-use rand::Rng;
-use rand_chacha::ChaCha8Rng;
-use rapier2d::math::Vector;
 
 /// Substeps of the drone's dynamics per control step.
 const DRONE_SUBSTEPS: u32 = 4;
@@ -131,19 +132,17 @@ impl DroneFollow {
             .update_search(self.seen.is_some(), dt, &self.params);
     }
 
-    /// The agent-driven robot's reward: Nav's toward its waypoint (`distance` from it now),
-    /// plus `task.success_bonus` when it `reached` it (the next waypoint is then current).
+    /// The agent-driven robot's reward: Nav's toward its waypoint ([`nav::progress_reward`],
+    /// `distance` from it now, the bonus when it `reached` it); the next waypoint is then current.
     fn robot_reward(&mut self, world: &World, cfg: &Scenario, distance: f32, reached: bool) -> f32 {
-        let task = &cfg.task;
-        let mut reward = task.progress_weight * (self.prev_distance - distance) - task.time_cost;
-        if world.robots[0].in_contact {
-            reward -= task.collision_penalty;
-        }
-        self.prev_distance = distance;
-        if reached {
-            reward += task.success_bonus;
-            self.prev_distance = (self.route[self.next] - world.robots[0].position).length();
-        }
+        let robot = &world.robots[0];
+        let reward =
+            nav::progress_reward(cfg, self.prev_distance, distance, reached, robot.in_contact);
+        self.prev_distance = if reached {
+            (self.route[self.next] - robot.position).length()
+        } else {
+            distance
+        };
         reward
     }
 }

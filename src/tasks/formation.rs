@@ -21,7 +21,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Driver, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -76,16 +76,6 @@ pub enum FormationShape {
     Custom,
 }
 
-/// Who drives the leader.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum LeaderMode {
-    /// Position control with Braitenberg avoidance, in Rust.
-    Scripted,
-    /// A learning agent's actions.
-    Agent,
-}
-
 crate::config_table! {
     /// `[formation]`: leader–follower formation (paper §3.5).
     pub struct FormationConfig {
@@ -98,7 +88,7 @@ crate::config_table! {
         /// custom shape: [[r, beta], ...] (m, rad CCW from the leader's heading)
         offsets: Vec<[f32; 2]> = [],
         /// "scripted": position control + Braitenberg in Rust; "agent": learnt
-        leader: LeaderMode = "scripted",
+        leader: Driver = "scripted",
         /// m/s, scripted leader's speed (slow enough for followers to keep up)
         leader_vmax: f32 = 0.15,
         /// rad/s, scripted leader's turn rate limit (eq. 4)
@@ -295,7 +285,7 @@ impl Task for Formation {
             goal: Vector::ZERO,
             errors: vec![0.0; offsets.len()],
             offsets,
-            leader_agent: f.leader == LeaderMode::Agent,
+            leader_agent: f.leader == Driver::Agent,
             leader_control: PositionControl {
                 vmax: f.leader_vmax,
                 wmax: f.leader_wmax,
@@ -320,7 +310,7 @@ impl Task for Formation {
     fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
         let f: FormationConfig = cfg.own()?;
         let mut agents = Vec::new();
-        if f.leader == LeaderMode::Agent {
+        if f.leader == Driver::Agent {
             agents.push(Agent {
                 name: "leader".into(),
                 robot: 0,

@@ -64,6 +64,17 @@ pub struct Agent {
     pub layout: ObsLayout,
 }
 
+/// Who drives a robot that a task can script (Formation's leader, DroneFollow's Khepera): the
+/// scenario value `"scripted"` or `"agent"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Driver {
+    /// The task's own controller (position control with Braitenberg avoidance, in Rust).
+    Scripted,
+    /// A learning agent's actions: the robot is one more agent.
+    Agent,
+}
+
 /// Most extra statistics a task may keep ([`Task::EXTRA_STATS`]).
 pub const MAX_EXTRA_STATS: usize = 4;
 

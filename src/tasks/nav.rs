@@ -148,15 +148,31 @@ pub fn judge_robot(
     let robot = &world.robots[i];
     let distance = (goal - robot.position).length();
     let success = distance < cfg.task.goal_radius;
-    let mut reward = cfg.task.progress_weight * (*prev_distance - distance) - cfg.task.time_cost;
-    if success {
-        reward += cfg.task.success_bonus;
-    }
-    if robot.in_contact {
-        reward -= cfg.task.collision_penalty;
-    }
+    let reward = progress_reward(cfg, *prev_distance, distance, success, robot.in_contact);
     *prev_distance = distance;
     Judgement { reward, success }
+}
+
+/// Nav's reward for a step that brought a robot from `prev_distance` to `distance` (m) from
+/// its goal: progress × `task.progress_weight` − `task.time_cost`, + `task.success_bonus` when
+/// it `arrived`, − `task.collision_penalty` when it is `in_contact`.
+#[inline]
+pub fn progress_reward(
+    cfg: &Scenario,
+    prev_distance: f32,
+    distance: f32,
+    arrived: bool,
+    in_contact: bool,
+) -> f32 {
+    let task = &cfg.task;
+    let mut reward = task.progress_weight * (prev_distance - distance) - task.time_cost;
+    if arrived {
+        reward += task.success_bonus;
+    }
+    if in_contact {
+        reward -= task.collision_penalty;
+    }
+    reward
 }
 
 /// `point` in robot `i`'s frame (x forward, y left), metres, as the robot sees it: from the

@@ -8,19 +8,10 @@ use super::model::DroneParams;
 use crate::config::ConfigTable;
 use crate::error::{Error, Result};
 use crate::scenario::Scenario;
+use crate::tasks::Driver;
 
 /// Most route waypoints.
 pub const MAX_ROUTE_POINTS: u32 = 32;
-
-/// Who drives the Khepera along its route.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Driver {
-    /// Position control (eqs. 1-4) toward the current waypoint, then Braitenberg avoidance.
-    Scripted,
-    /// A second agent, `robot`, observing Nav's blocks toward its current waypoint.
-    Agent,
-}
 
 crate::config_table! {
     /// `[drone]`: the quadcopter, its camera and the robot's route.
