@@ -33,6 +33,8 @@ class Batch:
     num_worlds: int
     obs_dim: int
     act_dim: int
+    #: Action values per agent: 2 (its wheels), 5 with ``task.led_action`` (then its LEDs' RGB).
+    agent_act_dim: int
     n_robots: int
     num_threads: int
     max_episode_steps: int
@@ -54,7 +56,8 @@ class Batch:
         several agents the names are prefixed by the agent ("follower_0/ir")."""
     def agents(self) -> list[tuple[str, int, int, int, list[tuple[str, int, int]]]]:
         """The agents in joint order: (name, robot index, obs start, obs stop, own layout as
-        (name, start, stop) within its block). Agent i's action is joint columns 2i, 2i+1.
+        (name, start, stop) within its block). Agent i's action is joint columns w·i .. w·(i + 1),
+        w = ``agent_act_dim`` (2; 5 with ``task.led_action``).
         nav/avoid: ["robot"]; formation: ["leader" if leader = "agent"] + "follower_0".."_K-1";
         multinav, platoon: "robot_0".."robot_N-1"."""
     def agent_rewards(self) -> npt.NDArray[np.float32]:

@@ -110,8 +110,9 @@ class BatchFace:
         """Raw readings of the last observation in the real robot's units: each carried
         sensor's channels ("ir_raw" 0..1023, "us_cm" cm or codes 0/1000/2000, ...) and the
         body's "wheel_speeds" (m/s), "encoders" (pulses), "gyro_z" (rad/s), and the IMU's
-        "accel_g" (g) and "imu_gyro" (rad/s) when carried; with a robot axis first (one world)
-        or a world axis then a robot axis."""
+        "accel_g" (g) and "imu_gyro" (rad/s) when carried, "leds" (the top LEDs' red, green,
+        blue, 0..63) with ``task.led_action``; with a robot axis first (one world) or a world
+        axis then a robot axis."""
         return {name: self._pick(values) for name, values in self._batch.sensor_readings().items()}
 
     def scene(self, index: int | None = None) -> dict[str, Any]:

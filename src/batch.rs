@@ -135,7 +135,7 @@ impl Batch {
             })
             .collect::<Result<_>>()?;
         let obs_dim = kind.obs_layout(&cfg)?.len();
-        let act_dim = 2 * kind.agents(&cfg)?.len();
+        let act_dim = crate::tasks::action_width(&cfg) * kind.agents(&cfg)?.len();
         Ok(Self {
             envs,
             pool,

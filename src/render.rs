@@ -147,6 +147,19 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
                 None,
             );
         }
+        if env.cfg.task.led_action {
+            // The three top LEDs where the real robot has them: a front pair at (39, ±24) mm, one
+            // at (−48, 0) mm (Webots' Khepera IV model; spec §6), in the colour its agent set.
+            let rgb = robot.led.map(|c| (c * 255.0).round() as u8);
+            for (x, y) in [(0.039, 0.024), (0.039, -0.024), (-0.048, 0.0)] {
+                let at = robot.position + x * dir(0.0) + y * dir(std::f32::consts::FRAC_PI_2);
+                if let Some(dot) = PathBuilder::from_circle(at.x, at.y, 0.011) {
+                    pixmap.fill_path(&dot, &paint(rgb, 255), FillRule::Winding, transform, None);
+                    let rim = paint([30, 30, 30], 255);
+                    pixmap.stroke_path(&dot, &rim, &stroke(0.003), transform, None);
+                }
+            }
+        }
         for mark in marks.iter().filter(|m| on_top(m)) {
             draw_mark(&mut pixmap, mark, transform);
         }

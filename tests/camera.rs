@@ -22,9 +22,14 @@ const RED: [f32; 3] = [1.0, 0.0, 0.0];
 /// A multinav world of `robots` robots carrying the camera (one ray per pixel, for exact
 /// geometry), in a 4 m arena.
 fn env(robots: usize) -> Env {
+    env_with(robots, "")
+}
+
+/// [`env`] with more scenario overrides (TOML lines).
+fn env_with(robots: usize, more: &str) -> Env {
     let text = format!(
         "carry = [\"ir\", \"us\", \"gyro\", \"camera\"]\ncamera_rays_per_pixel = 1\n\
-         n_robots = {robots}\nwidth = 4.0\nheight = 4.0"
+         n_robots = {robots}\nwidth = 4.0\nheight = 4.0\n{more}"
     );
     let source = Source {
         file: None,
@@ -144,6 +149,63 @@ fn test_another_robot_occludes_with_its_leds_colour() {
                 "pixel {i}: {c:?}"
             );
         }
+    }
+}
+
+#[test]
+fn test_an_agents_led_action_shows_in_another_robots_camera_at_its_next_observation() {
+    // Agent 1 sets its LEDs to (0.5, -1, 1): levels round(0.75 · 63) = 47, 0 and 63 of the real
+    // LEDs' 64 (spec §6); agent 0 leaves its own at full green. With `action_delay = 1` the
+    // colour arrives one step later, like the wheels.
+    let other = Vector::new(0.4, 0.05);
+    let action = [0.0, 0.0, -1.0, 1.0, -1.0, 0.0, 0.0, 0.5, -1.0, 1.0];
+    let set = [47.0 / 63.0, 0.0, 1.0];
+    for delay in [0, 1] {
+        let mut env = env_with(2, &format!("led_action = true\naction_delay = {delay}"));
+        let mut obs = vec![0.0; env.obs_dim()];
+        env.reset(&mut obs);
+        env.world.set_scene(scene_with(Vec::new()));
+        env.world.place_robot(0, Vector::ZERO, 0.0);
+        env.world.place_robot(1, other, 1.0);
+        let hidden = pixels_on_disc(other, env.world.drive.radius);
+        assert!(!hidden.is_empty());
+        for step in 0..=delay {
+            env.step(&action, &mut obs);
+            let seen = if step == delay { set } else { [0.0, 0.8, 0.0] };
+            let reading = &env.world.robots[0].readings.camera;
+            for &i in &hidden {
+                assert_eq!(
+                    reading.rgb[i], seen,
+                    "delay {delay}, step {step}, pixel {i}"
+                );
+            }
+        }
+        // Zero wheel commands from rest: neither robot moved.
+        assert_eq!(env.world.robots[1].position, other);
+        assert_eq!(env.world.robots[0].led, [0.0, 1.0, 0.0]);
+    }
+}
+
+#[test]
+fn test_led_actions_need_every_agent_to_drive_a_khepera() {
+    for overrides in ["led_action = true", "led_action = true\ndriver = \"agent\""] {
+        let source = Source {
+            file: None,
+            overrides: overrides.parse().expect("overrides"),
+            version: None,
+        };
+        let cfg = load_scenario("dronefollow", &source).expect("scenario");
+        let spawner = Arc::new(Env::spawner(TaskKind::DroneFollow, &cfg).expect("spawner"));
+        let error = Env::new(
+            TaskKind::DroneFollow,
+            Arc::new(cfg),
+            spawner,
+            ActionType::Wheels,
+        )
+        .err()
+        .expect("a drone has no LEDs");
+        assert!(matches!(error, Error::Config { .. }), "{error}");
+        assert!(error.to_string().contains("task.led_action"), "{error}");
     }
 }
 

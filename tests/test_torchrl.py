@@ -47,6 +47,7 @@ ENV_KINDS = [
     ("multinav", {"n_robots": 3}),
     ("platoon", {"robots": 2}),
     ("consensus", {"n_robots": 3, "trigger": "event"}),
+    ("multinav", {"n_robots": 2, "led_action": True}),
 ]
 
 
@@ -128,6 +129,20 @@ def test_layout_of_groups_and_flat_keys() -> None:
     assert multinav.group_map == {"robots": [f"robot_{i}" for i in range(6)]}
     assert multinav.full_done_spec["robots", "terminated"].shape == (5, 6, 1)
     assert multinav.full_done_spec["done"].shape == (5, 1)
+
+
+def test_led_actions_are_five_values_per_agent_and_reach_the_leds() -> None:
+    env = KheperaTorchEnv("formation", 2, led_action=True, n_followers=3, seed=0)
+    assert env.full_action_spec["followers", "action"].shape == (2, 3, 5)
+    tensordict = env.reset()
+    actions = torch.zeros((2, 3, 5))
+    actions[1, 2, 2:] = torch.tensor([-1.0, -1.0, 1.0])  # world 1, follower 2: blue
+    tensordict["followers", "action"] = actions
+    env.step(tensordict)
+    robot = env.agent_names.index("follower_2") + 1  # robot 0 is the scripted leader
+    leds = env.sensor_readings()["leds"]
+    assert leds[1, robot].tolist() == [0, 0, 63]
+    assert leds[0, robot].tolist() == [32, 32, 32]
 
 
 def test_group_map_types_regroup_the_agents() -> None:

@@ -25,7 +25,8 @@ A policy reads the observation of its task's default scenario; for another (othe
 observed), give ``layout=env.unwrapped.obs_layout()`` and it finds its blocks by name. Units:
 metres, seconds, radians; robot frame x forward, y left, angles counter-clockwise. Actions are
 normalised (left, right) wheel speeds in [-1, 1]: wheel speeds ``v ∓ ω · axle_length / 2``
-divided by ``max_wheel_speed`` and clipped.
+divided by ``max_wheel_speed`` and clipped. In a world whose agents also set their LEDs
+(``task.led_action``), :func:`with_leds` appends a colour to each agent's wheel values.
 
 Adding a controller: a Rust file in src/controllers/ and a short class in a module of this
 package (by domain: navigation, formation) that names it
@@ -43,6 +44,7 @@ from khepera_gym.baselines.base import (
     KHEPERA_MAX_WHEEL_SPEED,
     BaselinePolicy,
     parameters,
+    with_leds,
 )
 from khepera_gym.baselines.consensus import ConsensusLaw
 from khepera_gym.baselines.formation import LeaderFollower, formation_offsets
@@ -76,4 +78,5 @@ __all__ = [
     "braitenberg_weights",
     "formation_offsets",
     "parameters",
+    "with_leds",
 ]

@@ -211,6 +211,37 @@ class BaselinePolicy:
         return f"{type(self).__name__}({arguments})"
 
 
+def with_leds(actions: npt.ArrayLike, color: npt.ArrayLike) -> npt.NDArray[np.float32]:
+    """Wheel actions made into the actions of a world with ``task.led_action``: after each
+    agent's two wheel values, its LEDs' red, green, blue (as normalised actions, ``2 c - 1``).
+
+    The baselines steer the wheels only; this lets one run where the agents also set their LEDs,
+    with the LEDs held at ``color``.
+
+    Args:
+        actions: Wheel actions, shape (..., 2 K) for K agents (a joint action or a batch of them).
+        color: RGB in [0, 1], one for every agent (3,) or one per agent (K, 3).
+
+    Returns:
+        Actions of shape (..., 5 K), float32.
+
+    Raises:
+        ActionError: ``actions`` is not (..., 2 K), or ``color`` is not (3,) or (K, 3) in [0, 1].
+    """
+    wheels = np.asarray(actions, dtype=np.float32)
+    if wheels.ndim == 0 or wheels.shape[-1] % 2:
+        raise ActionError(f"actions must have shape (..., 2 K), got {wheels.shape}")
+    agents = wheels.shape[-1] // 2
+    rgb = np.asarray(color, dtype=np.float32)
+    if rgb.shape not in ((3,), (agents, 3)) or not np.all((rgb >= 0.0) & (rgb <= 1.0)):
+        raise ActionError(
+            f"color must be RGB in [0, 1] of shape (3,) or ({agents}, 3), got {color!r}"
+        )
+    per_agent = wheels.reshape(*wheels.shape[:-1], agents, 2)
+    leds = np.broadcast_to(2.0 * rgb - 1.0, (*per_agent.shape[:-1], 3))
+    return np.concatenate([per_agent, leds], axis=-1).reshape(*wheels.shape[:-1], 5 * agents)
+
+
 __all__ = [
     "BRAITENBERG_WEIGHT_SETS",
     "FORMATION_SHAPES",
@@ -220,4 +251,5 @@ __all__ = [
     "Layout",
     "Observation",
     "parameters",
+    "with_leds",
 ]

@@ -35,8 +35,10 @@ class NavEnv(KheperaEnv):
     `Box(-1, 1, (2,), float32)`. With `action_type="wheels"` (default) the normalised wheel speed
     commands (left, right), 1 = 0.813 m/s forward. With `action_type="unicycle"`: (v, ω)
     normalised by 0.813 m/s and by the largest yaw rate 2 · 0.813 / 0.1054 ≈ 15.4 rad/s (wheel
-    speeds beyond the limit are scaled down keeping the turn radius). Finite values outside
-    [-1, 1] are clipped; NaN/inf or a wrong shape raise `khepera_gym.errors.ActionError`.
+    speeds beyond the limit are scaled down keeping the turn radius). With `led_action=True`,
+    `Box(-1, 1, (5,), float32)`: those two, then the top LEDs' red, green, blue (-1 off, 1 full,
+    to the real LEDs' 64 levels). Finite values outside [-1, 1] are clipped; NaN/inf or a wrong
+    shape raise `khepera_gym.errors.ActionError`.
 
     ## Observation Space
 
@@ -259,6 +261,8 @@ class NavEnv(KheperaEnv):
     |                               |         | from dead reckoning (encoders + gyro)        |
     | `task.action_delay`           | 0       | steps before an action reaches the wheels    |
     | `task.observation_delay`      | 0       | steps before the world shows in observations |
+    | `task.led_action`             | false   | actions also set the top LEDs: (left, right, |
+    |                               |         | red, green, blue), colours to 0..63 (spec §6)|
     | `physics.dt`                  | 0.05    | control step (s)                             |
     | `physics.substeps`            | 4       | physics substeps per control step            |
     | `physics.solver_iterations`   | 4       | rapier solver iterations for contact steps   |

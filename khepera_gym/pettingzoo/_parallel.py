@@ -28,7 +28,8 @@ from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
-#: Actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle".
+#: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
+#: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
 ACTION_DIM = 2
 
 AgentObs = npt.NDArray[np.float32]
@@ -99,7 +100,8 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         low, high = joint_space.low, joint_space.high
         agent_specs = self._batch.agents()
         self.possible_agents: list[str] = [name for name, *_ in agent_specs]
-        #: Each agent's column in agent_rewards()/agent_terminated() (action columns 2i, 2i + 1).
+        #: Each agent's column in agent_rewards()/agent_terminated() (its actions: columns
+        #: A·i .. A·(i + 1), A = agent_act_dim).
         self._agent_index = {name: index for index, (name, *_) in enumerate(agent_specs)}
         self._obs_slices = {name: slice(start, stop) for name, _, start, stop, _ in agent_specs}
         self._agent_layouts = {name: layout_dict(layout) for name, *_, layout in agent_specs}
@@ -109,8 +111,10 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             name: gymnasium.spaces.Box(low[block], high[block], dtype=np.float32)
             for name, block in self._obs_slices.items()
         }
+        #: Action values per agent: 2, or 5 with ``task.led_action``.
+        self._act_dim: int = self._batch.agent_act_dim
         self.action_spaces: dict[str, gymnasium.spaces.Box] = {
-            name: gymnasium.spaces.Box(-1.0, 1.0, shape=(ACTION_DIM,), dtype=np.float32)
+            name: gymnasium.spaces.Box(-1.0, 1.0, shape=(self._act_dim,), dtype=np.float32)
             for name in self.possible_agents
         }
         #: The joint observation's space (``state()``), for centralised critics.
@@ -133,7 +137,8 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         return self.observation_spaces[agent]
 
     def action_space(self, agent: str) -> gymnasium.spaces.Box:
-        """The action space of ``agent``: ``Box(-1, 1, (2,), float32)`` (same object per call)."""
+        """The action space of ``agent``: ``Box(-1, 1, (2,), float32)``, ``(5,)`` with
+        ``task.led_action`` (the same object on every call)."""
         return self.action_spaces[agent]
 
     def agent_obs_layout(self, agent: str) -> dict[str, slice]:
@@ -177,9 +182,10 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         """Step every live agent at once.
 
         Args:
-            actions: One action of shape (2,) per agent in ``self.agents`` (normalised, finite
-                values outside [-1, 1] are clipped). Agents that already finished get zero
-                wheel commands.
+            actions: One action of shape (2,) per agent in ``self.agents`` ((5,) with
+                ``task.led_action``; normalised, finite values outside [-1, 1] are clipped).
+                Agents that already finished get zero wheel commands (their LEDs keep their
+                last colour).
 
         Returns:
             ``(observations, rewards, terminations, truncations, infos)``, each keyed by the agents
@@ -227,7 +233,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
     def _fill_joint_actions(self, actions: Mapping[str, npt.ArrayLike]) -> None:
         if not isinstance(actions, Mapping):
             raise ActionError(
-                f"actions must be a dict agent -> action of shape ({ACTION_DIM},), "
+                f"actions must be a dict agent -> action of shape ({self._act_dim},), "
                 f"got {type(actions).__name__}"
             )
         missing = [agent for agent in self.agents if agent not in actions]
@@ -241,13 +247,16 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
                     f"action for {agent!r}, which {why}; give actions for {self.agents} only"
                 )
         joint = self._joint_actions
-        joint.fill(0.0)  # finished agents (multinav: parked robots) get zero wheel commands
+        # Finished agents (multinav: parked robots) get zero wheel commands; their LED values
+        # stay the last they sent (every agent acts on an episode's first step), so their LEDs
+        # keep its colour.
+        joint.reshape(-1, self._act_dim)[:, :ACTION_DIM] = 0.0
         for agent, action in actions.items():
-            action_array = as_action_array(action, (ACTION_DIM,), f"action of {agent!r}")
+            action_array = as_action_array(action, (self._act_dim,), f"action of {agent!r}")
             if not np.all(np.isfinite(action_array)):
                 raise ActionError(f"action of {agent!r} is not finite: {action_array}")
-            column = ACTION_DIM * self._agent_index[agent]
-            joint[0, column : column + ACTION_DIM] = action_array
+            column = self._act_dim * self._agent_index[agent]
+            joint[0, column : column + self._act_dim] = action_array
 
     # --- ground truth and the rest of the API --------------------------------------------------
 

@@ -30,7 +30,8 @@ from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.face import BatchFace, first_seed
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
 
-#: Actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle".
+#: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
+#: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
 ACTION_DIM = 2
 
 
@@ -100,7 +101,7 @@ class MultiAgentArrayEnv(BatchFace):
         )
         #: One agent's action space.
         self.single_action_space = gymnasium.spaces.Box(
-            -1.0, 1.0, shape=(ACTION_DIM,), dtype=np.float32
+            -1.0, 1.0, shape=(self._batch.agent_act_dim,), dtype=np.float32
         )
         self._shape = (self.num_envs, len(self.agents))
         self._has_reset = False
@@ -138,7 +139,8 @@ class MultiAgentArrayEnv(BatchFace):
         npt.NDArray[np.bool_],
         dict[str, Any],
     ]:
-        """Steps every world with ``actions`` of shape ``(num_envs, n_agents, 2)``.
+        """Steps every world with ``actions`` of shape ``(num_envs, n_agents, A)``, A = 2 (5 with
+        ``task.led_action``).
 
         Returns:
             ``(observations, rewards, terminated, truncated, info)``: observations
@@ -149,7 +151,7 @@ class MultiAgentArrayEnv(BatchFace):
         Raises:
             ActionError: ``actions`` of another shape, not numbers, or not finite.
         """
-        shape = (*self._shape, ACTION_DIM)
+        shape = (*self._shape, self._batch.agent_act_dim)
         try:
             array = np.asarray(actions, dtype=np.float32)
         except (TypeError, ValueError) as error:

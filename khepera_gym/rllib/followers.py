@@ -127,7 +127,7 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
             self.single_observation_space, self.num_envs
         )
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
-        self._action_shape = (self.num_envs, 2)
+        self._action_shape = (self.num_envs, self._batch.agent_act_dim)
         self._has_reset = False
         self._render_worlds = max(1, int(render_worlds))
         self._renderer = Renderer(
@@ -149,8 +149,9 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
         )
 
     def _row_action_space(self) -> gym.spaces.Box:
-        """The Box of one follower's (left, right) wheel pair, normalised to [-1, 1]."""
-        return gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        """The Box of one follower's (left, right) wheel pair, normalised to [-1, 1] (then its
+        LEDs' red, green, blue with ``task.led_action``)."""
+        return gym.spaces.Box(-1.0, 1.0, shape=(self._batch.agent_act_dim,), dtype=np.float32)
 
     def _rows(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         return joint.reshape(self.num_envs, self._block)
@@ -186,7 +187,8 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
         npt.NDArray[np.bool_],
         dict[str, Any],
     ]:
-        """Steps every world once with the followers' actions, shape (num_envs, 2).
+        """Steps every world once with the followers' actions, shape (num_envs, 2) ((num_envs, 5)
+        with ``task.led_action``).
 
         Returns:
             ``(observations, rewards, terminations, truncations, infos)`` of num_envs rows; a
@@ -196,7 +198,9 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
         Raises:
             ActionError: Wrong shape, non-numeric or NaN/inf actions.
         """
-        action_array = as_action_array(actions, self._action_shape, "actions (num_envs, 2)")
+        action_array = as_action_array(
+            actions, self._action_shape, "actions (num_envs, agent_act_dim)"
+        )
         joint, _, terminated, truncated = self._batch.step(
             action_array.reshape(self.num_worlds, -1)
         )

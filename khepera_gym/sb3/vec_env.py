@@ -415,7 +415,8 @@ class SharedAgentsVecEnv(KheperaSB3VecEnv):
         )
 
     def _row_action_space(self) -> gym.spaces.Box:
-        return gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        # One agent's action: its wheels (and its LEDs with task.led_action).
+        return gym.spaces.Box(-1.0, 1.0, shape=(self._batch.agent_act_dim,), dtype=np.float32)
 
     def row_observations(self, joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         return joint.reshape(-1, self.agent_obs_dim)

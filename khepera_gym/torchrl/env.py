@@ -28,7 +28,6 @@ from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.face import BatchFace, first_seed
 from khepera_gym.torchrl.groups import (
-    ACTION_DIM,
     AGENTS_END_SEPARATELY,
     has_agent_groups,
     make_groups,
@@ -146,7 +145,7 @@ class KheperaTorchEnv(BatchFace, EnvBase):
         self.group_map: dict[str, list[str]] = (
             resolve_group_map(task, group_map, agents) if grouped else {}
         )
-        self._groups = make_groups(self.group_map, agents)
+        self._groups = make_groups(self.group_map, agents, self._batch.agent_act_dim)
         self._group_done = task in AGENTS_END_SEPARATELY
         n = batch.num_worlds
         self._joint_action = np.zeros((n, batch.act_dim), np.float32)
@@ -208,7 +207,7 @@ class KheperaTorchEnv(BatchFace, EnvBase):
         else:
             joint = self._joint_action
             for group in self._groups:
-                shape = torch.Size([self.batch_size[0], group.size, ACTION_DIM])
+                shape = torch.Size([self.batch_size[0], group.size, group.act_dim])
                 joint[:, group.action_columns] = self._actions_of(
                     tensordict, (group.name, "action"), shape
                 )

@@ -29,7 +29,8 @@ from khepera_gym import _core
 from khepera_gym.errors import ConfigError
 from khepera_gym.registration import latest_ids, task_of, version_of
 
-#: Actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle".
+#: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
+#: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
 ACTION_DIM = 2
 #: Tasks whose agents end separately (an agent's ``agent_terminated()`` may be True while the
 #: episode goes on: a multinav robot parks at its goal, a lost platoon robot parks where it is);
@@ -172,10 +173,12 @@ class AgentGroup:
     #: The group's observation columns in the joint observation, agent-major, shape (K * D,),
     #: or the same as a slice when they are one run in order (no gather needed).
     obs_columns: npt.NDArray[np.intp] | slice
-    #: The group's action columns in the joint action, agent-major (K * 2,), or a slice.
+    #: The group's action columns in the joint action, agent-major (K * A,), or a slice.
     action_columns: npt.NDArray[np.intp] | slice
     #: D, the size of one agent's observation.
     obs_dim: int
+    #: A, the size of one agent's action: 2 (its wheels), 5 with ``task.led_action``.
+    act_dim: int = ACTION_DIM
 
     @property
     def size(self) -> int:
@@ -192,9 +195,10 @@ def _as_run(columns: npt.NDArray[np.intp]) -> npt.NDArray[np.intp] | slice:
 
 
 def make_groups(
-    group_map: Mapping[str, Sequence[str]], agents: Sequence[Agent]
+    group_map: Mapping[str, Sequence[str]], agents: Sequence[Agent], act_dim: int = ACTION_DIM
 ) -> list[AgentGroup]:
-    """The :class:`AgentGroup` of each group of a checked ``group_map``."""
+    """The :class:`AgentGroup` of each group of a checked ``group_map``, each agent acting with
+    ``act_dim`` values (the batch's ``agent_act_dim``)."""
     index = {name: i for i, (name, _, _) in enumerate(agents)}
     groups = []
     for name, members in group_map.items():
@@ -202,7 +206,7 @@ def make_groups(
         obs_columns = np.concatenate(
             [np.arange(agents[i][1], agents[i][2], dtype=np.intp) for i in columns]
         )
-        action_columns = (ACTION_DIM * columns[:, None] + np.arange(ACTION_DIM)).reshape(-1)
+        action_columns = (act_dim * columns[:, None] + np.arange(act_dim)).reshape(-1)
         groups.append(
             AgentGroup(
                 name=name,
@@ -211,6 +215,7 @@ def make_groups(
                 obs_columns=_as_run(obs_columns),
                 action_columns=_as_run(action_columns),
                 obs_dim=agents[columns[0]][2] - agents[columns[0]][1],
+                act_dim=act_dim,
             )
         )
     return groups
@@ -262,7 +267,7 @@ def make_specs(batch: _core.Batch, groups: Sequence[AgentGroup], group_done: boo
         columns = group.obs_columns
         group_obs = bounded(low[columns], high[columns], (*shape, group.obs_dim))
         observation[group.name] = Composite(observation=group_obs, shape=shape)
-        actions[group.name] = Composite(action=action((*shape, ACTION_DIM)), shape=shape)
+        actions[group.name] = Composite(action=action((*shape, group.act_dim)), shape=shape)
         reward[group.name] = Composite(
             reward=Unbounded(shape=(*shape, 1), dtype=torch.float32), shape=shape
         )

@@ -138,6 +138,13 @@ impl Batch {
         self.inner.act_dim()
     }
 
+    /// Action values per agent: 2 (its wheels), 5 with `task.led_action` (then its LEDs' red,
+    /// green, blue).
+    #[getter]
+    fn agent_act_dim(&self) -> usize {
+        crate::tasks::action_width(self.inner.scenario())
+    }
+
     /// Robots per world.
     #[getter]
     fn n_robots(&self) -> usize {
@@ -171,7 +178,7 @@ impl Batch {
     }
 
     /// The agents: (name, robot index, obs start, obs stop, [(name, start, stop) of its own
-    /// block]) in joint order; agent i's action is columns 2i, 2i+1.
+    /// block]) in joint order; agent i's action is columns w·i .. w·(i + 1), w = `agent_act_dim`.
     #[allow(clippy::type_complexity)]
     fn agents(
         &self,

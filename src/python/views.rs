@@ -48,7 +48,8 @@ pub fn episode_stats<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Bound<
 /// Raw sensor readings of the last observation, in the real robot's units: each carried
 /// sensor's channels (shape (N, n_robots, values) or (N, n_robots)), then the body's
 /// "wheel_speeds" (m/s), "encoders" (pulses) and "gyro_z" (rad/s); with `localization =
-/// "odometry"` also "odometry" (the robot's dead-reckoned x, y in m and heading in rad).
+/// "odometry"` also "odometry" (the robot's dead-reckoned x, y in m and heading in rad); with
+/// `task.led_action` also "leds" (its top LEDs' red, green, blue levels, 0..63).
 pub fn sensor_readings<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Bound<'py, PyDict>> {
     let (n, r) = (batch.len(), batch.envs()[0].world.robots.len());
     let robots = || batch.envs().iter().flat_map(|e| e.world.robots.iter());
@@ -107,6 +108,13 @@ pub fn sensor_readings<'py>(py: Python<'py>, batch: &CoreBatch) -> PyResult<Boun
             "odometry",
             PyArray1::from_vec(py, estimate).reshape([n, r, 3])?,
         )?;
+    }
+    if batch.scenario().task.led_action {
+        // What the agents' LED actions set: each robot's top LEDs, 0..63 per colour.
+        let leds: Vec<i32> = robots()
+            .flat_map(|r| r.led.map(|c| (c * crate::tasks::LED_LEVELS).round() as i32))
+            .collect();
+        d.set_item("leds", PyArray1::from_vec(py, leds).reshape([n, r, 3])?)?;
     }
     if !d.contains("gyro_z")? {
         // Without a gyroscope model carried (v0), the body's exact yaw rate over the step.

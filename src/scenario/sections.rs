@@ -342,6 +342,8 @@ crate::config_table! {
         action_delay: u32 = 0,
         /// control steps between the world and the observation showing it (0 = none)
         observation_delay: u32 = 0,
+        /// whether each agent also sets its robot's top LEDs: three more action values (red, green, blue in [-1, 1], to 0..63 per colour, the real LEDs' 6 bits, spec §6) after its two wheel values; the camera sees the colour from the next observation on
+        led_action: bool = false,
     }
 }
 

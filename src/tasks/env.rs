@@ -5,7 +5,7 @@
 //! registry's private `TaskState` enum (`tasks/mod.rs`), so nothing here names a task.
 //!
 //! Units: metres, seconds, radians; rewards per step; actions normalised to [-1, 1], two per
-//! agent. Frame: the world frame (arena centred at the origin). Threading: an env is stepped by
+//! agent (five with `task.led_action`: the wheels, then the LEDs' red, green, blue). Frame: the world frame (arena centred at the origin). Threading: an env is stepped by
 //! one thread at a time and draws only from its world's random stream.
 
 use std::collections::VecDeque;
@@ -15,7 +15,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
-use super::{TaskKind, TaskState, MAX_EXTRA_STATS};
+use super::{action_width, led_color, TaskKind, TaskState, MAX_EXTRA_STATS, WHEEL_ACTIONS};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::ObsWriter;
@@ -64,7 +64,7 @@ struct EnvStateRef<'a> {
     last_episode: &'a EpisodeStats,
     done: bool,
     trails: &'a [Vec<Vector>],
-    pending_actions: &'a VecDeque<Vec<[f32; 2]>>,
+    pending_actions: &'a VecDeque<Vec<f32>>,
     pending_obs: &'a VecDeque<Vec<f32>>,
 }
 
@@ -79,7 +79,7 @@ struct EnvState {
     last_episode: EpisodeStats,
     done: bool,
     trails: Vec<Vec<Vector>>,
-    pending_actions: VecDeque<Vec<[f32; 2]>>,
+    pending_actions: VecDeque<Vec<f32>>,
     pending_obs: VecDeque<Vec<f32>>,
 }
 
@@ -93,6 +93,8 @@ pub struct Env {
     task: TaskState,
     action_type: ActionType,
     agent_robots: Vec<usize>,
+    /// Action values per agent ([`action_width`]).
+    action_width: usize,
     obs_dim: usize,
     /// Each agent's reward on the last step.
     pub agent_rewards: Vec<f32>,
@@ -108,8 +110,9 @@ pub struct Env {
     /// free when `trail_length` is 0).
     trails: Vec<Vec<Vector>>,
     trail_length: usize,
-    /// Wheel commands sent but not yet received, oldest first (`task.action_delay` of them).
-    pending_actions: VecDeque<Vec<[f32; 2]>>,
+    /// Joint actions sent but not yet received, oldest first (`task.action_delay` of them); an
+    /// empty one stands for the steps before the first action (wheels still, LEDs unchanged).
+    pending_actions: VecDeque<Vec<f32>>,
     /// Observations made but not yet delivered, oldest first (`task.observation_delay` of
     /// them).
     pending_obs: VecDeque<Vec<f32>>,
@@ -129,6 +132,21 @@ impl Env {
         let obs_dim = agents.iter().map(|a| a.layout.len()).sum();
         let agent_robots: Vec<usize> = agents.iter().map(|a| a.robot).collect();
         let n_agents = agent_robots.len();
+        let n_robots = spawner.n_robots();
+        let action_width = action_width(&cfg);
+        if let Some(vehicle) = agents.iter().find(|a| a.robot >= n_robots) {
+            if cfg.task.led_action {
+                return Err(Error::config(
+                    &cfg.origin,
+                    "task.led_action",
+                    format!(
+                        "agent {:?} flies a vehicle without LEDs; LED actions need every agent \
+                         to drive a Khepera (set task.led_action = false)",
+                        vehicle.name
+                    ),
+                ));
+            }
+        }
         Ok(Self {
             world,
             cfg,
@@ -136,6 +154,7 @@ impl Env {
             task,
             action_type,
             agent_robots,
+            action_width,
             obs_dim,
             agent_rewards: vec![0.0; n_agents],
             agent_terminated: vec![false; n_agents],
@@ -199,10 +218,9 @@ impl Env {
         self.observe(obs);
         // Delays start full: the wheels keep still and the first observations repeat the
         // reset's until the real ones arrive.
-        let n_agents = self.agent_robots.len();
         self.pending_actions.clear();
         self.pending_actions
-            .extend((0..self.cfg.task.action_delay).map(|_| vec![[0.0; 2]; n_agents]));
+            .extend((0..self.cfg.task.action_delay).map(|_| Vec::new()));
         self.pending_obs.clear();
         self.pending_obs
             .extend((0..self.cfg.task.observation_delay).map(|_| obs.to_vec()));
@@ -235,36 +253,19 @@ impl Env {
         }
     }
 
-    /// Applies `action` (normalised, two numbers per agent, already checked finite), advances
-    /// one control step and writes the next observation.
+    /// Applies `action` (normalised, [`action_width`] numbers per agent, already checked finite),
+    /// advances one control step and writes the next observation.
     pub fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
-        let robots = self.world.robots.len();
         if self.cfg.task.action_delay == 0 {
-            for (robot, pair) in self.agent_robots.iter().zip(action.chunks_exact(2)) {
-                if *robot >= robots {
-                    self.task.act(robot - robots, [pair[0], pair[1]]);
-                    continue;
-                }
-                let command = self
-                    .world
-                    .drive
-                    .wheel_command([pair[0], pair[1]], self.action_type);
-                self.world.robots[*robot].wheel_command = command;
-            }
+            self.apply(action);
         } else {
-            // The command sent now arrives `action_delay` steps later; the oldest arrives now.
-            let sent = action.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
-            self.pending_actions.push_back(sent);
-            if let Some(arrived) = self.pending_actions.pop_front() {
-                for (robot, pair) in self.agent_robots.iter().zip(arrived) {
-                    if *robot >= robots {
-                        self.task.act(robot - robots, pair);
-                        continue;
-                    }
-                    let command = self.world.drive.wheel_command(pair, self.action_type);
-                    self.world.robots[*robot].wheel_command = command;
-                }
-            }
+            // The action sent now arrives `action_delay` steps later; the oldest arrives now. Its
+            // buffer then carries this one.
+            let mut arrived = self.pending_actions.pop_front().unwrap_or_default();
+            self.apply(&arrived);
+            arrived.clear();
+            arrived.extend_from_slice(action);
+            self.pending_actions.push_back(arrived);
         }
         self.task.before_step(&mut self.world);
         self.world.advance();
@@ -307,6 +308,27 @@ impl Env {
             reward,
             terminated,
             truncated,
+        }
+    }
+
+    /// Gives each agent its part of a joint `action`: wheel commands, a vehicle's command
+    /// ([`TaskState::act`]), LED colours. An empty `action` (none sent yet) stops the wheels and
+    /// leaves the LEDs as they are.
+    fn apply(&mut self, action: &[f32]) {
+        let robots = self.world.robots.len();
+        let width = self.action_width;
+        for (k, robot) in self.agent_robots.iter().enumerate() {
+            let sent = action.get(k * width..(k + 1) * width);
+            let wheels = sent.map_or([0.0; WHEEL_ACTIONS], |a| [a[0], a[1]]);
+            if *robot >= robots {
+                self.task.act(robot - robots, wheels);
+                continue;
+            }
+            let body = &mut self.world.robots[*robot];
+            body.wheel_command = self.world.drive.wheel_command(wheels, self.action_type);
+            if let Some(&[_, _, r, g, b]) = sent {
+                body.led = led_color([r, g, b]);
+            }
         }
     }
 
@@ -367,7 +389,10 @@ impl Env {
             || state.agent_terminated.len() != n_agents
             || !state.task.fits(&self.task)
             || state.pending_actions.len() != self.cfg.task.action_delay as usize
-            || state.pending_actions.iter().any(|a| a.len() != n_agents)
+            || state
+                .pending_actions
+                .iter()
+                .any(|a| !a.is_empty() && a.len() != n_agents * self.action_width)
             || state.pending_obs.len() != self.cfg.task.observation_delay as usize
             || state.pending_obs.iter().any(|o| o.len() != self.obs_dim)
         {

@@ -6,8 +6,9 @@
 //! the batch, the world, the renderer and the binding never look at which task they hold.
 //!
 //! Agents: a task has one or more agents, each acting on one robot with two normalised numbers
-//! and observing one block of the joint observation. The joint action is the agents' actions
-//! in order; the joint reward is the mean of the agents' rewards.
+//! (its wheels; with `task.led_action`, three more for its top LEDs' colour, the same width for
+//! every agent: [`action_width`]) and observing one block of the joint observation. The joint
+//! action is the agents' actions in order; the joint reward is the mean of the agents' rewards.
 //!
 //! Dispatch is static: the registry generates an enum of the tasks' states and matches on it;
 //! that enum is private to this module and `env.rs`.
@@ -73,6 +74,25 @@ pub enum Driver {
     Scripted,
     /// A learning agent's actions: the robot is one more agent.
     Agent,
+}
+
+/// Action values per agent for its wheels (normalised left, right; or a vehicle's command).
+pub const WHEEL_ACTIONS: usize = 2;
+/// Action values per agent for its robot's top LEDs (red, green, blue) with `task.led_action`.
+pub const LED_ACTIONS: usize = 3;
+/// Highest level of each LED colour: 6 bits, `kh4_SetRGBLeds` takes 0..63 (spec §6).
+pub const LED_LEVELS: f32 = 63.0;
+
+/// Action values per agent in a scenario: the wheels, and the LEDs with `task.led_action`.
+pub fn action_width(cfg: &Scenario) -> usize {
+    WHEEL_ACTIONS + if cfg.task.led_action { LED_ACTIONS } else { 0 }
+}
+
+/// The LED colour (RGB in [0, 1]) an agent's three normalised LED values ask for: each value in
+/// [-1, 1] (clamped) to the nearest of the 64 levels the real LEDs have.
+pub fn led_color(values: [f32; 3]) -> [f32; 3] {
+    let level = |v: f32| ((v.clamp(-1.0, 1.0) + 1.0) * 0.5 * LED_LEVELS).round() / LED_LEVELS;
+    values.map(level)
 }
 
 /// Most extra statistics a task may keep ([`Task::EXTRA_STATS`]).
