@@ -83,6 +83,16 @@ def test_task_defaults_by_name_equal_no_config() -> None:
         default.close()
 
 
+@pytest.mark.parametrize("task", [name for name, *_ in _core.tasks()])
+def test_the_config_files_list_each_tasks_defaults(task: str) -> None:
+    """configs/<task>.toml is what the docs point users to for every key and its default: it
+    must be the scenario the core builds, comments included."""
+    path = Path(__file__).resolve().parent.parent / "configs" / f"{task}.toml"
+    assert path.read_text(encoding="utf-8") == _core.default_config(task), (
+        f"{path.name} is stale: rewrite it from khepera_gym._core.default_config({task!r})"
+    )
+
+
 def test_builtin_scene_by_name_by_path_and_with_overrides(tmp_path: Path) -> None:
     fig6_file = tmp_path / "fig6.toml"
     fig6_file.write_text(_core.default_config("paper_fig6"))
