@@ -73,6 +73,8 @@ int kh4_ResetEncoders(knet_dev_t *device);
 int kh4_proximity_ir(char *buffer, knet_dev_t *device);
 int kh4_measure_us(char *buffer, knet_dev_t *device);
 int kh4_activate_us(char mask, knet_dev_t *device);
+int kh4_SetRGBLeds(char left_r, char left_g, char left_b, char right_r, char right_g, char right_b,
+                   char back_r, char back_g, char back_b, knet_dev_t *device);
 #endif
 """
 
@@ -149,6 +151,13 @@ int kh4_activate_us(char mask, knet_dev_t *d)
 {
     (void)d;
     fprintf(stderr, "activate_us %d\\n", mask);
+    return 0;
+}
+int kh4_SetRGBLeds(char lr, char lg, char lb, char rr, char rg, char rb, char br, char bg, char bb,
+                   knet_dev_t *d)
+{
+    (void)d;
+    fprintf(stderr, "set_leds %d %d %d %d %d %d %d %d %d\\n", lr, lg, lb, rr, rg, rb, br, bg, bb);
     return 0;
 }
 """
@@ -430,6 +439,39 @@ def test_c_wheel_command_matches_simulator_wheel_speeds(action_type: str, tmp_pa
     assert np.any(units == 0) and np.max(np.abs(units)) > 1100
 
 
+def test_c_led_levels_match_the_simulators_leds(tmp_path: Path) -> None:
+    env = gym.make(NAV_ID, led_action=True)
+    model = PPO("MlpPolicy", env, seed=0, device="cpu", n_steps=64)
+    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False, led_action=True)
+    assert "#define KHEPERA_LED_ACTION 1" in (tmp_path / "khepera_policy_config.h").read_text()
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1.3, 1.3, (200, 5)).astype(np.float32)
+    # Values on the levels' rounding edges, (k + 1/2) / 63 · 2 − 1, and either side of them.
+    edges = ((np.arange(63) + 0.5) / 63 * 2 - 1).astype(np.float32)
+    for k, edge in enumerate(edges):
+        actions[k, 2:] = [np.nextafter(edge, -2), edge, np.nextafter(edge, 2)]
+    env.reset(seed=0)
+    expected = []
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        expected.append(env.unwrapped.sensor_readings()["leds"][0])
+        if terminated or truncated:
+            env.reset()
+    env.close()
+    levels = run_check(compile_check(tmp_path), "leds", actions[:, 2:]).astype(int)
+    np.testing.assert_array_equal(levels, np.array(expected))
+    assert levels.min() == 0 and levels.max() == 63
+
+
+def test_the_action_width_must_be_the_scenarios(tmp_path: Path) -> None:
+    lit = PPO("MlpPolicy", gym.make(NAV_ID, led_action=True), seed=0, device="cpu", n_steps=64)
+    with pytest.raises(ConfigError, match="led_action=True"):
+        export.export_policy(lit, tmp_path, env_id=NAV_ID, check=False)
+    plain = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    with pytest.raises(ConfigError, match=r"takes 5 \(its wheels, then its LEDs"):
+        export.export_policy(plain, tmp_path, env_id=NAV_ID, check=False, led_action=True)
+
+
 def test_formation_follower_policy_exports_one_robots_block(tmp_path: Path) -> None:
     venv = make_formation_vec_env(1, seed=0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", n_steps=64)
@@ -510,6 +552,31 @@ def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Pa
         [str(program), "0.01", "0.0"], capture_output=True, text=True, check=True, timeout=10
     )
     assert run.stdout.startswith("goal reached (by odometry) after 0 steps")
+
+
+def test_robot_program_sets_the_leds_a_led_policy_asks_for(tmp_path: Path) -> None:
+    env = gym.make(NAV_ID, led_action=True)
+    model = PPO("MlpPolicy", env, seed=0, device="cpu", n_steps=64)
+    scale_output_layer(model.policy.action_net, 300.0)
+    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False, led_action=True)
+    program = robot_program_on_fake_robot(tmp_path)
+    run = subprocess.run(
+        [str(program), "1.0", "0.5", "2"], capture_output=True, text=True, check=True, timeout=10
+    )
+    steps = [line.split() for line in run.stdout.splitlines()]
+    assert len(steps) == 2 and all(len(step) == 11 for step in steps)
+    # The policy's LED values (the fake robot's observation is the same every step) as levels,
+    # sent to the three LEDs each step, then all off when the program stops.
+    binary = compile_check(tmp_path)
+    row = [*[100 + 60 * i for i in range(8)], 25, 1000, 80, 2000, 0]
+    speeds = [np.float32(units) * np.float32(0.678181) / np.float32(1000) for units in (300, -200)]
+    observation = run_check(binary, "observation", [[*row, *speeds, 0.0, 0.0, 0.0, 1.0, 0.5]])
+    action = run_check(binary, "policy", observation)
+    levels = run_check(binary, "leds", action[:, 2:]).astype(int)[0].tolist()
+    assert [[int(v) for v in step[8:]] for step in steps] == [levels, levels]
+    commands = [line.split() for line in run.stderr.splitlines()]
+    sent = [[int(v) for v in c[1:]] for c in commands if c[0] == "set_leds"]
+    assert sent == [levels * 3, levels * 3, [0] * 9]
 
 
 def test_export_follows_a_scenario_that_observes_only_the_ir_ring(tmp_path: Path) -> None:

@@ -358,9 +358,17 @@ def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
 def robot_c_sources(robot: RobotInterface, network: PolicyNetwork) -> dict[str, str]:
     """The wheel command, the template program and its constants, the check program, the
     Makefile (name → text)."""
-    if network.action_dim != 2:
+    takes = 5 if robot.led_action else 2
+    if network.action_dim != takes:
+        what = "its wheels, then its LEDs' red, green, blue" if robot.led_action else "its wheels"
+        hint = (
+            " (a policy trained with task.led_action: export it with led_action=True)"
+            if network.action_dim == 5
+            else ""
+        )
         raise ConfigError(
-            f"the policy gives {network.action_dim} action values; one robot takes 2 (its wheels)"
+            f"the policy gives {network.action_dim} action values; one robot of this scenario "
+            f"takes {takes} ({what}){hint}"
         )
     unicycle = robot.action_type == "unicycle"
     wheel_fields = {
@@ -386,6 +394,7 @@ def robot_c_sources(robot: RobotInterface, network: PolicyNetwork) -> dict[str, 
         "us_mask": sum(1 << i for i, on in enumerate(robot.us_enabled) if on)
         if robot.observes("us")
         else 0,
+        "led_action": int(robot.led_action),
     }
     return {
         "wheel_command.h": _template("wheel_command.h").substitute(wheel_fields),

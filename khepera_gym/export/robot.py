@@ -61,6 +61,8 @@ class RobotInterface:
     offset: int
     layout: tuple[tuple[str, int, int], ...]
     action_type: str
+    #: Whether the policy's last three values set the top LEDs (``task.led_action``).
+    led_action: bool
     ir_floor_value: float
     us_max_range: float
     us_enabled: tuple[bool, ...]
@@ -181,6 +183,7 @@ def robot_interface(env: gym.Env[Any, Any], obs_dim: int, env_id: str) -> RobotI
         offset=offset,
         layout=layout,
         action_type=str(getattr(unwrapped, "action_type", "wheels")),
+        led_action=bool(scenario["task"].get("led_action", False)),
         ir_floor_value=value("sensors", "ir_floor_value"),
         us_max_range=value("sensors", "us_max_range"),
         us_enabled=tuple(bool(on) for on in scenario["sensors"]["us_enabled"]),

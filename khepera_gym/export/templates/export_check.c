@@ -6,6 +6,7 @@
  *   export_check observation rows of OBSERVATION_INPUT_COUNT raw inputs -> rows of observations
  *                            (the fields of observation_inputs in order: observation.h)
  *   export_check wheels      rows of 2 action values -> rows of 2 kh4_set_speed units
+ *   export_check leds        rows of 3 LED action values -> rows of 3 kh4_SetRGBLeds levels
  *
  * Numbers are whitespace-separated; outputs are printed with 9 significant digits (exact for
  * float32). Exit status: 0, or 1 on malformed input or a non-finite action.
@@ -78,6 +79,18 @@ static int check_wheels(void)
     return read < 0 ? 1 : 0;
 }
 
+static int check_leds(void)
+{
+    float action[3];
+    int levels[3];
+    int read;
+    while ((read = read_row(action, 3)) == 1) {
+        led_command_levels(action, levels);
+        printf("%d %d %d\n", levels[0], levels[1], levels[2]);
+    }
+    return read < 0 ? 1 : 0;
+}
+
 int main(int argc, char **argv)
 {
     if (argc == 2 && strcmp(argv[1], "policy") == 0) {
@@ -89,6 +102,9 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "wheels") == 0) {
         return check_wheels();
     }
-    fprintf(stderr, "usage: %s policy|observation|wheels < rows.txt\n", argv[0]);
+    if (argc == 2 && strcmp(argv[1], "leds") == 0) {
+        return check_leds();
+    }
+    fprintf(stderr, "usage: %s policy|observation|wheels|leds < rows.txt\n", argv[0]);
     return 2;
 }

@@ -9,5 +9,6 @@
 #define KHEPERA_AXLE_LENGTH $axle_length /* robot.axle_length, m */
 #define KHEPERA_METRES_PER_PULSE $metres_per_pulse /* 2 pi robot.wheel_radius / 19456 */
 #define KHEPERA_US_MASK $us_mask /* kh4_activate_us bits: sensors.us_enabled, 0 if not observed */
+#define KHEPERA_LED_ACTION $led_action /* task.led_action: the action's last 3 values set the LEDs */
 
 #endif /* KHEPERA_POLICY_CONFIG_H */

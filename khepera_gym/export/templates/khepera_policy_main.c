@@ -14,14 +14,15 @@
  *      given on the command line in that frame;
  *   3. builds the observation exactly as the simulator does (observation.c);
  *   4. runs the policy (policy.c) and sends the wheel speeds with kh4_set_speed in K-Team's units,
- *      clipped to the robot's limit (wheel_command.c).
+ *      clipped to the robot's limit (wheel_command.c); with KHEPERA_LED_ACTION (a policy trained
+ *      with task.led_action) it also sets the three top LEDs with kh4_SetRGBLeds, 0..63 a colour.
  * It stops the motors on Ctrl-C, at the goal (estimated by odometry, which drifts), after
  * MAX_STEPS steps, or when the policy gives a non-finite action.
  *
  * Usage on the robot:  ./khepera_policy GOAL_X GOAL_Y [MAX_STEPS]
  *   GOAL_X, GOAL_Y  goal in metres in the robot's frame at start (ignored if the observation has
  *                   no goal inputs); MAX_STEPS  0 or absent: no limit.
- * It prints one line per step: step, pose (m, m, rad), action, wheel units.
+ * It prints one line per step: step, pose (m, m, rad), action, wheel units (then LED levels).
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -99,6 +100,9 @@ static void stop_motors(knet_dev_t *ds_pic)
 {
     kh4_set_speed(0, 0, ds_pic);
     kh4_SetMode(kh4RegIdle, ds_pic);
+#if KHEPERA_LED_ACTION
+    kh4_SetRGBLeds(0, 0, 0, 0, 0, 0, 0, 0, 0, ds_pic); /* the policy's LEDs off */
+#endif
 }
 
 int main(int argc, char *argv[])
@@ -114,6 +118,9 @@ int main(int argc, char *argv[])
     float observation[OBSERVATION_DIM];
     float action[POLICY_ACTION_DIM];
     int units[2];
+#if KHEPERA_LED_ACTION
+    int leds[3];
+#endif
     struct timespec next_tick;
     knet_dev_t *ds_pic;
 
@@ -202,8 +209,17 @@ int main(int argc, char *argv[])
         }
         wheel_command_units(action, units);
         kh4_set_speed(units[0], units[1], ds_pic);
-        printf("%ld %.4f %.4f %.4f %.4f %.4f %d %d\n", step, pose.x, pose.y, pose.heading,
+        printf("%ld %.4f %.4f %.4f %.4f %.4f %d %d", step, pose.x, pose.y, pose.heading,
                (double)action[0], (double)action[1], units[0], units[1]);
+#if KHEPERA_LED_ACTION
+        /* The three top LEDs (front left, front right, back) in the colour the policy asks. */
+        led_command_levels(action + 2, leds);
+        kh4_SetRGBLeds((char)leds[0], (char)leds[1], (char)leds[2], (char)leds[0],
+                       (char)leds[1], (char)leds[2], (char)leds[0], (char)leds[1],
+                       (char)leds[2], ds_pic);
+        printf(" %d %d %d", leds[0], leds[1], leds[2]);
+#endif
+        printf("\n");
 
         add_seconds(&next_tick, KHEPERA_CONTROL_PERIOD_S);
         clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next_tick, NULL);

@@ -25,4 +25,10 @@ void wheel_command_units(const float action[2], int units[2]);
 /* kh4_get_speed units to m/s. */
 float wheel_units_to_speed(int units);
 
+/* Highest level of one LED colour: kh4_SetRGBLeds takes 6 bits. */
+#define LED_MAX_LEVEL 63
+/* The LED levels (red, green, blue, 0..LED_MAX_LEVEL) three normalised LED action values ask
+ * for, as the simulator sets them with task.led_action (src/tasks/mod.rs, led_color). */
+void led_command_levels(const float action[3], int levels[3]);
+
 #endif /* KHEPERA_GYM_WHEEL_COMMAND_H */
