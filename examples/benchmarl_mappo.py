@@ -32,7 +32,7 @@ from khepera_gym.benchmarl import KheperaTask
 from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
 
 with torchrl_import_warnings_ignored():
-    from benchmarl.algorithms import MappoConfig
+    from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment, ExperimentConfig
     from benchmarl.models import MlpConfig
     from tensordict import TensorDictBase
@@ -107,6 +107,12 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50, help="evaluation episodes")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--version", type=int, help="behaviour version (default: the latest)")
+    parser.add_argument(
+        "--algorithm",
+        choices=("mappo", "ippo"),
+        default="mappo",
+        help="mappo: critic on the joint observation; ippo: each follower's critic on its own",
+    )
     args = parser.parse_args()
     task_config = dict(TASK_CONFIG)
     if args.version is not None:
@@ -131,7 +137,7 @@ def main() -> None:
     config.create_json = False
     config.checkpoint_at_end = False
     config.save_folder = tempfile.mkdtemp(prefix="benchmarl_mappo_")
-    algorithm = MappoConfig.get_from_yaml()
+    algorithm = (MappoConfig if args.algorithm == "mappo" else IppoConfig).get_from_yaml()
     algorithm.lmbda = 0.95
     model = MlpConfig.get_from_yaml()
     model.num_cells = list(args.hidden)
@@ -145,7 +151,10 @@ def main() -> None:
     )
     print(f"{args.episodes} seeded Formation episodes (4 followers, cross), deterministic actions")
     report("LeaderFollower", formation_errors(leader_follower_policy(), args.episodes, task_config))
-    report("MAPPO before training", formation_errors(experiment.policy, args.episodes, task_config))
+    name = args.algorithm.upper()
+    report(
+        f"{name} before training", formation_errors(experiment.policy, args.episodes, task_config)
+    )
     start = time.perf_counter()
     experiment.run()
     elapsed = time.perf_counter() - start
@@ -153,7 +162,9 @@ def main() -> None:
         f"trained on {experiment.total_frames:,} env steps ({experiment.n_iters_performed} "
         f"iterations) in {elapsed:.0f} s: {experiment.total_frames / elapsed:,.0f} env steps/s"
     )
-    report("MAPPO after training", formation_errors(experiment.policy, args.episodes, task_config))
+    report(
+        f"{name} after training", formation_errors(experiment.policy, args.episodes, task_config)
+    )
 
 
 if __name__ == "__main__":
