@@ -2,6 +2,7 @@
 
     python examples/benchmarl_mappo.py [--frames 150000] [--worlds 8] [--episodes 50]
     python examples/benchmarl_mappo.py --version 0     # the v0 dynamics (the paper's V-REP)
+    python examples/benchmarl_mappo.py --algorithm ippo  # each follower's critic on its own block
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
 ``state``, the joint observation) on ``khepera_gym.benchmarl.KheperaTask.FORMATION``: a
