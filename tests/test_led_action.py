@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from khepera_gym.baselines import Braitenberg, ConsensusLaw, with_leds
+from khepera_gym.baselines import Braitenberg, ConsensusLaw, PositionControl, with_leds
 from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.pettingzoo import consensus_v1, multinav_v1
 from khepera_gym.sb3 import SharedAgentsVecEnv
@@ -102,6 +102,28 @@ def test_pettingzoo_agents_each_set_their_own_robots_leds() -> None:
     leds = env.sensor_readings()["leds"]
     for agent, color in colors.items():
         np.testing.assert_array_equal(leds[env.agent_robot(agent)], LEVELS * color)
+
+
+def test_a_robot_that_arrived_keeps_its_last_colour() -> None:
+    # Multinav robots driven home by position control, each sending a new random colour every
+    # step: once a robot has arrived (its agent gone), its LEDs keep the colour it sent last.
+    env = multinav_v1.parallel_env(led_action=True, n_robots=3)
+    observations, _ = env.reset(seed=21)
+    controller = PositionControl()
+    rng = np.random.default_rng(7)
+    last: dict[str, np.ndarray] = {}
+    checked = 0
+    while env.agents:
+        actions = {}
+        for agent in env.agents:
+            last[agent] = rng.uniform(-1, 1, 3).astype(np.float32)
+            actions[agent] = np.concatenate([controller(observations[agent]), last[agent]])
+        observations, *_ = env.step(actions)
+        leds = env.sensor_readings()["leds"]
+        for agent in set(env.possible_agents) - set(env.agents):
+            np.testing.assert_array_equal(leds[env.agent_robot(agent)], levels(last[agent]))
+            checked += bool(env.agents)
+    assert checked > 0, "no robot arrived before the others"
 
 
 def test_array_env_and_shared_vec_env_take_five_values_per_agent() -> None:
