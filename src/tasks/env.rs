@@ -5,8 +5,9 @@
 //! registry's private `TaskState` enum (`tasks/mod.rs`), so nothing here names a task.
 //!
 //! Units: metres, seconds, radians; rewards per step; actions normalised to [-1, 1], two per
-//! agent (five with `task.led_action`: the wheels, then the LEDs' red, green, blue). Frame: the world frame (arena centred at the origin). Threading: an env is stepped by
-//! one thread at a time and draws only from its world's random stream.
+//! agent (five with `task.led_action`: the wheels, then the LEDs' red, green, blue). Frame: the
+//! world frame (arena centred at the origin). Threading: an env is stepped by one thread at a
+//! time and draws only from its world's random stream.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
