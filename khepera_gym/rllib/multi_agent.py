@@ -31,7 +31,8 @@ class KheperaMultiAgentEnv(BatchFace, MultiAgentEnv):
     """A khepera_gym PettingZoo parallel env (one world) as a native RLlib ``MultiAgentEnv``.
 
     Semantics are those of :mod:`khepera_gym.pettingzoo` (``formation_v0``, ``multinav_v0``):
-    each agent observes its own block and acts with ``Box(-1, 1, (2,))``; an agent that
+    each agent observes its own block and acts with ``Box(-1, 1, (2,))`` (``(5,)`` with
+    ``task.led_action``: its LEDs' colour too); an agent that
     terminates (a multinav robot on its goal) gets its last observation with
     ``terminateds[agent] = True`` and then leaves ``agents``; ``"__all__"`` is set in
     ``terminateds`` (every robot arrived, or the formation's leader did) or in ``truncateds``
