@@ -178,7 +178,7 @@ class AgentGroup:
     #: D, the size of one agent's observation.
     obs_dim: int
     #: A, the size of one agent's action: 2 (its wheels), 5 with ``task.led_action``.
-    act_dim: int = ACTION_DIM
+    act_dim: int
 
     @property
     def size(self) -> int:
@@ -195,7 +195,7 @@ def _as_run(columns: npt.NDArray[np.intp]) -> npt.NDArray[np.intp] | slice:
 
 
 def make_groups(
-    group_map: Mapping[str, Sequence[str]], agents: Sequence[Agent], act_dim: int = ACTION_DIM
+    group_map: Mapping[str, Sequence[str]], agents: Sequence[Agent], act_dim: int
 ) -> list[AgentGroup]:
     """The :class:`AgentGroup` of each group of a checked ``group_map``, each agent acting with
     ``act_dim`` values (the batch's ``agent_act_dim``)."""

@@ -135,18 +135,18 @@ impl Env {
         let n_agents = agent_robots.len();
         let n_robots = spawner.n_robots();
         let action_width = action_width(&cfg);
-        if let Some(vehicle) = agents.iter().find(|a| a.robot >= n_robots) {
-            if cfg.task.led_action {
-                return Err(Error::config(
-                    &cfg.origin,
-                    "task.led_action",
-                    format!(
-                        "agent {:?} flies a vehicle without LEDs; LED actions need every agent \
-                         to drive a Khepera (set task.led_action = false)",
-                        vehicle.name
-                    ),
-                ));
-            }
+        // A vehicle (DroneFollow's drone) has no LEDs to set.
+        let vehicle = agents.iter().find(|a| a.robot >= n_robots);
+        if let Some(vehicle) = vehicle.filter(|_| cfg.task.led_action) {
+            return Err(Error::config(
+                &cfg.origin,
+                "task.led_action",
+                format!(
+                    "agent {:?} flies a vehicle without LEDs; LED actions need every agent to \
+                     drive a Khepera (set task.led_action = false)",
+                    vehicle.name
+                ),
+            ));
         }
         Ok(Self {
             world,
