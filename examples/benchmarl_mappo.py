@@ -3,6 +3,7 @@
     python examples/benchmarl_mappo.py [--frames 150000] [--worlds 8] [--episodes 50]
     python examples/benchmarl_mappo.py --version 0     # the v0 dynamics (the paper's V-REP)
     python examples/benchmarl_mappo.py --algorithm ippo  # each follower's critic on its own block
+    python examples/benchmarl_mappo.py --set wheel_accel_limit=inf  # a scenario key (TOML value)
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
 ``state``, the joint observation) on ``khepera_gym.benchmarl.KheperaTask.FORMATION``: a
@@ -13,7 +14,9 @@ minus contacts); the scripted leader drives to its goal. Before and after traini
 does the LeaderFollower baseline for reference, and the mean formation error is printed.
 Hyperparameters mirror the ``formation-followers`` table of configs/hyperparams/ppo.toml
 (1,024 env steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs);
-BenchMARL's default of 45 epochs per batch is far slower on a CPU.
+BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every ``--report-every``
+iterations the script prints the policy's mean action noise (the σ of its Gaussian before the
+tanh) over the batch just collected: on v1 it shows why MAPPO fails there (README).
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
@@ -28,6 +31,11 @@ from typing import Any
 import numpy as np
 import torch
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: tomli, a dependency of khepera-gym there
+    import tomli as tomllib
+
 from khepera_gym.baselines import LeaderFollower
 from khepera_gym.benchmarl import KheperaTask
 from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
@@ -35,6 +43,7 @@ from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
 with torchrl_import_warnings_ignored():
     from benchmarl.algorithms import IppoConfig, MappoConfig
     from benchmarl.experiment import Experiment, ExperimentConfig
+    from benchmarl.experiment.callback import Callback
     from benchmarl.models import MlpConfig
     from tensordict import TensorDictBase
     from torchrl.envs.utils import ExplorationType, set_exploration_type
@@ -88,6 +97,35 @@ def leader_follower_policy() -> Callable[[TensorDictBase], TensorDictBase]:
     return act
 
 
+class NoiseReport(Callback):
+    """Prints the policy's mean action noise σ and mean |location| every ``every`` batches."""
+
+    def __init__(self, every: int) -> None:
+        super().__init__()
+        self.every = every
+
+    def on_batch_collected(self, batch: TensorDictBase) -> None:
+        iteration = self.experiment.n_iters_performed
+        if self.every > 0 and iteration % self.every == 0:
+            followers = batch["followers"]
+            print(
+                f"\niteration {iteration}: action noise sigma {followers['scale'].mean():.2f}, "
+                f"|loc| {followers['loc'].abs().mean():.2f}, "
+                f"reward per step {batch['next', 'followers', 'reward'].mean():.3f}"
+            )
+
+
+def scenario_override(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` with a TOML value (``inf``, ``0.8``, ``"cross"``) as a scenario override."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        return key.strip(), tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError as error:
+        raise argparse.ArgumentTypeError(f"{value!r} is not a TOML value: {error}") from None
+
+
 def report(name: str, errors: dict[str, float]) -> None:
     print(
         f"{name:<24} formation error mean {100 * errors['error_mean']:6.1f} cm, "
@@ -114,8 +152,20 @@ def main() -> None:
         default="mappo",
         help="mappo: critic on the joint observation; ippo: each follower's critic on its own",
     )
+    parser.add_argument(
+        "--set",
+        type=scenario_override,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a scenario key for training and evaluation, e.g. wheel_accel_limit=inf",
+    )
+    parser.add_argument(
+        "--report-every", type=int, default=20, help="iterations between noise reports (0: none)"
+    )
     args = parser.parse_args()
     task_config = dict(TASK_CONFIG)
+    task_config.update(args.set)
     if args.version is not None:
         task_config["version"] = args.version
     # One torch thread: on these small MLPs more threads only add synchronisation (2 cores).
@@ -149,6 +199,7 @@ def main() -> None:
         critic_model_config=model,
         seed=args.seed,
         config=config,
+        callbacks=[NoiseReport(args.report_every)],
     )
     print(f"{args.episodes} seeded Formation episodes (4 followers, cross), deterministic actions")
     report("LeaderFollower", formation_errors(leader_follower_policy(), args.episodes, task_config))
