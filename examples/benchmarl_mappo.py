@@ -4,6 +4,7 @@
     python examples/benchmarl_mappo.py --version 0     # the v0 dynamics (the paper's V-REP)
     python examples/benchmarl_mappo.py --algorithm ippo  # each follower's critic on its own block
     python examples/benchmarl_mappo.py --set wheel_accel_limit=inf  # a scenario key (TOML value)
+    python examples/benchmarl_mappo.py --fixed-sigma 0.6 --frames 600000  # learns v1 (README)
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
 ``state``, the joint observation) on ``khepera_gym.benchmarl.KheperaTask.FORMATION``: a
@@ -16,7 +17,9 @@ Hyperparameters mirror the ``formation-followers`` table of configs/hyperparams/
 (1,024 env steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs);
 BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every ``--report-every``
 iterations the script prints the policy's mean action noise (the σ of its Gaussian before the
-tanh) over the batch just collected: on v1 it shows why MAPPO fails there (README).
+tanh) over the batch just collected: on v1 it shows why MAPPO fails there (README), and
+``--fixed-sigma`` holds σ constant (a scale mapping registered with tensordict's
+``add_custom_mapping``), with which MAPPO learns v1.
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
@@ -46,6 +49,7 @@ with torchrl_import_warnings_ignored():
     from benchmarl.experiment.callback import Callback
     from benchmarl.models import MlpConfig
     from tensordict import TensorDictBase
+    from tensordict.nn import add_custom_mapping
     from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 #: Evaluation episodes are seeded EVAL_SEED + i, away from the training worlds' seeds.
@@ -161,9 +165,17 @@ def main() -> None:
         help="a scenario key for training and evaluation, e.g. wheel_accel_limit=inf",
     )
     parser.add_argument(
+        "--fixed-sigma",
+        type=float,
+        metavar="SIGMA",
+        help="hold the policy's action noise (σ before the tanh) at SIGMA instead of learning it",
+    )
+    parser.add_argument(
         "--report-every", type=int, default=20, help="iterations between noise reports (0: none)"
     )
     args = parser.parse_args()
+    if args.fixed_sigma is not None and not 0.0 < args.fixed_sigma < float("inf"):
+        parser.error(f"--fixed-sigma must be a finite number > 0, got {args.fixed_sigma}")
     task_config = dict(TASK_CONFIG)
     task_config.update(args.set)
     if args.version is not None:
@@ -190,6 +202,12 @@ def main() -> None:
     config.save_folder = tempfile.mkdtemp(prefix="benchmarl_mappo_")
     algorithm = (MappoConfig if args.algorithm == "mappo" else IppoConfig).get_from_yaml()
     algorithm.lmbda = 0.95
+    if args.fixed_sigma is not None:
+        # BenchMARL maps the second half of the actor's output to σ through a named mapping: a
+        # constant one holds σ where it is (those outputs then get no gradient).
+        sigma = args.fixed_sigma
+        algorithm.scale_mapping = f"khepera_fixed_sigma_{sigma}"
+        add_custom_mapping(algorithm.scale_mapping, lambda x: torch.full_like(x, sigma))
     model = MlpConfig.get_from_yaml()
     model.num_cells = list(args.hidden)
     experiment = Experiment(
