@@ -34,13 +34,10 @@ from typing import Any
 import numpy as np
 import torch
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: tomli, a dependency of khepera-gym there
-    import tomli as tomllib
-
 from khepera_gym.baselines import LeaderFollower
 from khepera_gym.benchmarl import KheperaTask
+from khepera_gym.compare import parse_overrides
+from khepera_gym.errors import ConfigError
 from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
 
 with torchrl_import_warnings_ignored():
@@ -119,17 +116,6 @@ class NoiseReport(Callback):
             )
 
 
-def scenario_override(text: str) -> tuple[str, Any]:
-    """``KEY=VALUE`` with a TOML value (``inf``, ``0.8``, ``"cross"``) as a scenario override."""
-    key, sep, value = text.partition("=")
-    if not sep or not key.strip():
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
-    try:
-        return key.strip(), tomllib.loads(f"v = {value}")["v"]
-    except tomllib.TOMLDecodeError as error:
-        raise argparse.ArgumentTypeError(f"{value!r} is not a TOML value: {error}") from None
-
-
 def report(name: str, errors: dict[str, float]) -> None:
     print(
         f"{name:<24} formation error mean {100 * errors['error_mean']:6.1f} cm, "
@@ -158,7 +144,6 @@ def main() -> None:
     )
     parser.add_argument(
         "--set",
-        type=scenario_override,
         action="append",
         default=[],
         metavar="KEY=VALUE",
@@ -177,7 +162,10 @@ def main() -> None:
     if args.fixed_sigma is not None and not 0.0 < args.fixed_sigma < float("inf"):
         parser.error(f"--fixed-sigma must be a finite number > 0, got {args.fixed_sigma}")
     task_config = dict(TASK_CONFIG)
-    task_config.update(args.set)
+    try:
+        task_config.update(parse_overrides(args.set))
+    except ConfigError as error:
+        parser.error(str(error))
     if args.version is not None:
         task_config["version"] = args.version
     # One torch thread: on these small MLPs more threads only add synchronisation (2 cores).
