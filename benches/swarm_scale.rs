@@ -20,6 +20,7 @@ fn main() {
         .ok()
         .and_then(|t| t.parse().ok())
         .unwrap_or(2);
+    let split = std::env::var("SWARM_SPLIT").unwrap_or_else(|_| "world".to_string());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let scaled = [4usize, 16, 32, 100, 300, 1000].map(|n| (n, false));
     for (robots, built_in) in scaled.into_iter().chain([(1000, true)]) {
@@ -29,11 +30,12 @@ fn main() {
         // 4 robots in the default 2 m × 2 m arena; the side grows with √robots.
         let side = 2.0 * (robots as f32 / 4.0).sqrt();
         let worlds = (1024 / robots).max(1);
-        let text = if built_in {
+        let mut text = if built_in {
             "max_steps = 100000".to_string()
         } else {
             format!("n_robots = {robots}\nwidth = {side}\nheight = {side}\nmax_steps = 100000")
         };
+        text.push_str(&format!("\n[physics]\nsplit = \"{split}\""));
         let source = Source {
             file: built_in.then(|| (scene("swarm").expect("built in"), "swarm")),
             overrides: text.parse().expect("toml"),
@@ -62,7 +64,7 @@ fn main() {
         }
         let world_steps = (steps * worlds) as f64 / start.elapsed().as_secs_f64();
         println!(
-            "{:6} robots {robots:5}  worlds {worlds:4}  threads {threads}  {world_steps:8.0} \
+            "{:6} robots {robots:5}  worlds {worlds:4}  threads {threads}  split {split:5}  {world_steps:8.0} \
              world-steps/s  {:9.0} robot-steps/s  {:5.1}x real time",
             if built_in { "swarm" } else { "scaled" },
             world_steps * robots as f64,

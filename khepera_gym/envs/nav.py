@@ -264,13 +264,17 @@ class NavEnv(KheperaEnv):
     | `task.led_action`             | false   | actions also set the top LEDs: (left, right, |
     |                               |         | red, green, blue), colours to 0..63 (spec §6)|
     | `physics.dt`                  | 0.05    | control step (s)                             |
-    | `physics.substeps`            | 4       | physics substeps per control step            |
+    | `physics.substeps`            | 2       | physics substeps per control step (v0: 4)    |
     | `physics.solver_iterations`   | 4       | rapier solver iterations for contact steps   |
     | `physics.drive`               | traction | "traction": tyres with bounded grip move the |
     |                               |         | body; "kinematic": velocity imposed (v0)     |
     | `physics.friction`            | 0.7     | shell-wall/obstacle friction [S: ARGoS]; v0: |
     |                               |         | 0 (robots slid along walls)                  |
     | `physics.robot_friction`      | 0.7     | shell-shell friction [S: ARGoS]              |
+    | `physics.split`               | world   | "world": one robot that can touch something  |
+    |                               |         | sends every robot through rapier; "robot":   |
+    |                               |         | only those that can touch something or slip  |
+    |                               |         | (the others on exact arcs: faster swarms)    |
     | `odometry.radius_error`       | 0.01    | believed wheel radius error, per episode [E] |
     | `odometry.axle_error`         | 0.007   | believed axle error, per episode [D]         |
     | `odometry.slip_noise`         | 0.029   | per-step wheel travel noise [E: Enki]        |

@@ -30,7 +30,7 @@ use crate::world::floor::{FloorConfig, SharedFloor};
 pub use crate::config::Param;
 pub use scenes::{scene, SCENES};
 pub use sections::{
-    ArenaConfig, DriveModel, Localization, ObstacleConfig, ObstacleKind, ObstacleSpec,
+    ArenaConfig, DriveModel, Localization, MotionSplit, ObstacleConfig, ObstacleKind, ObstacleSpec,
     PhysicsConfig, Placement, SpawnConfig, TaskConfig,
 };
 pub use versions::VERSION_DEFAULTS;
@@ -380,6 +380,13 @@ impl Scenario {
             return bad(
                 "physics.dt",
                 format!("must be <= 1 s, got {}", self.physics.dt),
+            );
+        }
+        if self.physics.split == MotionSplit::Robot && self.physics.drive != DriveModel::Traction {
+            return bad(
+                "physics.split",
+                "\"robot\" needs physics.drive = \"traction\" (the kinematic drive steps its world whole)"
+                    .to_string(),
             );
         }
         let (hw, hh) = self.spawn_half_extent();

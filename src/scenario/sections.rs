@@ -372,7 +372,19 @@ crate::config_table! {
         friction: Param = 0.7,
         /// shell-shell friction coefficient between robots [S: ARGoS, 0.7]; may be a range
         robot_friction: Param = 0.7,
+        /// which robots rapier steps while something can be touched or a tyre slips (traction drive): "world" steps them all (v1); "robot" only those that can touch something or slip, the others rolling on exact arcs (faster in swarms, and exact for them)
+        split: MotionSplit = "world",
     }
+}
+
+/// Which robots a contact substep hands to rapier.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MotionSplit {
+    /// Every robot of the world, as soon as one can touch something or slips (v1).
+    World,
+    /// Only the robots that can touch something or slip; the others roll on exact arcs.
+    Robot,
 }
 
 /// How the drive moves a robot's body.

@@ -14,6 +14,7 @@ pub mod layout;
 mod motion;
 pub mod physics;
 pub mod scene;
+mod split;
 mod swarm;
 
 use rand::SeedableRng;
@@ -22,7 +23,7 @@ use rapier2d::math::Vector;
 
 use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
-use crate::scenario::{DriveModel, Localization, Scenario};
+use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario};
 use crate::sensors::{Readings, SenseContext, Suite};
 use floor::{FloorMarks, SharedFloor};
 use grid::Grid;
@@ -95,6 +96,9 @@ pub struct World {
     dt: f32,
     substeps: u32,
     drive_model: DriveModel,
+    /// Whether a contact substep steps only the robots that can touch something or slip
+    /// (`physics.split = "robot"`; traction drive).
+    split_robots: bool,
     /// Tyre–floor friction coefficient of this episode (traction model).
     tyre_friction: f32,
     /// Infrared reflectance of the robots' shells.
@@ -120,6 +124,9 @@ pub struct World {
     speeds: Vec<f32>,
     #[serde(skip)]
     positions: Vec<Vector>,
+    /// Which robots the current substep hands to rapier (`physics.split = "robot"`).
+    #[serde(skip)]
+    active: Vec<bool>,
     /// Worlds of more robots than this find neighbours through the grid ([`GRID_MIN_ROBOTS`];
     /// tests set it to compare both ways).
     #[serde(skip, default = "grid_min_robots")]
@@ -165,6 +172,7 @@ impl World {
             dt: cfg.physics.dt,
             substeps: cfg.physics.substeps,
             drive_model: cfg.physics.drive,
+            split_robots: cfg.physics.split == MotionSplit::Robot,
             tyre_friction: cfg.robot.tyre_friction.bounds().0,
             robot_reflectance: cfg.robot.shell_reflectance,
             robot_led: cfg.robot.led_color,
@@ -177,6 +185,7 @@ impl World {
             near: Vec::new(),
             speeds: Vec::new(),
             positions: Vec::new(),
+            active: Vec::new(),
             grid_min_robots: GRID_MIN_ROBOTS,
         }
     }

@@ -12,14 +12,14 @@ use crate::robot::wrap_angle;
 use crate::scenario::DriveModel;
 
 /// Extra clearance (m) kept before deciding a robot cannot touch anything this substep.
-const CONTACT_MARGIN: f32 = 0.002;
+pub(super) const CONTACT_MARGIN: f32 = 0.002;
 /// A robot whose clearance falls below this (m) after a substep is in contact.
-const CONTACT_TOLERANCE: f32 = 0.001;
+pub(super) const CONTACT_TOLERANCE: f32 = 0.001;
 /// Least cell side (m) of the contact checks' grid: cells as small as a contact's reach would
 /// cost more to clear and count than the few more robots larger ones hold.
-const MIN_CELL: f32 = 0.5;
+pub(super) const MIN_CELL: f32 = 0.5;
 /// Slip (m/s at the centre or the wheels) under which a body counts as rolling on its wheels.
-const ROLLING_TOLERANCE: f32 = 1e-4;
+pub(super) const ROLLING_TOLERANCE: f32 = 1e-4;
 
 impl World {
     /// Whether some robot could touch the scene or another robot within `duration` seconds.
@@ -35,13 +35,7 @@ impl World {
             DriveModel::Traction => self.drive.wheel_accel_limit * duration,
             DriveModel::Kinematic => f32::INFINITY,
         };
-        let speed = |r: &Robot| {
-            let wheel = |i: usize| {
-                let now = r.wheel_speeds[i].abs().max(r.wheel_setpoint[i].abs());
-                r.wheel_command[i].abs().max(now).min(now + gain)
-            };
-            r.velocity.length().max(wheel(0)).max(wheel(1))
-        };
+        let speed = |r: &Robot| speed_bound(r, gain);
         let radius = self.drive.radius;
         if self.robots.len() > self.grid_min_robots {
             // The same test, pairs found through the grid: no pair farther apart than the two
@@ -180,7 +174,7 @@ impl World {
         self.mark_contacts();
     }
 
-    fn mark_contacts(&mut self) {
+    pub(super) fn mark_contacts(&mut self) {
         if self.robots.len() <= self.grid_min_robots {
             for i in 0..self.robots.len() {
                 if self.clearance(i) < CONTACT_TOLERANCE {
@@ -215,6 +209,10 @@ impl World {
             return;
         }
         for _ in 0..self.substeps {
+            if self.split_robots {
+                self.split_substep(h);
+                continue;
+            }
             // Rolling now, and the tyres can give this substep's change of wheel speeds (and the
             // turn's centripetal force) within their grip: the body keeps rolling.
             let mut rolls = self.all_rolling();
@@ -246,7 +244,7 @@ impl World {
 
     /// Moment of inertia over mass (m²) of the robots' bodies (uniform discs: R²/2, as rapier's
     /// ball colliders give).
-    fn inertia_per_mass(&self) -> f32 {
+    pub(super) fn inertia_per_mass(&self) -> f32 {
         0.5 * self.drive.radius * self.drive.radius
     }
 
@@ -263,12 +261,7 @@ impl World {
     /// Whether every robot's body moves as its wheels roll (no slip, within a tolerance far
     /// below what the sensors or the observation could show).
     fn all_rolling(&self) -> bool {
-        self.robots.iter().all(|r| {
-            let (v, w) = self.drive.twist(r.wheel_speeds);
-            let (s, c) = r.heading.sin_cos();
-            (r.velocity - Vector::new(v * c, v * s)).length() <= ROLLING_TOLERANCE
-                && (r.spin - w).abs() * self.drive.axle_length <= ROLLING_TOLERANCE
-        })
+        self.robots.iter().all(|r| is_rolling(&self.drive, r))
     }
 
     fn traction_substep(&mut self) {
@@ -304,7 +297,7 @@ impl World {
 /// the turn's centripetal v·ω·h) stays inside its friction circle, half of μ·g·h (`grip`: each
 /// wheel carries half the weight).
 #[inline]
-fn within_grip(
+pub(super) fn within_grip(
     drive: &crate::robot::Drive,
     before: [f32; 2],
     after: [f32; 2],
@@ -321,8 +314,29 @@ fn within_grip(
     fits(0.5 * dv - ratio * dw) && fits(0.5 * dv + ratio * dw)
 }
 
+/// The fastest a robot's centre can move over a span in which its wheels' speeds and setpoints
+/// can gain at most `gain` (m/s): a ramping wheel never exceeds the larger of its current and
+/// commanded speeds, and a pushed or sliding body may move faster than its wheels.
+#[inline]
+pub(super) fn speed_bound(r: &Robot, gain: f32) -> f32 {
+    let wheel = |i: usize| {
+        let now = r.wheel_speeds[i].abs().max(r.wheel_setpoint[i].abs());
+        r.wheel_command[i].abs().max(now).min(now + gain)
+    };
+    r.velocity.length().max(wheel(0)).max(wheel(1))
+}
+
+/// Whether a robot's body moves as its wheels roll (no slip, within [`ROLLING_TOLERANCE`]).
+#[inline]
+pub(super) fn is_rolling(drive: &crate::robot::Drive, r: &Robot) -> bool {
+    let (v, w) = drive.twist(r.wheel_speeds);
+    let (s, c) = r.heading.sin_cos();
+    (r.velocity - Vector::new(v * c, v * s)).length() <= ROLLING_TOLERANCE
+        && (r.spin - w).abs() * drive.axle_length <= ROLLING_TOLERANCE
+}
+
 /// A rolling robot's body velocity: forward speed `v` (m/s) along its heading, yaw rate `w`.
-fn set_rolling_velocity(r: &mut Robot, v: f32, w: f32) {
+pub(super) fn set_rolling_velocity(r: &mut Robot, v: f32, w: f32) {
     let (s, c) = r.heading.sin_cos();
     r.velocity = Vector::new(v * c, v * s);
     r.spin = w;

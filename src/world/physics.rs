@@ -240,25 +240,52 @@ impl Physics {
     /// the tyre's friction circle), then a rapier step resolving contacts with friction; writes
     /// the resulting poses and velocities back into `bodies`.
     pub fn step_traction(&mut self, bodies: &mut [TractionBody], grip: Grip) {
+        self.step_traction_of(bodies, None, grip);
+    }
+
+    /// A traction substep of only the robots `active` marks (`physics.split = "robot"`): the
+    /// others' bodies are disabled in rapier (no contacts, no integration, no broad-phase
+    /// update) and their entries in `bodies` left as they are. The caller guarantees that no
+    /// robot left out can touch anything during the substep.
+    pub fn step_traction_some(&mut self, bodies: &mut [TractionBody], active: &[bool], grip: Grip) {
+        self.step_traction_of(bodies, Some(active), grip);
+    }
+
+    fn step_traction_of(
+        &mut self,
+        bodies: &mut [TractionBody],
+        active: Option<&[bool]>,
+        grip: Grip,
+    ) {
         let mass = self.params.mass;
         // A uniform disc [E]: the body's mass spread over the shell's footprint.
         let inertia = 0.5 * mass * self.params.radius * self.params.radius;
         let h = self.params.substep_dt;
         let cap = grip.tyre_friction * 0.5 * mass * GRAVITY * h;
-        for (state, handle) in bodies.iter_mut().zip(&self.robots) {
-            let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
-            if let Some(body) = self.world.bodies.get_mut(*handle) {
-                body.set_position(Pose::new(state.position, state.heading), true);
-                body.set_linvel(state.velocity + dv, true);
-                body.set_angvel(state.spin + dw, true);
+        let takes_part = |i: usize| active.is_none_or(|a| a[i]);
+        for (i, (state, handle)) in bodies.iter_mut().zip(&self.robots).enumerate() {
+            let Some(body) = self.world.bodies.get_mut(*handle) else {
+                continue;
+            };
+            if !takes_part(i) {
+                body.set_enabled(false);
+                continue;
             }
+            body.set_enabled(true);
+            let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
+            body.set_position(Pose::new(state.position, state.heading), true);
+            body.set_linvel(state.velocity + dv, true);
+            body.set_angvel(state.spin + dw, true);
         }
         let hooks = PairFriction {
             wall: self.params.friction,
             robot: self.params.robot_friction,
         };
         self.world.step_with_events(&hooks, &());
-        for (state, handle) in bodies.iter_mut().zip(&self.robots) {
+        for (i, (state, handle)) in bodies.iter_mut().zip(&self.robots).enumerate() {
+            if !takes_part(i) {
+                continue;
+            }
             if let Some(body) = self.world.bodies.get(*handle) {
                 let pose = body.position();
                 state.position = pose.translation;
