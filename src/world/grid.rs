@@ -82,10 +82,11 @@ impl Grid {
         y * self.columns + x
     }
 
-    /// Appends to `out`, in increasing order, the indices of the robots other than `me` whose
-    /// centre lies within `radius` of `p` (squared distances compared: |q − p|² ≤ radius²).
-    pub fn near(&self, p: Vector, radius: f32, me: usize, out: &mut Vec<u32>) {
-        let start = out.len();
+    /// Calls `f` with the index of every robot other than `me` whose centre lies within
+    /// `radius` of `p` (squared distances compared: |q − p|² ≤ radius²) and its centre, in
+    /// cell order (not index order): for queries whose result does not depend on the order.
+    #[inline]
+    pub fn for_each_near(&self, p: Vector, radius: f32, me: usize, mut f: impl FnMut(u32, Vector)) {
         let (x, y) = self.coords(p);
         // Cells within `rings` of the robot's cover every point within `radius` of it.
         let rings = ((radius / self.cell).ceil() as usize).max(1);
@@ -97,10 +98,17 @@ impl Grid {
             let span = self.starts[first] as usize..self.starts[last] as usize;
             for (&j, q) in self.order[span.clone()].iter().zip(&self.points[span]) {
                 if j as usize != me && (*q - p).length_squared() <= limit {
-                    out.push(j);
+                    f(j, *q);
                 }
             }
         }
+    }
+
+    /// Appends to `out`, in increasing order, the indices of the robots other than `me` whose
+    /// centre lies within `radius` of `p` (squared distances compared: |q − p|² ≤ radius²).
+    pub fn near(&self, p: Vector, radius: f32, me: usize, out: &mut Vec<u32>) {
+        let start = out.len();
+        self.for_each_near(p, radius, me, |j, _| out.push(j));
         out[start..].sort_unstable();
     }
 

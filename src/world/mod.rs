@@ -119,14 +119,18 @@ pub struct World {
     #[serde(skip)]
     grid: Grid,
     #[serde(skip)]
-    near: Vec<u32>,
-    #[serde(skip)]
     speeds: Vec<f32>,
     #[serde(skip)]
     positions: Vec<Vector>,
     /// Which robots the current substep hands to rapier (`physics.split = "robot"`).
     #[serde(skip)]
     active: Vec<bool>,
+    /// Robots' states at the start of the current substep (`physics.split = "robot"`).
+    #[serde(skip)]
+    start: Vec<split::Start>,
+    /// Robots left out of a substep that rapier's robots met (`physics.split = "robot"`).
+    #[serde(skip)]
+    missed: Vec<u32>,
     /// Worlds of more robots than this find neighbours through the grid ([`GRID_MIN_ROBOTS`];
     /// tests set it to compare both ways).
     #[serde(skip, default = "grid_min_robots")]
@@ -182,10 +186,11 @@ impl World {
             others: Vec::with_capacity(n_robots),
             other_leds: Vec::with_capacity(n_robots),
             grid: Grid::default(),
-            near: Vec::new(),
             speeds: Vec::new(),
             positions: Vec::new(),
             active: Vec::new(),
+            start: Vec::new(),
+            missed: Vec::new(),
             grid_min_robots: GRID_MIN_ROBOTS,
         }
     }

@@ -54,14 +54,16 @@ impl World {
                 if self.scene.clearance(r.position) - radius <= reach {
                     return true;
                 }
-                self.near.clear();
-                self.grid.near(r.position, cutoff, i, &mut self.near);
-                for &j in self.near.iter().filter(|&&j| j as usize > i) {
-                    let other = &self.robots[j as usize];
-                    let gap = (other.position - r.position).length() - 2.0 * radius;
-                    if gap <= reach + self.speeds[j as usize] * duration {
-                        return true;
+                let mut touch = false;
+                self.grid.for_each_near(r.position, cutoff, i, |j, q| {
+                    let j = j as usize;
+                    if j > i {
+                        let gap = (q - r.position).length() - 2.0 * radius;
+                        touch |= gap <= reach + self.speeds[j] * duration;
                     }
+                });
+                if touch {
+                    return true;
                 }
             }
             return false;
@@ -183,7 +185,7 @@ impl World {
             }
             return;
         }
-        self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL);
+        self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL, None);
     }
 
     /// The traction model (v1): the motors follow their speed profile; while a robot rolls

@@ -11,15 +11,53 @@
 //!
 //! Units: metres, seconds, radians; world frame.
 
+use rapier2d::math::Vector;
 use rayon::prelude::*;
 
-use super::motion::{integrate_arc, set_rolling_velocity, speed_bound, CONTACT_MARGIN, MIN_CELL};
+use super::motion::{
+    integrate_arc, set_rolling_velocity, speed_bound, CONTACT_MARGIN, CONTACT_TOLERANCE, MIN_CELL,
+};
 use super::physics::{Grip, TractionBody, GRAVITY};
 use super::{Robot, World};
 use crate::robot::{wrap_angle, Drive};
 
 /// Robots a thread checks at least at a time.
 const MIN_ROBOTS_PER_TASK: usize = 32;
+/// Tries of a substep with more robots taken in before every robot is.
+const MAX_RETRIES: usize = 3;
+
+/// A robot's state at the start of a substep.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Start {
+    position: Vector,
+    heading: f32,
+    velocity: Vector,
+    spin: f32,
+    step_travel: f32,
+    in_contact: bool,
+}
+
+impl Start {
+    fn of(r: &Robot) -> Self {
+        Self {
+            position: r.position,
+            heading: r.heading,
+            velocity: r.velocity,
+            spin: r.spin,
+            step_travel: r.step_travel,
+            in_contact: r.in_contact,
+        }
+    }
+
+    fn restore(&self, r: &mut Robot) {
+        r.position = self.position;
+        r.heading = self.heading;
+        r.velocity = self.velocity;
+        r.spin = self.spin;
+        r.step_travel = self.step_travel;
+        r.in_contact = self.in_contact;
+    }
+}
 
 impl World {
     /// One substep of `h` seconds, robot by robot (module doc).
@@ -36,20 +74,74 @@ impl World {
             self.active.push(!grips(&self.drive, r, ratio, grip, h));
         }
         self.mark_reachable(h);
-        let mut any = false;
-        for (r, &active) in self.robots.iter_mut().zip(&self.active) {
-            if active {
-                any = true;
+        // The substep's start, to go back to should rapier push a robot into one left out.
+        self.start.clear();
+        self.start.extend(self.robots.iter().map(Start::of));
+        for round in 0.. {
+            let mut any = false;
+            for (r, &active) in self.robots.iter_mut().zip(&self.active) {
+                if active {
+                    any = true;
+                    continue;
+                }
+                let (v, w) = self.drive.twist(r.wheel_speeds);
+                integrate_arc(&mut r.position, &mut r.heading, v, w, h);
+                r.step_travel += v.abs() * h;
+                set_rolling_velocity(r, v, w);
+            }
+            if !any {
+                return;
+            }
+            self.split_rapier_substep();
+            // A robot rapier moved may have been pushed faster than its bound (by a third
+            // robot) and met one left out: take that one in too and do the substep again (from
+            // the same start; rapier's contacts keep what the first try learnt, so the result
+            // is still a function of the world's state). After a few tries, take every robot.
+            if !self.take_in_missed() {
+                return;
+            }
+            for (r, start) in self.robots.iter_mut().zip(&self.start) {
+                start.restore(r);
+            }
+            if round >= MAX_RETRIES {
+                self.active.iter_mut().for_each(|a| *a = true);
+            }
+        }
+    }
+
+    /// Marks active every robot left out that ended the substep within contact tolerance of
+    /// a robot rapier moved; whether there was any. A swarm's grid holds the robots' ends
+    /// (built by the contact marks just before).
+    fn take_in_missed(&mut self) -> bool {
+        let radius = self.drive.radius;
+        let cutoff = 2.0 * radius + CONTACT_TOLERANCE;
+        let mut missed = false;
+        for i in 0..self.robots.len() {
+            if !self.active[i] {
                 continue;
             }
-            let (v, w) = self.drive.twist(r.wheel_speeds);
-            integrate_arc(&mut r.position, &mut r.heading, v, w, h);
-            r.step_travel += v.abs() * h;
-            set_rolling_velocity(r, v, w);
+            let p = self.robots[i].position;
+            let mut check = |j: usize, q: Vector| {
+                if !self.active[j] && (q - p).length() - 2.0 * radius < CONTACT_TOLERANCE {
+                    self.missed.push(j as u32);
+                }
+            };
+            if self.robots.len() > self.grid_min_robots {
+                self.grid
+                    .for_each_near(p, cutoff + 0.001, i, |j, q| check(j as usize, q));
+            } else {
+                for (j, other) in self.robots.iter().enumerate() {
+                    if j != i {
+                        check(j, other.position);
+                    }
+                }
+            }
         }
-        if any {
-            self.split_rapier_substep();
+        for j in self.missed.drain(..) {
+            self.active[j as usize] = true;
+            missed = true;
         }
+        missed
     }
 
     /// Marks active every robot that could touch the scene or another robot within `h` s.
@@ -77,7 +169,7 @@ impl World {
             (&self.grid, &self.positions, &self.speeds, &self.scene);
         // Robot i can touch robot j when their gap is within both reaches (symmetric, so each
         // robot decides for itself).
-        let check = |near: &mut Vec<u32>, (i, active): (usize, &mut bool)| {
+        let check = |(i, active): (usize, &mut bool)| {
             if *active {
                 return;
             }
@@ -91,9 +183,9 @@ impl World {
                 j != i && (positions[j] - p).length() - 2.0 * radius <= reach + speeds[j] * h
             };
             if swarm {
-                near.clear();
-                grid.near(p, cutoff, i, near);
-                *active = near.iter().any(|&j| touches(j as usize));
+                let mut touch = false;
+                grid.for_each_near(p, cutoff, i, |j, _| touch |= touches(j as usize));
+                *active = touch;
             } else {
                 *active = (0..positions.len()).any(touches);
             }
@@ -103,13 +195,9 @@ impl World {
                 .par_iter_mut()
                 .enumerate()
                 .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each_init(Vec::new, check);
+                .for_each(check);
         } else {
-            let mut near = Vec::new();
-            self.active
-                .iter_mut()
-                .enumerate()
-                .for_each(|item| check(&mut near, item));
+            self.active.iter_mut().enumerate().for_each(check);
         }
     }
 
@@ -141,7 +229,15 @@ impl World {
             r.velocity = state.velocity;
             r.spin = state.spin;
         }
-        self.mark_contacts();
+        if self.robots.len() > self.grid_min_robots {
+            // Only robots rapier moved can be in contact: the others kept more than
+            // CONTACT_MARGIN from everything.
+            let active = std::mem::take(&mut self.active);
+            self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL, Some(&active));
+            self.active = active;
+        } else {
+            self.mark_contacts();
+        }
     }
 }
 
