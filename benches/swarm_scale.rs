@@ -3,7 +3,10 @@
 //! actions, in arenas scaled to keep multinav's density (4 robots in 2 m x 2 m), then the
 //! built-in `swarm` scene (1,000 robots in 20 m x 20 m, 2.5 times as dense). Worlds per batch:
 //! 1,024 robots' worth. `cargo bench --bench swarm_scale` prints figures and asserts nothing;
-//! `-- 1000` runs only that robot count; `SWARM_THREADS=1` sets the threads (default 2).
+//! `-- 1000` runs only that robot count; `SWARM_THREADS=1` sets the threads (default 2). Worlds
+//! of 100 robots or more run twice: `physics.split = "world"` (the default) and `"robot"`
+//! (rapier steps only the robots that can touch something); `SWARM_SPLIT=world` or `=robot`
+//! runs only one.
 
 use std::time::Instant;
 
@@ -20,11 +23,22 @@ fn main() {
         .ok()
         .and_then(|t| t.parse().ok())
         .unwrap_or(2);
-    let split = std::env::var("SWARM_SPLIT").unwrap_or_else(|_| "world".to_string());
+    let only_split = std::env::var("SWARM_SPLIT").ok();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let scaled = [4usize, 16, 32, 100, 300, 1000].map(|n| (n, false));
-    for (robots, built_in) in scaled.into_iter().chain([(1000, true)]) {
-        if only.is_some_and(|n| n != robots) {
+    let cases = scaled
+        .into_iter()
+        .chain([(1000, true)])
+        .flat_map(|(robots, built_in)| {
+            let splits: &[&str] = if robots >= 100 {
+                &["world", "robot"]
+            } else {
+                &["world"]
+            };
+            splits.iter().map(move |&split| (robots, built_in, split))
+        });
+    for (robots, built_in, split) in cases {
+        if only.is_some_and(|n| n != robots) || only_split.as_deref().is_some_and(|s| s != split) {
             continue;
         }
         // 4 robots in the default 2 m × 2 m arena; the side grows with √robots.

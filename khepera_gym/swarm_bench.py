@@ -4,8 +4,11 @@ robots with IR, sonar and contacts, through the array env
 
 Arenas grow with √robots to keep multinav's density (4 robots in 2 m × 2 m); a batch holds 1,024
 robots' worth of worlds. The last row is the built-in ``swarm`` scene (1,000 robots in a 20 m
-arena, 2.5 times as dense). "× real time" is one world's simulated seconds per second (control
-step 0.05 s). Called by :func:`khepera_gym.bench.run`; prints, asserts nothing.
+arena, 2.5 times as dense). Worlds of 100 robots or more run twice: with
+``physics.split = "world"`` (the default: one robot that can touch something sends every robot
+through rapier) and ``"robot"`` (only those that can). "× real time" is one world's simulated
+seconds per second (control step 0.05 s). Called by :func:`khepera_gym.bench.run`; prints,
+asserts nothing.
 """
 
 from __future__ import annotations
@@ -21,12 +24,18 @@ from khepera_gym.pettingzoo import multinav_v1
 _DT = 0.05
 
 
-def bench_swarm(robots: int, threads: int, duration: float, scene: bool = False) -> float:
+def bench_swarm(
+    robots: int, threads: int, duration: float, scene: bool = False, split: str = "world"
+) -> float:
     """World-steps/s of worlds of ``robots`` robots on ``threads`` threads over ``duration`` s
-    (``scene``: the built-in ``swarm`` scene instead of an arena scaled to multinav's density)."""
+    (``scene``: the built-in ``swarm`` scene instead of an arena scaled to multinav's density;
+    ``split``: the ``physics.split`` key)."""
     worlds = max(1, 1024 // robots)
+    physics = {"physics": {"split": split}}
     if scene:
-        env = multinav_v1.array_env(worlds, config="swarm", num_threads=threads, max_steps=100000)
+        env = multinav_v1.array_env(
+            worlds, config="swarm", num_threads=threads, max_steps=100000, **physics
+        )
     else:
         side = 2.0 * (robots / 4.0) ** 0.5
         env = multinav_v1.array_env(
@@ -36,6 +45,7 @@ def bench_swarm(robots: int, threads: int, duration: float, scene: bool = False)
             width=side,
             height=side,
             max_steps=100000,
+            **physics,
         )
     env.reset(seed=0)
     rng = np.random.default_rng(0)
@@ -57,7 +67,7 @@ def swarm_rows(
 ) -> None:
     """Prints the scaling table: one row per robot count and thread count, then the scene."""
     header = (
-        f"{'robots per world':<22} {'threads':>7} {'world-steps/s':>13} "
+        f"{'robots per world':<22} {'split':>5} {'threads':>7} {'world-steps/s':>13} "
         f"{'robot-steps/s':>13} {'× real time':>11}"
     )
     print("\nswarm scale (multinav through the array env, uniform random actions)")
@@ -65,15 +75,20 @@ def swarm_rows(
     print("-" * len(header))
     cases = [(n, False) for n in robot_counts] + [(1000, True)]
     for robots, scene in cases:
-        for threads in num_threads:
-            rate = bench_swarm(robots, threads, duration, scene)
-            label = f"{robots} (swarm scene)" if scene else f"{robots}"
-            worlds = max(1, 1024 // robots)
-            print(
-                f"{label:<22} {threads:>7} {rate:>13,.0f} {rate * robots:>13,.0f} "
-                f"{rate / worlds * _DT:>11.1f}",
-                flush=True,
-            )
+        for split in ("world", "robot") if robots >= 100 else ("world",):
+            for threads in num_threads:
+                _row(robots, scene, split, threads, duration)
+
+
+def _row(robots: int, scene: bool, split: str, threads: int, duration: float) -> None:
+    rate = bench_swarm(robots, threads, duration, scene, split)
+    label = f"{robots} (swarm scene)" if scene else f"{robots}"
+    worlds = max(1, 1024 // robots)
+    print(
+        f"{label:<22} {split:>5} {threads:>7} {rate:>13,.0f} {rate * robots:>13,.0f} "
+        f"{rate / worlds * _DT:>11.1f}",
+        flush=True,
+    )
 
 
 __all__ = ["bench_swarm", "swarm_rows"]
