@@ -65,3 +65,27 @@ def test_too_many_robots_for_the_arena_says_how_many_fit() -> None:
         multinav_v1.array_env(n_robots=500)
     with pytest.raises(ConfigError, match=r"1\.\.=1024"):
         multinav_v1.array_env(config="swarm", n_robots=2000)
+
+
+def test_split_by_robot_is_a_scenario_key_with_typed_errors() -> None:
+    """``physics.split = "robot"`` (rapier only for the robots that can touch something) reaches
+    the core from a keyword, gives a swarm the same results on one thread or two, and moves
+    free robots differently from ``"world"``; bad values and the kinematic drive are refused."""
+    kwargs = {"n_robots": 60, "width": 4.0, "height": 4.0}
+    one = multinav_v1.array_env(num_threads=1, split="robot", **kwargs)
+    two = multinav_v1.array_env(num_threads=2, split="robot", **kwargs)
+    world = multinav_v1.array_env(num_threads=1, **kwargs)
+    for env in (one, two, world):
+        env.reset(seed=3)
+    rng = np.random.default_rng(1)
+    for _ in range(40):
+        action = rng.uniform(-0.2, 1.0, (1, 60, 2)).astype(np.float32)
+        a, *_ = one.step(action)
+        b, *_ = two.step(action)
+        world.step(action)
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(one.poses(), world.poses())
+    with pytest.raises(ConfigError, match=r"physics\.split.*`world` or `robot`"):
+        multinav_v1.array_env(split="robots", **kwargs)
+    with pytest.raises(ConfigError, match=r"physics\.split.*traction"):
+        multinav_v1.array_env(split="robot", drive="kinematic", **kwargs)
