@@ -123,3 +123,70 @@ fn test_ultrasonic_centimetres_and_codes() {
             && off.world.robots[0].readings.us.code[2] < 100
     );
 }
+
+#[test]
+fn test_sonar_beams_see_what_a_cast_against_every_robot_sees() {
+    // The sonar skips robots behind it and robots farther than a radius from all five beam
+    // lines (they cannot be met); its rays must still stop exactly where a cast against every
+    // other robot stops. 300 random layouts of 24 robots crowded around robot 0.
+    use rand::{Rng, SeedableRng};
+    let source = Source {
+        file: None,
+        // Any incidence echoes (the acceptance cone is another test's).
+        overrides: "n_robots = 25\nwidth = 6.0\nheight = 6.0\nus_noise_sigma = 0.0\n\
+                    us_acceptance = 1.5707963267948966"
+            .parse()
+            .expect("overrides"),
+        ..Default::default()
+    };
+    let cfg = load_scenario("multinav", &source).expect("scenario");
+    let spawner = Arc::new(Env::spawner(TaskKind::MultiNav, &cfg).expect("spawner"));
+    let mut env = Env::new(
+        TaskKind::MultiNav,
+        Arc::new(cfg),
+        spawner,
+        ActionType::Wheels,
+    )
+    .expect("env");
+    env.seed(3);
+    let radius = env.world.drive.radius;
+    let cast_range = 2.0 + 0.01; // us_max_range + 1 cm, as the sensor casts
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let mut hits = 0;
+    for _ in 0..300 {
+        let heading: f32 = rng.random_range(-3.2..3.2);
+        env.world.place_robot(0, Vector::new(0.0, 0.0), heading);
+        for i in 1..25 {
+            // Rings from touching the rim to beyond the range; overlaps do not matter here.
+            let d: f32 = rng.random_range(2.0 * radius..2.4);
+            let a: f32 = rng.random_range(-3.2..3.2);
+            env.world
+                .place_robot(i, Vector::new(d * a.cos(), d * a.sin()), 0.0);
+        }
+        env.world.sense(true);
+        let others: Vec<Vector> = env.world.robots[1..].iter().map(|r| r.position).collect();
+        let scene = &env.world.scene;
+        for (k, bearing) in US_BEARINGS.iter().enumerate() {
+            let (s, c) = (heading + bearing).sin_cos();
+            let dir = Vector::new(c, s);
+            let want = scene
+                .cast_hit(
+                    dir * radius,
+                    dir,
+                    cast_range,
+                    scene.shapes.iter(),
+                    &others,
+                    radius,
+                )
+                .map_or(cast_range, |h| h.distance);
+            let got = env.world.robots[0].readings.us.hit[k];
+            if want < cast_range {
+                hits += 1;
+            }
+            // Directions rounded apart by an ulp move a grazing hit by microns; a robot
+            // wrongly skipped moves it by centimetres or to no echo (readings are in cm).
+            assert!((got - want).abs() <= 1e-4, "beam {k}: {got} against {want}");
+        }
+    }
+    assert!(hits > 300, "too few hits to test anything: {hits}");
+}

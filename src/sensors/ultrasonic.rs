@@ -233,14 +233,26 @@ impl Sensor for Ultrasonic {
         // centre lies more than a radius (plus 1 mm for rounding) behind the robot's centre
         // cannot be met, so the rays skip it; the robots kept are in the same order, and the
         // readings are those of a cast against all of them.
+        //
+        // Nor can a beam meet a disc whose centre lies farther than a radius from the beam's
+        // line: a robot farther than that (plus 1 mm, far above rounding) from all five lines
+        // is skipped too, since every ray would miss it.
         let forward = Vector::new(c, s);
+        let left = Vector::new(-s, c);
         let behind = -(ctx.radius + 0.001);
+        let corridor = ctx.radius + 0.001;
         self.ahead.clear();
-        self.ahead.extend(
-            ctx.others
-                .iter()
-                .filter(|&&q| (q - ctx.position).dot(forward) >= behind),
-        );
+        for &q in ctx.others {
+            let d = q - ctx.position;
+            let (x, y) = (d.dot(forward), d.dot(left));
+            let mut on_a_line = false;
+            for u in &self.dirs {
+                on_a_line |= (x * u.y - y * u.x).abs() <= corridor;
+            }
+            if x >= behind && on_a_line {
+                self.ahead.push(q);
+            }
+        }
         for k in 0..US_COUNT {
             let dir = rotate(self.dirs[k], c, s);
             let origin = ctx.position + ctx.radius * dir;

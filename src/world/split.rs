@@ -7,7 +7,11 @@
 //! Which robots go to rapier depends only on the world's state: a robot is left out when it
 //! rolls within its tyres' grip, its clearance to the scene exceeds the distance it can travel
 //! in the substep (plus [`CONTACT_MARGIN`]), and its gap to every other robot exceeds both
-//! robots' reach. So no robot left out can touch anything, or be touched, during the substep.
+//! robots' reach at their speed bounds. So no robot left out can touch anything, or be touched
+//! by a robot keeping to its bound. A robot struck within the substep could in principle be
+//! pushed past its bound; the ends are checked, and a robot left out that one met is taken in
+//! and the substep done again (`take_in_missed`; not seen to happen in any run so far, since
+//! rapier hands an impact's impulse over at the end of a substep).
 //!
 //! Units: metres, seconds, radians; world frame.
 
@@ -230,8 +234,8 @@ impl World {
             r.spin = state.spin;
         }
         if self.robots.len() > self.grid_min_robots {
-            // Only robots rapier moved can be in contact: the others kept more than
-            // CONTACT_MARGIN from everything.
+            // Only robots rapier moved can be in contact: the others kept clear of everything
+            // (by their bounds, and `take_in_missed` checks the rest).
             let active = std::mem::take(&mut self.active);
             self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL, Some(&active));
             self.active = active;
