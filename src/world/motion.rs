@@ -173,19 +173,21 @@ impl World {
             r.position = state.position;
             r.heading = wrap_angle(state.heading);
         }
-        self.mark_contacts();
+        self.mark_contacts(None);
     }
 
-    pub(super) fn mark_contacts(&mut self) {
+    /// Marks the robots in contact after a rapier substep (with `only`, just among those it
+    /// marks: the caller knows the others cannot be).
+    fn mark_contacts(&mut self, only: Option<&[bool]>) {
         if self.robots.len() <= self.grid_min_robots {
             for i in 0..self.robots.len() {
-                if self.clearance(i) < CONTACT_TOLERANCE {
+                if only.is_none_or(|a| a[i]) && self.clearance(i) < CONTACT_TOLERANCE {
                     self.robots[i].in_contact = true;
                 }
             }
             return;
         }
-        self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL, None);
+        self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL, only);
     }
 
     /// The traction model (v1): the motors follow their speed profile; while a robot rolls
@@ -232,7 +234,7 @@ impl World {
                 }
             }
             if (!far && self.contact_possible(h)) || !rolls {
-                self.traction_substep();
+                self.traction_substep(false);
             } else {
                 for r in &mut self.robots {
                     let (v, w) = self.drive.twist(r.wheel_speeds);
@@ -266,7 +268,9 @@ impl World {
         self.robots.iter().all(|r| is_rolling(&self.drive, r))
     }
 
-    fn traction_substep(&mut self) {
+    /// Hands the robots to rapier for one traction substep (with `only`, just those
+    /// `self.active` marks: `physics.split = "robot"`) and marks their contacts.
+    pub(super) fn traction_substep(&mut self, only: bool) {
         self.traction.clear();
         for r in &self.robots {
             self.traction.push(TractionBody {
@@ -281,15 +285,27 @@ impl World {
             axle: self.drive.axle_length,
             tyre_friction: self.tyre_friction,
         };
-        self.physics.step_traction(&mut self.traction, grip);
-        for (r, state) in self.robots.iter_mut().zip(&self.traction) {
+        let active = only.then_some(self.active.as_slice());
+        self.physics.step_traction(&mut self.traction, active, grip);
+        for (i, (r, state)) in self.robots.iter_mut().zip(&self.traction).enumerate() {
+            if active.is_some_and(|a| !a[i]) {
+                continue;
+            }
             r.step_travel += (state.position - r.position).length();
             r.position = state.position;
             r.heading = wrap_angle(state.heading);
             r.velocity = state.velocity;
             r.spin = state.spin;
         }
-        self.mark_contacts();
+        if only {
+            // Only robots rapier moved can be in contact: the others kept clear of everything
+            // (by their bounds, and `take_in_missed` in split.rs checks the rest).
+            let active = std::mem::take(&mut self.active);
+            self.mark_contacts(Some(&active));
+            self.active = active;
+        } else {
+            self.mark_contacts(None);
+        }
     }
 }
 

@@ -238,20 +238,12 @@ impl Physics {
 
     /// One traction substep: each wheel's grip impulse (the one cancelling its slip, clamped to
     /// the tyre's friction circle), then a rapier step resolving contacts with friction; writes
-    /// the resulting poses and velocities back into `bodies`.
-    pub fn step_traction(&mut self, bodies: &mut [TractionBody], grip: Grip) {
-        self.step_traction_of(bodies, None, grip);
-    }
-
-    /// A traction substep of only the robots `active` marks (`physics.split = "robot"`): the
-    /// others' bodies are disabled in rapier (no contacts, no integration, no broad-phase
-    /// update) and their entries in `bodies` left as they are. The caller guarantees that no
-    /// robot left out can touch anything during the substep.
-    pub fn step_traction_some(&mut self, bodies: &mut [TractionBody], active: &[bool], grip: Grip) {
-        self.step_traction_of(bodies, Some(active), grip);
-    }
-
-    fn step_traction_of(
+    /// the resulting poses and velocities back into `bodies`. With `active`
+    /// (`physics.split = "robot"`) only the robots it marks take part: the others' bodies are
+    /// disabled in rapier (no contacts, no integration, no broad-phase update) and their entries
+    /// in `bodies` left as they are; the caller guarantees that none of them can touch anything
+    /// during the substep.
+    pub fn step_traction(
         &mut self,
         bodies: &mut [TractionBody],
         active: Option<&[bool]>,

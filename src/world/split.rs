@@ -21,9 +21,9 @@ use rayon::prelude::*;
 use super::motion::{
     integrate_arc, set_rolling_velocity, speed_bound, CONTACT_MARGIN, CONTACT_TOLERANCE, MIN_CELL,
 };
-use super::physics::{Grip, TractionBody, GRAVITY};
+use super::physics::GRAVITY;
 use super::{Robot, World};
-use crate::robot::{wrap_angle, Drive};
+use crate::robot::Drive;
 
 /// Robots a thread checks at least at a time.
 const MIN_ROBOTS_PER_TASK: usize = 32;
@@ -96,7 +96,7 @@ impl World {
             if !any {
                 return;
             }
-            self.split_rapier_substep();
+            self.traction_substep(true);
             // A robot rapier moved may have been pushed faster than its bound (by a third
             // robot) and met one left out: take that one in too and do the substep again (from
             // the same start; rapier's contacts keep what the first try learnt, so the result
@@ -202,45 +202,6 @@ impl World {
                 .for_each(check);
         } else {
             self.active.iter_mut().enumerate().for_each(check);
-        }
-    }
-
-    /// Hands the active robots to rapier for one traction substep and marks their contacts.
-    fn split_rapier_substep(&mut self) {
-        self.traction.clear();
-        for r in &self.robots {
-            self.traction.push(TractionBody {
-                position: r.position,
-                heading: r.heading,
-                velocity: r.velocity,
-                spin: r.spin,
-                wheels: r.wheel_speeds,
-            });
-        }
-        let grip = Grip {
-            axle: self.drive.axle_length,
-            tyre_friction: self.tyre_friction,
-        };
-        self.physics
-            .step_traction_some(&mut self.traction, &self.active, grip);
-        for ((r, state), &active) in self.robots.iter_mut().zip(&self.traction).zip(&self.active) {
-            if !active {
-                continue;
-            }
-            r.step_travel += (state.position - r.position).length();
-            r.position = state.position;
-            r.heading = wrap_angle(state.heading);
-            r.velocity = state.velocity;
-            r.spin = state.spin;
-        }
-        if self.robots.len() > self.grid_min_robots {
-            // Only robots rapier moved can be in contact: the others kept clear of everything
-            // (by their bounds, and `take_in_missed` checks the rest).
-            let active = std::mem::take(&mut self.active);
-            self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL, Some(&active));
-            self.active = active;
-        } else {
-            self.mark_contacts();
         }
     }
 }
