@@ -24,22 +24,36 @@ pub struct Grid {
     points: Vec<Vector>,
     /// Each robot's cell.
     cell_of: Vec<u32>,
+    /// Scratch: the centres in robot order, and each cell's next free slot while filling.
+    by_index: Vec<Vector>,
+    next: Vec<u32>,
 }
 
 /// Most cells along a side: bounds the grid's memory whatever the robots' spread.
 const MAX_SIDE: usize = 1024;
+/// Most cells per robot over the robots' spread (see [`Grid::build`]).
+const CELLS_PER_ROBOT: f32 = 4.0;
 
 impl Grid {
-    /// Buckets `positions` in cells of side at least `cell` (m, > 0 and finite).
-    pub fn build(&mut self, positions: impl Iterator<Item = Vector> + Clone, cell: f32) {
+    /// Buckets `positions` in cells of side at least `cell` (m, > 0 and finite), and at least
+    /// as wide as [`CELLS_PER_ROBOT`] cells per robot over the robots' spread allow: a query's
+    /// result does not depend on the cells (only its cost does), and cells far smaller than
+    /// the space per robot cost more to clear and count than the few robots they spare a query.
+    pub fn build(&mut self, positions: impl Iterator<Item = Vector>, cell: f32) {
+        // One pass over the robots (a robot's struct is large; their centres are copied).
         let mut lo = Vector::splat(f32::INFINITY);
         let mut hi = Vector::splat(f32::NEG_INFINITY);
-        for p in positions.clone() {
+        self.by_index.clear();
+        for p in positions {
             lo = lo.min(p);
             hi = hi.max(p);
+            self.by_index.push(p);
         }
         let span = (hi - lo).max(Vector::ZERO);
+        let robots = self.by_index.len().max(1) as f32;
+        let per_robot = (span.x * span.y / (CELLS_PER_ROBOT * robots)).sqrt();
         let cell = cell
+            .max(per_robot)
             .max(span.x / MAX_SIDE as f32)
             .max(span.y / MAX_SIDE as f32);
         self.cell = cell;
@@ -50,8 +64,8 @@ impl Grid {
         self.starts.clear();
         self.starts.resize(cells + 1, 0);
         self.cell_of.clear();
-        for p in positions.clone() {
-            let c = self.cell_index(p);
+        for i in 0..self.by_index.len() {
+            let c = self.cell_index(self.by_index[i]);
             self.cell_of.push(c as u32);
             self.starts[c + 1] += 1;
         }
@@ -62,12 +76,13 @@ impl Grid {
         self.order.resize(self.cell_of.len(), 0);
         self.points.clear();
         self.points.resize(self.cell_of.len(), Vector::ZERO);
-        let mut next: Vec<u32> = self.starts[..cells].to_vec();
-        for ((i, &c), p) in self.cell_of.iter().enumerate().zip(positions) {
-            let slot = next[c as usize] as usize;
+        self.next.clear();
+        self.next.extend_from_slice(&self.starts[..cells]);
+        for (i, (&c, &p)) in self.cell_of.iter().zip(&self.by_index).enumerate() {
+            let slot = self.next[c as usize] as usize;
             self.order[slot] = i as u32;
             self.points[slot] = p;
-            next[c as usize] += 1;
+            self.next[c as usize] += 1;
         }
     }
 
@@ -123,6 +138,16 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
+    /// Every robot within `radius` of every robot, in index order, by a plain loop.
+    fn brute(positions: &[Vector], i: usize, radius: f32) -> Vec<u32> {
+        let p = positions[i];
+        (0..positions.len() as u32)
+            .filter(|&j| {
+                j as usize != i && (positions[j as usize] - p).length_squared() <= radius * radius
+            })
+            .collect()
+    }
+
     #[test]
     fn finds_exactly_the_robots_a_full_loop_finds_in_index_order() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
@@ -130,17 +155,46 @@ mod tests {
             .map(|_| Vector::new(rng.random_range(-10.0..10.0), rng.random_range(-10.0..10.0)))
             .collect();
         let mut grid = Grid::default();
-        grid.build(positions.iter().copied(), 0.7);
+        // Cells as asked (0.7 m), then far smaller than the space per robot (widened), for
+        // radii below, about and above a cell.
+        for cell in [0.7, 0.01] {
+            grid.build(positions.iter().copied(), cell);
+            for radius in [0.3, 1.5, 4.0] {
+                let mut got = Vec::new();
+                for i in 0..positions.len() {
+                    got.clear();
+                    grid.near(positions[i], radius, i, &mut got);
+                    assert_eq!(
+                        got,
+                        brute(&positions, i, radius),
+                        "cell {cell}, radius {radius}"
+                    );
+                }
+            }
+        }
+        assert!(
+            grid.cell() > 0.2,
+            "cells of 0.01 m widened to {}",
+            grid.cell()
+        );
+    }
+
+    #[test]
+    fn a_crowd_in_a_corner_of_a_wide_spread_is_found_whole() {
+        // Most robots packed in 1 m², one far away: the spread is wide, the cells sized for it
+        // hold the whole crowd, and every query still returns exactly the robots in reach.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let mut positions: Vec<Vector> = (0..300)
+            .map(|_| Vector::new(rng.random_range(0.0..1.0), rng.random_range(0.0..1.0)))
+            .collect();
+        positions.push(Vector::new(50.0, 50.0));
+        let mut grid = Grid::default();
+        grid.build(positions.iter().copied(), 0.05);
         let mut got = Vec::new();
-        for (i, &p) in positions.iter().enumerate() {
+        for i in 0..positions.len() {
             got.clear();
-            grid.near(p, 1.5, i, &mut got);
-            let want: Vec<u32> = (0..positions.len() as u32)
-                .filter(|&j| {
-                    j as usize != i && (positions[j as usize] - p).length_squared() <= 2.25
-                })
-                .collect();
-            assert_eq!(got, want);
+            grid.near(positions[i], 0.2, i, &mut got);
+            assert_eq!(got, brute(&positions, i, 0.2));
         }
     }
 }
