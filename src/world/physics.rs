@@ -256,13 +256,25 @@ impl Physics {
         let cap = grip.tyre_friction * 0.5 * mass * GRAVITY * h;
         let takes_part = |i: usize| active.is_none_or(|a| a[i]);
         for (i, (state, handle)) in bodies.iter_mut().zip(&self.robots).enumerate() {
+            if !takes_part(i) {
+                // A body already disabled is left untouched: `get_mut` would put it on rapier's
+                // list of modified bodies, which the step then walks for nothing (in a swarm
+                // split by robot, most of the bodies every substep).
+                let enabled = self
+                    .world
+                    .bodies
+                    .get(*handle)
+                    .is_some_and(|b| b.is_enabled());
+                if enabled {
+                    if let Some(body) = self.world.bodies.get_mut(*handle) {
+                        body.set_enabled(false);
+                    }
+                }
+                continue;
+            }
             let Some(body) = self.world.bodies.get_mut(*handle) else {
                 continue;
             };
-            if !takes_part(i) {
-                body.set_enabled(false);
-                continue;
-            }
             body.set_enabled(true);
             let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
             body.set_position(Pose::new(state.position, state.heading), true);
