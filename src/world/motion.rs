@@ -195,11 +195,17 @@ impl World {
     /// otherwise the tyres' bounded grip and rapier's contacts with friction move it.
     fn advance_traction(&mut self) {
         let h = self.dt / self.substeps as f32;
-        let far = !self.contact_possible(self.dt);
         let steady = self
             .robots
             .iter()
             .all(|r| r.wheel_speeds == r.wheel_command && r.wheel_setpoint == r.wheel_command);
+        // Split by robot, `far` only decides the whole-step arc below, which needs `steady`
+        // too: a world whose wheels change skips the check (a swarm's grid and pass).
+        let far = if self.split_robots && !steady {
+            false
+        } else {
+            !self.contact_possible(self.dt)
+        };
         if far && steady && self.all_rolling() && self.all_grip(self.dt) {
             // The wheels keep their speed and grip: one exact arc over the whole step.
             for r in &mut self.robots {

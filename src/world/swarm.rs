@@ -44,6 +44,9 @@ impl World {
         self.other_leds.extend(self.robots.iter().map(|r| r.led));
         let leds = &self.other_leds;
         let base: u64 = self.rng.random();
+        // Every robot's stream has the same key: seeded once, each a copy on its own stream
+        // (the same state as seeding it anew, since nothing was drawn).
+        let seeded = ChaCha8Rng::seed_from_u64(base);
         let (grid, positions) = (&self.grid, &self.positions);
         let scene = &self.scene;
         let robot_reflectance = self.robot_reflectance;
@@ -65,7 +68,7 @@ impl World {
                 let all = leds.iter().enumerate().filter(|(j, _)| *j != i);
                 scratch.leds.extend(all.map(|(_, c)| *c));
             }
-            let mut rng = ChaCha8Rng::seed_from_u64(base);
+            let mut rng = seeded.clone();
             rng.set_stream(i as u64);
             let ctx = SenseContext {
                 scene,
