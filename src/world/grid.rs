@@ -127,6 +127,11 @@ impl Grid {
         out[start..].sort_unstable();
     }
 
+    /// The centres the grid was built on, in robot order.
+    pub fn centres(&self) -> &[Vector] {
+        &self.by_index
+    }
+
     /// The cell side (m).
     pub fn cell(&self) -> f32 {
         self.cell

@@ -212,9 +212,8 @@ impl World {
                 r.wheel_travel[0] += (r.wheel_speeds[0] * self.dt) as f64;
                 r.wheel_travel[1] += (r.wheel_speeds[1] * self.dt) as f64;
                 let (v, w) = self.drive.twist(r.wheel_speeds);
-                integrate_arc(&mut r.position, &mut r.heading, v, w, self.dt);
+                roll_arc(r, v, w, self.dt);
                 r.step_travel = v.abs() * self.dt;
-                set_rolling_velocity(r, v, w);
             }
             return;
         }
@@ -244,9 +243,8 @@ impl World {
             } else {
                 for r in &mut self.robots {
                     let (v, w) = self.drive.twist(r.wheel_speeds);
-                    integrate_arc(&mut r.position, &mut r.heading, v, w, h);
+                    roll_arc(r, v, w, h);
                     r.step_travel += v.abs() * h;
-                    set_rolling_velocity(r, v, w);
                 }
             }
         }
@@ -359,21 +357,22 @@ pub(super) fn is_rolling(drive: &crate::robot::Drive, r: &Robot) -> bool {
         && (r.spin - w).abs() * drive.axle_length <= ROLLING_TOLERANCE
 }
 
-/// A rolling robot's body velocity: forward speed `v` (m/s) along its heading, yaw rate `w`.
-pub(super) fn set_rolling_velocity(r: &mut Robot, v: f32, w: f32) {
-    let (s, c) = r.heading.sin_cos();
-    r.velocity = Vector::new(v * c, v * s);
-    r.spin = w;
-}
-
 /// Exact differential-drive motion over `h` seconds at constant forward speed `v` and yaw rate
-/// `w` (a circular arc; a straight line when `w` is ~0).
+/// `w` (a circular arc; a straight line when `w` is ~0). Returns the sine and cosine of the
+/// heading it ends on.
 #[inline]
-pub fn integrate_arc(position: &mut Vector, heading: &mut f32, v: f32, w: f32, h: f32) {
+pub fn integrate_arc(
+    position: &mut Vector,
+    heading: &mut f32,
+    v: f32,
+    w: f32,
+    h: f32,
+) -> (f32, f32) {
     let theta = *heading;
     if (w * h).abs() < 1e-6 {
         let (s, c) = theta.sin_cos();
         *position += Vector::new(v * h * c, v * h * s);
+        (s, c)
     } else {
         let next = theta + w * h;
         let r = v / w;
@@ -381,5 +380,16 @@ pub fn integrate_arc(position: &mut Vector, heading: &mut f32, v: f32, w: f32, h
         let (s1, c1) = next.sin_cos();
         *position += Vector::new(r * (s1 - s0), -r * (c1 - c0));
         *heading = next;
+        (s1, c1)
     }
+}
+
+/// Rolls robot `r` on its exact arc over `h` seconds at forward speed `v` and yaw rate `w`, and
+/// gives its body the rolling velocity at the end: forward speed `v` along the end heading
+/// (whose sine and cosine the arc already computed), yaw rate `w`.
+#[inline]
+pub(super) fn roll_arc(r: &mut Robot, v: f32, w: f32, h: f32) {
+    let (s, c) = integrate_arc(&mut r.position, &mut r.heading, v, w, h);
+    r.velocity = Vector::new(v * c, v * s);
+    r.spin = w;
 }

@@ -18,9 +18,7 @@
 use rapier2d::math::Vector;
 use rayon::prelude::*;
 
-use super::motion::{
-    integrate_arc, set_rolling_velocity, speed_bound, CONTACT_MARGIN, CONTACT_TOLERANCE, MIN_CELL,
-};
+use super::motion::{roll_arc, speed_bound, CONTACT_MARGIN, CONTACT_TOLERANCE, MIN_CELL};
 use super::physics::GRAVITY;
 use super::{Robot, World};
 use crate::robot::Drive;
@@ -68,7 +66,10 @@ impl World {
     pub(super) fn split_substep(&mut self, h: f32) {
         let grip = self.tyre_friction * GRAVITY * h;
         let ratio = self.inertia_per_mass() / self.drive.axle_length;
+        let gain = self.drive.wheel_accel_limit * h;
         self.active.clear();
+        self.speeds.clear();
+        // One pass over the robots: motors, grip, and the speed bound `mark_reachable` needs.
         for r in &mut self.robots {
             (r.wheel_setpoint, r.wheel_speeds) =
                 self.drive
@@ -76,6 +77,7 @@ impl World {
             r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
             r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
             self.active.push(!grips(&self.drive, r, ratio, grip, h));
+            self.speeds.push(speed_bound(r, gain));
         }
         self.mark_reachable(h);
         // The substep's start, to go back to should rapier push a robot into one left out.
@@ -89,9 +91,8 @@ impl World {
                     continue;
                 }
                 let (v, w) = self.drive.twist(r.wheel_speeds);
-                integrate_arc(&mut r.position, &mut r.heading, v, w, h);
+                roll_arc(r, v, w, h);
                 r.step_travel += v.abs() * h;
-                set_rolling_velocity(r, v, w);
             }
             if !any {
                 return;
@@ -148,13 +149,10 @@ impl World {
         missed
     }
 
-    /// Marks active every robot that could touch the scene or another robot within `h` s.
+    /// Marks active every robot that could touch the scene or another robot within `h` s, given
+    /// every robot's speed bound over the substep in `self.speeds`.
     fn mark_reachable(&mut self, h: f32) {
-        let gain = self.drive.wheel_accel_limit * h;
         let radius = self.drive.radius;
-        self.speeds.clear();
-        self.speeds
-            .extend(self.robots.iter().map(|r| speed_bound(r, gain)));
         let fastest = self.speeds.iter().fold(0.0f32, |a, &b| a.max(b));
         let cutoff = 2.0 * radius + 2.0 * fastest * h + CONTACT_MARGIN + 0.001;
         if !cutoff.is_finite() {
@@ -165,12 +163,17 @@ impl World {
         if swarm {
             self.grid
                 .build(self.robots.iter().map(|r| r.position), cutoff.max(MIN_CELL));
+        } else {
+            self.positions.clear();
+            self.positions
+                .extend(self.robots.iter().map(|r| r.position));
         }
-        self.positions.clear();
-        self.positions
-            .extend(self.robots.iter().map(|r| r.position));
-        let (grid, positions, speeds, scene) =
-            (&self.grid, &self.positions, &self.speeds, &self.scene);
+        let positions = if swarm {
+            self.grid.centres()
+        } else {
+            &self.positions
+        };
+        let (grid, speeds, scene) = (&self.grid, &self.speeds, &self.scene);
         // Robot i can touch robot j when their gap is within both reaches (symmetric, so each
         // robot decides for itself).
         let check = |(i, active): (usize, &mut bool)| {

@@ -28,20 +28,22 @@ impl World {
         let (sensors, radius, dt) = (&self.sensors, self.drive.radius, self.dt);
         let reach_of =
             |robot: &Robot| sensors.reach_now(radius, &robot.readings, dt, fresh) + 0.001;
-        let reach = self.robots.iter().map(reach_of).fold(0.0f32, f32::max);
+        // One pass over the robots: the farthest reach, every centre and LED colour.
+        let mut reach = 0.0f32;
+        self.positions.clear();
+        self.other_leds.clear();
+        for robot in &self.robots {
+            reach = reach.max(reach_of(robot));
+            self.positions.push(robot.position);
+            self.other_leds.push(robot.led);
+        }
         let use_grid = self.robots.len() > self.grid_min_robots && reach.is_finite();
         if use_grid {
             // Cells of half the reach: the 5 × 5 cells around a robot hold fewer robots than
             // the 3 × 3 of cells as wide as the reach.
             let cell = (0.5 * reach).max(0.01);
-            self.grid
-                .build(self.robots.iter().map(|r| r.position), cell);
+            self.grid.build(self.positions.iter().copied(), cell);
         }
-        self.positions.clear();
-        self.positions
-            .extend(self.robots.iter().map(|r| r.position));
-        self.other_leds.clear();
-        self.other_leds.extend(self.robots.iter().map(|r| r.led));
         let leds = &self.other_leds;
         let base: u64 = self.rng.random();
         // Every robot's stream has the same key: seeded once, each a copy on its own stream
