@@ -8,7 +8,7 @@ use rapier2d::math::Vector;
 
 use super::physics::{BodyState, Grip, TractionBody, GRAVITY};
 use super::{Robot, World};
-use crate::robot::wrap_angle;
+use crate::robot::{wrap_angle, Drive};
 use crate::scenario::DriveModel;
 
 /// Extra clearance (m) kept before deciding a robot cannot touch anything this substep.
@@ -239,7 +239,7 @@ impl World {
                 }
             }
             if (!far && self.contact_possible(h)) || !rolls {
-                self.traction_substep(false);
+                self.traction_substep(None);
             } else {
                 for r in &mut self.robots {
                     let (v, w) = self.drive.twist(r.wheel_speeds);
@@ -272,9 +272,12 @@ impl World {
         self.robots.iter().all(|r| is_rolling(&self.drive, r))
     }
 
-    /// Hands the robots to rapier for one traction substep (with `only`, just those
-    /// `self.active` marks: `physics.split = "robot"`) and marks their contacts.
-    pub(super) fn traction_substep(&mut self, only: bool) {
+    /// Hands the robots to rapier for one traction substep and marks their contacts. With
+    /// `roll_others = Some(h)` (`physics.split = "robot"`) only the robots `self.active` marks
+    /// go to rapier, while the others roll on their arcs over `h` seconds: at the same time,
+    /// inside a batch's pool (neither depends on the other).
+    pub(super) fn traction_substep(&mut self, roll_others: Option<f32>) {
+        let only = roll_others.is_some();
         self.traction.clear();
         for r in &self.robots {
             self.traction.push(TractionBody {
@@ -290,7 +293,20 @@ impl World {
             tyre_friction: self.tyre_friction,
         };
         let active = only.then_some(self.active.as_slice());
-        self.physics.step_traction(&mut self.traction, active, grip);
+        let (physics, traction) = (&mut self.physics, &mut self.traction);
+        let mut step = || physics.step_traction(traction, active, grip);
+        if let Some(h) = roll_others {
+            let (robots, drive) = (&mut self.robots, &self.drive);
+            let mut roll = || roll_left_out(robots, &self.active, drive, h);
+            if rayon::current_thread_index().is_some() {
+                rayon::join(step, roll);
+            } else {
+                step();
+                roll();
+            }
+        } else {
+            step();
+        }
         for (i, (r, state)) in self.robots.iter_mut().zip(&self.traction).enumerate() {
             if active.is_some_and(|a| !a[i]) {
                 continue;
@@ -313,6 +329,15 @@ impl World {
     }
 }
 
+/// Rolls every robot `active` does not mark on its exact arc over `h` seconds.
+pub(super) fn roll_left_out(robots: &mut [Robot], active: &[bool], drive: &Drive, h: f32) {
+    for (r, _) in robots.iter_mut().zip(active).filter(|(_, &a)| !a) {
+        let (v, w) = drive.twist(r.wheel_speeds);
+        roll_arc(r, v, w, h);
+        r.step_travel += v.abs() * h;
+    }
+}
+
 /// Whether a robot rolling on wheels at `before` (m/s) keeps rolling when they change to `after`
 /// over `h` seconds: the impulse per unit mass each tyre must give (half the change of forward
 /// speed, plus or minus the yaw change's share `ratio`·Δω with `ratio` = (I/m)/axle, and half of
@@ -320,7 +345,7 @@ impl World {
 /// wheel carries half the weight).
 #[inline]
 pub(super) fn within_grip(
-    drive: &crate::robot::Drive,
+    drive: &Drive,
     before: [f32; 2],
     after: [f32; 2],
     ratio: f32,
@@ -350,7 +375,7 @@ pub(super) fn speed_bound(r: &Robot, gain: f32) -> f32 {
 
 /// Whether a robot's body moves as its wheels roll (no slip, within [`ROLLING_TOLERANCE`]).
 #[inline]
-pub(super) fn is_rolling(drive: &crate::robot::Drive, r: &Robot) -> bool {
+pub(super) fn is_rolling(drive: &Drive, r: &Robot) -> bool {
     let (v, w) = drive.twist(r.wheel_speeds);
     let (s, c) = r.heading.sin_cos();
     (r.velocity - Vector::new(v * c, v * s)).length() <= ROLLING_TOLERANCE

@@ -18,7 +18,7 @@
 use rapier2d::math::Vector;
 use rayon::prelude::*;
 
-use super::motion::{roll_arc, speed_bound, CONTACT_MARGIN, CONTACT_TOLERANCE, MIN_CELL};
+use super::motion::{roll_left_out, speed_bound, CONTACT_MARGIN, CONTACT_TOLERANCE, MIN_CELL};
 use super::physics::GRAVITY;
 use super::{Robot, World};
 use crate::robot::Drive;
@@ -84,20 +84,11 @@ impl World {
         self.start.clear();
         self.start.extend(self.robots.iter().map(Start::of));
         for round in 0.. {
-            let mut any = false;
-            for (r, &active) in self.robots.iter_mut().zip(&self.active) {
-                if active {
-                    any = true;
-                    continue;
-                }
-                let (v, w) = self.drive.twist(r.wheel_speeds);
-                roll_arc(r, v, w, h);
-                r.step_travel += v.abs() * h;
-            }
-            if !any {
+            if !self.active.contains(&true) {
+                roll_left_out(&mut self.robots, &self.active, &self.drive, h);
                 return;
             }
-            self.traction_substep(true);
+            self.traction_substep(Some(h));
             // A robot rapier moved may have been pushed faster than its bound (by a third
             // robot) and met one left out: take that one in too and do the substep again (from
             // the same start; rapier's contacts keep what the first try learnt, so the result
