@@ -131,6 +131,9 @@ pub struct World {
     /// Robots left out of a substep that rapier's robots met (`physics.split = "robot"`).
     #[serde(skip)]
     missed: Vec<u32>,
+    /// Robots rapier moved that ended a substep in contact (`physics.split = "robot"`).
+    #[serde(skip)]
+    touching: Vec<u32>,
     /// Worlds of more robots than this find neighbours through the grid ([`GRID_MIN_ROBOTS`];
     /// tests set it to compare both ways).
     #[serde(skip, default = "grid_min_robots")]
@@ -191,6 +194,7 @@ impl World {
             active: Vec::new(),
             start: Vec::new(),
             missed: Vec::new(),
+            touching: Vec::new(),
             grid_min_robots: GRID_MIN_ROBOTS,
         }
     }

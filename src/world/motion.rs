@@ -178,7 +178,7 @@ impl World {
 
     /// Marks the robots in contact after a rapier substep (with `only`, just among those it
     /// marks: the caller knows the others cannot be).
-    fn mark_contacts(&mut self, only: Option<&[bool]>) {
+    pub(super) fn mark_contacts(&mut self, only: Option<&[bool]>) {
         if self.robots.len() <= self.grid_min_robots {
             for i in 0..self.robots.len() {
                 if only.is_none_or(|a| a[i]) && self.clearance(i) < CONTACT_TOLERANCE {
@@ -317,13 +317,8 @@ impl World {
             r.velocity = state.velocity;
             r.spin = state.spin;
         }
-        if only {
-            // Only robots rapier moved can be in contact: the others kept clear of everything
-            // (by their bounds, and `take_in_missed` in split.rs checks the rest).
-            let active = std::mem::take(&mut self.active);
-            self.mark_contacts(Some(&active));
-            self.active = active;
-        } else {
+        // Split by robot, `split_substep` marks the contacts (and checks its bounds held).
+        if !only {
             self.mark_contacts(None);
         }
     }

@@ -89,11 +89,21 @@ impl World {
                 return;
             }
             self.traction_substep(Some(h));
-            // A robot rapier moved may have been pushed faster than its bound (by a third
-            // robot) and met one left out: take that one in too and do the substep again (from
-            // the same start; rapier's contacts keep what the first try learnt, so the result
-            // is still a function of the world's state). After a few tries, take every robot.
-            if !self.take_in_missed() {
+            // Only robots rapier moved can be in contact: the others kept clear of everything
+            // by their bounds. A robot rapier moved may yet have been pushed faster than its
+            // bound (by a third robot) and met one left out: take that one in too and do the
+            // substep again (from the same start; rapier's contacts keep what the first try
+            // learnt, so the result is still a function of the world's state). After a few
+            // tries, take every robot.
+            let missed = if self.robots.len() > self.grid_min_robots {
+                self.settle_swarm()
+            } else {
+                let active = std::mem::take(&mut self.active);
+                self.mark_contacts(Some(&active));
+                self.active = active;
+                self.take_in_missed()
+            };
+            if !missed {
                 return;
             }
             for (r, start) in self.robots.iter_mut().zip(&self.start) {
@@ -106,38 +116,85 @@ impl World {
     }
 
     /// Marks active every robot left out that ended the substep within contact tolerance of
-    /// a robot rapier moved; whether there was any. A swarm's grid holds the robots' ends
-    /// (built by the contact marks just before).
+    /// a robot rapier moved; whether there was any (a world of few robots).
     fn take_in_missed(&mut self) -> bool {
         let radius = self.drive.radius;
-        let cutoff = 2.0 * radius + CONTACT_TOLERANCE;
-        let mut missed = false;
         for i in 0..self.robots.len() {
             if !self.active[i] {
                 continue;
             }
             let p = self.robots[i].position;
-            let mut check = |j: usize, q: Vector| {
-                if !self.active[j] && (q - p).length() - 2.0 * radius < CONTACT_TOLERANCE {
+            for (j, other) in self.robots.iter().enumerate() {
+                let gap = (other.position - p).length() - 2.0 * radius;
+                if j != i && !self.active[j] && gap < CONTACT_TOLERANCE {
                     self.missed.push(j as u32);
-                }
-            };
-            if self.robots.len() > self.grid_min_robots {
-                self.grid
-                    .for_each_near(p, cutoff + 0.001, i, |j, q| check(j as usize, q));
-            } else {
-                for (j, other) in self.robots.iter().enumerate() {
-                    if j != i {
-                        check(j, other.position);
-                    }
                 }
             }
         }
+        self.take_in()
+    }
+
+    /// In a swarm, after the substep: marks in contact every robot rapier moved that is within
+    /// contact tolerance of the scene or another robot, and takes in every robot left out that
+    /// one of them met (as `take_in_missed`); whether there was any. Only the robots rapier
+    /// moved are looked at, through the grid `mark_reachable` built on the substep's start: a
+    /// robot's end lies within `drift` (the farthest any robot moved since) of its centre
+    /// there, so a query that much wider finds every robot in reach; the distances are the
+    /// ends'. The marks are those of `mark_contacts` over the ends.
+    fn settle_swarm(&mut self) -> bool {
+        let radius = self.drive.radius;
+        let centres = self.grid.centres();
+        let mut drift = if centres.len() == self.robots.len() {
+            let moved = |(r, c): (&Robot, &Vector)| (r.position - *c).length_squared();
+            self.robots
+                .iter()
+                .zip(centres)
+                .map(moved)
+                .fold(0.0f32, f32::max)
+                .sqrt()
+        } else {
+            f32::INFINITY
+        };
+        if !drift.is_finite() {
+            // Not this world's grid, or a robot thrown out of bounds: a grid of the ends.
+            self.grid
+                .build(self.robots.iter().map(|r| r.position), MIN_CELL);
+            drift = 0.0;
+        }
+        // A robot farther than this cannot be within the tolerance.
+        let cutoff = 2.0 * radius + CONTACT_TOLERANCE + 0.001;
+        self.touching.clear();
+        for i in 0..self.robots.len() {
+            if !self.active[i] {
+                continue;
+            }
+            let p = self.robots[i].position;
+            let mut gap = self.scene.clearance(p) - radius;
+            let (robots, active, missed) = (&self.robots, &self.active, &mut self.missed);
+            self.grid.for_each_near(p, cutoff + drift, i, |j, _| {
+                let other = (robots[j as usize].position - p).length() - 2.0 * radius;
+                gap = gap.min(other);
+                if !active[j as usize] && other < CONTACT_TOLERANCE {
+                    missed.push(j);
+                }
+            });
+            if gap < CONTACT_TOLERANCE {
+                self.touching.push(i as u32);
+            }
+        }
+        for &i in &self.touching {
+            self.robots[i as usize].in_contact = true;
+        }
+        self.take_in()
+    }
+
+    /// Marks active the robots `self.missed` lists (emptying it); whether there was any.
+    fn take_in(&mut self) -> bool {
+        let any = !self.missed.is_empty();
         for j in self.missed.drain(..) {
             self.active[j as usize] = true;
-            missed = true;
         }
-        missed
+        any
     }
 
     /// Marks active every robot that could touch the scene or another robot within `h` s, given
