@@ -17,10 +17,17 @@ from __future__ import annotations
 
 import functools
 import os
+import sys
 from pathlib import Path
+from typing import Any
 
 from khepera_gym import _core
 from khepera_gym.errors import ConfigError, KheperaError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10: tomli, a dependency there
+    import tomli as tomllib
 
 #: Source name the Rust core uses in messages when no scenario file is given.
 BUILT_IN_SOURCE = "<built-in>"
@@ -116,7 +123,36 @@ def resolve_config(config: ConfigArg, task: str) -> tuple[str | None, str]:
     )
 
 
-__all__ = ["BUILT_IN_SOURCE", "builtin_config_names", "builtin_config_text", "resolve_config"]
+def parse_key_values(items: list[str], option: str) -> dict[str, Any]:
+    """Command-line items ``KEY=VALUE`` (of ``option``, e.g. ``--set``) as a dict: VALUE read as
+    a TOML value (``0.1``, ``true``, ``[1, 2]``, ``"ccw"``, ``{net_arch=[32, 32]}``), or else
+    taken as a string (``square``, ``lin_1e-3``). The one parser of every command's overrides.
+
+    Raises:
+        ConfigError: An item without ``=`` or with an empty key, or a key given twice.
+    """
+    values: dict[str, Any] = {}
+    for item in items:
+        key, equals, text = item.partition("=")
+        key = key.strip()
+        if not equals or not key:
+            raise ConfigError(f"{option} {item!r}: expected KEY=VALUE")
+        if key in values:
+            raise ConfigError(f"{option}: key {key!r} is given twice")
+        try:
+            values[key] = tomllib.loads(f"value = {text.strip()}")["value"]
+        except tomllib.TOMLDecodeError:
+            values[key] = text.strip()
+    return values
+
+
+__all__ = [
+    "BUILT_IN_SOURCE",
+    "builtin_config_names",
+    "builtin_config_text",
+    "parse_key_values",
+    "resolve_config",
+]
 
 
 #: Action types understood by the Rust core: normalised (left, right) wheel speeds, or (v, ω).

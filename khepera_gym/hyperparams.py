@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
 
 try:  # Python >= 3.11
@@ -73,14 +74,8 @@ def parse_override(text: str) -> tuple[str, Any]:
     Raises:
         ConfigError: No ``=`` or an empty key.
     """
-    key, separator, value = text.partition("=")
-    key = key.strip()
-    if not separator or not key:
-        raise ConfigError(f"--hp takes KEY=VALUE, got {text!r}")
-    try:
-        return key, tomllib.loads(f"value = {value.strip()}")["value"]
-    except tomllib.TOMLDecodeError:
-        return key, value.strip()
+    ((key, value),) = parse_key_values([text], "--hp").items()
+    return key, value
 
 
 __all__ = ["EVAL_SEED", "HYPERPARAMS_DIR", "load_hyperparams", "parse_override"]

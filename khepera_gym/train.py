@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import khepera_gym
+from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
 from khepera_gym.hyperparams import EVAL_SEED, HYPERPARAMS_DIR, load_hyperparams, parse_override
 
@@ -435,7 +436,7 @@ def _run_rllib(args: argparse.Namespace) -> int:
             seed=args.seed,
             out_dir=args.out,
             hyperparams_path=args.hyperparams,
-            overrides=dict(parse_override(text) for text in args.hp),
+            overrides=parse_key_values(args.hp, "--hp"),
             eval_freq=args.eval_freq,
             eval_episodes=args.eval_episodes,
             eval_seed=args.eval_seed,
@@ -467,7 +468,7 @@ def run_from_args(args: argparse.Namespace) -> int:
             seed=args.seed,
             out_dir=args.out,
             hyperparams_path=args.hyperparams,
-            overrides=dict(parse_override(text) for text in args.hp),
+            overrides=parse_key_values(args.hp, "--hp"),
             eval_freq=args.eval_freq,
             eval_episodes=args.eval_episodes,
             eval_seed=args.eval_seed,

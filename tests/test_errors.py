@@ -272,3 +272,36 @@ def test_a_real_rust_panic_surfaces_as_khepera_error() -> None:
     error = _outcome(_core._panic_for_test)
     assert type(error) is KheperaError, type(error)
     assert "internal error" in str(error) and "index out of bounds" in str(error)
+
+
+def test_every_command_reads_key_values_with_one_parser_and_refuses_bad_items() -> None:
+    """``--set`` (compare, export) and ``--hp`` (train) read ``KEY=VALUE`` alike: a TOML value or
+    else a string; an item without ``=``, with an empty key, or a key given twice is a
+    ConfigError naming the option (a repeated key would otherwise silently keep the last)."""
+    import argparse
+
+    from khepera_gym.config import parse_key_values
+    from khepera_gym.export.command import run_from_args as export_from_args
+    from khepera_gym.hyperparams import parse_override
+
+    assert parse_key_values(["a=0.5", "b=[1, 2]", "c=square", 'd="ccw"', "e = true"], "--set") == {
+        "a": 0.5,
+        "b": [1, 2],
+        "c": "square",
+        "d": "ccw",
+        "e": True,
+    }
+    for items, message in (
+        (["a"], "expected KEY=VALUE"),
+        ([" =1"], "expected KEY=VALUE"),
+        (["a=1", "a=2"], "given twice"),
+    ):
+        with pytest.raises(ConfigError, match=f"--hp.*{message}"):
+            parse_key_values(items, "--hp")
+    assert parse_override("n_steps=64") == ("n_steps", 64)
+    with pytest.raises(ConfigError, match="--hp"):
+        parse_override("n_steps")
+    # The export command refuses a repeated key before it opens the model.
+    args = argparse.Namespace(model="missing.zip", out=None, set=["mass=0.5", "mass=0.6"])
+    with pytest.raises(ConfigError, match="--set: key 'mass' is given twice"):
+        export_from_args(args)

@@ -5,7 +5,6 @@ comparisons on the paper's scenes and the tasks.
 from __future__ import annotations
 
 import argparse
-import sys
 import warnings
 from pathlib import Path
 from typing import Any
@@ -16,13 +15,9 @@ from khepera_gym.compare.metrics import task_metrics
 from khepera_gym.compare.policies import DEFAULT_POLICIES, POLICY_NAMES
 from khepera_gym.compare.report import report
 from khepera_gym.compare.run import compare, resolve_env_id
+from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.registration import latest_ids
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10: tomli, a dependency there
-    import tomli as tomllib
 
 #: Registered id (latest version) of each task name of ``--task``.
 TASK_IDS = latest_ids()
@@ -87,19 +82,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     Raises:
         ConfigError: An item without ``=`` or with an empty key, or a key given twice.
     """
-    overrides: dict[str, Any] = {}
-    for item in items:
-        key, equals, text = item.partition("=")
-        key = key.strip()
-        if not equals or not key:
-            raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. reference=square")
-        if key in overrides:
-            raise ConfigError(f"--set: key {key!r} is given twice")
-        try:
-            overrides[key] = tomllib.loads(f"value = {text.strip()}")["value"]
-        except tomllib.TOMLDecodeError:
-            overrides[key] = text.strip()
-    return overrides
+    return parse_key_values(items, "--set")
 
 
 def run_from_args(args: argparse.Namespace) -> int:

@@ -14,11 +14,9 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
-from khepera_gym.errors import ConfigError
+from khepera_gym.config import parse_key_values
 from khepera_gym.export.exporter import FORMATS, export_policy
-from khepera_gym.export.robot import toml_loads
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -58,26 +56,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cc", default="cc", help="C compiler of the check (cc)")
 
 
-def _parse_override(text: str) -> tuple[str, Any]:
-    """``KEY=VALUE`` with VALUE in TOML syntax, or a string when it is not TOML.
-
-    Raises:
-        ConfigError: No ``=`` or an empty key.
-    """
-    key, separator, value = text.partition("=")
-    if not separator or not key.strip():
-        raise ConfigError(f"--set takes KEY=VALUE, got {text!r}")
-    try:
-        return key.strip(), toml_loads(f"value = {value.strip()}")["value"]
-    except ValueError:  # tomllib.TOMLDecodeError is a ValueError
-        return key.strip(), value.strip()
-
-
 def run_from_args(args: argparse.Namespace) -> int:
     """Runs ``khepera-gym export`` with parsed arguments."""
     model = Path(args.model)
     out = args.out if args.out is not None else model.resolve().parent / "export"
-    overrides = dict(_parse_override(text) for text in args.set)
+    overrides = parse_key_values(args.set, "--set")
     result = export_policy(
         model,
         out,
