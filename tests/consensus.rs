@@ -9,11 +9,10 @@
 //! Units: metres, seconds; per agent the observation is ir (8), us (5), neighbours (4 per other
 //! robot: p_x, p_y, age, valid), own_drift (2), wheel_speeds (2).
 
-use std::sync::Arc;
+mod common;
 
 use _core::controllers::Policy;
 use _core::error::Error;
-use _core::robot::ActionType;
 use _core::scenario::{Scenario, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
@@ -23,28 +22,11 @@ const DT: f32 = 0.05;
 const TOLERANCE: f32 = 0.03;
 
 fn scenario(overrides: &str) -> Scenario {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        version: None,
-    };
-    load_scenario("consensus", &source).expect("scenario")
+    common::scenario("consensus", overrides)
 }
 
 fn env(overrides: &str, seed: u64) -> (Env, Vec<f32>) {
-    let cfg = scenario(overrides);
-    let spawner = Arc::new(Env::spawner(TaskKind::Consensus, &cfg).expect("spawner"));
-    let mut env = Env::new(
-        TaskKind::Consensus,
-        Arc::new(cfg),
-        spawner,
-        ActionType::Wheels,
-    )
-    .expect("env");
-    env.seed(seed);
-    let mut obs = vec![0.0; env.obs_dim()];
-    env.reset(&mut obs);
-    (env, obs)
+    common::env(TaskKind::Consensus, scenario(overrides), seed)
 }
 
 fn law(cfg: &Scenario, params: &str) -> Policy {

@@ -6,11 +6,10 @@
 //! Units: metres, seconds, radians; world frame. Observation: camera_offset 0-1, seen 2,
 //! relative_velocity 3-4, drone_velocity 5-6, altitude 7.
 
-use std::sync::Arc;
+mod common;
 
 use _core::controllers::Policy;
 use _core::error::Error;
-use _core::robot::ActionType;
 use _core::scenario::{Scenario, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
@@ -20,28 +19,11 @@ const DT: f32 = 0.05;
 const G: f32 = 9.80665;
 
 fn scenario(overrides: &str) -> Scenario {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        version: None,
-    };
-    load_scenario("dronefollow", &source).expect("scenario")
+    common::scenario("dronefollow", overrides)
 }
 
 fn env(overrides: &str, seed: u64) -> (Env, Vec<f32>) {
-    let cfg = scenario(overrides);
-    let spawner = Arc::new(Env::spawner(TaskKind::DroneFollow, &cfg).expect("spawner"));
-    let mut env = Env::new(
-        TaskKind::DroneFollow,
-        Arc::new(cfg),
-        spawner,
-        ActionType::Wheels,
-    )
-    .expect("env");
-    env.seed(seed);
-    let mut obs = vec![0.0; env.obs_dim()];
-    env.reset(&mut obs);
-    (env, obs)
+    common::env(TaskKind::DroneFollow, scenario(overrides), seed)
 }
 
 fn pursuit(cfg: &Scenario) -> Policy {

@@ -5,11 +5,12 @@
 //!
 //! Units: metres, raw ground counts; world frame, robot frame x forward, y left.
 
+mod common;
+
 use std::sync::Arc;
 
 use _core::batch::Batch;
 use _core::controllers::Policy;
-use _core::error::Error;
 use _core::robot::ActionType;
 use _core::scenario::Source;
 use _core::sensors::ground::GROUND_POSITIONS;
@@ -212,15 +213,7 @@ fn test_both_line_followers_lap_the_smooth_tracks_and_a_teachers_own() {
 }
 
 fn config_error(task: &str, overrides: &str) -> String {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        version: None,
-    };
-    match load_scenario(task, &source) {
-        Err(Error::Config { key, .. }) => key,
-        other => panic!("{overrides}: expected a config error, got {other:?}"),
-    }
+    common::config_error(task, overrides).0
 }
 
 #[test]

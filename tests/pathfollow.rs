@@ -4,32 +4,20 @@
 //! and the cross-track sign are what the geometry says, obstacles on the path are met, and the
 //! task is deterministic like the others.
 
+mod common;
+
 use _core::batch::Batch;
 use _core::controllers::Policy;
-use _core::error::Error;
 use _core::robot::ActionType;
-use _core::scenario::{Scenario, Source};
-use _core::tasks::{load_scenario, TaskKind};
+use _core::scenario::Scenario;
+use _core::tasks::TaskKind;
 
 fn scenario(overrides: &str) -> Scenario {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        ..Default::default()
-    };
-    load_scenario("pathfollow", &source).expect("scenario")
+    common::scenario("pathfollow", overrides)
 }
 
 fn config_error(overrides: &str) -> (String, String) {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        ..Default::default()
-    };
-    match load_scenario("pathfollow", &source) {
-        Err(Error::Config { key, message, .. }) => (key, message),
-        other => panic!("{overrides}: expected a config error, got {other:?}"),
-    }
+    common::config_error("pathfollow", overrides)
 }
 
 fn layout(cfg: &Scenario) -> _core::obs::ObsLayout {

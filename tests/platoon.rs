@@ -5,6 +5,8 @@
 //! seeds reproduce episodes bit for bit. (World i ≡ seed s + i, thread counts and saved states:
 //! tests/tasks.rs and tests/state.rs, which iterate over every task.)
 
+mod common;
+
 use _core::batch::Batch;
 use _core::controllers::Policy;
 use _core::robot::ActionType;
@@ -20,12 +22,7 @@ const START_OFFSET: f32 = 0.2; // m, platoon.start_offset
 const TRANSIENT: f32 = 5.0; // s, platoon.transient
 
 fn scenario(overrides: &str) -> Scenario {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        ..Default::default()
-    };
-    load_scenario("platoon", &source).expect("scenario")
+    common::scenario("platoon", overrides)
 }
 
 fn batch(cfg: &Scenario, n: usize) -> Batch {

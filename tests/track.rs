@@ -3,6 +3,8 @@
 //! converges as its linearised closed loop says, position control chasing the reference lags by
 //! v_r over its bandwidth, and the task is deterministic and restorable like the others.
 
+mod common;
+
 use _core::batch::Batch;
 use _core::controllers::Policy;
 use _core::robot::ActionType;
@@ -10,12 +12,7 @@ use _core::scenario::{Scenario, Source};
 use _core::tasks::{load_scenario, TaskKind};
 
 fn scenario(overrides: &str) -> Scenario {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        ..Default::default()
-    };
-    load_scenario("track", &source).expect("scenario")
+    common::scenario("track", overrides)
 }
 
 fn policy(name: &str, cfg: &Scenario) -> Policy {
@@ -300,15 +297,7 @@ fn test_references_stay_in_the_arena_and_within_the_wheels_limits() {
 }
 
 fn config_error(overrides: &str) -> String {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        ..Default::default()
-    };
-    match load_scenario("track", &source) {
-        Err(_core::error::Error::Config { key, .. }) => key,
-        other => panic!("{overrides}: expected a config error, got {other:?}"),
-    }
+    common::config_error("track", overrides).0
 }
 
 #[test]

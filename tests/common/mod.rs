@@ -1,0 +1,45 @@
+//! Helpers the integration tests share: a task's scenario from TOML overrides (the latest
+//! defaults), an env built from it, seeded and reset, and what a bad override's config error
+//! names. Each test file uses some of them.
+#![allow(dead_code)]
+
+use std::sync::Arc;
+
+use _core::error::Error;
+use _core::robot::ActionType;
+use _core::scenario::{Scenario, Source};
+use _core::tasks::load_scenario;
+use _core::tasks::{Env, TaskKind};
+
+/// No scenario file, these TOML overrides, the latest version.
+pub fn source(overrides: &str) -> Source<'_> {
+    Source {
+        file: None,
+        overrides: overrides.parse().expect("overrides"),
+        version: None,
+    }
+}
+
+/// `task`'s scenario (its built-in defaults) with `overrides` (TOML).
+pub fn scenario(task: &str, overrides: &str) -> Scenario {
+    load_scenario(task, &source(overrides)).expect("scenario")
+}
+
+/// An env of `kind` on `cfg` with wheel actions, seeded with `seed` and reset; and its first
+/// observation.
+pub fn env(kind: TaskKind, cfg: Scenario, seed: u64) -> (Env, Vec<f32>) {
+    let spawner = Arc::new(Env::spawner(kind, &cfg).expect("spawner"));
+    let mut env = Env::new(kind, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
+    env.seed(seed);
+    let mut obs = vec![0.0; env.obs_dim()];
+    env.reset(&mut obs);
+    (env, obs)
+}
+
+/// The key and message of the config error `task`'s scenario with `overrides` must raise.
+pub fn config_error(task: &str, overrides: &str) -> (String, String) {
+    match load_scenario(task, &source(overrides)) {
+        Err(Error::Config { key, message, .. }) => (key, message),
+        other => panic!("{overrides}: expected a config error, got {other:?}"),
+    }
+}
