@@ -4,6 +4,8 @@
 //!
 //! Units: metres, radians; robot frame x forward, y left; pixel 0 is the leftmost.
 
+mod common;
+
 use std::sync::Arc;
 
 use _core::error::Error;
@@ -37,14 +39,7 @@ fn env_with(robots: usize, more: &str) -> Env {
         version: None,
     };
     let cfg = load_scenario("multinav", &source).expect("scenario");
-    let spawner = Arc::new(Env::spawner(TaskKind::MultiNav, &cfg).expect("spawner"));
-    let mut env = Env::new(
-        TaskKind::MultiNav,
-        Arc::new(cfg),
-        spawner,
-        ActionType::Wheels,
-    )
-    .expect("env");
+    let mut env = common::build(TaskKind::MultiNav, cfg);
     env.seed(0);
     env
 }

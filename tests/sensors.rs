@@ -2,6 +2,8 @@
 //! known distance, the floor value with nothing in range, and the ultrasonic sensors give
 //! whole centimetres and the real codes.
 
+mod common;
+
 use std::sync::Arc;
 
 use _core::robot::ActionType;
@@ -140,14 +142,7 @@ fn test_sonar_beams_see_what_a_cast_against_every_robot_sees() {
         ..Default::default()
     };
     let cfg = load_scenario("multinav", &source).expect("scenario");
-    let spawner = Arc::new(Env::spawner(TaskKind::MultiNav, &cfg).expect("spawner"));
-    let mut env = Env::new(
-        TaskKind::MultiNav,
-        Arc::new(cfg),
-        spawner,
-        ActionType::Wheels,
-    )
-    .expect("env");
+    let mut env = common::build(TaskKind::MultiNav, cfg);
     env.seed(3);
     let radius = env.world.drive.radius;
     let cast_range = 2.0 + 0.01; // us_max_range + 1 cm, as the sensor casts

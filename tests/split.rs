@@ -6,8 +6,9 @@
 //!
 //! Units: metres, seconds, radians; world frame, arena centred at the origin.
 
+mod common;
+
 use std::f32::consts::PI;
-use std::sync::Arc;
 
 use _core::batch::Batch;
 use _core::robot::ActionType;
@@ -28,18 +29,7 @@ fn source(overrides: &str, swarm: bool) -> Source<'_> {
 /// A multinav env with the latest defaults and `overrides`, seeded and reset.
 fn multinav(overrides: &str, swarm: bool, seed: u64) -> Env {
     let cfg = load_scenario("multinav", &source(overrides, swarm)).expect("scenario");
-    let spawner = Arc::new(Env::spawner(TaskKind::MultiNav, &cfg).expect("spawner"));
-    let mut env = Env::new(
-        TaskKind::MultiNav,
-        Arc::new(cfg),
-        spawner,
-        ActionType::Wheels,
-    )
-    .expect("env");
-    env.seed(seed);
-    let mut obs = vec![0.0; env.obs_dim()];
-    env.reset(&mut obs);
-    env
+    common::env(TaskKind::MultiNav, cfg, seed).0
 }
 
 /// Steps `env` with a constant joint action, ignoring episode ends; calls `each` after a step.

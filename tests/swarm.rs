@@ -5,7 +5,7 @@
 //!
 //! Units: metres; world frame.
 
-use std::sync::Arc;
+mod common;
 
 use _core::robot::ActionType;
 use _core::scenario::{scene, Source};
@@ -24,18 +24,7 @@ fn swarm(overrides: &str, seed: u64) -> Env {
         version: None,
     };
     let cfg = load_scenario("multinav", &source).expect("scenario");
-    let spawner = Arc::new(Env::spawner(TaskKind::MultiNav, &cfg).expect("spawner"));
-    let mut env = Env::new(
-        TaskKind::MultiNav,
-        Arc::new(cfg),
-        spawner,
-        ActionType::Wheels,
-    )
-    .expect("env");
-    env.seed(seed);
-    let mut obs = vec![0.0; env.obs_dim()];
-    env.reset(&mut obs);
-    env
+    common::env(TaskKind::MultiNav, cfg, seed).0
 }
 
 /// Steps `env` with random actions from `seed`; returns every step's observation.

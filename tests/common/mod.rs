@@ -25,11 +25,15 @@ pub fn scenario(task: &str, overrides: &str) -> Scenario {
     load_scenario(task, &source(overrides)).expect("scenario")
 }
 
-/// An env of `kind` on `cfg` with wheel actions, seeded with `seed` and reset; and its first
-/// observation.
-pub fn env(kind: TaskKind, cfg: Scenario, seed: u64) -> (Env, Vec<f32>) {
+/// An env of `kind` on `cfg` with wheel actions, as built (not seeded, not reset).
+pub fn build(kind: TaskKind, cfg: Scenario) -> Env {
     let spawner = Arc::new(Env::spawner(kind, &cfg).expect("spawner"));
-    let mut env = Env::new(kind, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
+    Env::new(kind, Arc::new(cfg), spawner, ActionType::Wheels).expect("env")
+}
+
+/// [`build`], seeded with `seed` and reset; and its first observation.
+pub fn env(kind: TaskKind, cfg: Scenario, seed: u64) -> (Env, Vec<f32>) {
+    let mut env = build(kind, cfg);
     env.seed(seed);
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(&mut obs);
