@@ -15,6 +15,7 @@ use _core::robot::ActionType;
 use _core::scenario::{scene, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
+use common::drive;
 use rand::{Rng, SeedableRng};
 use rapier2d::math::Vector;
 
@@ -30,16 +31,6 @@ fn source(overrides: &str, swarm: bool) -> Source<'_> {
 fn multinav(overrides: &str, swarm: bool, seed: u64) -> Env {
     let cfg = load_scenario("multinav", &source(overrides, swarm)).expect("scenario");
     common::env(TaskKind::MultiNav, cfg, seed).0
-}
-
-/// Steps `env` with a constant joint action, ignoring episode ends; calls `each` after a step.
-fn drive(env: &mut Env, action: &[f32], steps: usize, mut each: impl FnMut(&Env)) {
-    let mut obs = vec![0.0; env.obs_dim()];
-    for _ in 0..steps {
-        env.step(action, &mut obs);
-        env.done = false;
-        each(env);
-    }
 }
 
 /// Three robots in a 4 m × 4 m arena: robots 0 and 1 at `a` and `b`, facing each other; robot 2
@@ -214,8 +205,8 @@ fn test_a_robot_pushed_into_one_left_out_pushes_it_in_turn() {
     // robot 1 on at about half of 0.81 m/s. Robot 2 must be taken in and pushed, not
     // overlapped (rapier's allowed penetration is 1 mm; see the swarm test). (Rapier hands
     // the impact's impulse over at the end of a substep, so robot 1's speed bound sees it
-    // before robot 1 moves on; `take_in_missed` in src/world/split.rs would catch a robot
-    // moved past its bound within the substep.)
+    // before robot 1 moves on; `World::mark_contacts` in src/world/contacts.rs would catch a
+    // robot moved past its bound within the substep.)
     let mut env = multinav(
         "n_robots = 3\nwidth = 4.0\nheight = 4.0\nmax_steps = 100000\nwheel_accel_limit = inf\n\
          [physics]\nsplit = \"robot\"",
@@ -240,16 +231,18 @@ fn test_a_robot_pushed_into_one_left_out_pushes_it_in_turn() {
     );
 }
 
-#[test]
-fn test_a_swarm_split_by_robot_through_the_grid_matches_the_plain_loops() {
-    // 100 robots in 6 m × 6 m (2.8 per m²) with random wheel commands for 6 s, split by robot:
-    // once through the grid (reachability, the contact marks after a substep through the
-    // start's grid widened by the robots' drift, sensing), once through plain loops over every
-    // robot. Poses, velocities, contact marks and observations must be the same bit for bit.
-    let overrides = "n_robots = 100\nwidth = 6.0\nheight = 6.0\nmax_steps = 100000\n\
-                     [physics]\nsplit = \"robot\"";
-    let mut grid = multinav(overrides, false, 11);
-    let mut plain = multinav(overrides, false, 11);
+/// 100 robots in 6 m × 6 m (2.8 per m²) with random wheel commands for 6 s, split as `split`
+/// says: once through the grids (reachability and the contact marks after a substep through
+/// the contact grid, kept while the robots drift little and queries widened by their drift;
+/// sensing), once through plain loops over every robot. Poses, velocities, contact marks and
+/// observations must be the same bit for bit.
+fn grid_matches_plain_loops(split: &str) {
+    let overrides = format!(
+        "n_robots = 100\nwidth = 6.0\nheight = 6.0\nmax_steps = 100000\n\
+         [physics]\nsplit = \"{split}\""
+    );
+    let mut grid = multinav(&overrides, false, 11);
+    let mut plain = multinav(&overrides, false, 11);
     plain.world.grid_min_robots = usize::MAX;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let (mut obs_grid, mut obs_plain) = (vec![0.0; grid.obs_dim()], vec![0.0; plain.obs_dim()]);
@@ -281,4 +274,14 @@ fn test_a_swarm_split_by_robot_through_the_grid_matches_the_plain_loops() {
         contacts > 0,
         "the test world never brought robots into contact"
     );
+}
+
+#[test]
+fn test_a_swarm_split_by_robot_through_the_grid_matches_the_plain_loops() {
+    grid_matches_plain_loops("robot");
+}
+
+#[test]
+fn test_a_swarm_split_by_world_through_the_grid_matches_the_plain_loops() {
+    grid_matches_plain_loops("world");
 }

@@ -127,9 +127,22 @@ impl Grid {
         out[start..].sort_unstable();
     }
 
-    /// The centres the grid was built on, in robot order.
-    pub fn centres(&self) -> &[Vector] {
-        &self.by_index
+    /// The farthest any of `positions` (robot order) lies from the centre the grid holds for
+    /// that robot (m): a query widened by it finds every robot near its position now. Infinite
+    /// when the grid holds another number of robots (or a position is not finite).
+    pub fn drift(&self, positions: impl ExactSizeIterator<Item = Vector>) -> f32 {
+        if positions.len() != self.by_index.len() {
+            return f32::INFINITY;
+        }
+        // A NaN distance (`max` would skip it) counts as infinitely far.
+        let farthest = positions
+            .zip(&self.by_index)
+            .map(|(p, c)| (p - *c).length_squared())
+            .fold(
+                0.0f32,
+                |a, d| if d.is_nan() { f32::INFINITY } else { a.max(d) },
+            );
+        farthest.sqrt()
     }
 
     /// The cell side (m).

@@ -8,6 +8,7 @@
 //!
 //! Units: metres, seconds, radians; world frame with the arena centred at the origin.
 
+mod contacts;
 pub mod floor;
 pub mod grid;
 pub mod layout;
@@ -118,6 +119,10 @@ pub struct World {
     other_leds: Vec<[f32; 3]>,
     #[serde(skip)]
     grid: Grid,
+    /// The grid `physics.split = "robot"` finds contacts through, kept over substeps and
+    /// steps while the robots stay near the centres it holds (`split::World::mark_reachable`).
+    #[serde(skip)]
+    contact_grid: Grid,
     #[serde(skip)]
     speeds: Vec<f32>,
     #[serde(skip)]
@@ -189,6 +194,7 @@ impl World {
             others: Vec::with_capacity(n_robots),
             other_leds: Vec::with_capacity(n_robots),
             grid: Grid::default(),
+            contact_grid: Grid::default(),
             speeds: Vec::new(),
             positions: Vec::new(),
             active: Vec::new(),

@@ -173,21 +173,7 @@ impl World {
             r.position = state.position;
             r.heading = wrap_angle(state.heading);
         }
-        self.mark_contacts(None);
-    }
-
-    /// Marks the robots in contact after a rapier substep (with `only`, just among those it
-    /// marks: the caller knows the others cannot be).
-    pub(super) fn mark_contacts(&mut self, only: Option<&[bool]>) {
-        if self.robots.len() <= self.grid_min_robots {
-            for i in 0..self.robots.len() {
-                if only.is_none_or(|a| a[i]) && self.clearance(i) < CONTACT_TOLERANCE {
-                    self.robots[i].in_contact = true;
-                }
-            }
-            return;
-        }
-        self.mark_contacts_swarm(CONTACT_TOLERANCE, MIN_CELL, only);
+        self.mark_contacts(false);
     }
 
     /// The traction model (v1): the motors follow their speed profile; while a robot rolls
@@ -319,7 +305,7 @@ impl World {
         }
         // Split by robot, `split_substep` marks the contacts (and checks its bounds held).
         if !only {
-            self.mark_contacts(None);
+            self.mark_contacts(false);
         }
     }
 }

@@ -10,15 +10,15 @@
 //! robots' reach at their speed bounds. So no robot left out can touch anything, or be touched
 //! by a robot keeping to its bound. A robot struck within the substep could in principle be
 //! pushed past its bound; the ends are checked, and a robot left out that one met is taken in
-//! and the substep done again (`take_in_missed`; not seen to happen in any run so far, since
-//! rapier hands an impact's impulse over at the end of a substep).
+//! and the substep done again (`World::mark_contacts` in `contacts.rs`; not seen to happen in
+//! any run so far, since rapier hands an impact's impulse over at the end of a substep).
 //!
 //! Units: metres, seconds, radians; world frame.
 
 use rapier2d::math::Vector;
 use rayon::prelude::*;
 
-use super::motion::{roll_left_out, speed_bound, CONTACT_MARGIN, CONTACT_TOLERANCE, MIN_CELL};
+use super::motion::{roll_left_out, speed_bound, CONTACT_MARGIN};
 use super::physics::GRAVITY;
 use super::{Robot, World};
 use crate::robot::Drive;
@@ -95,15 +95,7 @@ impl World {
             // substep again (from the same start; rapier's contacts keep what the first try
             // learnt, so the result is still a function of the world's state). After a few
             // tries, take every robot.
-            let missed = if self.robots.len() > self.grid_min_robots {
-                self.settle_swarm()
-            } else {
-                let active = std::mem::take(&mut self.active);
-                self.mark_contacts(Some(&active));
-                self.active = active;
-                self.take_in_missed()
-            };
-            if !missed {
+            if !self.mark_contacts(true) {
                 return;
             }
             for (r, start) in self.robots.iter_mut().zip(&self.start) {
@@ -113,88 +105,6 @@ impl World {
                 self.active.iter_mut().for_each(|a| *a = true);
             }
         }
-    }
-
-    /// Marks active every robot left out that ended the substep within contact tolerance of
-    /// a robot rapier moved; whether there was any (a world of few robots).
-    fn take_in_missed(&mut self) -> bool {
-        let radius = self.drive.radius;
-        for i in 0..self.robots.len() {
-            if !self.active[i] {
-                continue;
-            }
-            let p = self.robots[i].position;
-            for (j, other) in self.robots.iter().enumerate() {
-                let gap = (other.position - p).length() - 2.0 * radius;
-                if j != i && !self.active[j] && gap < CONTACT_TOLERANCE {
-                    self.missed.push(j as u32);
-                }
-            }
-        }
-        self.take_in()
-    }
-
-    /// In a swarm, after the substep: marks in contact every robot rapier moved that is within
-    /// contact tolerance of the scene or another robot, and takes in every robot left out that
-    /// one of them met (as `take_in_missed`); whether there was any. Only the robots rapier
-    /// moved are looked at, through the grid `mark_reachable` built on the substep's start: a
-    /// robot's end lies within `drift` (the farthest any robot moved since) of its centre
-    /// there, so a query that much wider finds every robot in reach; the distances are the
-    /// ends'. The marks are those of `mark_contacts` over the ends.
-    fn settle_swarm(&mut self) -> bool {
-        let radius = self.drive.radius;
-        let centres = self.grid.centres();
-        let mut drift = if centres.len() == self.robots.len() {
-            let moved = |(r, c): (&Robot, &Vector)| (r.position - *c).length_squared();
-            self.robots
-                .iter()
-                .zip(centres)
-                .map(moved)
-                .fold(0.0f32, f32::max)
-                .sqrt()
-        } else {
-            f32::INFINITY
-        };
-        if !drift.is_finite() {
-            // Not this world's grid, or a robot thrown out of bounds: a grid of the ends.
-            self.grid
-                .build(self.robots.iter().map(|r| r.position), MIN_CELL);
-            drift = 0.0;
-        }
-        // A robot farther than this cannot be within the tolerance.
-        let cutoff = 2.0 * radius + CONTACT_TOLERANCE + 0.001;
-        self.touching.clear();
-        for i in 0..self.robots.len() {
-            if !self.active[i] {
-                continue;
-            }
-            let p = self.robots[i].position;
-            let mut gap = self.scene.clearance(p) - radius;
-            let (robots, active, missed) = (&self.robots, &self.active, &mut self.missed);
-            self.grid.for_each_near(p, cutoff + drift, i, |j, _| {
-                let other = (robots[j as usize].position - p).length() - 2.0 * radius;
-                gap = gap.min(other);
-                if !active[j as usize] && other < CONTACT_TOLERANCE {
-                    missed.push(j);
-                }
-            });
-            if gap < CONTACT_TOLERANCE {
-                self.touching.push(i as u32);
-            }
-        }
-        for &i in &self.touching {
-            self.robots[i as usize].in_contact = true;
-        }
-        self.take_in()
-    }
-
-    /// Marks active the robots `self.missed` lists (emptying it); whether there was any.
-    fn take_in(&mut self) -> bool {
-        let any = !self.missed.is_empty();
-        for j in self.missed.drain(..) {
-            self.active[j as usize] = true;
-        }
-        any
     }
 
     /// Marks active every robot that could touch the scene or another robot within `h` s, given
@@ -208,20 +118,16 @@ impl World {
             return;
         }
         let swarm = self.robots.len() > self.grid_min_robots;
-        if swarm {
-            self.grid
-                .build(self.robots.iter().map(|r| r.position), cutoff.max(MIN_CELL));
+        self.positions.clear();
+        self.positions
+            .extend(self.robots.iter().map(|r| r.position));
+        let drift = if swarm {
+            self.refresh_contact_grid(cutoff)
         } else {
-            self.positions.clear();
-            self.positions
-                .extend(self.robots.iter().map(|r| r.position));
-        }
-        let positions = if swarm {
-            self.grid.centres()
-        } else {
-            &self.positions
+            0.0
         };
-        let (grid, speeds, scene) = (&self.grid, &self.speeds, &self.scene);
+        let positions = &self.positions;
+        let (grid, speeds, scene) = (&self.contact_grid, &self.speeds, &self.scene);
         // Robot i can touch robot j when their gap is within both reaches (symmetric, so each
         // robot decides for itself).
         let check = |(i, active): (usize, &mut bool)| {
@@ -239,7 +145,7 @@ impl World {
             };
             if swarm {
                 let mut touch = false;
-                grid.for_each_near(p, cutoff, i, |j, _| touch |= touches(j as usize));
+                grid.for_each_near(p, cutoff + drift, i, |j, _| touch |= touches(j as usize));
                 *active = touch;
             } else {
                 *active = (0..positions.len()).any(touches);

@@ -110,47 +110,6 @@ impl World {
                 .for_each(|item| read(&mut one, item));
         }
     }
-
-    /// Marks the robots closer than `tolerance` (m) to the scene or another robot as in
-    /// contact, finding the robots through the grid (cells of at least `min_cell` m), in
-    /// parallel inside a batch's pool: the same marks as `World::clearance` of every robot.
-    /// With `only`, only the robots it marks are checked (the caller knows the others cannot
-    /// be in contact).
-    pub(super) fn mark_contacts_swarm(
-        &mut self,
-        tolerance: f32,
-        min_cell: f32,
-        only: Option<&[bool]>,
-    ) {
-        let radius = self.drive.radius;
-        // A robot farther than this cannot be within the tolerance.
-        let cutoff = 2.0 * radius + tolerance + 0.001;
-        self.grid
-            .build(self.robots.iter().map(|r| r.position), cutoff.max(min_cell));
-        let (grid, scene) = (&self.grid, &self.scene);
-        let mark = |(i, robot): (usize, &mut Robot)| {
-            if only.is_some_and(|only| !only[i]) {
-                return;
-            }
-            let p = robot.position;
-            let mut gap = scene.clearance(p) - radius;
-            grid.for_each_near(p, cutoff, i, |_, q| {
-                gap = gap.min((q - p).length() - 2.0 * radius);
-            });
-            if gap < tolerance {
-                robot.in_contact = true;
-            }
-        };
-        if rayon::current_thread_index().is_some() {
-            self.robots
-                .par_iter_mut()
-                .enumerate()
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each(mark);
-        } else {
-            self.robots.iter_mut().enumerate().for_each(mark);
-        }
-    }
 }
 
 /// A thread's copy of the sensor models (whose `read` uses scratch buffers) and its buffers.

@@ -1,6 +1,6 @@
 //! Helpers the integration tests share: a task's scenario from TOML overrides (the latest
-//! defaults), an env built from it, seeded and reset, and what a bad override's config error
-//! names. Each test file uses some of them.
+//! defaults), an env built from it, seeded and reset, driving it with a constant action, and
+//! what a bad override's config error names. Each test file uses some of them.
 #![allow(dead_code)]
 
 use std::sync::Arc;
@@ -38,6 +38,17 @@ pub fn env(kind: TaskKind, cfg: Scenario, seed: u64) -> (Env, Vec<f32>) {
     let mut obs = vec![0.0; env.obs_dim()];
     env.reset(&mut obs);
     (env, obs)
+}
+
+/// Steps `env` with a constant joint `action` for `steps` control steps, ignoring episode ends;
+/// calls `each` after every step.
+pub fn drive(env: &mut Env, action: &[f32], steps: usize, mut each: impl FnMut(&Env)) {
+    let mut obs = vec![0.0; env.obs_dim()];
+    for _ in 0..steps {
+        env.step(action, &mut obs);
+        env.done = false;
+        each(env);
+    }
 }
 
 /// The key and message of the config error `task`'s scenario with `overrides` must raise.
