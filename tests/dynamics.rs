@@ -6,29 +6,17 @@
 //!
 //! Units: metres, seconds, radians; world frame, arena centred at the origin.
 
-use std::f32::consts::FRAC_PI_2;
-use std::sync::Arc;
+mod common;
 
-use _core::robot::ActionType;
-use _core::scenario::Source;
-use _core::tasks::load_scenario;
-use _core::tasks::{Env, TaskKind};
+use std::f32::consts::FRAC_PI_2;
+
+use _core::tasks::{load_scenario, Env, TaskKind};
+use common::drive;
 use rapier2d::math::Vector;
 
 /// An env of `task` with the latest defaults and `overrides`, seeded and reset.
 fn env_of(task: TaskKind, overrides: &str, seed: u64) -> Env {
-    let source = Source {
-        file: None,
-        overrides: overrides.parse().expect("overrides"),
-        version: None,
-    };
-    let cfg = load_scenario(task.name(), &source).expect("scenario");
-    let spawner = Arc::new(Env::spawner(task, &cfg).expect("spawner"));
-    let mut env = Env::new(task, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
-    env.seed(seed);
-    let mut obs = vec![0.0; env.obs_dim()];
-    env.reset(&mut obs);
-    env
+    common::env(task, common::scenario(task.name(), overrides), seed).0
 }
 
 fn nav(overrides: &str) -> Env {
@@ -37,16 +25,6 @@ fn nav(overrides: &str) -> Env {
         &format!("max_steps = 100000\n{overrides}"),
         7,
     )
-}
-
-/// Steps `env` with a constant joint action, ignoring episode ends; calls `each` after a step.
-fn drive(env: &mut Env, action: &[f32], steps: usize, mut each: impl FnMut(&Env)) {
-    let mut obs = vec![0.0; env.obs_dim()];
-    for _ in 0..steps {
-        env.step(action, &mut obs);
-        env.done = false;
-        each(env);
-    }
 }
 
 const V: f32 = 0.4; // m/s, the wall sweep's wheel speed
@@ -574,11 +552,7 @@ fn test_delays_and_odometry_save_and_restore_bit_for_bit() {
 
 #[test]
 fn test_delays_beyond_the_limit_are_config_errors() {
-    let source = Source {
-        file: None,
-        overrides: "observation_delay = 1000000".parse().expect("overrides"),
-        version: None,
-    };
+    let source = common::source("observation_delay = 1000000");
     let e = load_scenario("nav", &source).unwrap_err().to_string();
     assert!(
         e.contains("task.observation_delay: must be at most 100"),

@@ -1,12 +1,12 @@
 //! Physics specification: a robot never leaves the arena, turns in place about its centre, and
 //! drives straight at the commanded speed. Uses the core directly (no Python).
 
-use std::sync::Arc;
+mod common;
 
-use _core::robot::ActionType;
 use _core::scenario::Source;
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
+use common::drive;
 use rapier2d::math::Vector;
 
 fn nav_env(overrides: &str) -> Env {
@@ -22,22 +22,7 @@ fn nav_env_version(overrides: &str, version: Option<u32>) -> Env {
         version,
     };
     let cfg = load_scenario("nav", &source).expect("scenario");
-    let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
-    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
-    env.seed(7);
-    let mut obs = vec![0.0; env.obs_dim()];
-    env.reset(&mut obs);
-    env
-}
-
-/// Steps `env` with a constant action for `steps` control steps, ignoring episode ends.
-fn drive(env: &mut Env, action: [f32; 2], steps: usize, mut each: impl FnMut(&Env)) {
-    let mut obs = vec![0.0; env.obs_dim()];
-    for _ in 0..steps {
-        env.step(&action, &mut obs);
-        env.done = false;
-        each(env);
-    }
+    common::env(TaskKind::Nav, cfg, 7).0
 }
 
 #[test]
@@ -50,7 +35,7 @@ fn test_full_speed_into_walls_never_leaves_arena() {
             .place_robot(0, Vector::new(0.3, -0.2), heading_deg.to_radians());
         let radius = env.world.drive.radius;
         let mut touched = false;
-        drive(&mut env, [1.0, 1.0], 200, |env| {
+        drive(&mut env, &[1.0, 1.0], 200, |env| {
             let p = env.world.robots[0].position;
             // The body may sink into a wall by at most rapier's allowed error (1 mm).
             assert!(
@@ -69,7 +54,7 @@ fn test_robot_slides_along_wall_at_shallow_angle() {
     let mut env = nav_env_version("max_steps = 100000", Some(0));
     env.world
         .place_robot(0, Vector::new(-0.5, 0.85), 10f32.to_radians());
-    drive(&mut env, [0.5, 0.5], 30, |_| {});
+    drive(&mut env, &[0.5, 0.5], 30, |_| {});
     let p = env.world.robots[0].position;
     // It kept moving along +x while held at the wall (y = 1 - radius).
     assert!(p.x > 0.0, "did not slide: {p:?}");
@@ -83,7 +68,7 @@ fn test_turning_in_place_keeps_centre_fixed() {
     let start = Vector::new(0.1, -0.3);
     env.world.place_robot(0, start, 0.4);
     let mut turned = 0.0f32;
-    drive(&mut env, [-1.0, 1.0], 100, |env| {
+    drive(&mut env, &[-1.0, 1.0], 100, |env| {
         let p = env.world.robots[0].position;
         assert!((p - start).length() < 1e-3, "centre drifted to {p:?}");
         turned += env.world.robots[0].yaw_rate * env.world.dt();
@@ -103,7 +88,7 @@ fn test_straight_driving_covers_v_times_t() {
         let mut env = nav_env_version("max_steps = 100000", Some(0));
         env.world.place_robot(0, Vector::new(-0.9, 0.0), 0.0);
         let a = v / 0.813;
-        drive(&mut env, [a, a], 20, |_| {});
+        drive(&mut env, &[a, a], 20, |_| {});
         let dx = env.world.robots[0].position.x + 0.9;
         assert!((dx - v).abs() <= 0.01 * v, "v = {v}: travelled {dx} in 1 s");
     }
@@ -113,7 +98,7 @@ fn test_straight_driving_covers_v_times_t() {
 fn test_acceleration_limit_ramps_speed() {
     let mut env = nav_env("max_steps = 100000\nwheel_accel_limit = 1.0");
     env.world.place_robot(0, Vector::new(-0.9, 0.0), 0.0);
-    drive(&mut env, [1.0, 1.0], 4, |_| {});
+    drive(&mut env, &[1.0, 1.0], 4, |_| {});
     // 0.2 s at 1 m/s² → 0.2 m/s, 0.02 m travelled
     let r = &env.world.robots[0];
     assert!(
