@@ -215,4 +215,39 @@ mod tests {
             assert_eq!(got, brute(&positions, i, 0.2));
         }
     }
+
+    #[test]
+    fn drift_is_the_farthest_any_robot_moved_and_infinite_for_another_grid() {
+        let start = [
+            Vector::new(0.0, 0.0),
+            Vector::new(1.0, 1.0),
+            Vector::new(2.0, 0.0),
+        ];
+        let mut grid = Grid::default();
+        assert_eq!(
+            grid.drift(start.iter().copied()),
+            f32::INFINITY,
+            "empty grid"
+        );
+        grid.build(start.iter().copied(), 0.5);
+        assert_eq!(grid.drift(start.iter().copied()), 0.0);
+        // Robot 1 moved 5 cm (a 3-4-5 triangle), robot 2 moved 3 cm.
+        let moved = [
+            start[0],
+            start[1] + Vector::new(0.03, 0.04),
+            start[2] + Vector::new(0.0, -0.03),
+        ];
+        assert!((grid.drift(moved.iter().copied()) - 0.05).abs() < 1e-6);
+        assert_eq!(
+            grid.drift(start[..2].iter().copied()),
+            f32::INFINITY,
+            "fewer robots"
+        );
+        let lost = [start[0], Vector::new(f32::NAN, 0.0), start[2]];
+        assert_eq!(
+            grid.drift(lost.iter().copied()),
+            f32::INFINITY,
+            "a position not finite"
+        );
+    }
 }
