@@ -5,12 +5,9 @@
 //!
 //! Units: metres, seconds; accelerometer counts of 1 mg; robot frame x forward, y left.
 
-use std::sync::Arc;
+mod common;
 
-use _core::robot::ActionType;
-use _core::scenario::Source;
 use _core::sensors::imu::STANDARD_GRAVITY;
-use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
 
 /// A Nav env whose robot carries the IMU, starts at (`x`, 0) facing +x, and `overrides`.
@@ -19,18 +16,7 @@ fn env_at(x: f32, overrides: &str) -> Env {
         "max_steps = 100000\ncarry = [\"ir\", \"us\", \"gyro\", \"imu\"]\n\
          start = [{x}, 0.0, 0.0]\ngoal = [0.8, 0.8]\n{overrides}"
     );
-    let source = Source {
-        file: None,
-        overrides: text.parse().expect("overrides"),
-        version: None,
-    };
-    let cfg = load_scenario("nav", &source).expect("scenario");
-    let spawner = Arc::new(Env::spawner(TaskKind::Nav, &cfg).expect("spawner"));
-    let mut env = Env::new(TaskKind::Nav, Arc::new(cfg), spawner, ActionType::Wheels).expect("env");
-    env.seed(5);
-    let mut obs = vec![0.0; env.obs_dim()];
-    env.reset(&mut obs);
-    env
+    common::env(TaskKind::Nav, common::scenario("nav", &text), 5).0
 }
 
 /// [`env_at`] x = -0.8.
