@@ -47,18 +47,21 @@ impl World {
             if !cutoff.is_finite() {
                 return true;
             }
-            self.grid
-                .build(self.robots.iter().map(|r| r.position), cutoff.max(MIN_CELL));
-            for (i, r) in self.robots.iter().enumerate() {
+            self.positions.clear();
+            self.positions
+                .extend(self.robots.iter().map(|r| r.position));
+            let widen = self.refresh_contact_grid(cutoff);
+            let (grid, positions) = (&self.contact_grid, &self.positions);
+            for (i, &p) in positions.iter().enumerate() {
                 let reach = self.speeds[i] * duration + CONTACT_MARGIN;
-                if self.scene.clearance(r.position) - radius <= reach {
+                if self.scene.clearance(p) - radius <= reach {
                     return true;
                 }
                 let mut touch = false;
-                self.grid.for_each_near(r.position, cutoff, i, |j, q| {
+                grid.for_each_near(p, cutoff + widen, i, |j, _| {
                     let j = j as usize;
                     if j > i {
-                        let gap = (q - r.position).length() - 2.0 * radius;
+                        let gap = (positions[j] - p).length() - 2.0 * radius;
                         touch |= gap <= reach + self.speeds[j] * duration;
                     }
                 });
