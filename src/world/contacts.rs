@@ -11,10 +11,8 @@ use rayon::prelude::*;
 
 use super::grid::Grid;
 use super::motion::{CONTACT_TOLERANCE, MIN_CELL};
-use super::{Robot, World};
+use super::{Robot, World, MIN_ROBOTS_PER_TASK};
 
-/// Robots a thread checks at least at a time.
-const MIN_ROBOTS_PER_TASK: usize = 32;
 /// Farthest a robot may move from the centre the contact grid holds for it before the grid is
 /// built anew (m; about a control step's travel at full speed): a wider drift widens every
 /// query, so past it a new grid costs less than the queries it spares.

@@ -119,8 +119,9 @@ pub struct World {
     other_leds: Vec<[f32; 3]>,
     #[serde(skip)]
     grid: Grid,
-    /// The grid `physics.split = "robot"` finds contacts through, kept over substeps and
-    /// steps while the robots stay near the centres it holds (`split::World::mark_reachable`).
+    /// The grid a swarm finds contacts through (which robots can touch within a substep, which
+    /// ended it touching), kept over substeps and steps while the robots stay near the centres
+    /// it holds (`contacts::World::refresh_contact_grid`).
     #[serde(skip)]
     contact_grid: Grid,
     #[serde(skip)]
@@ -154,6 +155,10 @@ fn grid_min_robots() -> usize {
 /// their sensors in parallel, each robot with its own random stream (`swarm.rs`). 32 was the
 /// largest world before swarms, so every earlier scenario keeps its random stream.
 pub const GRID_MIN_ROBOTS: usize = 32;
+
+/// Robots a thread takes at least at a time when a swarm's robots are shared among a batch's
+/// threads (smaller shares cost more to hand out than to read or check).
+const MIN_ROBOTS_PER_TASK: usize = 32;
 
 impl World {
     /// A world of `n_robots` robots in `scene`, configured by `cfg`.

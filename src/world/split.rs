@@ -20,11 +20,9 @@ use rayon::prelude::*;
 
 use super::motion::{roll_left_out, speed_bound, CONTACT_MARGIN};
 use super::physics::GRAVITY;
-use super::{Robot, World};
+use super::{Robot, World, MIN_ROBOTS_PER_TASK};
 use crate::robot::Drive;
 
-/// Robots a thread checks at least at a time.
-const MIN_ROBOTS_PER_TASK: usize = 32;
 /// Tries of a substep with more robots taken in before every robot is.
 const MAX_RETRIES: usize = 3;
 

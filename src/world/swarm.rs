@@ -12,11 +12,8 @@ use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 use rayon::prelude::*;
 
-use super::{Robot, World};
+use super::{Robot, World, MIN_ROBOTS_PER_TASK};
 use crate::sensors::{SenseContext, Suite};
-
-/// Robots a thread reads at least at a time (smaller shares cost more to hand out than to read).
-const MIN_ROBOTS_PER_TASK: usize = 32;
 
 impl World {
     /// Reads every robot's sensors, a swarm's way (module doc).
