@@ -6,7 +6,8 @@
 //! `-- 1000` runs only that robot count; `SWARM_THREADS=1` sets the threads (default 2). Worlds
 //! of 100 robots or more run twice: `physics.split = "world"` (the default) and `"robot"`
 //! (rapier steps only the robots that can touch something); `SWARM_SPLIT=world` or `=robot`
-//! runs only one.
+//! runs only one. `SWARM_STEPS=40` times exactly that many steps instead of 3 s (for counting
+//! instructions under `valgrind --tool=cachegrind`, whose figures do not swing with the load).
 
 use std::time::Instant;
 
@@ -24,6 +25,9 @@ fn main() {
         .and_then(|t| t.parse().ok())
         .unwrap_or(2);
     let only_split = std::env::var("SWARM_SPLIT").ok();
+    let fixed_steps: Option<usize> = std::env::var("SWARM_STEPS")
+        .ok()
+        .and_then(|n| n.parse().ok());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let scaled = [4usize, 16, 32, 100, 300, 1000].map(|n| (n, false));
     let cases = scaled
@@ -72,7 +76,10 @@ fn main() {
         }
         let start = Instant::now();
         let mut steps = 0usize;
-        while start.elapsed().as_secs_f64() < 3.0 {
+        while match fixed_steps {
+            Some(n) => steps < n,
+            None => start.elapsed().as_secs_f64() < 3.0,
+        } {
             batch.step(&actions[steps % actions.len()]).expect("step");
             steps += 1;
         }
