@@ -318,20 +318,12 @@ impl Scene {
         if o.x.abs() >= hw || o.y.abs() >= hh {
             return 0.0;
         }
-        let tx = if d.x > 0.0 {
-            (hw - o.x) / d.x
-        } else if d.x < 0.0 {
-            (-hw - o.x) / d.x
-        } else {
-            f32::INFINITY
-        };
-        let ty = if d.y > 0.0 {
-            (hh - o.y) / d.y
-        } else if d.y < 0.0 {
-            (-hh - o.y) / d.y
-        } else {
-            f32::INFINITY
-        };
+        // The wall the ray heads for along each axis is the one on the side of its direction's
+        // sign. Written without branches (rays point every way, so a branch on the sign is
+        // mispredicted about half the time): for a component of +0 or -0 the division gives
+        // +inf, since the origin lies strictly inside (the numerator has the zero's sign).
+        let tx = (hw.copysign(d.x) - o.x) / d.x;
+        let ty = (hh.copysign(d.y) - o.y) / d.y;
         tx.min(ty)
     }
 
@@ -501,6 +493,22 @@ mod tests {
         // arena wall at x = 1
         let t = scene.cast(Vector::ZERO, x, 5.0, &[], 0.0).expect("wall");
         assert!((t - 1.0).abs() < 1e-6);
+        // Rays along an axis, their other component +0 or -0, meet the wall ahead of them
+        // (from (0.3, -0.6) in the 2 m × 2 m arena), not one at infinity nor behind.
+        let o = Vector::new(0.3, -0.6);
+        for (dir, wall) in [
+            (Vector::new(1.0, 0.0), 0.7),
+            (Vector::new(1.0, -0.0), 0.7),
+            (Vector::new(-1.0, 0.0), 1.3),
+            (Vector::new(-1.0, -0.0), 1.3),
+            (Vector::new(0.0, 1.0), 1.6),
+            (Vector::new(-0.0, 1.0), 1.6),
+            (Vector::new(0.0, -1.0), 0.4),
+            (Vector::new(-0.0, -1.0), 0.4),
+        ] {
+            let t = scene.cast_walls(o, dir);
+            assert!((t - wall).abs() < 1e-6, "{dir:?}: {t}");
+        }
         scene
             .shapes
             .push(SceneShape::circle(Vector::new(0.5, 0.0), 0.1));
