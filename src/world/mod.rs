@@ -14,6 +14,7 @@ pub mod grid;
 pub mod layout;
 mod motion;
 pub mod physics;
+pub mod rays;
 pub mod scene;
 mod split;
 mod swarm;
