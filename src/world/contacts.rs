@@ -20,7 +20,7 @@ const REBUILD_DRIFT: f32 = 0.04;
 
 impl World {
     /// Makes the contact grid fit for queries of `cutoff` (m) around the robots' centres now,
-    /// which `self.positions` holds: kept when every robot lies within [`REBUILD_DRIFT`] of its
+    /// which `self.positions` holds (`gather_positions`): kept when every robot lies within [`REBUILD_DRIFT`] of its
     /// centre in the grid and a query widened by that drift spans only the cells next to a
     /// robot's own; built anew on `self.positions` otherwise. Returns the drift to widen
     /// queries by: a robot within `cutoff` of a point now was within `cutoff + drift` of it
@@ -35,6 +35,14 @@ impl World {
         0.0
     }
 
+    /// Copies every robot's centre into `self.positions` (robot order), which the contact
+    /// grid and the pair checks read instead of the robots' large structs.
+    pub(super) fn gather_positions(&mut self) {
+        self.positions.clear();
+        self.positions
+            .extend(self.robots.iter().map(|r| r.position));
+    }
+
     /// Marks in contact every robot rapier moved in the last substep that ended it within
     /// [`CONTACT_TOLERANCE`] of the scene or another robot: every robot, or split by robot
     /// (`split`) those `self.active` marks, since the others kept clear of everything by their
@@ -44,9 +52,7 @@ impl World {
         let radius = self.drive.radius;
         // A robot farther than this cannot be within the tolerance.
         let cutoff = 2.0 * radius + CONTACT_TOLERANCE + 0.001;
-        self.positions.clear();
-        self.positions
-            .extend(self.robots.iter().map(|r| r.position));
+        self.gather_positions();
         let swarm = self.robots.len() > self.grid_min_robots;
         let reach = if swarm {
             cutoff + self.refresh_contact_grid(cutoff)

@@ -47,9 +47,7 @@ impl World {
             if !cutoff.is_finite() {
                 return true;
             }
-            self.positions.clear();
-            self.positions
-                .extend(self.robots.iter().map(|r| r.position));
+            self.gather_positions();
             let widen = self.refresh_contact_grid(cutoff);
             let (grid, positions) = (&self.contact_grid, &self.positions);
             for (i, &p) in positions.iter().enumerate() {

@@ -116,9 +116,7 @@ impl World {
             return;
         }
         let swarm = self.robots.len() > self.grid_min_robots;
-        self.positions.clear();
-        self.positions
-            .extend(self.robots.iter().map(|r| r.position));
+        self.gather_positions();
         let drift = if swarm {
             self.refresh_contact_grid(cutoff)
         } else {
