@@ -171,6 +171,7 @@ fn test_sonar_beams_see_what_a_cast_against_every_robot_sees() {
                     cast_range,
                     scene.shapes.iter(),
                     &others,
+                    &[],
                     radius,
                 )
                 .map_or(cast_range, |h| h.distance);

@@ -58,16 +58,27 @@ fn test_a_world_of_1024_robots_spawns_apart_and_steps_with_finite_observations()
     }
 }
 
+/// The env with `overrides` and `seed`, run `steps` steps through the grid, and the
+/// observations of that run and of a twin's through the plain loops (seeded alike).
+fn through_grid_and_plain(
+    overrides: &str,
+    seed: u64,
+    steps: usize,
+) -> (Env, Vec<Vec<f32>>, Vec<Vec<f32>>) {
+    let mut grid = swarm(overrides, seed);
+    let mut plain = swarm(overrides, seed);
+    plain.world.grid_min_robots = usize::MAX;
+    let a = run(&mut grid, steps, seed + 1);
+    let b = run(&mut plain, steps, seed + 1);
+    (grid, a, b)
+}
+
 #[test]
 fn test_the_grid_gives_the_results_of_looking_at_every_robot() {
     // A crowded 100-robot world (6 m arena: 2.8 robots per m²), so that sensors see robots and
     // contacts happen; once through the grid, once through the plain loops.
     let overrides = "n_robots = 100\nwidth = 6.0\nheight = 6.0";
-    let mut grid = swarm(overrides, 3);
-    let mut plain = swarm(overrides, 3);
-    plain.world.grid_min_robots = usize::MAX;
-    let a = run(&mut grid, 120, 4);
-    let b = run(&mut plain, 120, 4);
+    let (grid, a, b) = through_grid_and_plain(overrides, 3, 120);
     assert!(a == b, "the grid changed the trajectory");
     let touched = grid.world.robots.iter().filter(|r| r.in_contact).count();
     let seen = a.last().expect("steps")[..8].iter().any(|&ir| ir > 0.05);
@@ -75,6 +86,29 @@ fn test_the_grid_gives_the_results_of_looking_at_every_robot() {
         touched > 0 || seen,
         "the test world never brought robots near each other"
     );
+}
+
+#[test]
+fn test_the_grid_gives_the_camera_and_sonar_images_of_looking_at_every_robot() {
+    // The grid lists the robots near a robot cell by cell, not in robot order; what the sonars
+    // and the camera make of the robot they meet (its surface normal, its LEDs) must not
+    // depend on that order.
+    let overrides = "n_robots = 100\nwidth = 6.0\nheight = 6.0\n\
+                     carry = [\"ir\", \"us\", \"gyro\", \"camera\"]\n\
+                     observe = [\"ir\", \"us\", \"camera\"]";
+    let (grid, a, b) = through_grid_and_plain(overrides, 5, 60);
+    assert!(a == b, "the grid changed the trajectory or the images");
+    // Robot 0's camera saw robots: a pixel (r, g, b, depth / range, after the IR ring and the
+    // sonars) with something in range that is not a wall (the scene has no obstacles).
+    assert!(grid.world.scene.shapes.is_empty());
+    let walls = grid.world.scene.wall_color;
+    let camera = 8 + 5;
+    let robots_seen = a.iter().any(|obs| {
+        obs[camera..camera + 4 * 32]
+            .chunks(4)
+            .any(|px| px[3] < 0.99 && px[..3].iter().zip(walls).any(|(v, w)| (v - w).abs() > 1e-3))
+    });
+    assert!(robots_seen, "the camera never saw a robot");
 }
 
 #[test]

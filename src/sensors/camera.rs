@@ -83,11 +83,21 @@ impl Camera {
         match target {
             Target::Wall => ctx.scene.wall_color,
             Target::Shape(shape) => shape.color,
-            Target::Disc(c) => ctx
+            // The LEDs of the robot of smallest index centred there (the first in robot order).
+            Target::Disc(c) if ctx.other_ids.is_empty() => ctx
                 .others
                 .iter()
                 .position(|o| o == c)
                 .and_then(|j| ctx.other_leds.get(j).copied())
+                .unwrap_or([0.0, 0.0, 0.0]),
+            Target::Disc(c) => ctx
+                .others
+                .iter()
+                .zip(ctx.other_ids)
+                .enumerate()
+                .filter(|(_, (o, _))| *o == c)
+                .min_by_key(|(_, (_, id))| **id)
+                .and_then(|(j, _)| ctx.other_leds.get(j).copied())
                 .unwrap_or([0.0, 0.0, 0.0]),
         }
     }
@@ -185,6 +195,7 @@ impl Sensor for Camera {
                     self.range,
                     ctx.scene.shapes.iter(),
                     ctx.others,
+                    ctx.other_ids,
                     ctx.radius,
                 );
                 if let Some(h) = hit {

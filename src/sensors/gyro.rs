@@ -122,6 +122,7 @@ mod tests {
             radius: 0.07,
             others: &[],
             other_leds: &[],
+            other_ids: &[],
             robot_reflectance: 1.0,
             yaw_rate: 1.0,
             acceleration: rapier2d::math::Vector::ZERO,

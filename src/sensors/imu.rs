@@ -195,6 +195,7 @@ mod tests {
             radius: 0.07,
             others: &[],
             other_leds: &[],
+            other_ids: &[],
             robot_reflectance: 1.0,
             yaw_rate,
             acceleration,

@@ -239,6 +239,9 @@ impl Sensor for IrRing {
                 self.model.range,
                 near,
                 &self.near_others,
+                // Every robot's shell reflects alike: which of two robots met at the same
+                // distance is hit does not change the reading, so their order does not matter.
+                &[],
                 radius,
             );
             let reflectance = hit.map_or(1.0, |h| h.reflectance(ctx.scene, ctx.robot_reflectance));

@@ -51,11 +51,16 @@ pub struct SenseContext<'a> {
     pub sin_cos: (f32, f32),
     /// Body radius of every robot (m); sensors sit on the rim.
     pub radius: f32,
-    /// Centres of the other robots of the world (m), in robot order: all of them, or in a
-    /// world of many robots those within the suite's [`Sensor::reach`].
+    /// Centres of the other robots of the world (m): all of them in robot order, or in a
+    /// world of many robots those within the suite's [`Sensor::reach`], in any order.
     pub others: &'a [Vector],
     /// Their LED colours (RGB in [0, 1]), in the same order: what a camera sees of them.
     pub other_leds: &'a [[f32; 3]],
+    /// Their indices in the world, in the same order, when `others` is not in robot order (a
+    /// swarm's grid finds them cell by cell); empty when it is. Readings must not depend on
+    /// the order: where two robots are met at exactly the same distance, the one of larger
+    /// index is hit, as a scan in robot order gives ([`Scene::cast_hit`]).
+    pub other_ids: &'a [u32],
     /// Infrared reflectance of the robots' shells (relative to white paper).
     pub robot_reflectance: f32,
     /// The robot's yaw rate over the last step (rad/s).

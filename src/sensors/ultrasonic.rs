@@ -119,9 +119,13 @@ pub struct Ultrasonic {
     pub acceptance_cos: f32,
     #[serde(skip, default = "us_dirs")]
     dirs: [Vector; US_COUNT],
-    /// Scratch: the other robots a ray can meet (not behind the robot), in robot order.
+    /// Scratch: the other robots a ray can meet (not behind the robot), in the order of
+    /// `SenseContext::others`.
     #[serde(skip)]
     ahead: Vec<Vector>,
+    /// Scratch: their indices, when `SenseContext::other_ids` gives them (else empty).
+    #[serde(skip)]
+    ahead_ids: Vec<u32>,
 }
 
 impl Ultrasonic {
@@ -158,6 +162,7 @@ impl Sensor for Ultrasonic {
             },
             dirs: us_dirs(),
             ahead: Vec::new(),
+            ahead_ids: Vec::new(),
         }
     }
 
@@ -231,8 +236,8 @@ impl Sensor for Ultrasonic {
         let (s, c) = ctx.sin_cos;
         // Every beam points ahead or sideways (bearings within ±90°) from the rim: a robot whose
         // centre lies more than a radius (plus 1 mm for rounding) behind the robot's centre
-        // cannot be met, so the rays skip it; the robots kept are in the same order, and the
-        // readings are those of a cast against all of them.
+        // cannot be met, so the rays skip it; the robots kept are in the same order (with
+        // their indices, if given), and the readings are those of a cast against all of them.
         //
         // Nor can a beam meet a disc whose centre lies farther than a radius from the beam's
         // line: a robot farther than that (plus 1 mm, far above rounding) from all five lines
@@ -242,7 +247,8 @@ impl Sensor for Ultrasonic {
         let behind = -(ctx.radius + 0.001);
         let corridor = ctx.radius + 0.001;
         self.ahead.clear();
-        for &q in ctx.others {
+        self.ahead_ids.clear();
+        for (k, &q) in ctx.others.iter().enumerate() {
             let d = q - ctx.position;
             let (x, y) = (d.dot(forward), d.dot(left));
             let mut on_a_line = false;
@@ -251,6 +257,9 @@ impl Sensor for Ultrasonic {
             }
             if x >= behind && on_a_line {
                 self.ahead.push(q);
+                if let Some(&id) = ctx.other_ids.get(k) {
+                    self.ahead_ids.push(id);
+                }
             }
         }
         for k in 0..US_COUNT {
@@ -262,6 +271,7 @@ impl Sensor for Ultrasonic {
                 cast_range,
                 ctx.scene.shapes.iter(),
                 &self.ahead,
+                &self.ahead_ids,
                 ctx.radius,
             );
             // A surface hit at a grazing angle reflects the ping away: no echo from it.

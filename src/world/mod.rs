@@ -329,6 +329,7 @@ impl World {
                 radius: self.drive.radius,
                 others: &self.others,
                 other_leds: &self.other_leds,
+                other_ids: &[],
                 robot_reflectance: self.robot_reflectance,
                 yaw_rate: robot.yaw_rate,
                 acceleration: robot.acceleration,

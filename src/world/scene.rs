@@ -261,13 +261,16 @@ impl Scene {
         discs: &[Vector],
         disc_radius: f32,
     ) -> Option<f32> {
-        self.cast_hit(origin, dir, max, shapes, discs, disc_radius)
+        self.cast_hit(origin, dir, max, shapes, discs, &[], disc_radius)
             .map(|hit| hit.distance)
     }
 
     /// Like [`Scene::cast_among`], also saying what was hit (for its surface normal and
-    /// reflectance).
+    /// reflectance). `ids` are the discs' robot indices when `discs` are not in robot order,
+    /// or empty when they are: of two discs met at exactly the same distance the hit is the
+    /// one of larger index, as a scan in robot order gives, whatever the order of `discs`.
     #[inline]
+    #[allow(clippy::too_many_arguments)]
     pub fn cast_hit<'a>(
         &self,
         origin: Vector,
@@ -275,6 +278,7 @@ impl Scene {
         max: f32,
         shapes: impl Iterator<Item = &'a SceneShape>,
         discs: &[Vector],
+        ids: &[u32],
         disc_radius: f32,
     ) -> Option<Hit<'a>> {
         let mut best = max;
@@ -295,10 +299,30 @@ impl Scene {
                 }
             }
         }
-        for &c in discs {
-            if let Some(t) = ray_disc(origin, dir, c, disc_radius, best) {
-                best = t;
-                target = Some(Target::Disc(c));
+        if ids.is_empty() {
+            // In robot order a disc met at the distance so far (`t == best`) comes later: it
+            // takes the hit, over a shape or an earlier disc.
+            for &c in discs {
+                if let Some(t) = ray_disc(origin, dir, c, disc_radius, best) {
+                    best = t;
+                    target = Some(Target::Disc(c));
+                }
+            }
+        } else {
+            // In any other order, the same choice: nearer, or as near and of larger index
+            // (`key` = index + 1, 0 for a shape, the wall or nothing, which a disc met at the
+            // same distance replaces as above).
+            debug_assert_eq!(ids.len(), discs.len(), "one index per disc");
+            let mut best_key = 0;
+            for (&c, &id) in discs.iter().zip(ids) {
+                if let Some(t) = ray_disc(origin, dir, c, disc_radius, best) {
+                    let key = id + 1;
+                    if t < best || key > best_key {
+                        best = t;
+                        best_key = key;
+                        target = Some(Target::Disc(c));
+                    }
+                }
             }
         }
         target.map(|target| Hit {

@@ -53,14 +53,16 @@ impl World {
         let read = |scratch: &mut Scratch, (i, robot): (usize, &mut Robot)| {
             scratch.others.clear();
             scratch.leds.clear();
+            scratch.near.clear();
             if use_grid {
-                scratch.near.clear();
-                grid.near(robot.position, reach_of(robot), i, &mut scratch.near);
-                let near = scratch.near.iter().map(|&j| positions[j as usize]);
-                scratch.others.extend(near);
-                scratch
-                    .leds
-                    .extend(scratch.near.iter().map(|&j| leds[j as usize]));
+                // In the grid's cell order, with their indices: sorting them into robot order
+                // cost a seventh of the mispredicted branches of a step, and the readings do
+                // not depend on the order (`SenseContext::other_ids`).
+                grid.for_each_near(robot.position, reach_of(robot), i, |j, q| {
+                    scratch.near.push(j);
+                    scratch.others.push(q);
+                    scratch.leds.push(leds[j as usize]);
+                });
             } else {
                 let all = positions.iter().enumerate().filter(|(j, _)| *j != i);
                 scratch.others.extend(all.map(|(_, p)| *p));
@@ -76,6 +78,7 @@ impl World {
                 radius,
                 others: &scratch.others,
                 other_leds: &scratch.leds,
+                other_ids: &scratch.near,
                 robot_reflectance,
                 yaw_rate: robot.yaw_rate,
                 acceleration: robot.acceleration,
