@@ -112,3 +112,74 @@ fn test_acceleration_limit_ramps_speed() {
         r.position
     );
 }
+
+/// `steps` seeded random steps (mostly forward) of an Avoid env (seed `seed`), through `step`,
+/// which steps the env it is given; returns the observations and how many steps left the robot
+/// in contact.
+fn avoid_run(
+    seed: u64,
+    steps: usize,
+    mut step: impl FnMut(&mut Env, &[f32], &mut [f32]),
+) -> (Vec<Vec<f32>>, usize) {
+    use rand::{Rng, SeedableRng};
+    let cfg = load_scenario("avoid", &Source::default()).expect("scenario");
+    let (mut env, mut obs) = common::env(TaskKind::Avoid, cfg, seed);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut contacts = 0;
+    let all = (0..steps)
+        .map(|_| {
+            let action = [rng.random_range(-0.2..1.0), rng.random_range(-0.2..1.0)];
+            step(&mut env, &action, &mut obs);
+            env.done = false;
+            contacts += usize::from(env.world.robots[0].in_contact);
+            obs.clone()
+        })
+        .collect();
+    (all, contacts)
+}
+
+#[test]
+fn test_worlds_stepped_in_turn_on_one_thread_step_as_each_alone() {
+    // Rapier's pipeline (its workspace) is one per thread, shared by every world the thread
+    // steps: a world must step the same whichever worlds the thread stepped before. Each world
+    // alone, on a thread of its own (a new pipeline)...
+    let steps = 400;
+    let alone: Vec<_> = [1u64, 2, 3]
+        .map(|seed| {
+            std::thread::spawn(move || {
+                avoid_run(seed, steps, |e, a, o| {
+                    e.step(a, o);
+                })
+            })
+        })
+        .into_iter()
+        .map(|h| h.join().expect("thread"))
+        .collect();
+    // ...and the three stepped in turn on this one, step by step.
+    let cfg = load_scenario("avoid", &Source::default()).expect("scenario");
+    let mut others: Vec<Env> = [2u64, 3]
+        .map(|seed| common::env(TaskKind::Avoid, cfg.clone(), seed).0)
+        .into();
+    let mut rngs: Vec<rand_chacha::ChaCha8Rng> =
+        [2u64, 3].map(rand::SeedableRng::seed_from_u64).into();
+    let mut scratch = vec![0.0; others[0].obs_dim()];
+    let (first, contacts) = avoid_run(1, steps, |env, action, obs| {
+        env.step(action, obs);
+        for (other, rng) in others.iter_mut().zip(&mut rngs) {
+            use rand::Rng;
+            let a = [rng.random_range(-0.2..1.0), rng.random_range(-0.2..1.0)];
+            other.step(&a, &mut scratch);
+            other.done = false;
+        }
+    });
+    // Mostly forward at random: the robots drive into obstacles and walls and stay there a while.
+    let touched = [contacts, alone[1].1, alone[2].1];
+    assert!(
+        touched.iter().all(|&c| c > 20),
+        "steps in contact: {touched:?}"
+    );
+    assert!(
+        first == alone[0].0,
+        "stepping other worlds in between changed world 1"
+    );
+}

@@ -15,9 +15,11 @@
 //! Units: metres, seconds, radians, m/s, rad/s; world frame, arena centred at the origin.
 
 use rapier2d::math::{Pose, Vector};
+use std::cell::RefCell;
+
 use rapier2d::prelude::{
     ActiveHooks, ColliderBuilder, ColliderHandle, ContactModificationContext, PhysicsHooks,
-    PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
+    PhysicsPipeline, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
 
 use super::scene::{Geometry, Scene};
@@ -31,6 +33,38 @@ pub struct Physics {
     robots: Vec<RigidBodyHandle>,
     /// What the world was built with, to build it again for a new scene.
     params: PhysicsParams,
+}
+
+thread_local! {
+    /// Rapier's pipeline, one per thread for every world stepped on it. It is workspace only
+    /// (solver buffers, broad-phase events; rapier does not serialise it, and a restored world,
+    /// with a new one, steps bit for bit as the original), so which one steps a world does not
+    /// change the results. One per world went cold between a world's contacts: in a batch of
+    /// 1,024 worlds each contact step read its world's buffers from memory. The one memo it
+    /// keeps across steps, the joint selection, is empty in every world (no joints).
+    static PIPELINE: RefCell<PhysicsPipeline> = RefCell::new(PhysicsPipeline::new());
+}
+
+/// One rapier step of `world` through this thread's pipeline.
+fn step_world(world: &mut PhysicsWorld, hooks: &dyn PhysicsHooks) {
+    debug_assert!(world.impulse_joints.is_empty());
+    PIPELINE.with_borrow_mut(|pipeline| {
+        pipeline.step(
+            world.gravity,
+            &world.integration_parameters,
+            &mut world.islands,
+            &mut world.broad_phase,
+            &mut world.narrow_phase,
+            &mut world.bodies,
+            &mut world.colliders,
+            &mut world.impulse_joints,
+            &mut world.multibody_joints,
+            &mut world.soft_bodies,
+            &mut world.ccd_solver,
+            hooks,
+            &(),
+        );
+    });
 }
 
 /// Standard gravity (m/s²): the robots' weight presses the tyres on the floor.
@@ -226,7 +260,7 @@ impl Physics {
                 body.set_angvel(w, true);
             }
         }
-        self.world.step();
+        step_world(&mut self.world, &());
         for (state, handle) in states.iter_mut().zip(&self.robots) {
             if let Some(body) = self.world.bodies.get(*handle) {
                 let pose = body.position();
@@ -285,7 +319,7 @@ impl Physics {
             wall: self.params.friction,
             robot: self.params.robot_friction,
         };
-        self.world.step_with_events(&hooks, &());
+        step_world(&mut self.world, &hooks);
         for (i, (state, handle)) in bodies.iter_mut().zip(&self.robots).enumerate() {
             if !takes_part(i) {
                 continue;
