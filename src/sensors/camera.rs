@@ -83,22 +83,18 @@ impl Camera {
         match target {
             Target::Wall => ctx.scene.wall_color,
             Target::Shape(shape) => shape.color,
-            // The LEDs of the robot of smallest index centred there (the first in robot order).
-            Target::Disc(c) if ctx.other_ids.is_empty() => ctx
-                .others
-                .iter()
-                .position(|o| o == c)
-                .and_then(|j| ctx.other_leds.get(j).copied())
-                .unwrap_or([0.0, 0.0, 0.0]),
-            Target::Disc(c) => ctx
-                .others
-                .iter()
-                .zip(ctx.other_ids)
-                .enumerate()
-                .filter(|(_, (o, _))| *o == c)
-                .min_by_key(|(_, (_, id))| **id)
-                .and_then(|(j, _)| ctx.other_leds.get(j).copied())
-                .unwrap_or([0.0, 0.0, 0.0]),
+            // The LEDs of the robot of smallest index centred there: `other_ids` holds the
+            // others' indices, or is empty when the others come in robot order.
+            Target::Disc(c) => {
+                let index = |j: usize| ctx.other_ids.get(j).map_or(j, |&id| id as usize);
+                ctx.others
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, o)| *o == c)
+                    .min_by_key(|(j, _)| index(*j))
+                    .and_then(|(j, _)| ctx.other_leds.get(j).copied())
+                    .unwrap_or([0.0, 0.0, 0.0])
+            }
         }
     }
 

@@ -20,11 +20,12 @@ const REBUILD_DRIFT: f32 = 0.04;
 
 impl World {
     /// Makes the contact grid fit for queries of `cutoff` (m) around the robots' centres now,
-    /// which `self.positions` holds (`gather_positions`): kept when every robot lies within [`REBUILD_DRIFT`] of its
-    /// centre in the grid and a query widened by that drift spans only the cells next to a
-    /// robot's own; built anew on `self.positions` otherwise. Returns the drift to widen
-    /// queries by: a robot within `cutoff` of a point now was within `cutoff + drift` of it
-    /// when the grid was built, so the widened query finds every robot a grid built now would.
+    /// which `self.positions` holds (`gather_positions`): kept when every robot lies within
+    /// [`REBUILD_DRIFT`] of its centre in the grid and a query widened by that drift spans only
+    /// the cells next to a robot's own; built anew on `self.positions` otherwise. Returns the
+    /// drift to widen queries by: a robot within `cutoff` of a point now was within
+    /// `cutoff + drift` of it when the grid was built, so the widened query finds every robot a
+    /// grid built now would.
     pub(super) fn refresh_contact_grid(&mut self, cutoff: f32) -> f32 {
         let drift = self.contact_grid.drift(self.positions.iter().copied());
         if drift <= REBUILD_DRIFT && cutoff + drift <= self.contact_grid.cell() {

@@ -14,9 +14,9 @@
 //!
 //! Units: metres, seconds, radians, m/s, rad/s; world frame, arena centred at the origin.
 
-use rapier2d::math::{Pose, Vector};
 use std::cell::RefCell;
 
+use rapier2d::math::{Pose, Vector};
 use rapier2d::prelude::{
     ActiveHooks, ColliderBuilder, ColliderHandle, ContactModificationContext, PhysicsHooks,
     PhysicsPipeline, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
@@ -41,7 +41,8 @@ thread_local! {
     /// with a new one, steps bit for bit as the original), so which one steps a world does not
     /// change the results. One per world went cold between a world's contacts: in a batch of
     /// 1,024 worlds each contact step read its world's buffers from memory. The one memo it
-    /// keeps across steps, the joint selection, is empty in every world (no joints).
+    /// keeps across steps, the joint selection, is empty in every world (no joints); a world
+    /// with joints would need a pipeline of its own.
     static PIPELINE: RefCell<PhysicsPipeline> = RefCell::new(PhysicsPipeline::new());
 }
 
