@@ -52,7 +52,10 @@ fn first_difference(saved: &str, current: &str) -> String {
     "different lengths".into()
 }
 
-/// Smallest number of worlds a rayon task takes (amortises scheduling).
+/// Smallest number of worlds a rayon task takes (amortises scheduling), for worlds of up to
+/// [`GRID_MIN_ROBOTS`](crate::world::GRID_MIN_ROBOTS) robots. A swarm's world (more robots) is
+/// worth a task of its own: with 8, the 10 worlds of 100 robots or 3 of 300 went to one task,
+/// so one thread stepped them all and the other only helped with their sensing.
 const MIN_WORLDS_PER_TASK: usize = 8;
 
 /// One world with its observation slot, its action and its outcome slot.
@@ -66,6 +69,8 @@ pub struct Batch {
     envs: Vec<Env>,
     pool: Option<rayon::ThreadPool>,
     num_threads: usize,
+    /// Smallest number of worlds a rayon task takes: [`MIN_WORLDS_PER_TASK`], or 1 for swarms.
+    worlds_per_task: usize,
     autoreset: bool,
     obs_dim: usize,
     act_dim: usize,
@@ -140,6 +145,7 @@ impl Batch {
             envs,
             pool,
             num_threads,
+            worlds_per_task: if swarm { 1 } else { MIN_WORLDS_PER_TASK },
             autoreset,
             obs_dim,
             act_dim,
@@ -310,11 +316,11 @@ impl Batch {
             }
         }
         self.outcomes.fill(StepOutcome::default());
-        let obs_dim = self.obs_dim;
+        let (obs_dim, worlds_per_task) = (self.obs_dim, self.worlds_per_task);
         let work = |envs: &mut [Env], obs: &mut [f32]| {
             envs.par_iter_mut()
                 .zip(obs.par_chunks_mut(obs_dim))
-                .with_min_len(MIN_WORLDS_PER_TASK)
+                .with_min_len(worlds_per_task)
                 .for_each(|(env, o)| env.reset(o));
         };
         match &self.pool {
@@ -378,6 +384,7 @@ impl Batch {
             }
         }
         let (obs_dim, act_dim) = (self.obs_dim, self.act_dim);
+        let worlds_per_task = self.worlds_per_task;
         let step_one = |((env, o), (a, out)): WorldSlot| {
             if env.done {
                 env.reset(o);
@@ -396,7 +403,7 @@ impl Batch {
                             .par_chunks(act_dim)
                             .zip(self.outcomes.par_iter_mut()),
                     )
-                    .with_min_len(MIN_WORLDS_PER_TASK)
+                    .with_min_len(worlds_per_task)
                     .for_each(step_one)
             }),
             None => self

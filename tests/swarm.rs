@@ -158,16 +158,15 @@ fn batch(overrides: &str, worlds: usize, threads: usize) -> _core::batch::Batch 
     batch
 }
 
-#[test]
-fn test_a_swarm_gives_the_same_results_on_one_thread_or_two() {
-    // Two threads read one world's robots in parallel; the results may not depend on it.
-    let overrides = "n_robots = 300\nwidth = 11.0\nheight = 11.0";
-    let mut one = batch(overrides, 1, 1);
-    let mut two = batch(overrides, 1, 2);
+/// Steps `worlds` worlds of `overrides` on one thread and on two with the same random actions
+/// and asserts the same observations and poses, bit for bit.
+fn same_on_one_thread_or_two(overrides: &str, worlds: usize) {
+    let mut one = batch(overrides, worlds, 1);
+    let mut two = batch(overrides, worlds, 2);
     assert_eq!(two.num_threads(), 2);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     for _ in 0..40 {
-        let action: Vec<f32> = (0..one.act_dim())
+        let action: Vec<f32> = (0..worlds * one.act_dim())
             .map(|_| rng.random_range(-0.2..1.0))
             .collect();
         one.step(&action).expect("step");
@@ -175,12 +174,23 @@ fn test_a_swarm_gives_the_same_results_on_one_thread_or_two() {
         assert!(one.obs() == two.obs());
     }
     let poses = |b: &_core::batch::Batch| {
-        b.envs()[0]
-            .world
-            .robots
+        b.envs()
             .iter()
-            .map(|r| (r.position, r.heading))
+            .flat_map(|env| env.world.robots.iter().map(|r| (r.position, r.heading)))
             .collect::<Vec<_>>()
     };
     assert_eq!(poses(&one), poses(&two));
+}
+
+#[test]
+fn test_a_swarm_gives_the_same_results_on_one_thread_or_two() {
+    // Two threads read one world's robots in parallel; the results may not depend on it.
+    same_on_one_thread_or_two("n_robots = 300\nwidth = 11.0\nheight = 11.0", 1);
+}
+
+#[test]
+fn test_a_batch_of_swarms_gives_the_same_results_on_one_thread_or_two() {
+    // Each world of a swarm is a task of its own, and its robots are read in parallel inside
+    // it: neither may change the results.
+    same_on_one_thread_or_two("n_robots = 100\nwidth = 7.0\nheight = 7.0", 3);
 }
