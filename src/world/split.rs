@@ -65,17 +65,35 @@ impl World {
         let grip = self.tyre_friction * GRAVITY * h;
         let ratio = self.inertia_per_mass() / self.drive.axle_length;
         let gain = self.drive.wheel_accel_limit * h;
+        let n = self.robots.len();
         self.active.clear();
+        self.active.resize(n, false);
         self.speeds.clear();
+        self.speeds.resize(n, 0.0);
         // One pass over the robots: motors, grip, and the speed bound `mark_reachable` needs.
-        for r in &mut self.robots {
+        // Robot by robot, so a swarm shares it among the batch's threads.
+        let drive = &self.drive;
+        let pass = |((r, active), speed): ((&mut Robot, &mut bool), &mut f32)| {
             (r.wheel_setpoint, r.wheel_speeds) =
-                self.drive
-                    .motors(r.wheel_setpoint, r.wheel_speeds, r.wheel_command, h);
+                drive.motors(r.wheel_setpoint, r.wheel_speeds, r.wheel_command, h);
             r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
             r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
-            self.active.push(!grips(&self.drive, r, ratio, grip, h));
-            self.speeds.push(speed_bound(r, gain));
+            *active = !grips(drive, r, ratio, grip, h);
+            *speed = speed_bound(r, gain);
+        };
+        if n > self.grid_min_robots && rayon::current_thread_index().is_some() {
+            self.robots
+                .par_iter_mut()
+                .zip(self.active.par_iter_mut())
+                .zip(self.speeds.par_iter_mut())
+                .with_min_len(MIN_ROBOTS_PER_TASK)
+                .for_each(pass);
+        } else {
+            self.robots
+                .iter_mut()
+                .zip(self.active.iter_mut())
+                .zip(self.speeds.iter_mut())
+                .for_each(pass);
         }
         self.mark_reachable(h);
         // The substep's start, to go back to should rapier push a robot into one left out.
