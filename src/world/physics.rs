@@ -21,6 +21,7 @@ use rapier2d::prelude::{
     ActiveHooks, ColliderBuilder, ColliderHandle, ContactModificationContext, PhysicsHooks,
     PhysicsPipeline, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
+use rayon::prelude::*;
 
 use super::scene::{Geometry, Scene};
 
@@ -33,7 +34,14 @@ pub struct Physics {
     robots: Vec<RigidBodyHandle>,
     /// What the world was built with, to build it again for a new scene.
     params: PhysicsParams,
+    /// Scratch of `step_traction`: each body's pose, velocity and yaw rate to hand to rapier
+    /// (None: left out of the substep).
+    #[serde(skip)]
+    targets: Vec<Option<(Pose, Vector, f32)>>,
 }
+
+/// Fewest bodies a rayon task reads back (a swarm's, see `step_traction`).
+const PARALLEL_MIN_BODIES: usize = 32;
 
 thread_local! {
     /// Rapier's pipeline, one per thread for every world stepped on it. It is workspace only
@@ -191,6 +199,7 @@ impl Physics {
             world,
             robots,
             params,
+            targets: Vec::new(),
         }
     }
 
@@ -277,12 +286,14 @@ impl Physics {
     /// (`physics.split = "robot"`) only the robots it marks take part: the others' bodies are
     /// disabled in rapier (no contacts, no integration, no broad-phase update) and their entries
     /// in `bodies` left as they are; the caller guarantees that none of them can touch anything
-    /// during the substep.
+    /// during the substep. `parallel`: read the results back on the current rayon pool's
+    /// threads (a swarm inside a batch's pool; the results are the same either way).
     pub fn step_traction(
         &mut self,
         bodies: &mut [TractionBody],
         active: Option<&[bool]>,
         grip: Grip,
+        parallel: bool,
     ) {
         let mass = self.params.mass;
         // A uniform disc [E]: the body's mass spread over the shell's footprint.
@@ -290,8 +301,28 @@ impl Physics {
         let h = self.params.substep_dt;
         let cap = grip.tyre_friction * 0.5 * mass * GRAVITY * h;
         let takes_part = |i: usize| active.is_none_or(|a| a[i]);
-        for (i, (state, handle)) in bodies.iter_mut().zip(&self.robots).enumerate() {
-            if !takes_part(i) {
+        // Each taking part: its pose, and its velocities after the tyres' impulses. Robot by
+        // robot (a sine and cosine each), so a swarm shares it among the batch's threads; rapier
+        // is then handed them one after another.
+        let target = |(i, state): (usize, &TractionBody)| {
+            takes_part(i).then(|| {
+                let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
+                let pose = Pose::new(state.position, state.heading);
+                (pose, state.velocity + dv, state.spin + dw)
+            })
+        };
+        self.targets.clear();
+        if parallel {
+            let each = bodies
+                .par_iter()
+                .enumerate()
+                .with_min_len(PARALLEL_MIN_BODIES);
+            self.targets.par_extend(each.map(target));
+        } else {
+            self.targets.extend(bodies.iter().enumerate().map(target));
+        }
+        for (target, handle) in self.targets.iter().zip(&self.robots) {
+            let Some((pose, velocity, spin)) = target else {
                 // A body already disabled is left untouched: `get_mut` would put it on rapier's
                 // list of modified bodies, which the step then walks for nothing (in a swarm
                 // split by robot, most of the bodies every substep).
@@ -306,32 +337,48 @@ impl Physics {
                     }
                 }
                 continue;
-            }
+            };
             let Some(body) = self.world.bodies.get_mut(*handle) else {
                 continue;
             };
             body.set_enabled(true);
-            let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
-            body.set_position(Pose::new(state.position, state.heading), true);
-            body.set_linvel(state.velocity + dv, true);
-            body.set_angvel(state.spin + dw, true);
+            body.set_position(*pose, true);
+            body.set_linvel(*velocity, true);
+            body.set_angvel(*spin, true);
         }
         let hooks = PairFriction {
             wall: self.params.friction,
             robot: self.params.robot_friction,
         };
         step_world(&mut self.world, &hooks);
-        for (i, (state, handle)) in bodies.iter_mut().zip(&self.robots).enumerate() {
+        // Reading the poses back (an atan2 each) only reads rapier's bodies: robot by robot, so
+        // a swarm shares it among the batch's threads.
+        let rapier_bodies = &self.world.bodies;
+        let read = |(i, (state, handle)): (usize, (&mut TractionBody, &RigidBodyHandle))| {
             if !takes_part(i) {
-                continue;
+                return;
             }
-            if let Some(body) = self.world.bodies.get(*handle) {
+            if let Some(body) = rapier_bodies.get(*handle) {
                 let pose = body.position();
                 state.position = pose.translation;
                 state.heading = pose.rotation.angle();
                 state.velocity = body.linvel();
                 state.spin = body.angvel();
             }
+        };
+        if parallel {
+            bodies
+                .par_iter_mut()
+                .zip(self.robots.par_iter())
+                .enumerate()
+                .with_min_len(PARALLEL_MIN_BODIES)
+                .for_each(read);
+        } else {
+            bodies
+                .iter_mut()
+                .zip(&self.robots)
+                .enumerate()
+                .for_each(read);
         }
     }
 }
