@@ -55,6 +55,7 @@ impl World {
         let cutoff = 2.0 * radius + CONTACT_TOLERANCE + 0.001;
         self.gather_positions();
         let swarm = self.robots.len() > self.grid_min_robots;
+        let share = self.share_robots();
         let reach = if swarm {
             cutoff + self.refresh_contact_grid(cutoff)
         } else {
@@ -100,7 +101,7 @@ impl World {
                 robot.in_contact = true;
             }
         };
-        if swarm && rayon::current_thread_index().is_some() {
+        if share {
             self.robots
                 .par_iter_mut()
                 .enumerate()

@@ -304,6 +304,14 @@ impl World {
         gap
     }
 
+    /// Whether to share this world's robots among the threads of the rayon pool it runs in: a
+    /// swarm (more than `grid_min_robots` robots) stepped inside a batch's pool. The results are
+    /// the same either way, since each robot's share of the work depends only on the world's
+    /// state.
+    pub(super) fn share_robots(&self) -> bool {
+        self.robots.len() > self.grid_min_robots && rayon::current_thread_index().is_some()
+    }
+
     /// Reads every robot's sensors (with noise from the world's stream), robot after robot; a
     /// swarm (more than [`GRID_MIN_ROBOTS`] robots) reads them as [`World::sense_swarm`] says.
     /// `fresh` (at reset) makes every sensor take a new reading, whatever its refresh period.

@@ -280,8 +280,7 @@ impl World {
             tyre_friction: self.tyre_friction,
         };
         let active = only.then_some(self.active.as_slice());
-        let parallel =
-            self.robots.len() > self.grid_min_robots && rayon::current_thread_index().is_some();
+        let parallel = self.share_robots();
         let (physics, traction) = (&mut self.physics, &mut self.traction);
         let mut step = || physics.step_traction(traction, active, grip, parallel);
         if let Some(h) = roll_others {

@@ -40,7 +40,7 @@ pub struct Physics {
     targets: Vec<Option<(Pose, Vector, f32)>>,
 }
 
-/// Fewest bodies a rayon task reads back (a swarm's, see `step_traction`).
+/// Fewest bodies a rayon task takes in `step_traction` (a swarm's, shared among threads).
 const PARALLEL_MIN_BODIES: usize = 32;
 
 thread_local! {
@@ -286,8 +286,9 @@ impl Physics {
     /// (`physics.split = "robot"`) only the robots it marks take part: the others' bodies are
     /// disabled in rapier (no contacts, no integration, no broad-phase update) and their entries
     /// in `bodies` left as they are; the caller guarantees that none of them can touch anything
-    /// during the substep. `parallel`: read the results back on the current rayon pool's
-    /// threads (a swarm inside a batch's pool; the results are the same either way).
+    /// during the substep. `parallel`: compute the bodies' targets and read rapier's results
+    /// back on the current rayon pool's threads (a swarm inside a batch's pool; the results are
+    /// the same either way). Rapier's step itself runs on the calling thread.
     pub fn step_traction(
         &mut self,
         bodies: &mut [TractionBody],

@@ -81,7 +81,7 @@ impl World {
             *active = !grips(drive, r, ratio, grip, h);
             *speed = speed_bound(r, gain);
         };
-        if n > self.grid_min_robots && rayon::current_thread_index().is_some() {
+        if self.share_robots() {
             self.robots
                 .par_iter_mut()
                 .zip(self.active.par_iter_mut())
@@ -134,6 +134,7 @@ impl World {
             return;
         }
         let swarm = self.robots.len() > self.grid_min_robots;
+        let share = self.share_robots();
         self.gather_positions();
         let drift = if swarm {
             self.refresh_contact_grid(cutoff)
@@ -165,7 +166,7 @@ impl World {
                 *active = (0..positions.len()).any(touches);
             }
         };
-        if swarm && rayon::current_thread_index().is_some() {
+        if share {
             self.active
                 .par_iter_mut()
                 .enumerate()
