@@ -163,13 +163,15 @@ fn test_worlds_stepped_in_turn_on_one_thread_step_as_each_alone() {
     let mut rngs: Vec<rand_chacha::ChaCha8Rng> =
         [2u64, 3].map(rand::SeedableRng::seed_from_u64).into();
     let mut scratch = vec![0.0; others[0].obs_dim()];
+    let mut seen: Vec<Vec<Vec<f32>>> = vec![Vec::new(); others.len()];
     let (first, contacts) = avoid_run(1, steps, |env, action, obs| {
         env.step(action, obs);
-        for (other, rng) in others.iter_mut().zip(&mut rngs) {
+        for ((other, rng), seen) in others.iter_mut().zip(&mut rngs).zip(&mut seen) {
             use rand::Rng;
             let a = [rng.random_range(-0.2..1.0), rng.random_range(-0.2..1.0)];
             other.step(&a, &mut scratch);
             other.done = false;
+            seen.push(scratch.clone());
         }
     });
     // Mostly forward at random: the robots drive into obstacles and walls and stay there a while.
@@ -182,4 +184,11 @@ fn test_worlds_stepped_in_turn_on_one_thread_step_as_each_alone() {
         first == alone[0].0,
         "stepping other worlds in between changed world 1"
     );
+    for (k, seen) in seen.iter().enumerate() {
+        assert!(
+            *seen == alone[k + 1].0,
+            "stepping other worlds in between changed world {}",
+            k + 2
+        );
+    }
 }

@@ -65,10 +65,9 @@ impl World {
         let grip = self.tyre_friction * GRAVITY * h;
         let ratio = self.inertia_per_mass() / self.drive.axle_length;
         let gain = self.drive.wheel_accel_limit * h;
+        // One slot per robot, each written by the pass below.
         let n = self.robots.len();
-        self.active.clear();
         self.active.resize(n, false);
-        self.speeds.clear();
         self.speeds.resize(n, 0.0);
         // One pass over the robots: motors, grip, and the speed bound `mark_reachable` needs.
         // Robot by robot, so a swarm shares it among the batch's threads.
