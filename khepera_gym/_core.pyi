@@ -179,6 +179,13 @@ def tasks() -> list[tuple[str, str | None, list[str]]]:
     """The tasks, in registry order: (name, Gymnasium id without version or None, names of its
     extra episode statistics)."""
 
+def task_versions(name: str) -> list[int]:
+    """The behaviour versions of a task, oldest first (from the version that added it)."""
+
+def motor_presets() -> list[tuple[str, str, str]]:
+    """The named drives of ``motors.preset``: (name, the ``[drive]`` keys it sets as TOML, who
+    sets it on the real robot)."""
+
 def controllers() -> list[tuple[str, str]]:
     """The controllers: (name, the task whose default observation it reads)."""
 

@@ -6,7 +6,7 @@
 //! Layers, each using only those above it (docs/extending.md walks through them):
 //! * `error`, `config` (how scenario tables are declared and overlaid), `obs` (observation
 //!   layouts by name), `draw` (what tasks and sensors ask the renderer to draw);
-//! * `robot` (body, drive, units, `[robot]`), `odometry` (dead reckoning), `world::scene`
+//! * `robot` (body, drive, units, `[robot]`), `drive` (the motor controller's mode, `[drive]`), `odometry` (dead reckoning), `world::scene`
 //!   (geometry and ray casts);
 //! * `sensors` (one file a sensor, behind the `Sensor` contract);
 //! * `scenario` (the scenario: shared sections, loading, validation);
@@ -20,6 +20,7 @@ pub mod config;
 pub mod controllers;
 pub mod draw;
 pub mod error;
+pub mod motors;
 pub mod obs;
 pub mod odometry;
 pub mod render;

@@ -5,6 +5,7 @@
 
 use crate::config::Param;
 use crate::error::{Error, Result};
+use crate::motors::MotorsConfig;
 
 /// Body radius (m): 140.8 mm diameter in the mechanical drawing.
 pub const BODY_RADIUS: f32 = 0.0704;
@@ -35,9 +36,9 @@ crate::config_table! {
         max_wheel_speed: Param = 0.813,
         /// m/s; smaller commands give 0 (the real PID's floor, manual §4.14.1)
         min_wheel_speed: f32 = 0.003,
-        /// m/s^2 per wheel: K-Team's default speed profile, Acc_Inc 3 speed units (0.678 mm/s each) per 10 ms = 0.203 m/s^2 (manual §4.14.2-3, spec §1); the Braitenberg demo's Acc_Inc 10 gives 0.678, Webots' motor 2.74; inf = none; may be a finite range
+        /// m/s^2 per wheel, the acceleration of motors.mode = "ramp" only (v0: inf = none; v1: 0.2034543, K-Team's default profile rate, 3 speed units of 0.678 mm/s per 10 ms, manual §4.14.2); the other modes set theirs in [drive]; may be a finite range
         wheel_accel_limit: Param = 0.2034543,
-        /// s, first-order lag of each wheel after the speed profile (0 = none) [E]
+        /// s, first-order lag of each wheel behind its order (the PID's response), in every drive mode (0 = none) [E]
         motor_time_constant: f32 = 0.0,
         /// kg [E]: K-Team's usual figure; Webots uses 0.606; may be a range
         mass: Param = 0.54,
@@ -153,20 +154,24 @@ pub struct Drive {
     /// Time constant (s) of each wheel's first-order lag behind its speed profile; 0 for none.
     #[serde(default)]
     pub motor_time_constant: f32,
+    /// The speed profile's smallest nonzero order (m/s, `motors.min_speed_acc`): a smaller order
+    /// is raised to it, and the order jumps between it and 0; 0 outside profile mode.
+    pub min_order: f32,
 }
 
 impl Drive {
-    /// Drive parameters from a validated `[robot]` table.
+    /// Drive parameters from validated `[robot]` and `[drive]` tables.
     /// Ranges (domain randomisation) start at their low end until `World::randomise`.
-    pub fn from_config(cfg: &RobotConfig) -> Self {
+    pub fn from_config(cfg: &RobotConfig, drive: &MotorsConfig) -> Self {
         Self {
             radius: cfg.radius,
             wheel_radius: cfg.wheel_radius,
             axle_length: cfg.axle_length.bounds().0,
             max_wheel_speed: cfg.max_wheel_speed.bounds().0,
             min_wheel_speed: cfg.min_wheel_speed,
-            wheel_accel_limit: cfg.wheel_accel_limit.bounds().0,
+            wheel_accel_limit: drive.accel(cfg).bounds().0,
             motor_time_constant: cfg.motor_time_constant,
+            min_order: drive.min_order(),
         }
     }
 
@@ -199,23 +204,60 @@ impl Drive {
         [self.floor(left), self.floor(right)]
     }
 
+    /// The dead band (orders under the PID's floor give 0), then the profile's minimum order
+    /// (a smaller nonzero order is raised to it; none outside profile mode).
     fn floor(&self, speed: f32) -> f32 {
         if speed.abs() < self.min_wheel_speed {
             0.0
+        } else if speed.abs() < self.min_order {
+            self.min_order.copysign(speed)
         } else {
             speed
         }
     }
 
+    /// The most a wheel's speed can change over `duration` seconds (m/s): the acceleration
+    /// limit's share, plus the profile's jump between rest and its minimum order.
+    pub fn max_speed_change(&self, duration: f32) -> f32 {
+        self.wheel_accel_limit * duration + self.min_order
+    }
+
     /// Moves the actual wheel speeds toward the commands within the acceleration limit over `dt`.
+    /// With a profile's minimum order ([`Drive::min_order`] > 0), a nonzero order below it is
+    /// raised to it and the speed never lies strictly between 0 and it: from rest it starts at
+    /// the minimum, and toward rest (or through it) it drops from the minimum to 0, as the
+    /// figure of manual §4.14.2 shows (its ~50 ms pause at the minimum is not modelled: at most
+    /// 13.6 mm/s × 50 ms = 0.7 mm [D]).
     pub fn ramp(&self, actual: [f32; 2], command: [f32; 2], dt: f32) -> [f32; 2] {
         if !self.wheel_accel_limit.is_finite() {
             return command;
         }
         let step = self.wheel_accel_limit * dt;
+        if self.min_order <= 0.0 {
+            return [
+                actual[0] + (command[0] - actual[0]).clamp(-step, step),
+                actual[1] + (command[1] - actual[1]).clamp(-step, step),
+            ];
+        }
+        let least = self.min_order;
+        let profile = |speed: f32, order: f32| {
+            let order = if order != 0.0 && order.abs() < least {
+                least.copysign(order)
+            } else {
+                order
+            };
+            let ramped = speed + (order - speed).clamp(-step, step);
+            if ramped == 0.0 || ramped.abs() >= least {
+                ramped
+            } else if order == 0.0 || order.signum() != ramped.signum() {
+                0.0
+            } else {
+                least.copysign(order)
+            }
+        };
         [
-            actual[0] + (command[0] - actual[0]).clamp(-step, step),
-            actual[1] + (command[1] - actual[1]).clamp(-step, step),
+            profile(actual[0], command[0]),
+            profile(actual[1], command[1]),
         ]
     }
 
@@ -288,6 +330,7 @@ mod tests {
             min_wheel_speed: MIN_WHEEL_SPEED,
             wheel_accel_limit: f32::INFINITY,
             motor_time_constant: 0.0,
+            min_order: 0.0,
         }
     }
 
@@ -326,6 +369,29 @@ mod tests {
         let mut d = drive();
         d.wheel_accel_limit = 2.0;
         assert_eq!(d.ramp([0.0, 0.0], [0.8, -0.8], 0.1), [0.2, -0.2]);
+    }
+
+    #[test]
+    fn the_profile_jumps_between_rest_and_its_minimum_order() {
+        // K-Team's default profile (manual §4.14.2's figure): 3 units per 10 ms, minimum 20.
+        let mut d = drive();
+        d.wheel_accel_limit = crate::motors::profile_accel(3.0, 0);
+        d.min_order = units_to_speed(20);
+        let unit = units_to_speed(1);
+        let h = 0.01;
+        // From rest toward 100 units: straight to 20, then 3 units a period.
+        let s = d.ramp([0.0, 0.0], [100.0 * unit, -100.0 * unit], h);
+        assert!((s[0] - 20.0 * unit).abs() < 1e-6 && (s[1] + 20.0 * unit).abs() < 1e-6);
+        let s = d.ramp(s, [100.0 * unit, -100.0 * unit], h);
+        assert!((s[0] - 23.0 * unit).abs() < 1e-6, "{s:?}");
+        // An order below the minimum is raised to it.
+        let s = d.ramp([0.0, 0.0], [5.0 * unit, 0.0], h);
+        assert!((s[0] - 20.0 * unit).abs() < 1e-6 && s[1] == 0.0, "{s:?}");
+        // Toward rest: down to the minimum, then 0; through rest: 0, then the other sign's.
+        let s = d.ramp([21.0 * unit, 21.0 * unit], [0.0, -50.0 * unit], h);
+        assert_eq!(s, [0.0, 0.0]);
+        let s = d.ramp(s, [0.0, -50.0 * unit], h);
+        assert!(s[0] == 0.0 && (s[1] + 20.0 * unit).abs() < 1e-6, "{s:?}");
     }
 
     #[test]

@@ -96,7 +96,8 @@ fn test_straight_driving_covers_v_times_t() {
 
 #[test]
 fn test_acceleration_limit_ramps_speed() {
-    let mut env = nav_env("max_steps = 100000\nwheel_accel_limit = 1.0");
+    // v1's drive: a plain ramp at robot.wheel_accel_limit (tests/drive.rs specifies v2's).
+    let mut env = nav_env_version("max_steps = 100000\nwheel_accel_limit = 1.0", Some(1));
     env.world.place_robot(0, Vector::new(-0.9, 0.0), 0.0);
     drive(&mut env, &[1.0, 1.0], 4, |_| {});
     // 0.2 s at 1 m/s² → 0.2 m/s, 0.02 m travelled

@@ -50,15 +50,16 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
     #: Task name in the Rust core.
     TASK: ClassVar[str] = ""
     #: Registered versions (``KheperaIV-<Task>-v<n>``) and the scenario keywords each one
-    #: passes, so that an older version keeps its behaviour (see the manual's Version History).
-    VERSIONS: ClassVar[dict[int, dict[str, Any]]] = {
-        version: {VERSION_KEY: version} for version in range(_core.LATEST_VERSION + 1)
-    }
+    #: passes, so that an older version keeps its behaviour (see the manual's Version History):
+    #: every version of the task the core knows, from the one that added it (set per subclass).
+    VERSIONS: ClassVar[dict[int, dict[str, Any]]] = {}
     _WORLD: ClassVar[int | None] = 0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         if cls.TASK:
+            if "VERSIONS" not in cls.__dict__:
+                cls.VERSIONS = {v: {VERSION_KEY: v} for v in _core.task_versions(cls.TASK)}
             ENV_CLASSES.setdefault(cls.TASK, cls)
 
     def __init__(

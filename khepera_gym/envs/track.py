@@ -6,13 +6,12 @@ The manual is the class's docstring. Units are SI (m, s, rad); robot frame x for
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
 
 from khepera_gym.baselines import Kanayama
-from khepera_gym.config import VERSION_KEY
 from khepera_gym.envs.base import KheperaEnv
 
 
@@ -195,8 +194,6 @@ class TrackEnv(KheperaEnv):
     """
 
     TASK: ClassVar[str] = "track"
-    #: Only v1: the task was added with the v1 dynamics.
-    VERSIONS: ClassVar[dict[int, dict[str, Any]]] = {1: {VERSION_KEY: 1}}
 
 
 # --- heuristic policy: Kanayama's tracking controller of khepera_gym.baselines ------------------

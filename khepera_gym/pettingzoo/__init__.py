@@ -25,20 +25,30 @@ from __future__ import annotations
 
 from khepera_gym.pettingzoo import (
     consensus_v1,
+    consensus_v2,
     drone_follow_v1,
+    drone_follow_v2,
     formation_v0,
     formation_v1,
+    formation_v2,
     multinav_v0,
     multinav_v1,
+    multinav_v2,
     platoon_v1,
+    platoon_v2,
 )
 
 __all__ = [
     "consensus_v1",
+    "consensus_v2",
     "drone_follow_v1",
+    "drone_follow_v2",
     "formation_v0",
     "formation_v1",
+    "formation_v2",
     "multinav_v0",
     "multinav_v1",
+    "multinav_v2",
     "platoon_v1",
+    "platoon_v2",
 ]

@@ -27,6 +27,24 @@ pub fn tasks() -> Vec<(&'static str, Option<&'static str>, Vec<&'static str>)> {
         .collect()
 }
 
+/// The behaviour versions of task `name`, oldest first: from the version that added it to the
+/// latest.
+#[pyfunction]
+pub fn task_versions(py: Python<'_>, name: &str) -> PyResult<Vec<u32>> {
+    let kind = task_kind(py, name)?;
+    Ok((kind.info().schema.since..=scenario::LATEST_VERSION).collect())
+}
+
+/// The named drives (`motors.preset`): (name, the `[drive]` keys it sets as TOML, who sets it on
+/// the real robot).
+#[pyfunction]
+pub fn motor_presets() -> Vec<(&'static str, &'static str, &'static str)> {
+    crate::motors::PRESETS
+        .iter()
+        .map(|p| (p.name, p.settings, p.source))
+        .collect()
+}
+
 /// The controllers, in registry order: (name, the task whose observation it reads by default).
 #[pyfunction]
 pub fn controllers() -> Vec<(&'static str, &'static str)> {

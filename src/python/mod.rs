@@ -24,6 +24,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<policy::PyPolicy>()?;
     m.add_function(wrap_pyfunction!(batch::_batch_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(functions::tasks, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::task_versions, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::motor_presets, m)?)?;
     m.add_function(wrap_pyfunction!(functions::controllers, m)?)?;
     m.add_function(wrap_pyfunction!(functions::controller_params, m)?)?;
     m.add_function(wrap_pyfunction!(functions::formation_offsets, m)?)?;

@@ -22,6 +22,7 @@ use toml::{Table, Value};
 
 use crate::config::{self, ConfigTable, KeyDoc, OVERRIDE_ORIGIN};
 use crate::error::{Error, Result};
+use crate::motors::MotorsConfig;
 use crate::odometry::OdometryConfig;
 use crate::robot::RobotConfig;
 use crate::sensors::SensorsConfig;
@@ -65,6 +66,8 @@ pub struct Section {
 #[derive(Debug, Clone)]
 pub struct Scenario {
     pub robot: RobotConfig,
+    /// `[motors]`, resolved (a named preset replaced by its settings).
+    pub motors: MotorsConfig,
     pub arena: ArenaConfig,
     pub obstacles: ObstacleConfig,
     pub spawn: SpawnConfig,
@@ -95,8 +98,8 @@ pub struct Source<'a> {
     pub version: Option<u32>,
 }
 
-/// The behaviour version of the current defaults (the `-v1` environments).
-pub const LATEST_VERSION: u32 = 1;
+/// The behaviour version of the current defaults (the `-v2` environments).
+pub const LATEST_VERSION: u32 = 2;
 
 /// Largest action or observation delay (control steps): 5 s at the default 50 ms, far beyond
 /// the real robot's latencies; each pending step keeps an observation per world.
@@ -110,6 +113,7 @@ pub const MAX_ARENA_SIDE: f32 = 1000.0;
 fn shared_sections() -> Vec<(&'static str, Vec<KeyDoc>)> {
     vec![
         ("robot", RobotConfig::KEYS.to_vec()),
+        ("motors", MotorsConfig::KEYS.to_vec()),
         ("arena", ArenaConfig::KEYS.to_vec()),
         ("obstacles", ObstacleConfig::KEYS.to_vec()),
         ("spawn", SpawnConfig::KEYS.to_vec()),
@@ -186,18 +190,19 @@ impl TaskSchema {
     /// Loads the task's scenario: its defaults, then the file, then the overrides. Values are
     /// validated; layouts are checked when a batch builds its spawner.
     pub fn load(&self, source: &Source) -> Result<Scenario> {
-        let mut table = self.defaults_table(source.version)?;
-        let mut scenario =
-            Scenario::from_table(&table, self, &format!("<built-in:{}>", self.name))?;
+        let defaults = self.defaults_table(source.version)?;
+        let mut table = defaults.clone();
+        let origin = format!("<built-in:{}>", self.name);
+        let mut scenario = Scenario::from_table(&table, &defaults, self, &origin)?;
         if let Some((text, name)) = source.file {
             let file = config::parse(text, name)?;
             config::overlay(&mut table, &file, "", name)?;
-            scenario = Scenario::from_table(&table, self, name)?;
+            scenario = Scenario::from_table(&table, &defaults, self, name)?;
         }
         if !source.overrides.is_empty() {
             let over = config::expand_overrides(&table, &source.overrides)?;
             config::overlay(&mut table, &over, "", OVERRIDE_ORIGIN)?;
-            scenario = Scenario::from_table(&table, self, OVERRIDE_ORIGIN)?;
+            scenario = Scenario::from_table(&table, &defaults, self, OVERRIDE_ORIGIN)?;
         }
         // A floor image's relative path starts at the scenario file's folder.
         let dir = source
@@ -211,7 +216,14 @@ impl TaskSchema {
 }
 
 impl Scenario {
-    fn from_table(table: &Table, schema: &TaskSchema, origin: &str) -> Result<Self> {
+    /// Reads and checks a whole scenario `table`; `defaults` is the version's default table (a
+    /// drive key the mode does not use may not differ from it).
+    fn from_table(
+        table: &Table,
+        defaults: &Table,
+        schema: &TaskSchema,
+        origin: &str,
+    ) -> Result<Self> {
         let section = |name: &str| -> Table {
             match table.get(name) {
                 Some(Value::Table(t)) => t.clone(),
@@ -225,6 +237,7 @@ impl Scenario {
         }
         let scenario = Scenario {
             robot: RobotConfig::from_table(&section("robot"), origin, "robot")?,
+            motors: MotorsConfig::resolve(table, defaults, origin)?,
             arena: ArenaConfig::from_table(&section("arena"), origin, "arena")?,
             obstacles: ObstacleConfig::from_table(&section("obstacles"), origin, "obstacles")?,
             spawn: SpawnConfig::from_table(&section("spawn"), origin, "spawn")?,
@@ -263,6 +276,11 @@ impl Scenario {
         let mut out = String::new();
         let mut sections: Vec<(&str, Vec<KeyDoc>, Table)> = vec![
             ("robot", RobotConfig::KEYS.to_vec(), as_table(&self.robot)),
+            (
+                "motors",
+                MotorsConfig::KEYS.to_vec(),
+                as_table(&self.motors),
+            ),
             ("arena", ArenaConfig::KEYS.to_vec(), as_table(&self.arena)),
             (
                 "obstacles",
@@ -376,6 +394,13 @@ impl Scenario {
                 format!("must be in 1..=64, got {}", self.physics.solver_iterations),
             );
         }
+        let prediction = self.physics.contact_prediction;
+        if !prediction.is_finite() || !(0.0..=1.0).contains(&prediction) {
+            return bad(
+                "physics.contact_prediction",
+                format!("must be a finite number in [0, 1] m, got {prediction}"),
+            );
+        }
         if self.physics.dt > 1.0 {
             return bad(
                 "physics.dt",
@@ -462,10 +487,21 @@ mod tests {
         assert_eq!(v0.task.max_steps, 400);
         assert!(v0.robot.wheel_accel_limit.max().is_infinite());
         assert_eq!(v0.physics.drive, DriveModel::Kinematic);
+        let v1 = NAV
+            .load(&Source {
+                version: Some(1),
+                ..Default::default()
+            })
+            .expect("nav v1");
+        // v1: the K-Team firmware's speed profile rate, 3 units per 10 ms (spec §3), as a ramp.
+        assert_eq!(v1.motors.mode, crate::motors::MotorMode::Ramp);
+        assert!((v1.motors.accel(&v1.robot).max() - 0.2034543).abs() < 1e-6);
+        assert_eq!(v1.physics.drive, DriveModel::Traction);
         let s = NAV.load(&Source::default()).expect("nav");
         assert_eq!(s.task.max_steps, 400);
-        // v1: the K-Team firmware's speed profile, 3 units per 10 ms (spec §3).
-        assert!((s.robot.wheel_accel_limit.max() - 0.2034543).abs() < 1e-6);
+        // v2: K-Team's profile at Acc_Inc 40, 2.71 m/s^2.
+        assert_eq!(s.motors.mode, crate::motors::MotorMode::Profile);
+        assert!((s.motors.accel(&s.robot).max() - 2.712724).abs() < 1e-5);
         assert_eq!(s.physics.drive, DriveModel::Traction);
         let e = NAV
             .load(&Source {
@@ -474,7 +510,8 @@ mod tests {
             })
             .unwrap_err()
             .to_string();
-        assert!(e.contains("version 2 does not exist"), "{e}");
+        let expected = format!("version {} does not exist", LATEST_VERSION + 1);
+        assert!(e.contains(&expected), "{e}");
         let text = s.to_toml();
         assert!(text.contains("radius = 0.0704\n"), "{text}");
         let back = NAV

@@ -374,6 +374,10 @@ crate::config_table! {
         robot_friction: Param = 0.7,
         /// which robots rapier steps while something can be touched or a tyre slips (traction drive): "world" steps them all (v1); "robot" only those that can touch something or slip, the others rolling on exact arcs (faster in swarms, and exact for them)
         split: MotionSplit = "world",
+        /// split = "robot" only: true lets a world whose robots all keep their wheel speeds, grip and can touch nothing roll each one arc over the whole step (v1; a free robot's path then depends in its last bits on whether other robots were in contact); false rolls them substep by substep, each robot's path its own
+        whole_step_arc: bool = false,
+        /// m: rapier makes a contact when two shapes come this close, before they touch; 0 = 1.25 x what two robots at full speed close in one substep (2 x 0.813 m/s x 25 ms: 5.1 cm at the defaults), at least rapier's default 0.02, so that such an impact meets its contact before the robots overlap (v1: 0.02, and head-on impacts at full speed overlapped by up to 1 cm)
+        contact_prediction: f32 = 0.0,
     }
 }
 

@@ -101,6 +101,8 @@ pub struct World {
     /// Whether a contact substep steps only the robots that can touch something or slip
     /// (`physics.split = "robot"`; traction drive).
     split_robots: bool,
+    /// Whether a world split by robot may roll one arc over the whole step (`physics.whole_step_arc`).
+    whole_step_arc: bool,
     /// Tyre–floor friction coefficient of this episode (traction model).
     tyre_friction: f32,
     /// Infrared reflectance of the robots' shells.
@@ -161,10 +163,22 @@ pub const GRID_MIN_ROBOTS: usize = 32;
 /// threads (smaller shares cost more to hand out than to read or check).
 const MIN_ROBOTS_PER_TASK: usize = 32;
 
+/// Rapier's contact prediction distance (m) for `cfg`: `physics.contact_prediction`, or when it
+/// is 0, 1.25 × the distance two robots at full speed close in one substep, at least rapier's
+/// default 0.02 m.
+fn contact_prediction(cfg: &Scenario) -> f32 {
+    let given = cfg.physics.contact_prediction;
+    if given > 0.0 {
+        return given;
+    }
+    let substep = cfg.physics.dt / cfg.physics.substeps as f32;
+    (1.25 * 2.0 * cfg.robot.max_wheel_speed.max() * substep).max(0.02)
+}
+
 impl World {
     /// A world of `n_robots` robots in `scene`, configured by `cfg`.
     pub fn new(cfg: &Scenario, scene: Scene, n_robots: usize) -> Self {
-        let drive = Drive::from_config(&cfg.robot);
+        let drive = Drive::from_config(&cfg.robot, &cfg.motors);
         let physics = Physics::new(
             &scene,
             PhysicsParams {
@@ -176,6 +190,7 @@ impl World {
                 substep_dt: cfg.physics.dt / cfg.physics.substeps as f32,
                 solver_iterations: cfg.physics.solver_iterations as usize,
                 traction: cfg.physics.drive == DriveModel::Traction,
+                contact_prediction: contact_prediction(cfg),
             },
         );
         Self {
@@ -191,6 +206,7 @@ impl World {
             substeps: cfg.physics.substeps,
             drive_model: cfg.physics.drive,
             split_robots: cfg.physics.split == MotionSplit::Robot,
+            whole_step_arc: cfg.physics.whole_step_arc,
             tyre_friction: cfg.robot.tyre_friction.bounds().0,
             robot_reflectance: cfg.robot.shell_reflectance,
             robot_led: cfg.robot.led_color,
@@ -219,7 +235,7 @@ impl World {
         let rng = &mut self.rng;
         self.drive.axle_length = r.axle_length.sample(rng);
         self.drive.max_wheel_speed = r.max_wheel_speed.sample(rng);
-        self.drive.wheel_accel_limit = r.wheel_accel_limit.sample(rng);
+        self.drive.wheel_accel_limit = cfg.motors.accel(r).sample(rng);
         self.sensors.randomise(&cfg.sensors, rng);
         if r.mass.is_random() {
             let mass = r.mass.sample(rng);

@@ -32,7 +32,7 @@ impl World {
         // most accel·duration. The kinematic model (v0) keeps its original bound, so that its
         // choice between arcs and rapier, hence its trajectories, stay bit for bit.)
         let gain = match self.drive_model {
-            DriveModel::Traction => self.drive.wheel_accel_limit * duration,
+            DriveModel::Traction => self.drive.max_speed_change(duration),
             DriveModel::Kinematic => f32::INFINITY,
         };
         let speed = |r: &Robot| speed_bound(r, gain);
@@ -188,7 +188,7 @@ impl World {
             .all(|r| r.wheel_speeds == r.wheel_command && r.wheel_setpoint == r.wheel_command);
         // Split by robot, `far` only decides the whole-step arc below, which needs `steady`
         // too: a world whose wheels change skips the check (a swarm's grid and pass).
-        let far = if self.split_robots && !steady {
+        let far = if self.split_robots && (!steady || !self.whole_step_arc) {
             false
         } else {
             !self.contact_possible(self.dt)

@@ -98,6 +98,8 @@ pub struct PhysicsParams {
     pub solver_iterations: usize,
     /// The traction model (else the kinematic one).
     pub traction: bool,
+    /// Distance (m) within which rapier makes contacts ahead of touching (its length unit is 1 m).
+    pub contact_prediction: f32,
 }
 
 /// Sets each contact's friction by what touches: another robot, or a wall or obstacle.
@@ -164,6 +166,7 @@ impl Physics {
         };
         world.integration_parameters.dt = params.substep_dt;
         world.integration_parameters.num_solver_iterations = params.solver_iterations;
+        world.integration_parameters.normalized_prediction_distance = params.contact_prediction;
         let robots = (0..params.n_robots)
             .map(|i| {
                 let body = RigidBodyBuilder::dynamic()

@@ -64,7 +64,7 @@ impl World {
     pub(super) fn split_substep(&mut self, h: f32) {
         let grip = self.tyre_friction * GRAVITY * h;
         let ratio = self.inertia_per_mass() / self.drive.axle_length;
-        let gain = self.drive.wheel_accel_limit * h;
+        let gain = self.drive.max_speed_change(h);
         // One slot per robot, each written by the pass below.
         let n = self.robots.len();
         self.active.resize(n, false);

@@ -25,6 +25,16 @@ pub fn scenario(task: &str, overrides: &str) -> Scenario {
     load_scenario(task, &source(overrides)).expect("scenario")
 }
 
+/// [`scenario`] with behaviour `version`'s defaults (`Some(1)`: the v1 drive the tests of v1's
+/// dynamics specify).
+pub fn scenario_in(task: &str, overrides: &str, version: u32) -> Scenario {
+    let source = Source {
+        version: Some(version),
+        ..source(overrides)
+    };
+    load_scenario(task, &source).expect("scenario")
+}
+
 /// An env of `kind` on `cfg` with wheel actions, as built (not seeded, not reset).
 pub fn build(kind: TaskKind, cfg: Scenario) -> Env {
     let spawner = Arc::new(Env::spawner(kind, &cfg).expect("spawner"));

@@ -68,7 +68,7 @@ crate::config_table! {
         spline_irregularity: f32 = 0.3,
         /// the reference's wheel speeds stay within this fraction of robot.max_wheel_speed, leaving the feedback room to correct [E]
         max_wheel_fraction: f32 = 0.5,
-        /// the reference's wheel accelerations stay within this fraction of robot.wheel_accel_limit (square corners excepted) [E]
+        /// the reference's wheel accelerations stay within this fraction of the drive's acceleration (square corners excepted) [E]
         max_accel_fraction: f32 = 0.5,
         /// m, terminated as lost beyond this position error [tasks.md §3]
         lost_distance: f32 = 0.5,
@@ -171,7 +171,7 @@ impl TrackConfig {
     fn robot_limits(cfg: &Scenario) -> (f32, f32, f32) {
         (
             cfg.robot.max_wheel_speed.bounds().0,
-            cfg.robot.wheel_accel_limit.bounds().0,
+            cfg.motors.accel(&cfg.robot).bounds().0,
             cfg.robot.axle_length.bounds().1,
         )
     }
@@ -197,7 +197,7 @@ impl TrackConfig {
         if self.reference != Shape::Square && limits.wheel_accel > accel_cap {
             return Err(format!(
                 "the reference needs wheel accelerations up to {:.3} m/s^2, more than \
-                 max_accel_fraction x robot.wheel_accel_limit = {accel_cap:.3} m/s^2: lower \
+                 max_accel_fraction x the drive's acceleration = {accel_cap:.3} m/s^2: lower \
                  track.speed or raise track.size",
                 limits.wheel_accel
             ));

@@ -1,0 +1,429 @@
+//! `[motors]`: how the robot's motor controller (the dsPIC) makes the wheels follow their speed
+//! orders, as a choice the real robot can be set to.
+//!
+//! The Khepera IV's firmware has two modes a program drives in (K-Team Khepera IV User Manual
+//! 3.0, §4.14; the project's notes in docs and `shared/research/drive.md`):
+//! * **profile** (`kh4_SetMode(kh4RegSpeedProfile)`): the order given to the wheels' PID ramps
+//!   toward each new speed by `acc_inc` speed units every `acc_div + 1` control periods of 10 ms,
+//!   and a nonzero order never lies below `min_speed_acc` units. The firmware computes the ramp,
+//!   so the simulator can follow it exactly: `kh4_SetSpeedProfile(acc_inc, acc_div,
+//!   min_speed_acc, min_speed_dec, max_speed)` sets the same numbers on the robot.
+//! * **speed** (`kh4_SetMode(kh4RegSpeed)`): the PID follows each order "as quick as possible, in
+//!   an abrupt way" (§4.14.1). Its acceleration is limited only by the motors and the tyres; no
+//!   measurement of it is published, so `speed_accel` is an estimate [E].
+//!
+//! A third mode, **ramp**, is a plain acceleration limit (`robot.wheel_accel_limit`) with no
+//! firmware counterpart: the drive of the behaviour versions before v2 (v0: none; v1: K-Team's
+//! default ramp, 0.203 m/s², without the profile's minimum speed).
+//!
+//! Units: K-Team speed units (0.678181 mm/s each) where a key says so, otherwise SI (m/s²).
+//! The firmware's ramp changes the order in steps every 10 ms; the simulator ramps at their
+//! average rate, which puts the wheel at most one step (e.g. 40 units = 27 mm/s at Acc_Inc 40)
+//! and 10 ms from the firmware's staircase, about 0.14 mm of travel per ramp [D].
+
+use serde::{Deserialize, Serialize};
+use toml::{Table, Value};
+
+use crate::config::{self, Param};
+use crate::error::{Error, Result};
+use crate::robot::{RobotConfig, MM_S_PER_SPEED_UNIT};
+
+/// The motor controller's period (s): the PID and the profile run every 10 ms
+/// (`KH4_TIME_BTWN`, manual §4.14).
+pub const CONTROL_PERIOD_S: f32 = 0.01;
+/// One speed unit in m/s.
+const SPEED_UNIT: f32 = MM_S_PER_SPEED_UNIT / 1000.0;
+/// The firmware's range of a profile parameter (one byte, `kh4_SetSpeedProfile`'s `char`s).
+const BYTE_MAX: u32 = 255;
+
+/// Which of the firmware's modes drives the wheels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MotorMode {
+    /// K-Team's speed profile (`kh4RegSpeedProfile`): a ramp set in the firmware's units.
+    Profile,
+    /// K-Team's speed mode (`kh4RegSpeed`): the PID without a ramp, motor-limited [E].
+    Speed,
+    /// A plain acceleration limit, `robot.wheel_accel_limit` (the drive of v0 and v1).
+    Ramp,
+}
+
+impl MotorMode {
+    /// The name the scenario file uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Profile => "profile",
+            Self::Speed => "speed",
+            Self::Ramp => "ramp",
+        }
+    }
+}
+
+crate::config_table! {
+    /// `[motors]`: the motor controller's mode and its settings (K-Team manual §4.14).
+    pub struct MotorsConfig {
+        /// "profile": K-Team's speed profile (kh4RegSpeedProfile), exact; "speed": K-Team's speed mode (kh4RegSpeed), acceleration estimated [E]; "ramp": robot.wheel_accel_limit, a plain limit the robot cannot be set to (v0, v1)
+        mode: MotorMode = "profile",
+        /// a named setting of the keys below, as real programs set them (khepera_gym.motor_presets() lists them); "" = none; given with any of them it is an error
+        preset: String = "",
+        /// profile: speed units (0.678 mm/s) added to the order every acc_div + 1 periods of 10 ms: 40 = 2.71 m/s^2, 10 = 0.678 (K-Team's Braitenberg demo), 3 = 0.203 (K-Team's default) (firmware range 1..255, manual §4.14.2); may be a [low, high] range
+        acc_inc: Param = 40,
+        /// profile: periods of 10 ms between two increments, minus one (0..255, manual §4.14.2)
+        acc_div: u32 = 0,
+        /// profile: speed units; an order below it is raised to it, and the ramp starts from it and drops to 0 from it (1..255, manual §4.14.2 and its figure; default 20 = 13.6 mm/s)
+        min_speed_acc: u32 = 20,
+        /// profile: speed units; the final speed of position mode (manual §4.14.3): not simulated, set on the robot by export (0..255)
+        min_speed_dec: u32 = 1,
+        /// speed: the wheels' acceleration limit in speed mode (m/s^2) [E: no measurement found; Webots' Khepera IV motor allows 130.45 rad/s^2 x 0.021 m = 2.74]; may be a [low, high] range
+        speed_accel: Param = 2.74,
+    }
+}
+
+/// A named drive: (name, what it sets, where it comes from).
+pub struct MotorPreset {
+    /// Its name (`motors.preset`).
+    pub name: &'static str,
+    /// The `[motors]` keys it sets, as TOML.
+    pub settings: &'static str,
+    /// Who sets it on the real robot.
+    pub source: &'static str,
+}
+
+/// The drives real programs set on the Khepera IV (shared/research/drive.md tabulates them).
+pub const PRESETS: &[MotorPreset] = &[
+    MotorPreset {
+        name: "kteam_default",
+        settings:
+            "mode = \"profile\"\nacc_inc = 3\nacc_div = 0\nmin_speed_acc = 20\nmin_speed_dec = 1",
+        source:
+            "K-Team's library defaults, kh4_SetSpeedProfile(3, 0, 20, 1, 400) (manual §4.14.2); \
+                 ARGoS's real-robot actuator and Buzz set them: 0.203 m/s^2",
+    },
+    MotorPreset {
+        name: "kteam_braitenberg",
+        settings:
+            "mode = \"profile\"\nacc_inc = 10\nacc_div = 0\nmin_speed_acc = 20\nmin_speed_dec = 1",
+        source: "K-Team's Braitenberg demo (khepera4.c) and kh4server's built-in Braitenberg: \
+                 0.678 m/s^2",
+    },
+    MotorPreset {
+        name: "khepera_gym_v2",
+        settings:
+            "mode = \"profile\"\nacc_inc = 40\nacc_div = 0\nmin_speed_acc = 20\nmin_speed_dec = 1",
+        source: "the default of the v2 envs: 2.71 m/s^2, the acceleration of Webots' Khepera IV \
+                 motor, set on the robot exactly by the exported program",
+    },
+    MotorPreset {
+        name: "speed_mode",
+        settings: "mode = \"speed\"\nspeed_accel = 2.74",
+        source:
+            "K-Team's keyboard drive and kh4server's D command, EPFL's khepera4toolbox, UNED's \
+                 Robotic Park: kh4RegSpeed, whose acceleration is estimated [E]",
+    },
+];
+
+/// The acceleration (m/s²) of K-Team's speed profile: `acc_inc` speed units every
+/// `acc_div + 1` periods of 10 ms.
+pub fn profile_accel(acc_inc: f32, acc_div: u32) -> f32 {
+    acc_inc * SPEED_UNIT / ((acc_div + 1) as f32 * CONTROL_PERIOD_S)
+}
+
+/// The profile's `acc_inc` (speed units, not rounded) that gives `accel` m/s² at `acc_div`.
+pub fn profile_acc_inc(accel: f32, acc_div: u32) -> f32 {
+    accel * (acc_div + 1) as f32 * CONTROL_PERIOD_S / SPEED_UNIT
+}
+
+/// Whether two scenario values are the same setting (`40` and `40.0` are).
+fn same_value(a: Option<&Value>, b: Option<&Value>) -> bool {
+    let number = |v: &Value| match v {
+        Value::Integer(i) => Some(*i as f64),
+        Value::Float(f) => Some(*f),
+        _ => None,
+    };
+    match (a, b) {
+        (Some(a), Some(b)) => match (number(a), number(b)) {
+            (Some(x), Some(y)) => x == y,
+            _ => a == b,
+        },
+        (a, b) => a == b,
+    }
+}
+
+/// The keys of `[motors]` that a preset sets and that only some modes use.
+const MODE_KEYS: &[(&str, MotorMode)] = &[
+    ("acc_inc", MotorMode::Profile),
+    ("acc_div", MotorMode::Profile),
+    ("min_speed_acc", MotorMode::Profile),
+    ("min_speed_dec", MotorMode::Profile),
+    ("speed_accel", MotorMode::Speed),
+];
+
+impl MotorsConfig {
+    /// Reads `[motors]` from a scenario `table` and resolves it against `defaults` (the version's
+    /// default scenario table): a named preset replaces the keys it sets, and a key whose value
+    /// differs from its default while the mode does not use it is an error (it would change
+    /// nothing). Errors name `origin` and the key.
+    pub fn resolve(table: &Table, defaults: &Table, origin: &str) -> Result<Self> {
+        let section = |t: &Table, name: &str| match t.get(name) {
+            Some(Value::Table(s)) => s.clone(),
+            _ => Table::new(),
+        };
+        let mut drive_table = section(table, "motors");
+        let default_drive = section(defaults, "motors");
+        let given = |t: &Table, key: &str| !same_value(t.get(key), default_drive.get(key));
+        let preset = drive_table
+            .get("preset")
+            .and_then(Value::as_str)
+            .unwrap_or("")
+            .to_string();
+        if !preset.is_empty() {
+            let Some(found) = PRESETS.iter().find(|p| p.name == preset) else {
+                let names: Vec<&str> = PRESETS.iter().map(|p| p.name).collect();
+                return Err(Error::config(
+                    origin,
+                    "motors.preset",
+                    format!("unknown preset {preset:?}; the presets are {names:?}"),
+                ));
+            };
+            let set = config::parse(found.settings, "<preset>")?;
+            for key in ["mode"]
+                .into_iter()
+                .chain(MODE_KEYS.iter().map(|(k, _)| *k))
+            {
+                if given(&drive_table, key) {
+                    return Err(Error::config(
+                        origin,
+                        &format!("motors.{key}"),
+                        format!(
+                            "motors.preset = {preset:?} sets the drive; give the preset or \
+                             motors.{key}, not both"
+                        ),
+                    ));
+                }
+            }
+            for (key, value) in set {
+                drive_table.insert(key, value);
+            }
+            drive_table.insert("preset".into(), Value::String(String::new()));
+        }
+        let motors: MotorsConfig = config::read_table(&drive_table, origin, "motors")?;
+        motors.validate(origin)?;
+        for (key, mode) in MODE_KEYS {
+            if motors.mode != *mode && given(&drive_table, key) {
+                return Err(Error::config(
+                    origin,
+                    &format!("motors.{key}"),
+                    format!(
+                        "is used only by motors.mode = \"{}\"; this scenario's mode is \"{}\"",
+                        mode.name(),
+                        motors.mode.name()
+                    ),
+                ));
+            }
+        }
+        let robot = section(table, "robot");
+        let default_robot = section(defaults, "robot");
+        let key = "wheel_accel_limit";
+        if motors.mode != MotorMode::Ramp && !same_value(robot.get(key), default_robot.get(key)) {
+            let hint = match motors.mode {
+                MotorMode::Profile => {
+                    let accel = robot.get(key).and_then(Value::as_float).unwrap_or(f64::NAN);
+                    format!(
+                        "set motors.acc_inc instead (speed units per {} ms: {:.1} for {accel} \
+                         m/s^2)",
+                        (motors.acc_div + 1) * 10,
+                        profile_acc_inc(accel as f32, motors.acc_div)
+                    )
+                }
+                _ => "set motors.speed_accel instead".to_string(),
+            };
+            return Err(Error::config(
+                origin,
+                "robot.wheel_accel_limit",
+                format!(
+                    "is the acceleration of motors.mode = \"ramp\"; this scenario's drive is \
+                     \"{}\": {hint}, or motors.mode = \"ramp\"",
+                    motors.mode.name()
+                ),
+            ));
+        }
+        Ok(motors)
+    }
+
+    /// Checks every value against the firmware's ranges; the error names `origin` and the key.
+    pub fn validate(&self, origin: &str) -> Result<()> {
+        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
+        let (lo, hi) = self.acc_inc.bounds();
+        if !(lo.is_finite() && hi.is_finite()) || lo < 1.0 || hi > BYTE_MAX as f32 || lo > hi {
+            return bad(
+                "motors.acc_inc",
+                format!(
+                    "must be in the firmware's range 1..=255 speed units (or a [low, high] range \
+                     within it), got {:?}",
+                    self.acc_inc
+                ),
+            );
+        }
+        if !self.acc_inc.is_random() && lo.fract() != 0.0 {
+            return bad(
+                "motors.acc_inc",
+                format!("the firmware takes whole speed units, got {lo}"),
+            );
+        }
+        for (key, value, low) in [
+            ("motors.acc_div", self.acc_div, 0),
+            ("motors.min_speed_acc", self.min_speed_acc, 1),
+            ("motors.min_speed_dec", self.min_speed_dec, 0),
+        ] {
+            if !(low..=BYTE_MAX).contains(&value) {
+                return bad(
+                    key,
+                    format!("must be in the firmware's range {low}..=255, got {value}"),
+                );
+            }
+        }
+        self.speed_accel.check(origin, "motors.speed_accel", true)?;
+        if !self.preset.is_empty() {
+            return bad(
+                "motors.preset",
+                "is resolved when the scenario loads; a resolved drive has none".into(),
+            );
+        }
+        Ok(())
+    }
+
+    /// The wheels' acceleration limit (m/s²) this drive gives, a range when randomised:
+    /// the profile's rate, the speed mode's estimate, or `robot.wheel_accel_limit` (ramp).
+    pub fn accel(&self, robot: &RobotConfig) -> Param {
+        match self.mode {
+            MotorMode::Profile => match self.acc_inc {
+                Param::Value(inc) => Param::Value(profile_accel(inc, self.acc_div)),
+                Param::Range([lo, hi]) => Param::Range([
+                    profile_accel(lo, self.acc_div),
+                    profile_accel(hi, self.acc_div),
+                ]),
+            },
+            MotorMode::Speed => self.speed_accel,
+            MotorMode::Ramp => robot.wheel_accel_limit,
+        }
+    }
+
+    /// The profile's smallest nonzero order (m/s): `min_speed_acc` in profile mode, else 0.
+    pub fn min_order(&self) -> f32 {
+        match self.mode {
+            MotorMode::Profile => self.min_speed_acc as f32 * SPEED_UNIT,
+            _ => 0.0,
+        }
+    }
+
+    /// Whether the real robot can be set to exactly this drive: a profile with fixed values
+    /// (the speed mode's acceleration is an estimate, and the ramp has no firmware mode).
+    pub fn is_exact(&self) -> bool {
+        self.mode == MotorMode::Profile && !self.acc_inc.is_random()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ConfigTable;
+
+    fn defaults() -> Table {
+        let mut t = Table::new();
+        t.insert(
+            "motors".into(),
+            Value::Table(MotorsConfig::defaults_table()),
+        );
+        t.insert("robot".into(), Value::Table(RobotConfig::defaults_table()));
+        t
+    }
+
+    fn resolve(overlay: &str) -> Result<MotorsConfig> {
+        let mut table = defaults();
+        config::overlay(&mut table, &config::parse(overlay, "f.toml")?, "", "f.toml")?;
+        MotorsConfig::resolve(&table, &defaults(), "f.toml")
+    }
+
+    #[test]
+    fn profile_units_give_the_manuals_accelerations() {
+        // 3 units of 0.678181 mm/s every 10 ms: K-Team's default, 0.2035 m/s².
+        assert!((profile_accel(3.0, 0) - 0.2034543).abs() < 1e-7);
+        assert!((profile_accel(10.0, 0) - 0.678181).abs() < 1e-6);
+        assert!((profile_accel(40.0, 0) - 2.712724).abs() < 1e-5);
+        // Acc_Div 4: every 5 periods (50 ms), manual §4.14.2's example.
+        assert!((profile_accel(40.0, 4) - 2.712724 / 5.0).abs() < 1e-6);
+        assert!((profile_acc_inc(profile_accel(17.0, 2), 2) - 17.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn presets_resolve_and_refuse_explicit_keys_beside_them() {
+        let d = resolve("[motors]\npreset = \"kteam_braitenberg\"").expect("preset");
+        assert_eq!(
+            (d.mode, d.acc_inc, d.acc_div),
+            (MotorMode::Profile, Param::Value(10.0), 0)
+        );
+        assert!(d.preset.is_empty());
+        let s = resolve("[motors]\npreset = \"speed_mode\"").expect("preset");
+        assert_eq!(s.mode, MotorMode::Speed);
+        let e = resolve("[motors]\npreset = \"kteam_default\"\nacc_inc = 7").unwrap_err();
+        assert!(
+            e.to_string().contains("motors.acc_inc: motors.preset"),
+            "{e}"
+        );
+        let e = resolve("[motors]\npreset = \"fast\"").unwrap_err();
+        assert!(e.to_string().contains("unknown preset \"fast\""), "{e}");
+        for p in PRESETS {
+            let text = format!("[motors]\npreset = \"{}\"", p.name);
+            resolve(&text).unwrap_or_else(|e| panic!("{}: {e}", p.name));
+        }
+    }
+
+    #[test]
+    fn a_key_the_mode_does_not_use_is_an_error_naming_it() {
+        let e = resolve("[motors]\nspeed_accel = 5.0")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("motors.speed_accel: is used only by motors.mode = \"speed\""),
+            "{e}"
+        );
+        let e = resolve("[motors]\nmode = \"speed\"\nacc_inc = 10")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("motors.acc_inc"), "{e}");
+        let e = resolve("[robot]\nwheel_accel_limit = 0.678")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("robot.wheel_accel_limit") && e.contains("10.0 for 0.678"),
+            "{e}"
+        );
+        // Given at its default, a key changes nothing: a resolved scenario reloads.
+        resolve("[motors]\nspeed_accel = 2.74\nacc_inc = 40").expect("defaults");
+        let ramp = resolve("[motors]\nmode = \"ramp\"\n[robot]\nwheel_accel_limit = 0.678");
+        assert_eq!(ramp.expect("ramp").mode, MotorMode::Ramp);
+    }
+
+    #[test]
+    fn values_the_firmware_refuses_are_errors() {
+        for (text, key) in [
+            ("acc_inc = 0", "motors.acc_inc"),
+            ("acc_inc = 256", "motors.acc_inc"),
+            ("acc_inc = 2.5", "motors.acc_inc"),
+            ("acc_inc = [0.5, 20]", "motors.acc_inc"),
+            ("acc_div = 256", "motors.acc_div"),
+            ("min_speed_acc = 0", "motors.min_speed_acc"),
+            ("acc_inc = nan", "motors.acc_inc"),
+            ("mode = \"fast\"", "motors.mode"),
+        ] {
+            let e = resolve(&format!("[motors]\n{text}"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        }
+        let ranged = resolve("[motors]\nacc_inc = [20, 60]").expect("a range");
+        assert!(!ranged.is_exact());
+        let (lo, hi) = ranged.accel(&RobotConfig::default()).bounds();
+        assert!((lo - profile_accel(20.0, 0)).abs() < 1e-6 && (hi - 3.0 * lo).abs() < 1e-5);
+    }
+}
