@@ -36,6 +36,7 @@ import numpy as np
 
 import khepera_gym
 from khepera_gym.errors import ConfigError
+from khepera_gym.export.motors import PROFILE_MAX_SPEED, MotorSetting
 from khepera_gym.export.network import PolicyNetwork
 from khepera_gym.export.robot import (
     MAX_SPEED_UNITS,
@@ -355,9 +356,11 @@ def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
     }
 
 
-def robot_c_sources(robot: RobotInterface, network: PolicyNetwork) -> dict[str, str]:
-    """The wheel command, the template program and its constants, the check program, the
-    Makefile (name → text)."""
+def robot_c_sources(
+    robot: RobotInterface, network: PolicyNetwork, motors: MotorSetting
+) -> dict[str, str]:
+    """The wheel command, the template program and its constants (the motor controller's
+    setting among them), the check program, the Makefile (name → text)."""
     takes = 5 if robot.led_action else 2
     if network.action_dim != takes:
         what = "its wheels, then its LEDs' red, green, blue" if robot.led_action else "its wheels"
@@ -395,6 +398,15 @@ def robot_c_sources(robot: RobotInterface, network: PolicyNetwork) -> dict[str, 
         if robot.observes("us")
         else 0,
         "led_action": int(robot.led_action),
+        "motor_profile": int(motors.mode == "profile"),
+        "acc_inc": motors.acc_inc,
+        "acc_div": motors.acc_div,
+        "min_speed_acc": motors.min_speed_acc,
+        "min_speed_dec": motors.min_speed_dec,
+        "profile_max_speed": PROFILE_MAX_SPEED,
+        "motor_note": _wrap_comment(
+            "The motor controller, as the policy was trained: " + motors.note + ".", ""
+        ),
     }
     return {
         "wheel_command.h": _template("wheel_command.h").substitute(wheel_fields),
@@ -419,7 +431,11 @@ def readme(network: PolicyNetwork, robot: RobotInterface) -> str:
 
 
 def write_c(
-    network: PolicyNetwork, robot: RobotInterface, out_dir: str | Path, provenance: str
+    network: PolicyNetwork,
+    robot: RobotInterface,
+    motors: MotorSetting,
+    out_dir: str | Path,
+    provenance: str,
 ) -> list[Path]:
     """Writes the C sources, the Makefile and the README into ``out_dir``; returns their
     paths.
@@ -433,7 +449,7 @@ def write_c(
     sources = {
         **policy_c_sources(network, provenance),
         **observation_c_sources(robot),
-        **robot_c_sources(robot, network),
+        **robot_c_sources(robot, network, motors),
         "README.md": readme(network, robot),
     }
     paths = []

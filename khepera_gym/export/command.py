@@ -17,6 +17,7 @@ from pathlib import Path
 
 from khepera_gym.config import parse_key_values
 from khepera_gym.export.exporter import FORMATS, export_policy
+from khepera_gym.export.motors import DRIVE_CHOICES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,6 +55,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="skip measuring the exported files against the Python policy",
     )
     parser.add_argument("--cc", default="cc", help="C compiler of the check (cc)")
+    parser.add_argument(
+        "--drive",
+        choices=DRIVE_CHOICES,
+        default="trained",
+        help="the motor controller's setting: the trained drive exactly (default; an error when "
+        "the robot cannot be set to it), or its nominal firmware setting",
+    )
 
 
 def run_from_args(args: argparse.Namespace) -> int:
@@ -70,6 +78,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         action_type=args.action_type,
         check=not args.no_check,
         compiler=args.cc,
+        drive=args.drive,
         **overrides,
     )
     agent = f" (one agent's block, as {result.robot.agent})" if result.robot.agent else ""
@@ -79,6 +88,8 @@ def run_from_args(args: argparse.Namespace) -> int:
     )
     for path in result.files:
         print(f"  {path.name}")
+    exact = "" if result.motors.exact else " (nominal: not the trained drive exactly)"
+    print(f"motors: {result.motors.note}{exact}; the program calls {result.motors.call()}")
     for key, bounds in result.robot.randomised.items():
         print(f"note: {key} is a range {list(bounds)} in the scenario; the midpoint is baked in")
     checks = result.checks

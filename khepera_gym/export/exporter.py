@@ -28,9 +28,10 @@ from khepera_gym.export.c_writer import write_c
 from khepera_gym.export.checks import check_export
 from khepera_gym.export.describe import as_policy, describe_policy, load_model, reference_actions
 from khepera_gym.export.from_rllib import RllibPolicy
+from khepera_gym.export.motors import MotorSetting, motor_setting
 from khepera_gym.export.network import PolicyNetwork
 from khepera_gym.export.onnx_writer import ONNX_FILE, build_onnx, import_onnx
-from khepera_gym.export.robot import RobotInterface, robot_interface
+from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
 from khepera_gym.registration import resolve_env_id
 
 #: Output formats of :func:`export_policy`.
@@ -49,6 +50,8 @@ class ExportResult:
     files: list[Path]
     network: PolicyNetwork
     robot: RobotInterface
+    #: What the exported program sets on the motor controller (the trained drive).
+    motors: MotorSetting
     #: Check figures: "onnx_max_abs_error", "c_max_abs_error", "observation_max_abs_error",
     #: "observations" (rows checked), or a "<name>_skipped" reason.
     checks: dict[str, Any]
@@ -95,6 +98,7 @@ def export_policy(
     normalizer: Any = None,
     check: bool = True,
     compiler: str = "cc",
+    drive: str = "trained",
     **overrides: Any,
 ) -> ExportResult:
     """Exports a policy with its observation pipeline for the real robot.
@@ -117,6 +121,10 @@ def export_policy(
         check: Measure the exported files against the Python policy on recorded observations
             (ONNX with onnxruntime; C compiled with ``compiler``, skipped if there is none).
         compiler: The C compiler of the check.
+        drive: "trained": the program sets the motor controller exactly as the scenario's
+            ``[motors]`` drove the simulated robot (an error if the robot cannot be set so:
+            v0's and v1's ramp, or a randomised profile); "nominal": its nearest firmware
+            setting (:func:`~khepera_gym.export.motors.motor_setting`).
         **overrides: Scenario keys as in training (``max_steps=200``, ``observe=["ir"]``).
 
     Raises:
@@ -146,6 +154,7 @@ def export_policy(
     env = gym.make(env_id, **env_kwargs)
     try:
         robot = robot_interface(env, network.obs_dim, env_id)
+        motors = motor_setting(toml_loads(robot.scenario_toml), drive)
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         provenance = str(model_path) if model_path is not None else f"a {network.source} model"
@@ -162,7 +171,7 @@ def export_policy(
             (out / ONNX_FILE).write_bytes(build_onnx(network, metadata).SerializeToString())
             files.append(out / ONNX_FILE)
         if "c" in formats:
-            files += write_c(network, robot, out, provenance)
+            files += write_c(network, robot, motors, out, provenance)
         checks: dict[str, Any] = {}
         failures: list[str] = []
         if check:
@@ -184,6 +193,7 @@ def export_policy(
             ],
             "vecnormalize": network.normalization is not None,
             "randomised_constants_at_midpoint": {k: list(v) for k, v in robot.randomised.items()},
+            "motors": motors.as_dict(),
             "formats": list(formats),
             "checks": checks,
         }
@@ -195,7 +205,7 @@ def export_policy(
             f"{out}: the exported {', '.join(failures)} differ from the Python policy and the "
             f"simulator by more than the tolerance: {checks}"
         )
-    return ExportResult(out, files, network, robot, checks)
+    return ExportResult(out, files, network, robot, motors, checks)
 
 
 __all__ = [

@@ -11,4 +11,12 @@
 #define KHEPERA_US_MASK $us_mask /* kh4_activate_us bits: sensors.us_enabled, 0 if not observed */
 #define KHEPERA_LED_ACTION $led_action /* task.led_action: the action's last 3 values set the LEDs */
 
+$motor_note
+#define KHEPERA_MOTOR_PROFILE $motor_profile /* 1: kh4RegSpeedProfile (motors.mode = "profile"), 0: kh4RegSpeed */
+#define KHEPERA_ACC_INC $acc_inc /* motors.acc_inc: speed units added every KHEPERA_ACC_DIV + 1 periods of 10 ms */
+#define KHEPERA_ACC_DIV $acc_div /* motors.acc_div */
+#define KHEPERA_MIN_SPEED_ACC $min_speed_acc /* motors.min_speed_acc: speed units */
+#define KHEPERA_MIN_SPEED_DEC $min_speed_dec /* motors.min_speed_dec: speed units (position mode) */
+#define KHEPERA_PROFILE_MAX_SPEED $profile_max_speed /* position mode's travel speed, unused here (K-Team's default) */
+
 #endif /* KHEPERA_POLICY_CONFIG_H */

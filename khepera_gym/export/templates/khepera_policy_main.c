@@ -13,7 +13,8 @@
  *      (x forward, y left): the goal inputs of the observation come from it and from the goal
  *      given on the command line in that frame;
  *   3. builds the observation exactly as the simulator does (observation.c);
- *   4. runs the policy (policy.c) and sends the wheel speeds with kh4_set_speed in K-Team's units,
+ *   4. runs the policy (policy.c) and sends the wheel speeds with kh4_set_speed in K-Team's units
+ *      (the motor controller set at start as in training: the speed profile or the speed mode),
  *      clipped to the robot's limit (wheel_command.c); with KHEPERA_LED_ACTION (a policy trained
  *      with task.led_action) it also sets the three top LEDs with kh4_SetRGBLeds, 0..63 a colour.
  * It stops the motors on Ctrl-C, at the goal (estimated by odometry, which drifts), after
@@ -149,7 +150,18 @@ int main(int argc, char *argv[])
     kh4_SetMode(kh4RegIdle, ds_pic);
     kh4_ResetEncoders(ds_pic);
     kh4_activate_us(KHEPERA_US_MASK, ds_pic); /* those enabled and observed (0: all off) */
-    kh4_SetMode(kh4RegSpeed, ds_pic);         /* closed-loop speed control */
+    /* The motor controller as the policy was trained (khepera_policy_config.h): K-Team's speed
+     * profile, whose ramp the simulator follows exactly, or the speed mode. */
+#if KHEPERA_MOTOR_PROFILE
+    kh4_SetSpeedProfile(KHEPERA_ACC_INC, KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC,
+                        KHEPERA_MIN_SPEED_DEC, KHEPERA_PROFILE_MAX_SPEED, ds_pic);
+    kh4_SetMode(kh4RegSpeedProfile, ds_pic);
+    printf("motors: speed profile, acc_inc %d, acc_div %d, min_speed_acc %d\n", KHEPERA_ACC_INC,
+           KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC);
+#else
+    kh4_SetMode(kh4RegSpeed, ds_pic);
+    printf("motors: speed mode\n");
+#endif
     kh4_get_position(&pose.last_left, &pose.last_right, ds_pic);
 
     clock_gettime(CLOCK_MONOTONIC, &next_tick);
