@@ -378,7 +378,19 @@ crate::config_table! {
         whole_step_arc: bool = false,
         /// m: rapier makes a contact when two shapes come this close, before they touch; 0 = 1.25 x what two robots at full speed close in one substep (2 x 0.813 m/s x 25 ms: 5.1 cm at the defaults), at least rapier's default 0.02, so that such an impact meets its contact before the robots overlap (v1: 0.02, and head-on impacts at full speed overlapped by up to 1 cm)
         contact_prediction: f32 = 0.0,
+        /// traction drive: a world where a robot slips (its body not yet rolling on its wheels, after a contact) but nothing can be touched: "tyres" moves each slipping robot by its tyres' impulses directly, as rapier moves a free body (v2); "rapier" hands the whole world to rapier's step as for a contact (v1; the same motion at rapier's cost)
+        slip_solver: SlipSolver = "tyres",
     }
+}
+
+/// Who moves a slipping robot that can touch nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SlipSolver {
+    /// Its tyres' impulses, integrated directly (v2).
+    Tyres,
+    /// Rapier's step of the whole world (v1).
+    Rapier,
 }
 
 /// Which robots a contact substep hands to rapier.

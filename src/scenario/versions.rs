@@ -13,6 +13,7 @@ mode = "ramp"                # v1: the wheels ramp at robot.wheel_accel_limit (0
 [physics]
 whole_step_arc = true        # v1: split = "robot" worlds rolled one arc over the whole step when nothing could be touched
 contact_prediction = 0.02    # v1: rapier's default, whatever the speeds
+slip_solver = "rapier"       # v1: a slipping robot's world went to rapier even with nothing to touch
 "#,
     ),
     (

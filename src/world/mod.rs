@@ -25,7 +25,7 @@ use rapier2d::math::Vector;
 
 use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
-use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario};
+use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario, SlipSolver};
 use crate::sensors::{Readings, SenseContext, Suite};
 use floor::{FloorMarks, SharedFloor};
 use grid::Grid;
@@ -103,6 +103,9 @@ pub struct World {
     split_robots: bool,
     /// Whether a world split by robot may roll one arc over the whole step (`physics.whole_step_arc`).
     whole_step_arc: bool,
+    /// Whether a slipping robot that can touch nothing moves by its tyres without rapier
+    /// (`physics.slip_solver = "tyres"`).
+    slip_by_tyres: bool,
     /// Tyre–floor friction coefficient of this episode (traction model).
     tyre_friction: f32,
     /// Infrared reflectance of the robots' shells.
@@ -207,6 +210,7 @@ impl World {
             drive_model: cfg.physics.drive,
             split_robots: cfg.physics.split == MotionSplit::Robot,
             whole_step_arc: cfg.physics.whole_step_arc,
+            slip_by_tyres: cfg.physics.slip_solver == SlipSolver::Tyres,
             tyre_friction: cfg.robot.tyre_friction.bounds().0,
             robot_reflectance: cfg.robot.shell_reflectance,
             robot_led: cfg.robot.led_color,

@@ -6,7 +6,7 @@
 
 use rapier2d::math::Vector;
 
-use super::physics::{BodyState, Grip, TractionBody, GRAVITY};
+use super::physics::{slip_freely, BodyState, Grip, TractionBody, GRAVITY};
 use super::{Robot, World};
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::DriveModel;
@@ -210,23 +210,29 @@ impl World {
                 continue;
             }
             // Rolling now, and the tyres can give this substep's change of wheel speeds (and the
-            // turn's centripetal force) within their grip: the body keeps rolling.
-            let mut rolls = self.all_rolling();
+            // turn's centripetal force) within their grip: the body keeps rolling. Robot by
+            // robot in `self.active` (what `slip_substep` reads), and for the whole world.
             let grip = self.tyre_friction * GRAVITY * h;
             let ratio = self.inertia_per_mass() / self.drive.axle_length;
+            let (drive, keeps_rolling) = (&self.drive, &mut self.active);
+            keeps_rolling.clear();
+            let mut rolls = true;
             for r in &mut self.robots {
+                let rolling = is_rolling(drive, r);
                 let before = r.wheel_speeds;
                 (r.wheel_setpoint, r.wheel_speeds) =
-                    self.drive
-                        .motors(r.wheel_setpoint, r.wheel_speeds, r.wheel_command, h);
+                    drive.motors(r.wheel_setpoint, r.wheel_speeds, r.wheel_command, h);
                 r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
                 r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
-                if rolls {
-                    rolls = within_grip(&self.drive, before, r.wheel_speeds, ratio, grip, h);
-                }
+                let keeps = rolling && within_grip(drive, before, r.wheel_speeds, ratio, grip, h);
+                keeps_rolling.push(keeps);
+                rolls &= keeps;
             }
-            if (!far && self.contact_possible(h)) || !rolls {
+            let touch = !far && self.contact_possible(h);
+            if touch || (!rolls && !self.slip_by_tyres) {
                 self.traction_substep(None);
+            } else if !rolls {
+                self.slip_substep(h);
             } else {
                 for r in &mut self.robots {
                     let (v, w) = self.drive.twist(r.wheel_speeds);
@@ -234,6 +240,40 @@ impl World {
                     r.step_travel += v.abs() * h;
                 }
             }
+        }
+    }
+
+    /// One substep of `h` seconds in which some robot slips and nothing can be touched
+    /// (`physics.slip_solver = "tyres"`): a robot that keeps rolling within its tyres' grip
+    /// (`self.active`, set by the motors' pass) rolls on its exact arc; a slipping one is moved
+    /// by its tyres' impulses, as rapier moves a body that touches nothing
+    /// (`physics::slip_freely`), without rapier's step.
+    fn slip_substep(&mut self, h: f32) {
+        let grip = Grip {
+            axle: self.drive.axle_length,
+            tyre_friction: self.tyre_friction,
+        };
+        let (mass, radius) = (self.physics.mass(), self.drive.radius);
+        for (r, &keeps) in self.robots.iter_mut().zip(&self.active) {
+            if keeps {
+                let (v, w) = self.drive.twist(r.wheel_speeds);
+                roll_arc(r, v, w, h);
+                r.step_travel += v.abs() * h;
+                continue;
+            }
+            let mut body = TractionBody {
+                position: r.position,
+                heading: r.heading,
+                velocity: r.velocity,
+                spin: r.spin,
+                wheels: r.wheel_speeds,
+            };
+            slip_freely(&mut body, grip, mass, radius, h);
+            r.step_travel += (body.position - r.position).length();
+            r.position = body.position;
+            r.heading = wrap_angle(body.heading);
+            r.velocity = body.velocity;
+            r.spin = body.spin;
         }
     }
 

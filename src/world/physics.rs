@@ -40,6 +40,20 @@ pub struct Physics {
     targets: Vec<Option<(Pose, Vector, f32)>>,
 }
 
+/// One substep of `h` seconds of a body that slips and touches nothing, without rapier: the
+/// tyres' impulses change its velocity and yaw rate, then it moves at them over the substep
+/// (rapier's integration of a free body: position + v·h, heading + ω·h). `mass` (kg) and
+/// `inertia` (kg·m²) are the body's; `grip` the tyres'.
+pub fn slip_freely(body: &mut TractionBody, grip: Grip, mass: f32, radius: f32, h: f32) {
+    let inertia = 0.5 * mass * radius * radius;
+    let cap = grip.tyre_friction * 0.5 * mass * GRAVITY * h;
+    let (dv, dw) = tyre_impulses(body, grip.axle, mass, inertia, cap);
+    body.velocity += dv;
+    body.spin += dw;
+    body.position += body.velocity * h;
+    body.heading += body.spin * h;
+}
+
 /// Fewest bodies a rayon task takes in `step_traction` (a swarm's, shared among threads).
 const PARALLEL_MIN_BODIES: usize = 32;
 
