@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, catalog, compare, export, record, train
+from khepera_gym import bench, catalog, compare, export, provenance, record, train
 from khepera_gym.compare.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
 from khepera_gym.registration import registered_ids
 
@@ -146,6 +146,14 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``khepera-gym`` console script."""
     args = build_parser().parse_args(argv)
+    if argv is None:
+        return _run(args)
+    with provenance.running_command(["khepera-gym", *argv]):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Runs the parsed subcommand."""
     if args.command == "list":
         unknown = sorted(set(args.topics) - set(LIST_TOPICS))
         if unknown:

@@ -18,6 +18,7 @@ from khepera_gym.compare.reference_plots import plot_error_over_time, plot_refer
 from khepera_gym.compare.run import TIME_PERCENTILE, Comparison, EpisodeResult, PolicySummary
 from khepera_gym.compare.stats import CONFIDENCE, Estimate, json_number
 from khepera_gym.plot import panel_title, plot_rollouts
+from khepera_gym.provenance import provenance
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -129,7 +130,8 @@ def format_table(comparison: Comparison) -> str:
 
 def write_results(comparison: Comparison, out_dir: Path) -> list[Path]:
     """Writes ``<label>_episodes.csv`` (one row per episode) and ``<label>_results.json``
-    (settings, summaries with intervals, and every episode) into ``out_dir``."""
+    (``meta``: date, commit, machine and command; settings, summaries with intervals, and every
+    episode) into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = [r.row() for results in comparison.results.values() for r in results]
     csv_path = out_dir / f"{comparison.label}_episodes.csv"
@@ -141,6 +143,7 @@ def write_results(comparison: Comparison, out_dir: Path) -> list[Path]:
         writer.writerows({k: "" if v is None else v for k, v in row.items()} for row in rows)
     json_path = out_dir / f"{comparison.label}_results.json"
     document = {
+        "meta": provenance(),
         "env_id": comparison.env_id,
         "config": comparison.config,
         "overrides": comparison.overrides,
