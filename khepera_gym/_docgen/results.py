@@ -260,9 +260,23 @@ def fragments(results_dir: Path) -> dict[str, str]:
     return {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
 
 
+def target_name(document: dict[str, Any]) -> str:
+    """The file name a results file gets in docs/results/: its kind, what it measured and its
+    date, so that a later run of another version or day does not replace it
+    (``compare_KheperaIV-Avoid-v1_paper_fig6_2026-11-27.json``)."""
+    date = (document.get("meta") or {}).get("date", "undated")[:10]
+    what = {
+        "compare": lambda: f"{document['env_id']}_{document.get('label') or 'scene'}",
+        "train": lambda: f"{document['env_id']}_{document['algo']}_seed{document['seed']}",
+        "consensus": lambda: "sweep",
+        "bench": lambda: f"v{document['version']}",
+    }[kind(document)]()
+    return f"{kind(document)}_{what}_{date}.json"
+
+
 def import_results(paths: list[Path], results_dir: Path) -> list[Path]:
-    """Copies results files into the results folder, without a comparison's per-episode rows
-    (the tables need only the summaries).
+    """Copies results files into the results folder (named by :func:`target_name`), without a
+    comparison's per-episode rows (the tables need only the summaries).
 
     Raises:
         ValueError: A file that is not a results file of compare, train or bench.
@@ -274,7 +288,7 @@ def import_results(paths: list[Path], results_dir: Path) -> list[Path]:
         if kind(document) == "unknown":
             raise ValueError(f"{path}: not a results file of compare, train or bench")
         document.pop("episodes", None)
-        target = results_dir / path.name
+        target = results_dir / target_name(document)
         target.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
         written.append(target)
     return written
