@@ -464,7 +464,7 @@ mod tests {
         assert_eq!(v0.physics.drive, DriveModel::Kinematic);
         let s = NAV.load(&Source::default()).expect("nav");
         assert_eq!(s.task.max_steps, 400);
-        // v1: the K-Team firmware's speed profile, 3 units per 10 ms (spec §3).
+        // v1: the K-Team firmware's speed profile, 3 units per 10 ms (docs/robot.md §3).
         assert!((s.robot.wheel_accel_limit.max() - 0.2034543).abs() < 1e-6);
         assert_eq!(s.physics.drive, DriveModel::Traction);
         let e = NAV

@@ -1,7 +1,7 @@
 //! KheperaIV-LineFollow: follow a black line on a white floor with the four ground sensors
-//! (issue 15; research/tasks.md §5.2). One closed line per episode, `linefollow.width` wide
-//! (2.7 cm: K-Team's demo asks for a line at least 2.7 cm wide, spec §4), drawn on the floor
-//! (the world's [`FloorMarks`]) along a closed curve: a circle, a figure eight (Gerono's
+//! (issue 15; docs/task-design.md §5.2). One closed line per episode, `linefollow.width` wide
+//! (2.7 cm: K-Team's demo asks for a line at least 2.7 cm wide, docs/robot.md §4), drawn on the
+//! floor (the world's [`FloorMarks`]) along a closed curve: a circle, a figure eight (Gerono's
 //! lemniscate, which crosses itself), a square with sharp corners, a random smooth closed
 //! spline per seed (the curves of the tracking tasks, `reference.rs`), or the scenario's own
 //! line through its `points` (`track = "waypoints"`). The robot starts on the
