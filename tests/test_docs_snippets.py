@@ -34,7 +34,7 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 NOT_CODE = {"text", ""}
 #: Languages the test runs.
 RUNNABLE = {"python", "bash", "toml"}
-_FENCE = re.compile(r"^(?P<fence>`{3,})(?P<info>[^`]*)$")
+_FENCE = re.compile(r"^(?P<indent> *)(?P<fence>`{3,})(?P<info>[^`]*)$")
 _NOT_RUN = re.compile(r"^<!-- not run: (?P<reason>.+\S) -->$")
 
 
@@ -59,12 +59,13 @@ def blocks(page: Path) -> list[Block]:
         if match is None:
             index += 1
             continue
-        fence, info = match.group("fence"), match.group("info").strip()
+        indent, fence = match.group("indent"), match.group("fence")
+        info = match.group("info").strip()
         start = index
         index += 1
         body = []
-        while index < len(lines) and lines[index].rstrip() != fence:
-            body.append(lines[index])
+        while index < len(lines) and lines[index].rstrip() != indent + fence:
+            body.append(lines[index].removeprefix(indent))
             index += 1
         index += 1
         previous = lines[start - 1].strip() if start > 0 else ""
