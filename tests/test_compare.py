@@ -113,6 +113,8 @@ def test_cli_compare_writes_table_csv_json_and_plots(
     ]
     document = json.loads((tmp_path / "paper_fig6_results.json").read_text())
     assert document["env_id"] == "KheperaIV-Avoid-v0" and document["config"] == "paper_fig6"
+    assert document["meta"]["command"].startswith("khepera-gym compare --env KheperaIV-Avoid-v0")
+    assert {"date", "commit", "machine"} <= document["meta"].keys()
     assert [s["policy"] for s in document["summaries"]] == ["braitenberg", "vfh"]
     success = document["summaries"][0]["success_rate"]
     assert success["value"] == 1.0 and success["n"] == 3

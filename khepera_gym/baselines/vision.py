@@ -1,5 +1,5 @@
-"""Vision baselines for KheperaIV-Seek: steering by the camera's scanline (research/tasks.md §6.3).
-Units: m/s, rad/s; robot frame x forward, y left."""
+"""Vision baselines for KheperaIV-Seek: steering by the camera's scanline
+(docs/task-design.md §6.3). Units: m/s, rad/s; robot frame x forward, y left."""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ class SeekEnv(KheperaEnv):
 
     ## Description
 
-    A camera task (issue 15; research/tasks.md §6.3): Avoid's 2 m × 2 m arena with 10 random
+    A camera task (issue 15; docs/task-design.md §6.3): Avoid's 2 m × 2 m arena with 10 random
     grey obstacles, and one red pillar (radius `seek.pillar_radius` = 5 cm) standing on the goal,
     optionally with `seek.distractors` pillars of other colours. The goal's distance and bearing
     are not observed: only the IR ring, the camera's scanline and the wheel speeds.
@@ -110,23 +110,11 @@ class SeekEnv(KheperaEnv):
 
     ## Scenario file
 
-    The keys of :class:`NavEnv` plus a `[seek]` table; defaults that differ from Nav, and the
-    `[seek]` keys:
-
-    | Key                        | Default          | Meaning                               |
-    |----------------------------|------------------|---------------------------------------|
-    | `obstacles.count`          | 10               | random obstacles, as Avoid            |
-    | `obstacles.placement`      | anywhere         | as Avoid                              |
-    | `spawn.min_goal_distance`  | 1.0              | m, as Avoid                           |
-    | `sensors.carry`            | ir, us, gyro,    | the camera sees the pillar            |
-    |                            | camera           |                                       |
-    | `sensors.observe`          | ir, camera       | no goal but what the camera shows     |
-    | `task.goal_radius`         | 0.1704           | m: the rim 5 cm from the pillar       |
-    | `task.max_steps`           | 600              | 30 s, as Avoid                        |
-    | `task.collision_penalty`   | 0.5              | as Avoid                              |
-    | `seek.pillar_radius`       | 0.05             | m, the pillar's radius [E]            |
-    | `seek.pillar_color`        | [1.0, 0.0, 0.0]  | its RGB in [0, 1] (red)               |
-    | `seek.distractors`         | 0                | pillars of other colours, 0..8        |
+    The keys of :class:`NavEnv` with Avoid's obstacles, the camera carried and observed (no goal
+    bearing), plus a `[seek]` table (the pillar's radius and colour, distractors). Every key, with
+    its default in each version, its units, its comment and its source, is tabled on this env's page
+    of the documentation (generated from the core's declarations by `make docs`);
+    `khepera_gym.default_config("seek")` prints them as a TOML file.
 
     A colour outside [0, 1] (`seek.pillar_color`, `arena.wall_color`, `robot.led_color`, an
     obstacle's `color`), a goal radius the robot could never reach, or a scenario that does not
@@ -145,7 +133,7 @@ SEEK_POLICY = BlobServo()
 
 
 def seek_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
-    """Colour-blob servoing toward the red pillar (research/tasks.md §6.3).
+    """Colour-blob servoing toward the red pillar (docs/task-design.md §6.3).
 
     :class:`khepera_gym.baselines.BlobServo` with its defaults: turn toward the red pixels'
     centroid, slow as they fill the view, search in a wide circle when none shows, Braitenberg

@@ -1,4 +1,4 @@
-//! Colour-blob servoing for Seek (research/tasks.md §6.3): steer toward the camera pixels of the
+//! Colour-blob servoing for Seek (docs/task-design.md §6.3): steer toward the camera pixels of the
 //! target colour and slow down as they fill the view.
 //!
 //! With the blob's centroid x̄ ∈ [−1, 1] (positive to the right: pixel 0 is the leftmost) and
