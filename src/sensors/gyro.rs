@@ -12,8 +12,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 use super::{DrawContext, Readout, SenseContext, Sensor};
+use crate::config::Domain;
 use crate::draw::Mark;
-use crate::error::{Error, Result};
 use crate::obs::Block;
 
 /// One raw count (°/s): `KH4_GYRO_DEG_S` of libkhepera (docs/robot.md §6, §10).
@@ -25,7 +25,7 @@ crate::config_table! {
     /// The gyroscope's keys in `[sensors]`.
     pub struct GyroConfig {
         /// °/s, Gaussian, per reading [E: the LSM330DLC's rate noise density 0.03 °/s/√Hz over its 95 Hz output, averaged over a reading]
-        gyro_noise_sigma: f32 = 0.2,
+        gyro_noise_sigma: f32 = 0.2 => Domain::range(0.0, FULL_SCALE_DEG_S as f64),
     }
 }
 
@@ -54,17 +54,6 @@ impl Sensor for Gyro {
         Self {
             noise_sigma: cfg.gyro_noise_sigma,
         }
-    }
-
-    fn validate(cfg: &GyroConfig, origin: &str) -> Result<()> {
-        if !cfg.gyro_noise_sigma.is_finite() || cfg.gyro_noise_sigma < 0.0 {
-            return Err(Error::config(
-                origin,
-                "sensors.gyro_noise_sigma",
-                format!("must be a finite number >= 0, got {}", cfg.gyro_noise_sigma),
-            ));
-        }
-        Ok(())
     }
 
     fn randomise(&mut self, _cfg: &GyroConfig, _rng: &mut ChaCha8Rng) {}

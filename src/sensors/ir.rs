@@ -12,9 +12,8 @@ use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
 use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
-use crate::config::Param;
+use crate::config::{Domain, Param};
 use crate::draw::Mark;
-use crate::error::{Error, Result};
 use crate::obs::Block;
 
 /// Number of ring sensors.
@@ -52,11 +51,11 @@ crate::config_table! {
     /// The IR ring's keys in `[sensors]` (spec §2–3).
     pub struct IrConfig {
         /// m, beyond this the IR reads the floor value
-        ir_range: f32 = 0.25,
+        ir_range: f32 = 0.25 => Domain::above(0.2).at_most(1.0),
         /// raw count with nothing in range (floor reflection) [E]; may be a [low, high] range
-        ir_floor_value: Param = 100.0,
+        ir_floor_value: Param = 100.0 => Domain::range(0.0, CURVE_RAW[CURVE_RAW.len() - 1] as f64),
         /// raw counts, Gaussian, per reading [E]; may be a range
-        ir_noise_sigma: Param = 10.0,
+        ir_noise_sigma: Param = 10.0 => Domain::range(0.0, IR_MAX_RAW as f64),
     }
 }
 
@@ -168,38 +167,6 @@ impl Sensor for IrRing {
             near_shapes: Vec::new(),
             near_others: Vec::new(),
         }
-    }
-
-    fn validate(cfg: &IrConfig, origin: &str) -> Result<()> {
-        if !cfg.ir_range.is_finite() || cfg.ir_range <= 0.0 {
-            return Err(Error::config(
-                origin,
-                "sensors.ir_range",
-                format!("must be a finite number > 0, got {}", cfg.ir_range),
-            ));
-        }
-        cfg.ir_floor_value
-            .check(origin, "sensors.ir_floor_value", false)?;
-        cfg.ir_noise_sigma
-            .check(origin, "sensors.ir_noise_sigma", false)?;
-        if cfg.ir_floor_value.max() > CURVE_RAW[CURVE_RAW.len() - 1] {
-            return Err(Error::config(
-                origin,
-                "sensors.ir_floor_value",
-                format!(
-                    "must be in [0, 111] (the response curve reads 111 at 0.2 m), got {:?}",
-                    cfg.ir_floor_value
-                ),
-            ));
-        }
-        if cfg.ir_range <= 0.2 || cfg.ir_range > 1.0 {
-            return Err(Error::config(
-                origin,
-                "sensors.ir_range",
-                format!("must be in (0.2, 1.0] m, got {}", cfg.ir_range),
-            ));
-        }
-        Ok(())
     }
 
     fn randomise(&mut self, cfg: &IrConfig, rng: &mut ChaCha8Rng) {

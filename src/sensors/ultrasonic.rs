@@ -12,7 +12,7 @@ use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
 use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
-use crate::config::Param;
+use crate::config::{limits, Domain, Param};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::Block;
@@ -38,17 +38,17 @@ crate::config_table! {
     /// The ultrasonic sensors' keys in `[sensors]` (spec §5).
     pub struct UsConfig {
         /// m, closer objects read code 0 ("too close")
-        us_min_range: f32 = 0.25,
+        us_min_range: f32 = 0.25 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, farther than this reads code 1000 ("nothing")
-        us_max_range: f32 = 2.0,
+        us_max_range: f32 = 2.0 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, Gaussian [E] (K-Team states +-2 cm tolerance); may be a range
-        us_noise_sigma: Param = 0.01,
+        us_noise_sigma: Param = 0.01 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// left, front-left, front, front-right, right; off reads 2000
         us_enabled: [bool; 5] = [true, true, true, true, true],
         /// s between two readings of the five sensors: 20 ms each, 100 ms for all five (K-Team manual §4.2); a reading holds until the next (0 = every step)
-        us_period: f32 = 0.1,
+        us_period: f32 = 0.1 => Domain::range(0.0, 10.0),
         /// rad, largest angle between the beam and a surface's normal that still echoes [S: Webots' sonar model, 22.5°]; pi/2 = any
-        us_acceptance: f32 = 0.39269908169872414,
+        us_acceptance: f32 = 0.39269908169872414 => Domain::POSITIVE.at_most(std::f64::consts::FRAC_PI_2),
     }
 }
 
@@ -167,34 +167,6 @@ impl Sensor for Ultrasonic {
     }
 
     fn validate(cfg: &UsConfig, origin: &str) -> Result<()> {
-        for (key, v) in [
-            ("sensors.us_min_range", cfg.us_min_range),
-            ("sensors.us_max_range", cfg.us_max_range),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return Err(Error::config(
-                    origin,
-                    key,
-                    format!("must be a finite number > 0, got {v}"),
-                ));
-            }
-        }
-        cfg.us_noise_sigma
-            .check(origin, "sensors.us_noise_sigma", false)?;
-        if !cfg.us_period.is_finite() || !(0.0..=10.0).contains(&cfg.us_period) {
-            return Err(Error::config(
-                origin,
-                "sensors.us_period",
-                format!("must be in [0, 10] s, got {}", cfg.us_period),
-            ));
-        }
-        if !(cfg.us_acceptance > 0.0 && cfg.us_acceptance <= std::f32::consts::FRAC_PI_2) {
-            return Err(Error::config(
-                origin,
-                "sensors.us_acceptance",
-                format!("must be in (0, pi/2] rad, got {}", cfg.us_acceptance),
-            ));
-        }
         if cfg.us_min_range >= cfg.us_max_range {
             return Err(Error::config(
                 origin,

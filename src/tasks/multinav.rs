@@ -12,7 +12,7 @@ use toml::Table;
 
 use super::nav;
 use super::{Agent, Task, TaskInfo};
-use crate::config::ConfigTable;
+use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::{Block, ObsWriter};
@@ -58,19 +58,12 @@ crate::config_table! {
     /// `[multinav]`: several robots, each with its own goal.
     pub struct MultiNavConfig {
         /// robots, each with its own goal; they are obstacles to each other (1..1024; a swarm needs an arena to match, see `configs/swarm.toml`)
-        n_robots: u32 = 4,
+        n_robots: u32 = 4 => Domain::range(1.0, MAX_ROBOTS as f64),
     }
 }
 
 fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()> {
     let m = MultiNavConfig::from_table(table, origin, "multinav")?;
-    if m.n_robots == 0 || m.n_robots > MAX_ROBOTS {
-        return Err(Error::config(
-            origin,
-            "multinav.n_robots",
-            format!("must be in 1..={MAX_ROBOTS}, got {}", m.n_robots),
-        ));
-    }
     let fit = robots_that_fit(scenario);
     if m.n_robots as usize > fit {
         let a = &scenario.arena;
