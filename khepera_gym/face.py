@@ -26,7 +26,8 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import _core
-from khepera_gym.errors import ConfigError
+from khepera_gym._inputs import check_world_index
+from khepera_gym.errors import ConfigError, StateError
 from khepera_gym.layout import layout_dict
 
 #: Largest seed drawn from an env's ``np_random`` on a first ``reset()`` without a seed
@@ -121,12 +122,20 @@ class BatchFace:
         Args:
             index: The world (a face of every world; default 0); a face of one world shows its
                 own and takes no index.
+
+        Raises:
+            ConfigError: ``index`` is not an int naming one of the worlds.
         """
         if self._WORLD is not None:
-            if index not in (None, self._WORLD):
-                raise ConfigError(f"this env has one world; scene() takes no index, got {index}")
+            if index is not None and not (
+                isinstance(index, (int, np.integer))
+                and not isinstance(index, bool)
+                and index == self._WORLD
+            ):
+                raise ConfigError(f"this env has one world; scene() takes no index, got {index!r}")
             return self._batch.scene(self._WORLD)
-        return self._batch.scene(0 if index is None else int(index))
+        world = 0 if index is None else check_world_index(index, self._batch.num_worlds, "scene()")
+        return self._batch.scene(world)
 
     def config_toml(self) -> str:
         """The fully resolved scenario (defaults + file + overrides) as TOML text."""
@@ -188,10 +197,15 @@ class BatchFace:
         number of worlds (in this process or another).
 
         Raises:
-            StateError: ``state`` is not a state, is corrupt, is of an older format, or was saved
-                from another env (the message says which); the env is then unchanged.
+            StateError: ``state`` is not bytes, not a state, is corrupt, is of an older format,
+                or was saved from another env (the message says which); the env is then
+                unchanged.
         """
-        self._batch.set_state(state)
+        if not isinstance(state, (bytes, bytearray, memoryview)):
+            raise StateError(
+                f"set_state() takes the bytes get_state() returned, got {type(state).__name__}"
+            )
+        self._batch.set_state(bytes(state))
         self._has_reset = True
 
 

@@ -18,10 +18,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from khepera_gym._inputs import check_int
 from khepera_gym.errors import ConfigError, KheperaError
 
 #: Default frame size (pixels, width and height).
 DEFAULT_FRAME_SIZE = (480, 480)
+#: Smallest and largest frame side (pixels): a 4096 x 4096 frame is 48 MiB.
+FRAME_SIDES = (16, 4096)
 #: Robot positions kept for the fading trails drawn in frames.
 TRAIL_LENGTH = 100
 
@@ -32,14 +35,17 @@ def check_frame_size(frame_size: Sequence[int]) -> tuple[int, int]:
     """Validates a (width, height) pair in pixels.
 
     Raises:
-        ConfigError: Not two integers in 16..4096.
+        ConfigError: Not two ints in 16..4096.
     """
-    try:
-        width, height = (int(v) for v in frame_size)
-    except (TypeError, ValueError) as error:
-        raise ConfigError(f"frame_size must be (width, height), got {frame_size!r}") from error
-    if not (16 <= width <= 4096 and 16 <= height <= 4096):
-        raise ConfigError(f"frame_size must be 16..4096 pixels a side, got {width}x{height}")
+    if isinstance(frame_size, (str, bytes)) or not isinstance(frame_size, (Sequence, np.ndarray)):
+        raise ConfigError(f"frame_size must be (width, height), got {frame_size!r}")
+    if len(frame_size) != 2:
+        raise ConfigError(f"frame_size must be (width, height), got {len(frame_size)} values")
+    low, high = FRAME_SIDES
+    width, height = (
+        check_int(v, f"frame_size {side}", low, high)
+        for v, side in zip(frame_size, ("width", "height"), strict=True)
+    )
     return width, height
 
 
@@ -159,6 +165,7 @@ def save_video(frames: Sequence[Frame], path: str | Path, fps: int = 20) -> Path
 
 __all__ = [
     "DEFAULT_FRAME_SIZE",
+    "FRAME_SIDES",
     "TRAIL_LENGTH",
     "HumanWindow",
     "check_frame_size",

@@ -47,6 +47,8 @@ from gymnasium.vector.utils import batch_space
 from khepera_gym._inputs import (
     SEED_LIMIT,
     as_action_array,
+    check_int,
+    check_options,
     check_reset_mask,
     check_seed,
     check_world_seeds,
@@ -156,7 +158,7 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._action_shape = (self.num_envs, self._batch.act_dim)
         self._has_reset = False
-        self._render_worlds = max(1, int(render_worlds))
+        self._render_worlds = check_int(render_worlds, "render_worlds", 1)
         self._renderer = Renderer(
             self._batch,
             render_mode,
@@ -215,13 +217,8 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
 
     def _reset_mask(self, options: Mapping[str, Any] | None) -> npt.NDArray[np.bool_] | None:
         """The checked ``options["reset_mask"]``, or None (reset every world)."""
-        if options is None:
-            return None
-        if not isinstance(options, Mapping):
-            raise ConfigError(
-                f"reset(options=...) takes a dict or None, got {type(options).__name__}"
-            )
-        if "reset_mask" not in options:
+        options = check_options(options)
+        if options is None or "reset_mask" not in options:
             return None
         return check_reset_mask(options["reset_mask"], self.num_envs)
 

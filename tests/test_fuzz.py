@@ -647,23 +647,15 @@ class _SeedExpect:
     may_reject: bool = False
 
 
-# Gymnasium's own check: ``Env.reset(seed=...)`` and ``VectorEnv.reset(seed=...)`` call
-# ``gymnasium.utils.seeding.np_random(seed)`` first, which raises ``gymnasium.error.Error``
-# ("Seed must be a python integer" / "must be greater or equal to zero") for anything but a
-# non-negative Python int. That is Gymnasium's documented behaviour, not a leak: accepted too.
-_GYM_SEED_ERRORS = (KheperaError, gym.error.Error)
-
-
 def _single_seed_expectation(seed: Any) -> _SeedExpect:
+    # A single env checks its seed as the vector envs do, before Gymnasium sees it: a Python or
+    # NumPy int in [0, 2**64) (bool included, as in Gymnasium) or None; anything else is a
+    # ConfigError naming the seed (issue 36: typed errors at every entry point).
     if seed is None:
         return _SeedExpect(True, [None])
-    if isinstance(seed, int):  # bool included, as in Gymnasium
-        if seed < 0:
-            return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
-        if seed >= U64:  # Gymnasium takes it; working or a KheperaError are both fine
-            return _SeedExpect(True, [seed], may_reject=True)
+    if _is_int(seed) and 0 <= int(seed) < U64:
         return _SeedExpect(True, [int(seed)])
-    return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
+    return _SeedExpect(False, errors=(ConfigError,))
 
 
 def _vector_seed_expectation(seed: Any, n: int) -> _SeedExpect:
@@ -671,10 +663,8 @@ def _vector_seed_expectation(seed: Any, n: int) -> _SeedExpect:
         return _SeedExpect(True, [None] * n)
     if _is_int(seed):
         value = int(seed)
-        if value < 0:
-            return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
-        if value >= U64:
-            return _SeedExpect(True, [None] * n, may_reject=True)
+        if not 0 <= value < U64:  # checked before Gymnasium sees it, as a single env does
+            return _SeedExpect(False, errors=(ConfigError,))
         # World i is seeded s + i; where that passes 2**64 it is unspecified, so not compared.
         return _SeedExpect(True, [value + i if value + i < U64 else None for i in range(n)])
     is_sequence = isinstance(seed, (list, tuple)) or (

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import _core
-from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed
+from khepera_gym._inputs import as_action_array, check_options, check_seed
 from khepera_gym.config import VERSION_KEY, ConfigArg, make_batch
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
@@ -113,15 +113,20 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
         """Start a new episode.
 
         Args:
-            seed: Seeds the world's random stream; None continues it (the very first reset without
-                a seed draws one from ``self.np_random``).
-            options: Unused; accepted for API compatibility.
+            seed: Seeds the world's random stream (an int, Python's or NumPy's, in
+                [0, 2**64)); None continues it (the very first reset without a seed draws one
+                from ``self.np_random``).
+            options: None or a dict; unused, accepted for API compatibility.
 
         Returns:
             The first observation and an empty info dict.
+
+        Raises:
+            ConfigError: A seed that is not an int in [0, 2**64), or options that are not a
+                dict (as every env of khepera_gym does, before Gymnasium sees them).
         """
-        if isinstance(seed, int) and seed >= SEED_LIMIT:  # Gymnasium checks the rest
-            check_seed(seed)
+        seed = check_seed(seed)
+        check_options(options)
         super().reset(seed=seed)
         if seed is None and not self._has_reset:
             seed = first_seed(self.np_random)

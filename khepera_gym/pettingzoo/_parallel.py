@@ -21,9 +21,9 @@ import numpy as np
 import numpy.typing as npt
 from pettingzoo import ParallelEnv
 
-from khepera_gym._inputs import as_action_array, check_seed
+from khepera_gym._inputs import as_action_array, check_options, check_seed
 from khepera_gym.config import ConfigArg, make_batch
-from khepera_gym.errors import ActionError, KheperaError
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
@@ -34,6 +34,26 @@ ACTION_DIM = 2
 
 AgentObs = npt.NDArray[np.float32]
 AgentAction = npt.NDArray[np.float32]
+
+
+def merge_table_keywords(kwargs: dict[str, Any], table: str, values: Mapping[str, Any]) -> None:
+    """Puts the keyword arguments ``values`` that are not None (``n_followers=4``) into the
+    scenario table ``table`` of ``kwargs`` (``formation={...}``, which may already hold some of
+    its keys; the arguments win), in place: how a wrapper's own keywords set its task's keys.
+
+    Raises:
+        ConfigError: ``kwargs[table]`` is given and is not a dict of keys (``formation=5``,
+            ``formation="cross"``): the table keyword takes a table.
+    """
+    given = kwargs.pop(table, None)
+    if given is not None and not isinstance(given, Mapping):
+        raise ConfigError(
+            f"{table}= takes a dict of [{table}] keys, got {type(given).__name__}: {given!r}"
+        )
+    merged = dict(given or {})
+    merged.update({key: value for key, value in values.items() if value is not None})
+    if given is not None or merged:
+        kwargs[table] = merged
 
 
 class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
@@ -153,14 +173,19 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         """Start a new episode with every possible agent.
 
         Args:
-            seed: Seeds the world's random stream; None continues it (the very first reset
-                without a seed draws one from the operating system's entropy).
-            options: Unused; accepted for API compatibility.
+            seed: Seeds the world's random stream (an int in [0, 2**64)); None continues it (the
+                very first reset without a seed draws one from the operating system's entropy).
+            options: None or a dict; unused, accepted for API compatibility.
 
         Returns:
             Observations and (empty) infos, keyed by agent.
+
+        Raises:
+            ConfigError: A seed that is not an int in [0, 2**64), or options that are not a
+                dict.
         """
         seed = check_seed(seed)
+        check_options(options)
         if seed is None and not self._has_reset:
             seed = first_seed()
         self._observation = self._batch.reset(seed)[0]
@@ -281,4 +306,4 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             renderer.close()
 
 
-__all__ = ["ACTION_DIM", "KheperaParallelEnv"]
+__all__ = ["ACTION_DIM", "KheperaParallelEnv", "merge_table_keywords"]

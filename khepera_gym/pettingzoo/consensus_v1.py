@@ -16,7 +16,12 @@ from pettingzoo import AECEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from khepera_gym.config import ConfigArg
-from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs, KheperaParallelEnv
+from khepera_gym.pettingzoo._parallel import (
+    AgentAction,
+    AgentObs,
+    KheperaParallelEnv,
+    merge_table_keywords,
+)
 
 
 class ConsensusParallelEnv(KheperaParallelEnv):
@@ -178,11 +183,8 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     def __init__(
         self, config: ConfigArg = None, max_cycles: int | None = None, **kwargs: Any
     ) -> None:
-        given = {key: kwargs.pop(key) for key in self.KEYS if kwargs.get(key) is not None}
-        if given:
-            table = dict(kwargs.pop("consensus", None) or {})
-            table.update(given)
-            kwargs["consensus"] = table
+        given = {key: kwargs.pop(key) for key in self.KEYS if key in kwargs}
+        merge_table_keywords(kwargs, "consensus", given)
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
 

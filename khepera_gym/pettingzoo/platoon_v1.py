@@ -15,7 +15,12 @@ from pettingzoo import AECEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from khepera_gym.config import ConfigArg
-from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs, KheperaParallelEnv
+from khepera_gym.pettingzoo._parallel import (
+    AgentAction,
+    AgentObs,
+    KheperaParallelEnv,
+    merge_table_keywords,
+)
 
 
 class PlatoonParallelEnv(KheperaParallelEnv):
@@ -179,11 +184,7 @@ class PlatoonParallelEnv(KheperaParallelEnv):
         max_cycles: int | None = None,
         **kwargs: Any,
     ) -> None:
-        given = {"robots": robots, "time_gap": time_gap}
-        if any(value is not None for value in given.values()):
-            platoon = dict(kwargs.pop("platoon", None) or {})
-            platoon.update({key: value for key, value in given.items() if value is not None})
-            kwargs["platoon"] = platoon
+        merge_table_keywords(kwargs, "platoon", {"robots": robots, "time_gap": time_gap})
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
 

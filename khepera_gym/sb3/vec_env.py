@@ -21,7 +21,7 @@ import numpy.typing as npt
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices
 
-from khepera_gym._inputs import as_action_array, check_seed
+from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed, check_world_index
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.face import BatchFace, first_seed
@@ -158,7 +158,10 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
         seed = check_seed(seed)
         if seed is None:
             seed = first_seed()
-        self._seeds = [seed + row // self.rows_per_world for row in range(self.num_envs)]
+        # As the core's reset does: world w gets seed + w, wrapping at 2**64.
+        self._seeds = [
+            (seed + row // self.rows_per_world) % SEED_LIMIT for row in range(self.num_envs)
+        ]
         return list(self._seeds)
 
     def reset(self) -> npt.NDArray[np.float32]:
@@ -353,8 +356,10 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
         if indices is None:
             return list(range(self.num_envs))
         if isinstance(indices, (int, np.integer)):
-            return [int(indices)]
-        return [int(index) for index in indices]
+            return [check_world_index(indices, self.num_envs, "indices")]
+        if isinstance(indices, (str, bytes)) or not hasattr(indices, "__iter__"):
+            raise ConfigError(f"indices must be None, an int or ints, got {indices!r}")
+        return [check_world_index(index, self.num_envs, "indices") for index in indices]
 
     def _check_open(self) -> None:
         if self._closed:
