@@ -290,27 +290,36 @@ impl Vfh {
                         let lo = self.centre((first_blocked + start) % n) - 0.5 * width;
                         let hi = lo + len as f32 * width;
                         let margin = 0.5 * self.min_valley;
-                        // The goal bearing unwrapped into [c - π, c + π] around the
-                        // valley's centre c, so clamping picks the nearer edge.
+                        // VFH+'s candidate directions: a narrow valley's centre; in a wide one,
+                        // each edge `margin` inside, and the goal bearing when it lies between
+                        // them (the goal unwrapped into [c - π, c + π] around the valley's
+                        // centre c). Both edges are candidates, so that a valley wrapping round
+                        // the robot (one obstacle ahead) offers a left and a right way past it,
+                        // each judged by the cost below.
                         let centre = 0.5 * (lo + hi);
                         let g = centre + crate::robot::wrap_angle(goal_bearing - centre);
-                        let dir = if hi - lo <= 2.0 * margin {
-                            0.5 * (lo + hi)
+                        let candidates = if hi - lo <= 2.0 * margin {
+                            [Some(centre), None, None]
                         } else {
-                            g.clamp(lo + margin, hi - margin)
+                            let (left, right) = (lo + margin, hi - margin);
+                            let inside = (left..=right).contains(&g).then_some(g);
+                            [Some(left), Some(right), inside]
                         };
-                        // VFH+'s cost: near the goal, and near straight ahead (which keeps
-                        // the robot committed to the valley it is turning into).
-                        let mut cost = angle_between(dir, goal_bearing)
-                            + self.heading_weight * angle_between(dir, 0.0);
-                        // The robot's own turn (from its wheel speeds) is the memory VFH+
-                        // keeps as its previous direction: switching sides costs extra, which
-                        // stops a flip-flop between two valleys.
-                        if turning * dir < 0.0 && dir.abs() > 0.05 {
-                            cost += self.switch_penalty;
-                        }
-                        if best.is_none_or(|(c, _)| cost < c) {
-                            best = Some((cost, crate::robot::wrap_angle(dir)));
+                        for dir in candidates.into_iter().flatten() {
+                            let dir = crate::robot::wrap_angle(dir);
+                            // VFH+'s cost: near the goal, and near straight ahead (which keeps
+                            // the robot committed to the valley it is turning into).
+                            let mut cost = angle_between(dir, goal_bearing)
+                                + self.heading_weight * angle_between(dir, 0.0);
+                            // The robot's own turn (from its wheel speeds) is the memory VFH+
+                            // keeps as its previous direction: switching sides costs extra,
+                            // which stops a flip-flop between two ways past an obstacle.
+                            if turning * dir < 0.0 && dir.abs() > 0.05 {
+                                cost += self.switch_penalty;
+                            }
+                            if best.is_none_or(|(c, _)| cost < c) {
+                                best = Some((cost, dir));
+                            }
                         }
                     }
                     run_start = None;
