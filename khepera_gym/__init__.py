@@ -39,6 +39,23 @@ units_to_speed = _core.units_to_speed
 
 __version__: str = _core.__version__
 
+
+def motor_presets() -> dict[str, dict[str, str]]:
+    """The named drives of ``motors.preset`` (``gym.make(id, preset="kteam_default")``): name →
+    the ``[motors]`` keys it sets (TOML) and who sets it on the real robot."""
+    return {
+        name: {"settings": settings, "source": " ".join(source.split())}
+        for name, settings, source in _core.motor_presets()
+    }
+
+
 register_envs()
 
-__all__ = ["__version__", "errors", "obs_layout", "speed_to_units", "units_to_speed"]
+__all__ = [
+    "__version__",
+    "errors",
+    "motor_presets",
+    "obs_layout",
+    "speed_to_units",
+    "units_to_speed",
+]

@@ -36,7 +36,7 @@ crate::config_table! {
         max_wheel_speed: Param = 0.813,
         /// m/s; smaller commands give 0 (the real PID's floor, manual §4.14.1)
         min_wheel_speed: f32 = 0.003,
-        /// m/s^2 per wheel, the acceleration of motors.mode = "ramp" only (v0: inf = none; v1: 0.2034543, K-Team's default profile rate, 3 speed units of 0.678 mm/s per 10 ms, manual §4.14.2); the other modes set theirs in [drive]; may be a finite range
+        /// m/s^2 per wheel, the acceleration of motors.mode = "ramp" only (v0: inf = none; v1: 0.2034543, K-Team's default profile rate, 3 speed units of 0.678 mm/s per 10 ms, manual §4.14.2); the other modes set theirs in [motors]; may be a finite range
         wheel_accel_limit: Param = 0.2034543,
         /// s, first-order lag of each wheel behind its order (the PID's response), in every drive mode (0 = none) [E]
         motor_time_constant: f32 = 0.0,

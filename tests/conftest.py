@@ -10,25 +10,28 @@ import numpy as np
 import pytest
 
 import khepera_gym  # noqa: F401  (registers the environments)
+from khepera_gym.registration import latest_ids
 
 # render_mode="human" opens a pygame window: on SDL's dummy driver where there is no display.
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
-#: The latest versioned ids (v1: tyre grip, contact friction, the motor's speed profile).
-NAV_ID = "KheperaIV-Nav-v1"
-AVOID_ID = "KheperaIV-Avoid-v1"
-FORMATION_ID = "KheperaIV-Formation-v1"
-#: Trajectory tracking exists only from v1 (it was added with the real robot's dynamics).
-TRACK_ID = "KheperaIV-Track-v1"
-#: Path following, likewise only from v1.
-PATHFOLLOW_ID = "KheperaIV-PathFollow-v1"
-#: The quadcopter of Fig. 8 following a Khepera IV, likewise only from v1.
-DRONE_ID = "KheperaIV-DroneFollow-v1"
-#: Line following with the ground sensors, likewise only from v1.
-LINEFOLLOW_ID = "KheperaIV-LineFollow-v1"
-#: Seeking a colour with the camera, likewise only from v1.
-SEEK_ID = "KheperaIV-Seek-v1"
+#: The latest versioned id of every task, from the registry (v2: K-Team's speed profile at
+#: Acc_Inc 40 on the v1 contacts); tests of behaviour every version shares use these.
+LATEST = latest_ids()
+NAV_ID = LATEST["nav"]
+AVOID_ID = LATEST["avoid"]
+FORMATION_ID = LATEST["formation"]
+TRACK_ID = LATEST["track"]
+PATHFOLLOW_ID = LATEST["pathfollow"]
+DRONE_ID = LATEST["dronefollow"]
+LINEFOLLOW_ID = LATEST["linefollow"]
+SEEK_ID = LATEST["seek"]
+#: The v1 ids (tyre grip, contact friction, a plain 0.203 m/s² ramp of the wheels): tests that
+#: specify v1's own dynamics pin them, so that v1 keeps its behaviour.
+NAV_V1_ID = "KheperaIV-Nav-v1"
+AVOID_V1_ID = "KheperaIV-Avoid-v1"
+FORMATION_V1_ID = "KheperaIV-Formation-v1"
 #: The v0 ids: the paper's V-REP-like dynamics (kinematic drive, frictionless contacts, wheels at
 #: their command within a step), which the paper's controllers and gains were tuned for. Tests of
 #: those controllers' published success rates, and tests of the action mapping that read the wheel

@@ -356,7 +356,7 @@ def test_set_chooses_the_reference_and_names_the_files(
         compare.parse_overrides(["speed=0.1", "speed=0.2"])
     argv = ["compare", "--task", "track", "--set", "reference=square", "--episodes", "2"]
     assert cli.main([*argv, "--no-progress", "--out", str(tmp_path)]) == 0
-    assert 'KheperaIV-Track-v1, reference="square": 2 episodes' in capsys.readouterr().out
+    assert f'{TRACK_ID}, reference="square": 2 episodes' in capsys.readouterr().out
     document = json.loads((tmp_path / "track_reference-square_results.json").read_text())
     assert document["overrides"] == {"reference": "square"}
     assert (tmp_path / "track_reference-square_references.png").is_file()

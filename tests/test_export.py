@@ -66,6 +66,8 @@ enum kh4RegType { kh4RegIdle = 0, kh4RegSpeed = 1, kh4RegSpeedProfile = 2 };
 int kh4_init(int argc, char *argv[]);
 knet_dev_t *knet_open(const char *name, int bus, int argc, char *argv[]);
 int kh4_SetMode(int mode, knet_dev_t *device);
+int kh4_SetSpeedProfile(char accinc, char accdiv, char mindacc, char mindec, int max_speed,
+                        knet_dev_t *device);
 int kh4_set_speed(int left, int right, knet_dev_t *device);
 int kh4_get_speed(int *left, int *right, knet_dev_t *device);
 int kh4_get_position(int *left, int *right, knet_dev_t *device);
@@ -104,6 +106,14 @@ int kh4_SetMode(int mode, knet_dev_t *d)
 {
     (void)d;
     fprintf(stderr, "set_mode %d\\n", mode);
+    return 0;
+}
+int kh4_SetSpeedProfile(char accinc, char accdiv, char mindacc, char mindec, int max_speed,
+                        knet_dev_t *d)
+{
+    (void)d;
+    fprintf(stderr, "set_profile %d %d %d %d %d\\n", (unsigned char)accinc, (unsigned char)accdiv,
+            (unsigned char)mindacc, (unsigned char)mindec, max_speed);
     return 0;
 }
 int kh4_set_speed(int left, int right, knet_dev_t *d)
@@ -371,7 +381,8 @@ def test_every_activation_exports_to_c_and_onnx(
 
     with gym.make(NAV_ID) as env:
         robot = export.robot_interface(env, 18, NAV_ID)
-    export.write_c(network, robot, tmp_path, "a test")
+    motors = export.motor_setting(export.toml_loads(robot.scenario_toml))
+    export.write_c(network, robot, motors, tmp_path, "a test")
     c_actions = run_check(compile_check(tmp_path), "policy", observations)
     assert np.max(np.abs(c_actions - expected)) < ACTION_TOLERANCE
 
@@ -417,12 +428,19 @@ def test_c_observation_matches_simulator_from_raw_readings(
 @pytest.mark.parametrize("action_type", ["wheels", "unicycle"])
 def test_c_wheel_command_matches_simulator_wheel_speeds(action_type: str, tmp_path: Path) -> None:
     # The robot's motor controller ramps to a commanded speed by itself; with the simulated ramp
-    # off (v1's motor model) the simulator's wheel speeds are the commanded ones.
-    no_ramp = {"wheel_accel_limit": float("inf")}
+    # off (a plain ramp of no limit, exported at its nominal setting) the simulator's wheel
+    # speeds are the commanded ones.
+    no_ramp = {"mode": "ramp", "wheel_accel_limit": float("inf")}
     env = gym.make(NAV_ID, action_type=action_type, **no_ramp)
     model = PPO("MlpPolicy", env, seed=0, device="cpu")
     export.export_policy(
-        model, tmp_path, env_id=NAV_ID, action_type=action_type, check=False, **no_ramp
+        model,
+        tmp_path,
+        env_id=NAV_ID,
+        action_type=action_type,
+        check=False,
+        drive="nominal",
+        **no_ramp,
     )
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1.3, 1.3, (300, 2)).astype(np.float32)
@@ -543,6 +561,12 @@ def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Pa
         ["set_speed", str(left), str(right)] for left, right in [*units, [0, 0]]
     ]
     assert commands[-1] == ["set_mode", "0"] and ["activate_us", "31"] in commands
+    # The motor controller is set as in training before the first command: v2's K-Team speed
+    # profile at Acc_Inc 40, Acc_Div 0, minimum 20 units (kh4RegSpeedProfile = 2).
+    first_speed = commands.index(["set_speed", *map(str, units[0])])
+    assert commands.index(["set_profile", "40", "0", "20", "1", "400"]) < first_speed
+    assert commands.index(["set_mode", "2"]) < first_speed
+    assert "motors: speed profile, acc_inc 40, acc_div 0, min_speed_acc 20" in run.stderr
     assert commands.count(["measure_us"]) == 3  # once a step
     wheels = run_check(compile_check(tmp_path), "wheels", expected).astype(int)
     assert units[0] == wheels[0].tolist()
@@ -837,3 +861,46 @@ def test_rllib_ppo_checkpoint_exports_with_parity(
         tmp_path / "out" / export.ONNX_FILE, nav_recording.observations
     )
     assert np.max(np.abs(onnx_actions - expected)) < ACTION_TOLERANCE
+
+
+def _program_calls(tmp_path: Path, model: Any, **kwargs: Any) -> list[list[str]]:
+    """What the exported program tells the fake robot's motor controller before driving."""
+    export.export_policy(model, tmp_path, check=False, **kwargs)
+    program = robot_program_on_fake_robot(tmp_path)
+    run = subprocess.run(
+        [str(program), "1.0", "0.5", "1"], capture_output=True, text=True, check=True, timeout=10
+    )
+    calls = [line.split() for line in run.stderr.splitlines()]
+    return [c for c in calls if c[0] in ("set_profile", "set_mode")]
+
+
+def test_the_program_sets_the_drive_the_policy_was_trained_with(tmp_path: Path) -> None:
+    model = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    # A preset K-Team program sets (its Braitenberg demo: Acc_Inc 10): the same profile.
+    calls = _program_calls(tmp_path / "demo", model, env_id=NAV_ID, preset="kteam_braitenberg")
+    assert calls[:2] == [["set_mode", "0"], ["set_profile", "10", "0", "20", "1", "400"]]
+    assert calls[2] == ["set_mode", "2"]
+    # The speed mode: kh4RegSpeed (1), no profile.
+    calls = _program_calls(tmp_path / "speed", model, env_id=NAV_ID, preset="speed_mode")
+    assert ["set_mode", "1"] in calls and not any(c[0] == "set_profile" for c in calls)
+    manifest = json.loads((tmp_path / "speed" / export.MANIFEST_FILE).read_text())
+    assert manifest["motors"]["mode"] == "speed" and "estimate" in manifest["motors"]["note"]
+
+
+def test_a_drive_the_robot_cannot_be_set_to_needs_its_nominal_setting(tmp_path: Path) -> None:
+    v1 = "KheperaIV-Nav-v1"
+    model = PPO("MlpPolicy", gym.make(v1), seed=0, device="cpu", n_steps=64)
+    # v1's plain 0.203 m/s² ramp is no firmware mode: an error saying what nominal would set.
+    with pytest.raises(ConfigError, match=r"ramp.*--drive nominal.*Acc_Inc 3"):
+        export.export_policy(model, tmp_path / "v1", env_id=v1, check=False)
+    assert not (tmp_path / "v1" / "khepera_policy_main.c").exists()
+    calls = _program_calls(tmp_path / "v1", model, env_id=v1, drive="nominal")
+    assert ["set_profile", "3", "0", "20", "1", "400"] in calls and ["set_mode", "2"] in calls
+    # A profile randomised over a range: the robot runs one; nominal takes the midpoint.
+    model = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    with pytest.raises(ConfigError, match=r"randomised drive.*motors\.acc_inc"):
+        export.export_policy(model, tmp_path / "dr", env_id=NAV_ID, check=False, acc_inc=[20, 60])
+    calls = _program_calls(tmp_path / "dr", model, env_id=NAV_ID, acc_inc=[20, 60], drive="nominal")
+    assert ["set_profile", "40", "0", "20", "1", "400"] in calls
+    with pytest.raises(ConfigError, match="drive must be one of"):
+        export.export_policy(model, tmp_path / "x", env_id=NAV_ID, check=False, drive="fast")

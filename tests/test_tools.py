@@ -7,7 +7,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import FORMATION_ID, NAV_ID
+from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
@@ -115,9 +115,8 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
     # The paper's Fig. 6 and Fig. 7 scenes, then Nav, Avoid, Formation, Track, PathFollow,
     # LineFollow, Seek and DroneFollow.
     assert output.count("2 episodes per policy") == 10
-    for task in ("KheperaIV-Nav-v1", "KheperaIV-Avoid-v1", "KheperaIV-Formation-v1"):
+    for task in (NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID):
         assert task in output
-    assert "KheperaIV-Track-v1" in output and "KheperaIV-PathFollow-v1" in output
     for policy in ("position_control", "braitenberg", "vfh", "leader_follower", "random"):
         assert policy in output
     assert "kanayama" in output and "position_chase" in output

@@ -48,6 +48,7 @@ from khepera_gym.export.exporter import (
     ExportResult,
     export_policy,
 )
+from khepera_gym.export.motors import DRIVE_CHOICES, MotorSetting, motor_setting
 from khepera_gym.export.network import (
     ACTIVATIONS,
     EXPORT_EXTRA,
@@ -58,9 +59,12 @@ from khepera_gym.export.network import (
     PolicyNetwork,
 )
 from khepera_gym.export.onnx_writer import ONNX_FILE, ONNX_OPSET, build_onnx, onnx_actions
-from khepera_gym.export.robot import RobotInterface, robot_interface
+from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
 
 __all__ = [
+    "DRIVE_CHOICES",
+    "MotorSetting",
+    "motor_setting",
     "ACTIVATIONS",
     "C_FLAGS",
     "C_SOURCES",
@@ -91,6 +95,7 @@ __all__ = [
     "onnx_actions",
     "record_rollouts",
     "robot_interface",
+    "toml_loads",
     "run_check_program",
     "run_from_args",
     "write_c",

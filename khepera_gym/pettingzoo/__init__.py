@@ -23,6 +23,10 @@ Each module has ``parallel_env(**kwargs)`` (a ``pettingzoo.ParallelEnv``) and ``
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
+from types import ModuleType
+
 from khepera_gym.pettingzoo import (
     consensus_v1,
     consensus_v2,
@@ -38,6 +42,22 @@ from khepera_gym.pettingzoo import (
     platoon_v2,
 )
 
+
+def modules() -> dict[str, ModuleType]:
+    """Every versioned module of this package (``formation_v2`` → its module), found by listing
+    the package: a new task's or version's module is included without a list to update."""
+    found = {}
+    for info in pkgutil.iter_modules(__path__):
+        stem, _, version = info.name.rpartition("_v")
+        if stem and version.isdigit():
+            found[info.name] = importlib.import_module(f"{__name__}.{info.name}")
+    return dict(sorted(found.items(), key=lambda item: (item[0].rpartition("_v")[0], _v(item[0]))))
+
+
+def _v(name: str) -> int:
+    return int(name.rpartition("_v")[2])
+
+
 __all__ = [
     "consensus_v1",
     "consensus_v2",
@@ -46,6 +66,7 @@ __all__ = [
     "formation_v0",
     "formation_v1",
     "formation_v2",
+    "modules",
     "multinav_v0",
     "multinav_v1",
     "multinav_v2",

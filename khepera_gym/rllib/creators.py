@@ -30,15 +30,9 @@ import gymnasium as gym
 from ray.rllib.env.env_context import EnvContext
 from ray.tune.registry import register_env
 
+from khepera_gym import _core
 from khepera_gym.errors import ConfigError
-from khepera_gym.pettingzoo import (
-    consensus_v1,
-    formation_v0,
-    formation_v1,
-    multinav_v0,
-    multinav_v1,
-    platoon_v1,
-)
+from khepera_gym.pettingzoo import modules as pettingzoo_modules
 from khepera_gym.registration import registered_ids, resolve_env_id
 from khepera_gym.rllib.followers import FormationFollowersVectorEnv
 from khepera_gym.rllib.multi_agent import KheperaMultiAgentEnv
@@ -47,21 +41,25 @@ from khepera_gym.rllib.seeding import SeedPerRunner, runner_cpus
 #: Prefix of every env name this package registers with Ray Tune.
 ENV_PREFIX = "khepera_gym/"
 #: Names of the formation-followers vector env (one row per follower, one shared policy) →
-#: the behaviour version each runs (as the PettingZoo ``formation_v0`` / ``formation_v1``).
+#: the behaviour version each runs (as the PettingZoo ``formation_vN``): every version of the
+#: formation task the core knows.
 FOLLOWERS_ENVS: dict[str, int] = {
-    f"{ENV_PREFIX}formation_followers_v0": 0,
-    f"{ENV_PREFIX}formation_followers_v1": 1,
+    f"{ENV_PREFIX}formation_followers_v{v}": v for v in _core.task_versions("formation")
 }
 #: The formation-followers env of the latest behaviour version.
-FOLLOWERS_ENV = f"{ENV_PREFIX}formation_followers_v1"
-#: Multi-agent env names → the PettingZoo module whose ``parallel_env`` they wrap.
+FOLLOWERS_ENV = max(FOLLOWERS_ENVS, key=FOLLOWERS_ENVS.__getitem__)
+#: PettingZoo modules not offered as RLlib multi-agent envs, and why.
+NOT_MULTI_AGENT = {
+    # Its agents are a quadcopter and (with driver="agent") a Khepera, with different spaces;
+    # none of this package's RLlib configurations is made for them, and it was never offered.
+    "drone_follow",
+}
+#: Multi-agent env names → the PettingZoo module whose ``parallel_env`` they wrap: every
+#: versioned module of :mod:`khepera_gym.pettingzoo` but :data:`NOT_MULTI_AGENT`.
 MULTI_AGENT_ENVS: dict[str, ModuleType] = {
-    f"{ENV_PREFIX}formation_v0": formation_v0,
-    f"{ENV_PREFIX}formation_v1": formation_v1,
-    f"{ENV_PREFIX}multinav_v0": multinav_v0,
-    f"{ENV_PREFIX}multinav_v1": multinav_v1,
-    f"{ENV_PREFIX}platoon_v1": platoon_v1,
-    f"{ENV_PREFIX}consensus_v1": consensus_v1,
+    ENV_PREFIX + name: module
+    for name, module in pettingzoo_modules().items()
+    if name.rpartition("_v")[0] not in NOT_MULTI_AGENT
 }
 
 

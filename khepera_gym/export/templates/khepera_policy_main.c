@@ -156,11 +156,11 @@ int main(int argc, char *argv[])
     kh4_SetSpeedProfile(KHEPERA_ACC_INC, KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC,
                         KHEPERA_MIN_SPEED_DEC, KHEPERA_PROFILE_MAX_SPEED, ds_pic);
     kh4_SetMode(kh4RegSpeedProfile, ds_pic);
-    printf("motors: speed profile, acc_inc %d, acc_div %d, min_speed_acc %d\n", KHEPERA_ACC_INC,
-           KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC);
+    fprintf(stderr, "motors: speed profile, acc_inc %d, acc_div %d, min_speed_acc %d\n",
+            KHEPERA_ACC_INC, KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC);
 #else
     kh4_SetMode(kh4RegSpeed, ds_pic);
-    printf("motors: speed mode\n");
+    fprintf(stderr, "motors: speed mode\n");
 #endif
     kh4_get_position(&pose.last_left, &pose.last_right, ds_pic);
 
