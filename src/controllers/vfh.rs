@@ -1,35 +1,65 @@
-//! Vector Field Histogram (paper eqs. 8–11, after Ulrich & Borenstein 2000), on observations.
+//! Vector Field Histogram (paper eqs. 8–11, after Ulrich & Borenstein 2000), with the obstacle
+//! enlargement and the direction choice of VFH+ (Ulrich & Borenstein 1998), on observations.
 //!
-//! A polar histogram of obstacle density is built from the 8 IR and 5 ultrasonic readings: each
-//! sensor adds its obstacle magnitude to the sectors around its bearing (IR: the proximity
-//! p in [0, 1]; ultrasonic: 1 − d/us_range for echoes closer than `us_range`), and the histogram
-//! is smoothed over neighbouring sectors. Sectors under `threshold` are free. Each free valley
-//! at least `min_valley` wide offers one direction, the goal bearing clamped `min_valley / 2`
-//! inside its edges; the robot takes the one with the lowest VFH+-style cost (angle to the
-//! goal, plus `heading_weight` × angle to straight ahead, plus `switch_penalty` for a valley on
-//! the other side of its current turn, read from the wheel speeds in the observation), or turns
-//! in place when boxed in. Then ω = ω_max·sin(θ_e) (eq. 9, at full rate once the direction is
+//! **Histogram.** It is rebuilt from the current 8 IR and 5 ultrasonic readings at every step
+//! (no memory: the controller is stateless). Each reading is an obstacle at its sensor's bearing
+//! β and a distance d from the rim: for the IR ring the K-Team response curve inverted (the
+//! sensor's own model, [`IrModel::mean_raw`], with the observation's floor `ir_floor_value`),
+//! for a sonar its range (a "too close" reading counts as an echo at `us_min_range`, the nearest
+//! distance the sensor reports, as the ARGoS and Webots models saturate it; anything nearer is
+//! the IR ring's). It adds its magnitude (IR: the proximity p in [0, 1]; sonar: 1 − d/us_range
+//! for echoes closer than `us_range`) to every sector within
+//!
+//! ```text
+//! half its beam + γ,   γ = asin(min(1, (r_r + d_s) / (r_r + d)))     (VFH+ eq. 4)
+//! ```
+//!
+//! of β: VFH+'s enlargement, which blocks every direction whose straight path would pass within
+//! the robot's radius r_r plus a safety distance d_s of the obstacle (γ = 90° once it is within
+//! d_s of the rim). The histogram is then smoothed over neighbouring sectors; sectors under
+//! `threshold` are free.
+//!
+//! **Direction (VFH+ §3.4).** Each free valley at least `min_valley` wide offers candidates: a
+//! narrow valley its centre; a wide one each edge `min_valley / 2` inside, and the goal bearing
+//! when it lies between them (so a valley wrapping round the robot, one obstacle ahead, offers a
+//! left and a right way past it). The robot takes the candidate of least cost
+//!
+//! ```text
+//! Δ(c, goal) + μ2·Δ(c, ahead) + μ3·Δ(c, previous) + switch_penalty·[c on the other side]
+//! ```
+//!
+//! (VFH+ eq. 11 divided by μ1; `heading_weight` = μ2/μ1, `previous_weight` = μ3/μ1). Having no
+//! memory, the controller reads its previous direction from the turn rate in the observation's
+//! wheel speeds, inverting eq. 9 (θ = asin(ω/ω_max); a saturated turn stands for any direction
+//! from 90° to 180° on its side), and a candidate on the other side of the current turn costs
+//! `switch_penalty` more. Boxed in (no valley), it turns in place until one opens.
+//!
+//! **Speed (paper eqs. 8–11).** ω = ω_max·sin(θ_e) (eq. 9, at full rate once the direction is
 //! behind); the density straight ahead h'_c, capped at h_m (eq. 11), slows it:
 //! v' = v_max(1 − h'_c/h_m) (eq. 10), v = v'(1 − |ω|/ω_max) (eq. 8); near the goal the docking
 //! law of eq. 3 caps v.
 //!
-//! An ultrasonic "too close" reading (an object nearer than the sensor's 25 cm minimum range,
-//! observed as 0) counts as an echo at `us_min_range`, the nearest distance the sensor reports,
-//! which is how the ARGoS and Webots models of the sensor saturate it; anything nearer is the
-//! IR ring's to add. (Counting it as an obstacle at 0 m filled the sector ahead up to h_m
-//! whenever something stood 10–25 cm ahead, where the IR proximity is still small, so eq. 10
-//! held the robot there for good: the paper's Fig. 6 box.) With an obstacle that close the
-//! robot creeps at a fraction of v_max, and eq. 10 stops it once the IR proximity ahead adds
-//! the rest of h_m (about 8 cm from the obstacle with the defaults).
+//! **What changed for real contacts (v2), and why.** On frictional contacts the paper's VFH
+//! (histogram without enlargement, goal clamped into the nearest valley) failed the paper's own
+//! Fig. 6 scene in 20 of 20 runs and reached 34% of Avoid goals: it steered its shoulder past
+//! the wall's end and the box (a graze then holds the robot), and in front of the wall its
+//! single wide valley flipped sides with a few degrees of heading. The paper's robot had the
+//! margin VFH+ adds (Ulrich & Borenstein 1998): obstacles enlarged by r_r + d_s, with d_s = 15 mm,
+//! the distance the robot covers in one control step at v_max (the histogram is a step old when
+//! the wheels act). The sonar's reading is a range along its axis (one ray in the model), so it
+//! fills only its enlargement (`us_beam_width` 0); a 45° sonar beam at 40 cm blocked 30 cm wide
+//! gaps the robot fits through. The IR readings keep the 45° beam that closes the ring's blind
+//! zones. The paper's gains (v_max, ω_max, h_m, threshold, k_r) are unchanged.
+//! docs/notes/controllers-v2.md has the measurements.
 //!
-//! Each reading fills the sectors within half a `beam_width` of its sensor's bearing; a valley
-//! must be `min_valley` wide to be steered into. The histogram is rebuilt from the current
-//! readings at every step (no memory), so an obstacle that leaves every beam leaves the
-//! histogram: the robot turns away, loses sight of it, turns back toward the goal, sees it
-//! again, and zigzags (the paper's observation). With beams narrower than the sensors' 45°
-//! spacing (`beam_width` < 45°) the histogram also has blind zones between sensors that look
-//! free; the default closes them for the IR ring, and `beam_width = 10°` shows the paper's
-//! blind-zone behaviour at its worst.
+//! **Limits.** With no memory, an obstacle that leaves every beam leaves the histogram: the
+//! robot turns back toward the goal and zigzags (the paper's observation), and a thin wall
+//! whose end lies between two IR rays is not seen at all (a robot pressed against one reads
+//! nothing). With beams narrower than the sensors' 45° spacing the histogram also has blind
+//! zones between sensors that look free; `beam_width = 10°` shows the paper's blind-zone
+//! behaviour at its worst. VFH+'s hysteresis (two thresholds on the previous binary histogram)
+//! and its masked histogram need state or a turning radius; the robot turns on the spot, and
+//! the previous-direction cost stands in for the hysteresis.
 //!
 //! Units: metres, m/s, radians, rad/s; sector bearings in the robot frame (x forward, y left,
 //! CCW).
@@ -39,6 +69,7 @@ use std::f32::consts::PI;
 use super::{goal_of, non_negative, positive, Controller, GoalBlocks, WheelMap};
 use crate::error::{Error, Result};
 use crate::obs::ObsLayout;
+use crate::sensors::ir::{IrModel, IR_MAX_RAW};
 use crate::sensors::{IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
 
 crate::config_table! {
@@ -64,14 +95,26 @@ crate::config_table! {
         us_max_range: f32 = 2.0,
         /// the ultrasonic minimum range (m): a "too close" reading counts as an echo here
         us_min_range: f32 = 0.25,
-        /// angular width a reading fills, centred on its sensor (rad; 45°)
+        /// angular width an IR reading fills, centred on its sensor, before enlargement (rad; 45°: the ring's spacing, which closes its blind zones)
         beam_width: f32 = 0.7853981633974483,
+        /// angular width a sonar reading fills before enlargement (rad; 0: its range is along its axis) [D: docs/notes/controllers-v2.md]
+        us_beam_width: f32 = 0.0,
         /// narrowest free valley the robot steers into (rad; 30°)
         min_valley: f32 = 0.5235987755982988,
-        /// weight of "close to straight ahead" against "close to the goal" (VFH+'s μ2/μ1)
+        /// weight of "close to straight ahead" against "close to the goal" (VFH+'s μ2/μ1) [S: Ulrich & Borenstein 1998, μ1:μ2:μ3 = 5:2:2]
         heading_weight: f32 = 0.4,
-        /// extra cost (rad) of a valley on the other side of the robot's current turn
+        /// weight of "close to the previous direction", read from the turn rate (VFH+'s μ3/μ1) [S: Ulrich & Borenstein 1998, 5:2:2]
+        previous_weight: f32 = 0.4,
+        /// extra cost (rad) of a candidate on the other side of the robot's current turn
         switch_penalty: f32 = 0.6,
+        /// r_r of VFH+'s enlargement (m): the robot's radius [S: Khepera IV, 140.8 mm across]
+        robot_radius: f32 = 0.0704,
+        /// d_s of VFH+'s enlargement (m): the clearance kept from obstacles [D: v_max x dt, the way covered in one 50 ms control step at 0.3 m/s]
+        safety_distance: f32 = 0.015,
+        /// the IR observation's floor (raw count with nothing seen): the scenario's sensors.ir_floor_value
+        ir_floor_value: f32 = 100.0,
+        /// the IR range (m): the scenario's sensors.ir_range
+        ir_range: f32 = 0.25,
         /// wheel separation (m)
         axle_length: f32 = 0.1054,
         /// wheel speed that an action of 1 stands for (m/s)
@@ -103,16 +146,29 @@ pub struct Vfh {
     /// Ultrasonic minimum range (m): a "too close" reading (observation 0) counts as an echo at
     /// this distance, the nearest the sensor reports; the IR ring covers what is nearer.
     pub us_min_range: f32,
-    /// Angular width (rad) of the sectors a reading fills, centred on its sensor's bearing.
+    /// Angular width (rad) an IR reading fills around its sensor's bearing, before enlargement.
     pub beam_width: f32,
+    /// Angular width (rad) a sonar reading fills around its sensor's bearing, before
+    /// enlargement.
+    pub us_beam_width: f32,
     /// Narrowest valley (rad) the robot will steer into; it aims at least half of it away
     /// from the valley's edges.
     pub min_valley: f32,
-    /// Weight of "close to straight ahead" against "close to the goal" when choosing a valley
-    /// (VFH+'s μ2/μ1; 0 chooses by the goal alone).
+    /// Weight of "close to straight ahead" against "close to the goal" when choosing a
+    /// direction (VFH+'s μ2/μ1; 0 chooses by the goal alone).
     pub heading_weight: f32,
-    /// Extra cost (rad) of a valley on the other side of the robot's current turn.
+    /// Weight of "close to the previous direction" (VFH+'s μ3/μ1).
+    pub previous_weight: f32,
+    /// Extra cost (rad) of a candidate on the other side of the robot's current turn.
     pub switch_penalty: f32,
+    /// The robot's radius r_r (m): sensor distances are from its rim.
+    pub robot_radius: f32,
+    /// r_r + d_s of VFH+ (m): the robot's radius plus the clearance it keeps.
+    pub enlargement_radius: f32,
+    /// The IR observation's floor (raw count with nothing seen).
+    pub ir_floor_value: f32,
+    /// The IR range (m).
+    pub ir_range: f32,
 }
 
 impl Default for Vfh {
@@ -145,15 +201,27 @@ impl VfhParams {
             ("us_min_range", self.us_min_range),
             ("beam_width", self.beam_width),
             ("min_valley", self.min_valley),
+            ("robot_radius", self.robot_radius),
+            ("ir_range", self.ir_range),
         ] {
             positive(who, name, v)?;
         }
         for (name, v) in [
             ("stop_radius", self.stop_radius),
             ("heading_weight", self.heading_weight),
+            ("us_beam_width", self.us_beam_width),
+            ("previous_weight", self.previous_weight),
             ("switch_penalty", self.switch_penalty),
+            ("safety_distance", self.safety_distance),
+            ("ir_floor_value", self.ir_floor_value),
         ] {
             non_negative(who, name, v)?;
+        }
+        if self.ir_floor_value >= IR_MAX_RAW {
+            return Err(Error::Param(format!(
+                "{who}: ir_floor_value must be below {IR_MAX_RAW}, got {}",
+                self.ir_floor_value
+            )));
         }
         Ok(Vfh {
             sectors: self.sectors,
@@ -167,9 +235,15 @@ impl VfhParams {
             us_max_range: self.us_max_range,
             us_min_range: self.us_min_range,
             beam_width: self.beam_width,
+            us_beam_width: self.us_beam_width,
             min_valley: self.min_valley,
             heading_weight: self.heading_weight,
+            previous_weight: self.previous_weight,
             switch_penalty: self.switch_penalty,
+            robot_radius: self.robot_radius,
+            enlargement_radius: self.robot_radius + self.safety_distance,
+            ir_floor_value: self.ir_floor_value,
+            ir_range: self.ir_range,
         })
     }
 }
@@ -214,7 +288,9 @@ impl Controller for VfhPolicy {
         let ir = &obs[self.ir..self.ir + IR_COUNT];
         let us = &obs[self.us..self.us + US_COUNT];
         let wheels = &obs[self.wheel_speeds..self.wheel_speeds + 2];
-        let (v, w) = self.vfh.twist(ir, us, d, bearing, wheels[1] - wheels[0]);
+        let turn_rate =
+            (wheels[1] - wheels[0]) * self.wheels.max_wheel_speed / self.wheels.axle_length;
+        let (v, w) = self.vfh.twist(ir, us, d, bearing, turn_rate);
         out.copy_from_slice(&self.wheels.twist_action(v, w));
     }
 }
@@ -232,15 +308,49 @@ impl Vfh {
         -PI + (k as f32 + 0.5) * width
     }
 
-    /// Adds `magnitude` to every sector within half a beam of `bearing`.
-    fn add(&self, h: &mut [f32], bearing: f32, magnitude: f32) {
+    /// Distance (m) from the rim of an IR proximity `p`: the response curve inverted (None:
+    /// nothing seen).
+    pub fn ir_distance(&self, p: f32) -> Option<f32> {
+        if p <= 0.0 {
+            return None;
+        }
+        let ir = IrModel {
+            range: self.ir_range,
+            floor_value: self.ir_floor_value,
+            noise_sigma: 0.0,
+        };
+        let raw = ir.floor_value + p.min(1.0) * (IR_MAX_RAW - ir.floor_value);
+        let (mut near, mut far) = (0.0f32, ir.range);
+        // The mean response falls with distance: bisect for where it reads `raw`.
+        for _ in 0..20 {
+            let mid = 0.5 * (near + far);
+            if ir.mean_raw(Some(mid)) > raw {
+                near = mid;
+            } else {
+                far = mid;
+            }
+        }
+        Some(0.5 * (near + far))
+    }
+
+    /// VFH+'s enlargement angle γ = asin((r_r + d_s) / D) of an obstacle `rim_distance` (m) from
+    /// the robot's rim (D from its centre); π/2 once it is within r_r + d_s.
+    pub fn enlargement(&self, rim_distance: f32) -> f32 {
+        let centre = self.robot_radius + rim_distance.max(0.0);
+        (self.enlargement_radius / centre).min(1.0).asin()
+    }
+
+    /// Adds `magnitude` to every sector within half a beam, enlarged by VFH+'s γ for an
+    /// obstacle `rim_distance` away, of `bearing`.
+    fn add(&self, h: &mut [f32], bearing: f32, magnitude: f32, rim_distance: f32, beam: f32) {
+        let half = 0.5 * beam + self.enlargement(rim_distance);
         for (k, slot) in h.iter_mut().enumerate() {
-            if angle_between(self.centre(k), bearing) <= 0.5 * self.beam_width {
+            if angle_between(self.centre(k), bearing) <= half {
                 *slot += magnitude;
             }
         }
         // A beam narrower than a sector still fills its own sector.
-        if self.beam_width < 2.0 * PI / self.sectors as f32 {
+        if 2.0 * half < 2.0 * PI / self.sectors as f32 {
             h[self.sector(bearing)] += magnitude;
         }
     }
@@ -249,14 +359,24 @@ impl Vfh {
     pub fn histogram(&self, ir: &[f32], us: &[f32]) -> Vec<f32> {
         let mut h = vec![0.0f32; self.sectors];
         for k in 0..IR_COUNT {
-            self.add(&mut h, IR_BEARINGS[k], ir[k].max(0.0));
+            if let Some(d) = self.ir_distance(ir[k]) {
+                self.add(&mut h, IR_BEARINGS[k], ir[k], d, self.beam_width);
+            }
         }
         for k in 0..US_COUNT {
             // "Too close" (0) saturates at the minimum range, as the ARGoS and Webots models of
             // the sensor report it; nearer obstacles are the IR ring's.
             let distance = (us[k] * self.us_max_range).max(self.us_min_range);
-            let magnitude = (1.0 - distance / self.us_range).max(0.0);
-            self.add(&mut h, US_BEARINGS[k], magnitude);
+            let magnitude = 1.0 - distance / self.us_range;
+            if magnitude > 0.0 {
+                self.add(
+                    &mut h,
+                    US_BEARINGS[k],
+                    magnitude,
+                    distance,
+                    self.us_beam_width,
+                );
+            }
         }
         let n = self.sectors;
         (0..n)
@@ -264,10 +384,22 @@ impl Vfh {
             .collect()
     }
 
-    /// The steering direction (rad, robot frame): the goal bearing pulled into the nearest
-    /// valley of free sectors at least `min_valley` wide, `min_valley / 2` clear of its edges;
-    /// None when no valley is wide enough.
-    pub fn steer(&self, h: &[f32], goal_bearing: f32, turning: f32) -> Option<f32> {
+    /// The steering direction (rad, robot frame): of VFH+'s candidate directions in the valleys
+    /// of free sectors at least `min_valley` wide, the one of least cost, the robot turning at
+    /// `turn_rate` (rad/s, CCW); None when no valley is wide enough.
+    pub fn steer(&self, h: &[f32], goal_bearing: f32, turn_rate: f32) -> Option<f32> {
+        // The previous direction, from eq. 9 inverted: ω = ω_max·sin(θ_e). Eq. 9 turns at full
+        // rate for any direction more than 90° off, so a saturated turn rate (the wheels within
+        // 5% of it) stands for any direction from 90° to 180° on its side.
+        let previous = (turn_rate / self.wmax).clamp(-1.0, 1.0).asin();
+        let saturated = turn_rate.abs() >= 0.95 * self.wmax;
+        let from_previous = |dir: f32| {
+            if saturated && dir * turn_rate > 0.0 && dir.abs() >= 0.5 * PI {
+                0.0
+            } else {
+                angle_between(dir, previous)
+            }
+        };
         let n = self.sectors;
         let width = 2.0 * PI / n as f32;
         let free: Vec<bool> = h.iter().map(|v| *v < self.threshold).collect();
@@ -276,7 +408,7 @@ impl Vfh {
         }
         // Start scanning just after a blocked sector so valleys do not wrap.
         let first_blocked = free.iter().position(|f| !f)?;
-        let mut best: Option<(f32, f32)> = None; // (distance to goal, direction)
+        let mut best: Option<(f32, f32)> = None; // (cost, direction)
         let mut run_start = None;
         for step in 1..=n {
             let k = (first_blocked + step) % n;
@@ -307,14 +439,14 @@ impl Vfh {
                         };
                         for dir in candidates.into_iter().flatten() {
                             let dir = crate::robot::wrap_angle(dir);
-                            // VFH+'s cost: near the goal, and near straight ahead (which keeps
-                            // the robot committed to the valley it is turning into).
+                            // VFH+'s cost (eq. 11 over μ1): near the goal, near straight ahead
+                            // and near the previous direction.
                             let mut cost = angle_between(dir, goal_bearing)
-                                + self.heading_weight * angle_between(dir, 0.0);
-                            // The robot's own turn (from its wheel speeds) is the memory VFH+
-                            // keeps as its previous direction: switching sides costs extra,
+                                + self.heading_weight * angle_between(dir, 0.0)
+                                + self.previous_weight * from_previous(dir);
+                            // Switching to the other side of the current turn costs extra,
                             // which stops a flip-flop between two ways past an obstacle.
-                            if turning * dir < 0.0 && dir.abs() > 0.05 {
+                            if turn_rate * dir < 0.0 && dir.abs() > 0.05 {
                                 cost += self.switch_penalty;
                             }
                             if best.is_none_or(|(c, _)| cost < c) {
@@ -330,21 +462,21 @@ impl Vfh {
         best.map(|(_, dir)| dir)
     }
 
-    /// (v, ω) from one Nav-layout observation's sensors and goal; `turning` is the sign of the
-    /// robot's current turn (right minus left wheel speed).
+    /// (v, ω) from one Nav-layout observation's sensors and goal; `turn_rate` is the robot's
+    /// current turn rate (rad/s, CCW: right minus left wheel speed over the axle).
     pub fn twist(
         &self,
         ir: &[f32],
         us: &[f32],
         distance: f32,
         goal_bearing: f32,
-        turning: f32,
+        turn_rate: f32,
     ) -> (f32, f32) {
         if distance < self.stop_radius {
             return (0.0, 0.0);
         }
         let h = self.histogram(ir, us);
-        let Some(heading_error) = self.steer(&h, goal_bearing, turning) else {
+        let Some(heading_error) = self.steer(&h, goal_bearing, turn_rate) else {
             // Boxed in (no valley wide enough): turn in place until one opens.
             return (0.0, self.wmax);
         };
