@@ -342,46 +342,74 @@ impl Vfh {
 
     /// Adds `magnitude` to every sector within half a beam, enlarged by VFH+'s γ for an
     /// obstacle `rim_distance` away, of `bearing`.
-    fn add(&self, h: &mut [f32], bearing: f32, magnitude: f32, rim_distance: f32, beam: f32) {
+    pub fn add(&self, h: &mut [f32], bearing: f32, magnitude: f32, rim_distance: f32, beam: f32) {
+        self.fill(h, bearing, rim_distance, beam, |slot| *slot += magnitude);
+    }
+
+    /// Calls `update` on every sector within half a beam, enlarged by VFH+'s γ for an obstacle
+    /// `rim_distance` away, of `bearing` (at least its own sector).
+    pub fn fill(
+        &self,
+        h: &mut [f32],
+        bearing: f32,
+        rim_distance: f32,
+        beam: f32,
+        mut update: impl FnMut(&mut f32),
+    ) {
         let half = 0.5 * beam + self.enlargement(rim_distance);
         for (k, slot) in h.iter_mut().enumerate() {
             if angle_between(self.centre(k), bearing) <= half {
-                *slot += magnitude;
+                update(slot);
             }
         }
         // A beam narrower than a sector still fills its own sector.
         if 2.0 * half < 2.0 * PI / self.sectors as f32 {
-            h[self.sector(bearing)] += magnitude;
+            update(&mut h[self.sector(bearing)]);
         }
+    }
+
+    /// Range magnitude 1 − d/us_range of an obstacle `rim_distance` (m) away (≤ 0: outside).
+    pub fn range_magnitude(&self, rim_distance: f32) -> f32 {
+        1.0 - rim_distance / self.us_range
+    }
+
+    /// Adds an IR proximity `p` seen at `bearing` (its magnitude: the proximity itself).
+    pub fn add_ir(&self, h: &mut [f32], bearing: f32, p: f32) {
+        if let Some(d) = self.ir_distance(p) {
+            self.add(h, bearing, p, d, self.beam_width);
+        }
+    }
+
+    /// Adds a range reading: an obstacle `rim_distance` (m) from the rim at `bearing`, in a
+    /// beam `beam` wide; its magnitude 1 − d/us_range, nothing beyond `us_range`.
+    pub fn add_range(&self, h: &mut [f32], bearing: f32, rim_distance: f32, beam: f32) {
+        let magnitude = 1.0 - rim_distance / self.us_range;
+        if magnitude > 0.0 {
+            self.add(h, bearing, magnitude, rim_distance, beam);
+        }
+    }
+
+    /// The histogram smoothed over neighbouring sectors (weights ¼, ½, ¼).
+    pub fn smooth(&self, h: &[f32]) -> Vec<f32> {
+        let n = self.sectors;
+        (0..n)
+            .map(|k| 0.25 * h[(k + n - 1) % n] + 0.5 * h[k] + 0.25 * h[(k + 1) % n])
+            .collect()
     }
 
     /// The smoothed polar histogram of `ir` proximities and `us` normalised readings.
     pub fn histogram(&self, ir: &[f32], us: &[f32]) -> Vec<f32> {
         let mut h = vec![0.0f32; self.sectors];
         for k in 0..IR_COUNT {
-            if let Some(d) = self.ir_distance(ir[k]) {
-                self.add(&mut h, IR_BEARINGS[k], ir[k], d, self.beam_width);
-            }
+            self.add_ir(&mut h, IR_BEARINGS[k], ir[k]);
         }
         for k in 0..US_COUNT {
             // "Too close" (0) saturates at the minimum range, as the ARGoS and Webots models of
             // the sensor report it; nearer obstacles are the IR ring's.
             let distance = (us[k] * self.us_max_range).max(self.us_min_range);
-            let magnitude = 1.0 - distance / self.us_range;
-            if magnitude > 0.0 {
-                self.add(
-                    &mut h,
-                    US_BEARINGS[k],
-                    magnitude,
-                    distance,
-                    self.us_beam_width,
-                );
-            }
+            self.add_range(&mut h, US_BEARINGS[k], distance, self.us_beam_width);
         }
-        let n = self.sectors;
-        (0..n)
-            .map(|k| 0.25 * h[(k + n - 1) % n] + 0.5 * h[k] + 0.25 * h[(k + 1) % n])
-            .collect()
+        self.smooth(&h)
     }
 
     /// The steering direction (rad, robot frame): of VFH+'s candidate directions in the valleys
@@ -475,8 +503,23 @@ impl Vfh {
         if distance < self.stop_radius {
             return (0.0, 0.0);
         }
-        let h = self.histogram(ir, us);
-        let Some(heading_error) = self.steer(&h, goal_bearing, turn_rate) else {
+        self.twist_in(&self.histogram(ir, us), distance, goal_bearing, turn_rate)
+    }
+
+    /// (v, ω) in the smoothed histogram `h` toward a goal `distance` (m) away at `goal_bearing`
+    /// (rad), turning at `turn_rate` (rad/s): the direction of least cost, eqs. 8–11 and the
+    /// docking law of eq. 3.
+    pub fn twist_in(
+        &self,
+        h: &[f32],
+        distance: f32,
+        goal_bearing: f32,
+        turn_rate: f32,
+    ) -> (f32, f32) {
+        if distance < self.stop_radius {
+            return (0.0, 0.0);
+        }
+        let Some(heading_error) = self.steer(h, goal_bearing, turn_rate) else {
             // Boxed in (no valley wide enough): turn in place until one opens.
             return (0.0, self.wmax);
         };
@@ -487,7 +530,6 @@ impl Vfh {
             self.wmax * heading_error.sin()
         };
         let hc = h[self.sector(0.0)].min(self.hm); // eq. 11
-
         let v_prime = self.vmax * (1.0 - hc / self.hm); // eq. 10
         let mut v = v_prime * (1.0 - w.abs() / self.wmax); // eq. 8
         if distance <= self.kr {
