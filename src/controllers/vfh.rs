@@ -590,4 +590,69 @@ mod tests {
         assert!(w.abs() > 0.1, "does not turn: {w}");
         assert!(v < 0.1, "does not slow: {v}");
     }
+
+    #[test]
+    fn ir_distance_inverts_the_response_curve() {
+        let vfh = Vfh::default();
+        let ir = IrModel {
+            range: 0.25,
+            floor_value: 100.0,
+            noise_sigma: 0.0,
+        };
+        for d in [0.005f32, 0.02, 0.05, 0.1, 0.15, 0.2] {
+            let raw = ir.mean_raw(Some(d));
+            let p = (raw - 100.0) / (IR_MAX_RAW - 100.0);
+            let back = vfh.ir_distance(p).expect("seen");
+            assert!(
+                (back - d).abs() < 1e-3,
+                "{d} m reads {p}, inverted to {back} m"
+            );
+        }
+        assert_eq!(vfh.ir_distance(0.0), None);
+    }
+
+    #[test]
+    fn enlargement_is_asin_of_radius_plus_safety_over_distance() {
+        let vfh = Vfh::default();
+        let r = vfh.robot_radius;
+        let rs = vfh.enlargement_radius;
+        assert!((rs - (0.0704 + 0.015)).abs() < 1e-6);
+        // An obstacle 0.3 m from the rim: γ = asin((r_r + d_s) / (r_r + 0.3)).
+        let gamma = vfh.enlargement(0.3);
+        assert!((gamma - (rs / (r + 0.3)).asin()).abs() < 1e-6);
+        // Within the safety distance of the rim it blocks the whole half-plane toward it.
+        assert_eq!(vfh.enlargement(0.01), 0.5 * PI);
+    }
+
+    #[test]
+    fn an_obstacle_at_the_shoulder_blocks_straight_ahead() {
+        // The wall's end 1 cm off the front-left rim (p ≈ 0.95), nothing else seen: the path
+        // straight ahead would graze it, so the enlarged histogram blocks it and the robot
+        // turns right, away from it, even with the goal ahead and to the left.
+        let vfh = Vfh::default();
+        let mut ir = [0.0; 8];
+        ir[2] = 0.95;
+        let h = vfh.histogram(&ir, &[1.0; 5]);
+        assert!(
+            h[vfh.sector(0.0)] >= vfh.threshold,
+            "ahead {}",
+            h[vfh.sector(0.0)]
+        );
+        let (_, w) = vfh.twist(&ir, &[1.0; 5], 1.0, 0.2, 0.0);
+        assert!(w < 0.0, "turns toward the obstacle: {w}");
+    }
+
+    #[test]
+    fn a_turn_toward_one_side_of_an_obstacle_is_kept() {
+        // A wall straight ahead seen by the front sonar only: a valley wraps round the robot with
+        // a way past on either side. The robot already turning right keeps to the right even
+        // with the goal 15° to the left; at rest it takes the goal's side.
+        let vfh = Vfh::default();
+        let us = [1.0, 1.0, 0.15, 1.0, 1.0]; // an echo 30 cm ahead
+        let goal = 15f32.to_radians();
+        let (_, turning_right) = vfh.twist(&[0.0; 8], &us, 1.0, goal, -vfh.wmax);
+        let (_, at_rest) = vfh.twist(&[0.0; 8], &us, 1.0, goal, 0.0);
+        assert!(turning_right < 0.0, "switched sides: {turning_right}");
+        assert!(at_rest > 0.0, "not the goal's side: {at_rest}");
+    }
 }
