@@ -647,15 +647,22 @@ class _SeedExpect:
     may_reject: bool = False
 
 
+# A seed that is not a non-negative Python int (below 2**64) is refused with our ConfigError,
+# before Gymnasium's own check (``gymnasium.utils.seeding.np_random``, whose ``gymnasium.error``
+# would not be a KheperaError), in the single env and the vector env alike (issue 33).
+_SEED_ERRORS = (ConfigError,)
+
+
 def _single_seed_expectation(seed: Any) -> _SeedExpect:
-    # A single env checks its seed as the vector envs do, before Gymnasium sees it: a Python or
-    # NumPy int in [0, 2**64) (bool included, as in Gymnasium) or None; anything else is a
-    # ConfigError naming the seed (issue 36: typed errors at every entry point).
     if seed is None:
         return _SeedExpect(True, [None])
-    if _is_int(seed) and 0 <= int(seed) < U64:
+    if isinstance(seed, int):  # bool included, as in Gymnasium
+        if seed < 0:
+            return _SeedExpect(False, errors=_SEED_ERRORS)
+        if seed >= U64:  # Gymnasium takes it; working or a KheperaError are both fine
+            return _SeedExpect(True, [seed], may_reject=True)
         return _SeedExpect(True, [int(seed)])
-    return _SeedExpect(False, errors=(ConfigError,))
+    return _SeedExpect(False, errors=_SEED_ERRORS)
 
 
 def _vector_seed_expectation(seed: Any, n: int) -> _SeedExpect:
@@ -663,8 +670,10 @@ def _vector_seed_expectation(seed: Any, n: int) -> _SeedExpect:
         return _SeedExpect(True, [None] * n)
     if _is_int(seed):
         value = int(seed)
-        if not 0 <= value < U64:  # checked before Gymnasium sees it, as a single env does
-            return _SeedExpect(False, errors=(ConfigError,))
+        if value < 0:
+            return _SeedExpect(False, errors=_SEED_ERRORS)
+        if value >= U64:
+            return _SeedExpect(True, [None] * n, may_reject=True)
         # World i is seeded s + i; where that passes 2**64 it is unspecified, so not compared.
         return _SeedExpect(True, [value + i if value + i < U64 else None for i in range(n)])
     is_sequence = isinstance(seed, (list, tuple)) or (

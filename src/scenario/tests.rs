@@ -91,6 +91,7 @@ fn unknown_keys_are_named() {
         e.starts_with("my.toml: task.goal_radios: unknown key"),
         "{e}"
     );
+    assert!(e.contains("did you mean `goal_radius`?"), "{e}");
     let src = Source {
         file: None,
         overrides: overrides("goal_radios = 0.1"),
@@ -98,6 +99,7 @@ fn unknown_keys_are_named() {
     };
     let e = NAV.load(&src).unwrap_err().to_string();
     assert!(e.contains("<override>: goal_radios"), "{e}");
+    assert!(e.contains("did you mean `goal_radius`?"), "{e}");
     let src = Source {
         file: Some(("[sensors]\nir_rnage = 0.3\n", "s.toml")),
         overrides: Table::new(),
@@ -108,6 +110,7 @@ fn unknown_keys_are_named() {
         e.starts_with("s.toml: sensors.ir_rnage: unknown key"),
         "{e}"
     );
+    assert!(e.contains("did you mean `ir_range`?"), "{e}");
 }
 
 #[test]
