@@ -381,15 +381,24 @@ impl Domain {
         if v.is_infinite() {
             return Ok(());
         }
+        // A float is read into float32 (a few keys into f64): it is compared with the bounds at
+        // float32 precision, so that a value written back from float32 (pi/2 as 1.5707964 when
+        // a resolved scenario is saved and loaded again) stays within a bound of pi/2, and a
+        // value float32 rounds to 0 is not "> 0".
+        let at_precision = |x: f64| match value {
+            Value::Float(_) => x as f32 as f64,
+            _ => x,
+        };
+        let w = at_precision(v);
         let low_ok = match self.low {
             Bound::Open => true,
-            Bound::Inclusive(b) => v >= b,
-            Bound::Exclusive(b) => v > b,
+            Bound::Inclusive(b) => w >= at_precision(b),
+            Bound::Exclusive(b) => w > at_precision(b),
         };
         let high_ok = match self.high {
             Bound::Open => true,
-            Bound::Inclusive(b) => v <= b,
-            Bound::Exclusive(b) => v < b,
+            Bound::Inclusive(b) => w <= at_precision(b),
+            Bound::Exclusive(b) => w < at_precision(b),
         };
         if !(low_ok && high_ok) || (self.whole && v.fract() != 0.0) {
             return fail();
@@ -467,6 +476,11 @@ mod tests {
         assert!(check(Domain::NON_NEGATIVE.or_inf(), "f32", "inf").is_ok());
         assert!(check(Domain::NON_NEGATIVE.or_inf(), "f32", "-inf").is_err());
         assert!(check(Domain::FINITE.whole(), "f32", "3.5").is_err());
+        // float32 round trips of a bound stay within it: pi/2 saved from float32 is 1.5707964.
+        let right_angle = Domain::POSITIVE.at_most(std::f64::consts::FRAC_PI_2);
+        assert!(check(right_angle, "f32", "1.5707964").is_ok());
+        assert!(check(right_angle, "f32", "1.5708").is_err());
+        assert!(check(Domain::POSITIVE, "f32", "1e-50").is_err());
         // Another kind is serde's to refuse.
         assert!(check(d, "f32", "\"big\"").is_ok());
     }
