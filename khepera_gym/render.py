@@ -48,7 +48,7 @@ def check_frame_size(frame_size: Sequence[int]) -> tuple[int, int]:
         raise ConfigError(f"frame_size must be (width, height), got {len(frame_size)} values")
     low, high = FRAME_SIDES
     width, height = (
-        check_int(v, f"frame_size {side} ({low}..{high} pixels)", low, high)
+        check_int(v, f"frame_size {side}", low, high)
         for v, side in zip(frame_size, ("width", "height"), strict=True)
     )
     return width, height
