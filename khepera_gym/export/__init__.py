@@ -27,7 +27,7 @@ Units: the observation is the simulator's (SI units, normalised sensors); wheel 
 K-Team speed units of 0.678181 mm/s. Threading: everything runs in the calling thread.
 """
 
-from khepera_gym.export.c_writer import C_SOURCES, write_c
+from khepera_gym.export.c_writer import C_SOURCES, ROBOT_HEADERS, ROBOT_SOURCES, write_c
 from khepera_gym.export.checks import (
     C_FLAGS,
     OBSERVATION_TOLERANCE,
@@ -62,12 +62,10 @@ from khepera_gym.export.onnx_writer import ONNX_FILE, ONNX_OPSET, build_onnx, on
 from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
 
 __all__ = [
-    "DRIVE_CHOICES",
-    "MotorSetting",
-    "motor_setting",
     "ACTIVATIONS",
     "C_FLAGS",
     "C_SOURCES",
+    "DRIVE_CHOICES",
     "EXPORT_EXTRA",
     "FORMATS",
     "LAYOUT_FILE",
@@ -76,11 +74,14 @@ __all__ = [
     "ONNX_FILE",
     "ONNX_OPSET",
     "PARITY_TOLERANCE",
+    "ROBOT_HEADERS",
+    "ROBOT_SOURCES",
     "SCENARIO_FILE",
     "SUPPORTED_MODELS",
     "ActionTransform",
     "DenseLayer",
     "ExportResult",
+    "MotorSetting",
     "ObservationNormalization",
     "PolicyNetwork",
     "Recording",
@@ -92,11 +93,12 @@ __all__ = [
     "export_policy",
     "input_row",
     "load_model",
+    "motor_setting",
     "onnx_actions",
     "record_rollouts",
     "robot_interface",
-    "toml_loads",
     "run_check_program",
     "run_from_args",
+    "toml_loads",
     "write_c",
 ]
