@@ -158,6 +158,8 @@ class DroneFollowEnv(KheperaEnv):
 
     * v1: Initial version (issue 16), on the v1 dynamics. There is no v0. `drone.driver`
       (default `"scripted"`, the behaviour unchanged) was added later within v1.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "dronefollow"

@@ -179,6 +179,8 @@ class FormationEnv(KheperaEnv):
     * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
       gyroscope, sonar timing and acceptance cone (the Version History of :class:`NavEnv` has the
       details).
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "formation"

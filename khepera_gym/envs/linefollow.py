@@ -144,6 +144,8 @@ class LineFollowEnv(KheperaEnv):
     ## Version History
 
     * v1: Initial version (issue 15), on the v1 dynamics. There is no v0.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "linefollow"

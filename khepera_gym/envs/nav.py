@@ -195,6 +195,15 @@ class NavEnv(KheperaEnv):
       100 ms and do not echo beyond 22.5° from a surface's normal. Pushed into a wall a robot
       slows, turns toward it and stalls; a stopped robot resists being shoved. New keys: IR
       reflectances, `task.localization` with `[odometry]`, action and observation delays.
+    * v2: One robot in the simulator and on the bench (issue 32). The wheels follow K-Team's speed
+      profile as the firmware computes it (`[motors]`: `mode = "profile"`, Acc_Inc 40 speed
+      units per 10 ms = 2.71 m/s², orders under Min_Speed_Acc = 20 units raised to it), which the
+      program `khepera-gym export` writes sets on the robot with `kh4_SetSpeedProfile` (v1's
+      0.203 m/s² ramp was not what that program set). With it the paper's reactive controllers
+      work at the paper's speeds. Also: rapier makes contacts ahead of two robots closing at full
+      speed, a slipping robot that can touch nothing is moved by its tyres without rapier, and
+      a world split by robot rolls each robot substep by substep. Contacts, sensors and rewards
+      are v1's. `motors.preset` names the drives real programs set (`khepera_gym.motor_presets()`).
     """
 
     TASK: ClassVar[str] = "nav"
@@ -343,6 +352,8 @@ class AvoidEnv(KheperaEnv):
     * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
       gyroscope, sonar timing and acceptance cone (the Version History of `NavEnv` has the
       details).
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "avoid"

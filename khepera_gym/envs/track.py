@@ -163,6 +163,8 @@ class TrackEnv(KheperaEnv):
     * v1: Initial version, on the v1 dynamics (the real robot's: tyre grip, contact friction,
       K-Team's speed profile). There is no v0: v0 means the paper's older V-REP-like dynamics,
       and the task is newer than them.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "track"

@@ -155,6 +155,8 @@ class ConsensusParallelEnv(KheperaParallelEnv):
 
     * v1: Initial version, on the v1 dynamics (tyre grip, contact friction, K-Team's speed
       profile); there is no v0.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     metadata: ClassVar[dict[str, Any]] = {

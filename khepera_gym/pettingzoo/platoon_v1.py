@@ -160,6 +160,8 @@ class PlatoonParallelEnv(KheperaParallelEnv):
 
     * v1: Initial version, on the v1 dynamics (tyre grip, contact friction, K-Team's speed
       profile), like :class:`khepera_gym.envs.TrackEnv`; there is no v0.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
