@@ -16,6 +16,11 @@ stable-baselines3 model) on the same seeded episodes and prints a table with 95%
 writing CSV, JSON and trajectory plots (:mod:`khepera_gym.compare`). ``demo`` runs that
 comparison on the paper's Fig. 6 and Fig. 7 scenes and on every task, and says where the
 plots are (``--out-dir``, demo_out/).
+
+Every subcommand checks its arguments (ids, counts, seeds, output formats and folders, which it
+creates) before it simulates anything, shows a progress bar on work longer than a moment, and
+ends a user error with one line on stderr and a non-zero status
+(:func:`khepera_gym.cli_checks.run_command`), never a traceback.
 """
 
 from __future__ import annotations
@@ -25,10 +30,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, catalog, compare, export, provenance, record, train
+from khepera_gym import bench, catalog, cli_checks, compare, export, provenance, record, train
 from khepera_gym.calibrate import command as calibrate_command
 from khepera_gym.compare.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
-from khepera_gym.errors import ConfigError
 from khepera_gym.registration import registered_ids
 
 #: What ``khepera-gym list`` can print.
@@ -165,12 +169,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``khepera-gym`` console script."""
+    """Entry point of the ``khepera-gym`` console script.
+
+    Raises:
+        SystemExit: On a user error, with one line naming it (status 1); argparse's own errors
+            exit with status 2.
+    """
     args = build_parser().parse_args(argv)
     if argv is None:
-        return _run(args)
+        return cli_checks.run_command(args.command, lambda: _run(args))
     with provenance.running_command(["khepera-gym", *argv]):
-        return _run(args)
+        return cli_checks.run_command(args.command, lambda: _run(args))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -184,8 +193,8 @@ def _run(args: argparse.Namespace) -> int:
         print(list_catalog(args.topics or LIST_TOPICS))
         return 0
     if args.command == "demo":
-        if args.episodes < 1:
-            raise SystemExit("khepera-gym demo: --episodes must be >= 1")
+        cli_checks.at_least(args.episodes, 1, "--episodes")
+        cli_checks.output_folder(args.out_dir, "--out-dir")
         return demo(args.episodes, args.out_dir)
     if args.command == "compare":
         return compare.run_from_args(args)
@@ -201,10 +210,7 @@ def _run(args: argparse.Namespace) -> int:
         "replay": calibrate_command.run_replay_from_args,
     }
     if args.command in loop_commands:
-        try:
-            return loop_commands[args.command](args)
-        except ConfigError as error:
-            raise SystemExit(f"khepera-gym {args.command}: {error}") from None
+        return loop_commands[args.command](args)
     return bench.run_from_args(args)
 
 

@@ -32,19 +32,6 @@ else:  # pragma: no cover - Python 3.10: tomli, a dependency there
 #: Source name the Rust core uses in messages when no scenario file is given.
 BUILT_IN_SOURCE = "<built-in>"
 
-#: Names that may denote a built-in scenario, used only if the extension cannot list its own.
-_CANDIDATE_BUILTIN_NAMES = (
-    "nav",
-    "avoid",
-    "formation",
-    "multinav",
-    "track",
-    "pathfollow",
-    "platoon",
-    "paper_fig6",
-    "paper_fig7",
-)
-
 ConfigArg = str | os.PathLike[str] | None
 
 
@@ -57,11 +44,9 @@ def _builtin_config_text(name: str) -> str | None:
 
 
 def builtin_config_names() -> list[str]:
-    """Names of the built-in scenarios embedded in the extension, e.g. ``["nav"]``."""
-    list_builtins = getattr(_core, "builtin_configs", None)
-    if list_builtins is not None:
-        return list(list_builtins())
-    return [name for name in _CANDIDATE_BUILTIN_NAMES if _builtin_config_text(name) is not None]
+    """Names of the built-in scenarios embedded in the extension, e.g. ``["nav"]``: every
+    task's defaults and the scenes (the core lists them)."""
+    return list(_core.builtin_configs())
 
 
 def builtin_config_text(name: str) -> str:

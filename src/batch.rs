@@ -26,7 +26,8 @@ pub const STATE_MAGIC: &[u8; 8] = b"KHEPGYM\0";
 /// 2: sensors behind the sensor contract (readings per sensor), tasks behind the task contract.
 /// 3: the robots' IMU state, the task's floor marks, colours of the scene's surfaces and robots,
 /// the new tasks' states. 4: the drive's profile minimum order, rapier's contact prediction.
-pub const STATE_VERSION: u32 = 4;
+/// 5: each agent's own episode statistics.
+pub const STATE_VERSION: u32 = 5;
 
 /// What a saved state says about the batch it came from.
 #[derive(serde::Serialize, serde::Deserialize)]

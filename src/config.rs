@@ -299,6 +299,45 @@ fn section_at(text: &str, offset: usize) -> Option<String> {
     }
 }
 
+/// The candidate spelled most like `key` (at most a third of its letters edited, at least one
+/// edit allowed), for a "did you mean" in an unknown key's message; None when none is close.
+pub fn nearest_key<'a>(
+    key: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<&'a str> {
+    let limit = (key.chars().count() / 3).max(1);
+    candidates
+        .into_iter()
+        .map(|c| (edit_distance(key, c), c))
+        .filter(|&(d, _)| d <= limit)
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, c)| c)
+}
+
+/// Levenshtein distance between `a` and `b`, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1)
+                .min(row[j] + 1)
+                .min(diagonal + usize::from(ca != cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
+}
+
+/// What an unknown key's message suggests: "; did you mean `name`?" for the nearest of
+/// `candidates`, or nothing.
+pub fn did_you_mean<'a>(key: &str, candidates: impl IntoIterator<Item = &'a str>) -> String {
+    nearest_key(key, candidates).map_or_else(String::new, |c| format!("; did you mean `{c}`?"))
+}
+
 /// Overlays `over` on `base`. Every key of `over` must exist in `base` (so a typo is an error
 /// naming the key, not a silently ignored setting).
 pub fn overlay(base: &mut Table, over: &Table, prefix: &str, origin: &str) -> Result<()> {
@@ -311,10 +350,11 @@ pub fn overlay(base: &mut Table, over: &Table, prefix: &str, origin: &str) -> Re
         match base.get_mut(key) {
             None => {
                 let known: Vec<&String> = base.keys().collect();
+                let hint = did_you_mean(key, base.keys().map(String::as_str));
                 return Err(Error::config(
                     origin,
                     &path,
-                    format!("unknown key; known keys here: {known:?}"),
+                    format!("unknown key{hint}; known keys here: {known:?}"),
                 ));
             }
             Some(Value::Table(sub)) => match value {
@@ -360,11 +400,17 @@ pub fn expand_overrides(base: &Table, overrides: &Table) -> Result<Table> {
             match sections.as_slice() {
                 [one] => vec![(*one).clone(), key.clone()],
                 [] => {
+                    // Every key a keyword may name: the sections' leaves and the top level's.
+                    let leaves = base.iter().flat_map(|(name, value)| match value {
+                        Value::Table(t) => t.keys().map(String::as_str).collect::<Vec<_>>(),
+                        _ => vec![name.as_str()],
+                    });
+                    let hint = did_you_mean(key, leaves);
                     return Err(Error::config(
                         OVERRIDE_ORIGIN,
                         key,
-                        "unknown key: no scenario section has it".to_string(),
-                    ))
+                        format!("unknown key: no scenario section has it{hint}"),
+                    ));
                 }
                 many => {
                     return Err(Error::config(
@@ -498,11 +544,29 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("f.toml: example.lenght: unknown key"), "{e}");
+        assert!(e.contains("did you mean `length`?"), "{e}");
         let mut table = Example::defaults_table();
         table.insert("length".into(), Value::String("long".into()));
         let e = Example::from_table(&table, "f.toml", "example")
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("f.toml: example.length"), "{e}");
+    }
+
+    #[test]
+    fn a_mistyped_keyword_gets_the_nearest_key_suggested() {
+        let mut base = Table::new();
+        base.insert("example".into(), Value::Table(Example::defaults_table()));
+        base.insert("seed".into(), Value::Integer(0));
+        let over = parse("lenhgt = 1.0\n", "kw").expect("toml");
+        let e = expand_overrides(&base, &over).unwrap_err().to_string();
+        assert!(e.contains("lenhgt: unknown key"), "{e}");
+        assert!(e.contains("did you mean `length`?"), "{e}");
+        let over = parse("seeed = 1\n", "kw").expect("toml");
+        let e = expand_overrides(&base, &over).unwrap_err().to_string();
+        assert!(e.contains("did you mean `seed`?"), "{e}");
+        let over = parse("zzzzzz = 1\n", "kw").expect("toml");
+        let e = expand_overrides(&base, &over).unwrap_err().to_string();
+        assert!(!e.contains("did you mean"), "{e}");
     }
 }

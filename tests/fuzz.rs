@@ -1,7 +1,8 @@
-//! Property-based fuzzing (proptest) of the core's two untrusted inputs: scenario TOML and action
-//! buffers. Whatever they hold, the core returns a typed error or works: no panic (proptest
-//! reports a panic as a failure), no non-finite observation, and a rejected action buffer leaves
-//! every world of the batch exactly as it was (compared through the saved state).
+//! Property-based fuzzing (proptest) of the core's two untrusted inputs, scenario TOML and action
+//! buffers, on every task of the registry. Whatever they hold, the core returns a typed error or
+//! works: no panic (proptest reports a panic as a failure), no non-finite observation, and a
+//! rejected action buffer leaves every world of the batch exactly as it was (compared through the
+//! saved state).
 //!
 //! The number of cases per property is proptest's `PROPTEST_CASES` (default here: 64, the CI
 //! run). The long run of the closing note:
@@ -18,15 +19,11 @@ use proptest::test_runner::Config;
 use std::sync::atomic::{AtomicU64, Ordering};
 use toml::{Table, Value};
 
-const TASKS: [&str; 7] = [
-    "nav",
-    "avoid",
-    "formation",
-    "multinav",
-    "track",
-    "pathfollow",
-    "platoon",
-];
+/// Every task of the registry ([`TaskKind::ALL`]): a new task is fuzzed without touching this
+/// file.
+fn tasks() -> Vec<&'static str> {
+    TaskKind::ALL.iter().map(|kind| kind.name()).collect()
+}
 
 /// Outcomes so far (scenarios loaded, refused; buffers stepped, refused), printed every 10^4 cases
 /// of a property when `FUZZ_STATS` is set: a fuzzer whose inputs are all refused tests little.
@@ -233,7 +230,7 @@ proptest! {
     /// worlds step with finite observations.
     #[test]
     fn scenario_toml_loads_or_is_a_config_error(
-        (task, text) in prop::sample::select(TASKS.to_vec())
+        (task, text) in prop::sample::select(tasks())
             .prop_flat_map(|task| (Just(task), scenario_text(task))),
         seed in any::<u64>(),
     ) {
@@ -244,7 +241,7 @@ proptest! {
     /// ActionError that changes no world.
     #[test]
     fn action_buffer_steps_or_is_refused_untouched(
-        task in prop::sample::select(TASKS.to_vec()),
+        task in prop::sample::select(tasks()),
         seed in 0u64..1000,
         prefix in forward_actions(4),
         values in prop::collection::vec(

@@ -24,9 +24,9 @@ from pettingzoo import ParallelEnv
 from khepera_gym._inputs import as_action_array, check_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, KheperaError
-from khepera_gym.face import BatchFace, check_render_mode, first_seed
+from khepera_gym.face import WORLD_STATS_KEY, BatchFace, check_render_mode, first_seed
 from khepera_gym.layout import layout_dict
-from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.render import Renderer
 
 #: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
 #: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
@@ -46,7 +46,9 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             None keeps the scenario's. ``max_steps`` is accepted as a synonym.
         render_mode: None, "rgb_array" (``render()`` returns the frame) or "human" (a pygame
             window, refreshed after every step).
-        frame_size: (width, height) of the frame in pixels.
+        frame_size: (width, height) of the frame in pixels;
+            None: 480 x 480, more for an arena over 4 m
+            (:func:`khepera_gym.render.default_frame_size`).
         **overrides: Scenario keys overriding the file, as for the Gymnasium envs.
 
     Raises:
@@ -72,7 +74,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         action_type: str = "wheels",
         max_cycles: int | None = None,
         render_mode: str | None = None,
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        frame_size: tuple[int, int] | None = None,
         **overrides: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
@@ -121,7 +123,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         self.state_space = joint_space
         #: Steps after which every remaining agent is truncated. PettingZoo's tests assign it: a
         #: value above the scenario's ``max_steps`` changes nothing (the core truncates first); a
-        #: lower one truncates earlier, but then the infos carry no "episode_stats" (the core's
+        #: lower one truncates earlier, but then the infos carry no statistics (the core's
         #: episode has not ended; prefer ``max_cycles=`` at construction).
         self.max_cycles: int = self._batch.max_episode_steps
         self.agents: list[str] = []
@@ -190,8 +192,13 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         Returns:
             ``(observations, rewards, terminations, truncations, infos)``, each keyed by the agents
             that were live before the step. An agent that terminated or was truncated leaves
-            ``self.agents``; at the episode's end every remaining agent does, and each one's info
-            holds ``"episode_stats"`` (the Gymnasium env's statistics, Python scalars).
+            ``self.agents``; at the episode's end every remaining agent does. The info of an
+            agent that leaves holds ``"episode_stats"``, its own statistics (Python scalars: the
+            sum of its rewards, the steps it took part in, its success as the task defines it
+            for one agent, its robot's path length and steps in contact); at the episode's end
+            every remaining agent's info also holds ``"world_episode_stats"``, the world's (all
+            agents together, as the Gymnasium env's ``"episode_stats"``, with the task's own
+            statistics). An agent truncated early by a lowered ``max_cycles`` gets neither.
 
         Raises:
             ActionError: ``actions`` is not a mapping, misses a live agent, names one that is not
@@ -215,7 +222,14 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         terminated: dict[str, bool] = {}
         truncated: dict[str, bool] = {}
         infos: dict[str, dict[str, Any]] = {}
-        stats = self._world_episode_stats(0) if episode_over else None
+        world_stats = self._world_episode_stats(0) if episode_over else None
+        # Each agent's own statistics, for the agents that leave now (the core's figures are
+        # final for an agent it terminated, and for every agent when the episode ended).
+        own_stats = (
+            self._agent_episode_stats(0)
+            if episode_over or agent_terminated[[self._agent_index[a] for a in live]].any()
+            else None
+        )
         for agent in live:
             index = self._agent_index[agent]
             observation_dict[agent] = self._observation[self._obs_slices[agent]]
@@ -224,7 +238,12 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             # When the episode ends every remaining agent leaves: terminated if the core says so
             # (it terminates them all when the episode terminates), else truncated.
             truncated[agent] = not terminated[agent] and (episode_over or cut_short)
-            infos[agent] = {} if stats is None else {"episode_stats": dict(stats)}
+            info: dict[str, Any] = {}
+            if own_stats is not None and (terminated[agent] or episode_over):
+                info["episode_stats"] = own_stats[index]
+            if world_stats is not None:
+                info[WORLD_STATS_KEY] = dict(world_stats)
+            infos[agent] = info
         self.agents = [agent for agent in live if not (terminated[agent] or truncated[agent])]
         if self.render_mode == "human":
             self.render()

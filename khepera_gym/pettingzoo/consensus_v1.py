@@ -97,8 +97,9 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     ## Episode End
 
     No termination (`consensus.tolerance` only defines convergence); truncation after
-    `task.max_steps` = 600 steps (30 s), or `max_cycles`. At the end each agent's info holds
-    `"episode_stats"`: the common statistics and `"consensus_error_final"` (m),
+    `task.max_steps` = 600 steps (30 s), or `max_cycles`. At the end each agent's info holds its
+    own `"episode_stats"` (its return, length, success, path length, contacts) and
+    `"world_episode_stats"`: the world's common statistics and `"consensus_error_final"` (m),
     `"consensus_error_rms"` (m, over the episode's steps), `"consensus_converge_time"` (s: when
     e fell below `consensus.tolerance` = 3 cm for good, plus for a rendezvous the floor
     r·sqrt(N / (2 · 0.9069)) of N packed discs, 0.10 m for 4; inf if above it at the end) and

@@ -25,8 +25,10 @@ Agents: ``follower_0`` .. ``follower_{K-1}``, with ``leader`` first when ``leade
   - team_weight · mean error`` (e_k its distance to its target, m); the agent leader's is Nav's.
 * The episode ends for all agents together: terminated when the leader reaches its goal (or on
   contact with ``terminate_on_collision``), truncated after ``max_cycles`` steps (the scenario's
-  ``task.max_steps``, 800). Each agent's last info holds ``"episode_stats"`` with
-  ``"formation_error_mean"`` and ``"formation_error_max"``.
+  ``task.max_steps``, 800). Each agent's last info holds its own ``"episode_stats"`` (a
+  follower's success: the leader arrived and the follower stands within ``task.goal_radius`` of
+  its target) and the world's ``"world_episode_stats"``, with ``"formation_error_mean"`` and
+  ``"formation_error_max"``.
 
 ``env(**kwargs)`` is the AEC version (``parallel_to_aec``, which adds PettingZoo's order-enforcing
 wrapper). No clipping wrapper is added: out-of-range actions are clipped by the core, as in the

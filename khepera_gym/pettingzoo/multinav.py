@@ -18,9 +18,11 @@ each other's sensor rays and rapier resolves their contacts::
 A robot that reaches its goal (within ``task.goal_radius``) is terminated as an agent and leaves
 ``env.agents``; it parks on its goal (zero wheel commands), still an obstacle for the others.
 The episode terminates when every robot has arrived and is truncated after ``max_cycles`` steps
-(the scenario's ``task.max_steps``, 600): the remaining agents are then truncated, and each
-one's info holds ``"episode_stats"`` ("success" means every robot arrived). ``state()`` is the
-joint observation. The scenario is configs/multinav.toml: Nav's keys with Avoid's defaults for
+(the scenario's ``task.max_steps``, 600): the remaining agents are then truncated. An agent
+leaves with its own ``"episode_stats"`` ("success": its robot arrived); at the episode's end the
+remaining ones' infos also hold the world's ``"world_episode_stats"`` ("success": every robot
+arrived). ``state()`` is the joint observation. The scenario is configs/multinav.toml: Nav's
+keys with Avoid's defaults for
 ``spawn.min_goal_distance`` (1 m), ``task.max_steps`` (600) and ``task.collision_penalty`` (0.5),
 plus ``[multinav] n_robots`` (4, up to 32); ``spawn.start`` then lists N poses
 ``[x, y, heading, ...]`` and ``spawn.goal`` N points ``[x, y, ...]``.

@@ -97,7 +97,8 @@ class PlatoonParallelEnv(KheperaParallelEnv):
     3. Truncation of the remaining agents: one period plus `platoon.truncation_margin` (2 s) has
        passed (the circle: 543 steps), or `max_cycles` steps if sooner.
 
-    At the episode's end each remaining agent's info holds `"episode_stats"`: the common
+    At the episode's end each remaining agent's info holds its own `"episode_stats"` (its
+    return, length, success, path length and contacts) and `"world_episode_stats"`: the common
     statistics (`"return"`: the sum of the agents' mean reward, `"length"`, `"success"`, always
     False, `"path_length"` summed over robots, `"collisions"`: steps with any robot in contact)
     and Track's four over the platoon, each robot counted until it is lost:

@@ -555,6 +555,7 @@ mod tests {
             e.starts_with("my.toml: task.goal_radios: unknown key"),
             "{e}"
         );
+        assert!(e.contains("did you mean `goal_radius`?"), "{e}");
         let src = Source {
             file: None,
             overrides: overrides("goal_radios = 0.1"),
@@ -562,6 +563,7 @@ mod tests {
         };
         let e = NAV.load(&src).unwrap_err().to_string();
         assert!(e.contains("<override>: goal_radios"), "{e}");
+        assert!(e.contains("did you mean `goal_radius`?"), "{e}");
         let src = Source {
             file: Some(("[sensors]\nir_rnage = 0.3\n", "s.toml")),
             overrides: Table::new(),
@@ -572,6 +574,7 @@ mod tests {
             e.starts_with("s.toml: sensors.ir_rnage: unknown key"),
             "{e}"
         );
+        assert!(e.contains("did you mean `ir_range`?"), "{e}");
     }
 
     #[test]

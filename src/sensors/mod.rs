@@ -274,10 +274,11 @@ macro_rules! sensor_registry {
                 for key in table.keys() {
                     if !Self::keys().iter().any(|k| k.name == key) {
                         let known: Vec<&str> = Self::keys().iter().map(|k| k.name).collect();
+                        let hint = config::did_you_mean(key, known.iter().copied());
                         return Err(Error::config(
                             origin,
                             &format!("sensors.{key}"),
-                            format!("unknown key; known keys here: {known:?}"),
+                            format!("unknown key{hint}; known keys here: {known:?}"),
                         ));
                     }
                 }

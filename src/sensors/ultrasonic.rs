@@ -108,7 +108,8 @@ impl UsModel {
 pub struct UsReading {
     /// Readings in cm, or the codes [`US_TOO_CLOSE`], [`US_NOTHING`], [`US_DISABLED`].
     pub code: [i32; US_COUNT],
-    /// True distance (m) each ray travelled before a hit, for drawing.
+    /// True distance (m) each beam travelled to the first surface it met (echo or not; the cast
+    /// range when none), for drawing.
     pub hit: [f32; US_COUNT],
     /// Time (s) since these readings were taken.
     pub age: f32,
@@ -285,7 +286,7 @@ impl Sensor for Ultrasonic {
         for k in 0..US_COUNT {
             let dir = rotate(self.dirs[k], c, s);
             let origin = ctx.position + ctx.radius * dir;
-            let hit = ctx.scene.cast_hit(
+            let surface = ctx.scene.cast_hit(
                 origin,
                 dir,
                 cast_range,
@@ -295,13 +296,13 @@ impl Sensor for Ultrasonic {
                 ctx.radius,
             );
             // A surface hit at a grazing angle reflects the ping away: no echo from it.
-            let hit = hit.filter(|h| {
+            let echo = surface.filter(|h| {
                 self.acceptance_cos <= 0.0
                     || h.incidence_cos(ctx.scene, ctx.radius) >= self.acceptance_cos
             });
-            let distance = hit.map(|h| h.distance);
-            reading.code[k] = self.model.read(k, distance, rng);
-            reading.hit[k] = distance.unwrap_or(cast_range);
+            reading.code[k] = self.model.read(k, echo.map(|h| h.distance), rng);
+            // The beam stops at the surface it met, whether or not it echoed.
+            reading.hit[k] = surface.map_or(cast_range, |h| h.distance);
         }
     }
 
@@ -324,17 +325,37 @@ impl Sensor for Ultrasonic {
         out.ints("us_cm", US_COUNT, &reading.code.map(i64::from));
     }
 
+    /// Each enabled beam, blue, to the surface it met or to its range: solid when the reading
+    /// is an echo (a distance, or too close), dashed when it reports nothing (no surface in
+    /// range, or one met at too grazing an angle to echo). A disabled sensor draws nothing.
     fn draw(&self, at: &DrawContext, reading: &UsReading, marks: &mut Vec<Mark>) {
         let (s, c) = at.heading.sin_cos();
-        for (dir, hit) in self.dirs.iter().zip(reading.hit) {
+        let beams = self.dirs.iter().zip(reading.hit).zip(reading.code);
+        for ((dir, hit), code) in beams {
+            if code == US_DISABLED {
+                continue;
+            }
             let d = rotate(*dir, c, s);
-            let start = at.position + at.radius * d;
-            marks.push(Mark::Ray {
-                from: start,
-                to: start + hit.min(self.model.max_range) * d,
-                colour: [60, 110, 220],
-                alpha: 60,
-                width: 0.004,
+            let from = at.position + at.radius * d;
+            let to = from + hit.min(self.model.max_range) * d;
+            let colour = [60, 110, 220];
+            marks.push(if code == US_NOTHING {
+                Mark::Dashed {
+                    from,
+                    to,
+                    colour,
+                    alpha: 110,
+                    width: 0.004,
+                    dash: 0.03,
+                }
+            } else {
+                Mark::Ray {
+                    from,
+                    to,
+                    colour,
+                    alpha: 60,
+                    width: 0.004,
+                }
             });
         }
     }

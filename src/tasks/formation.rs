@@ -16,6 +16,12 @@
 //! episode terminates when the leader reaches its goal (success) or, with
 //! `terminate_on_collision`, on any contact; `Env` truncates at `max_steps`. Extra episode
 //! statistics: `formation_error_mean`, `formation_error_max` (m).
+//!
+//! An agent's success: the leader's is the task's (it reached its goal); a follower succeeds
+//! when the leader reached its goal and the follower then stands within `task.goal_radius` of its
+//! target, the task's own tolerance for being at a point (the leader's, 0.05 m by default). A
+//! follower that drifted away, or an episode that ended without the leader's arrival, is not a
+//! success.
 
 use rapier2d::math::Vector;
 use toml::Table;
@@ -394,6 +400,21 @@ impl Task for Formation {
 
     fn extra_stats(&self, out: &mut [f32]) {
         (out[0], out[1]) = self.error_stats();
+    }
+
+    /// The leader: the task's success; a follower: the leader arrived and the follower is
+    /// within `task.goal_radius` of its target.
+    fn agent_success(
+        &self,
+        _: &World,
+        cfg: &Scenario,
+        agent: usize,
+        episode_success: bool,
+    ) -> bool {
+        match agent.checked_sub(usize::from(self.leader_agent)) {
+            None => episode_success,
+            Some(k) => episode_success && self.errors[k] <= cfg.task.goal_radius,
+        }
     }
 
     /// Writes the joint observation: the leader's Nav block when it is an agent, then one block

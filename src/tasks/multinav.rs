@@ -2,7 +2,8 @@
 //! robots are obstacles to one another (their discs block each other's rays and rapier resolves
 //! their contacts). Each robot is an agent with the Nav observation and reward; a robot that
 //! reaches its goal is terminated as an agent and parks there (its actions are ignored), still
-//! an obstacle for the others. The episode terminates when every robot has arrived.
+//! an obstacle for the others. The episode terminates when every robot has arrived (the task's
+//! success); an agent succeeds when its own robot arrived.
 //!
 //! Units: metres, seconds, radians; observations in the robot frame (x forward, y left), as
 //! Nav's.
@@ -177,6 +178,11 @@ impl Task for MultiNav {
             terminated[i] = j.success;
         }
         self.arrived.iter().all(|a| *a)
+    }
+
+    /// Robot `agent` reached its goal.
+    fn agent_success(&self, _: &World, _: &Scenario, agent: usize, _: bool) -> bool {
+        self.arrived[agent]
     }
 
     /// Writes every robot's Nav observation, one block after another.
