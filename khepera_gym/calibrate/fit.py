@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from khepera_gym.calibrate import replay as rp
+import khepera_gym.calibrate.replay as rp
 from khepera_gym.calibrate.logformat import WALL_GAP_NOTE, RobotLog, note
 from khepera_gym.calibrate.synthetic import ir_curve
 from khepera_gym.errors import ConfigError

@@ -23,7 +23,7 @@ from typing import Any
 import gymnasium as gym
 
 import khepera_gym
-from khepera_gym.calibrate import schedule
+import khepera_gym.calibrate.schedule as schedule
 from khepera_gym.calibrate.replay import metres_per_pulse
 from khepera_gym.export.c_writer import (
     c_double,

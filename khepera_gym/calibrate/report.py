@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from khepera_gym.calibrate import replay as rp
+import khepera_gym.calibrate.replay as rp
 from khepera_gym.calibrate.fit import WALL_PHASES, Calibration, Estimate
 from khepera_gym.calibrate.scenario import table_rows
 from khepera_gym.plot import plot_trajectories

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 import khepera_gym
-from khepera_gym.calibrate import schedule
+import khepera_gym.calibrate.schedule as schedule
 from khepera_gym.calibrate.logformat import POLICY_PHASE, RobotLog, new_log
 from khepera_gym.calibrate.logformat import Note as LogNote
 from khepera_gym.calibrate.replay import (
