@@ -54,7 +54,7 @@ def _user_error(argv: list[str]) -> str:
         (["--out", "run"], "no suffix"),
         (["--out", f"{UNWRITABLE}/run.gif"], "cannot create the folder"),
         (["--policy", "nosuch"], "unknown policy 'nosuch'"),
-        (["--size", "5", "5"], "16..4096 pixels"),
+        (["--size", "5", "5"], "frame_size width must be an int in 16..=4096, got 5"),
         (["--fps", "0"], "--fps must be >= 1"),
         (["--seed", "-1"], "--seed must be in [0, 2**64)"),
         (["--steps", "0"], "--steps must be >= 1"),

@@ -3,8 +3,10 @@
 //! "too close" (0), "nothing in range" (1000) and "disabled" (2000). Spec §5.
 //!
 //! One ray per sensor along its axis (the beam width is not documented; Webots uses one ray too),
-//! cast against every obstacle and robot (the range is long). Scenario keys:
-//! `sensors.us_min_range`, `us_max_range`, `us_noise_sigma`, `us_enabled`.
+//! cast against every obstacle and robot (the range is long). A sensor measures the distance plus
+//! a constant offset (`us_offset`, a robot's own from calibration) plus noise; the codes follow
+//! from the measured distance. Scenario keys: `sensors.us_min_range`, `us_max_range`,
+//! `us_noise_sigma`, `us_enabled`, `us_period`, `us_acceptance`, `us_offset`.
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -49,6 +51,8 @@ crate::config_table! {
         us_period: f32 = 0.1 => Domain::range(0.0, 10.0),
         /// rad, largest angle between the beam and a surface's normal that still echoes [S: Webots' sonar model, 22.5°]; pi/2 = any
         us_acceptance: f32 = 0.39269908169872414 => Domain::POSITIVE.at_most(std::f64::consts::FRAC_PI_2),
+        /// m added to every measured distance (0 = none; khepera-gym calibrate measures a robot's own) [E]; may be a [low, high] range, drawn per episode
+        us_offset: Param = 0.0 => Domain::above(-0.5).below(0.5),
     }
 }
 
@@ -63,6 +67,8 @@ pub struct UsModel {
     pub noise_sigma: f32,
     /// Which sensors are on.
     pub enabled: [bool; US_COUNT],
+    /// Offset added to every measured distance (m).
+    pub offset: f32,
 }
 
 impl UsModel {
@@ -73,7 +79,7 @@ impl UsModel {
         if !self.enabled[index] {
             return US_DISABLED;
         }
-        match distance {
+        match distance.map(|d| d + self.offset) {
             None => US_NOTHING,
             Some(d) if d > self.max_range => US_NOTHING,
             Some(d) if d < self.min_range => US_TOO_CLOSE,
@@ -154,6 +160,7 @@ impl Sensor for Ultrasonic {
                 max_range: cfg.us_max_range,
                 noise_sigma: cfg.us_noise_sigma.bounds().0,
                 enabled: cfg.us_enabled,
+                offset: cfg.us_offset.bounds().0,
             },
             period: cfg.us_period,
             acceptance_cos: if cfg.us_acceptance >= std::f32::consts::FRAC_PI_2 {
@@ -183,6 +190,7 @@ impl Sensor for Ultrasonic {
 
     fn randomise(&mut self, cfg: &UsConfig, rng: &mut ChaCha8Rng) {
         self.model.noise_sigma = cfg.us_noise_sigma.sample(rng);
+        self.model.offset = cfg.us_offset.sample(rng);
     }
 
     fn reach(&self, radius: f32) -> f32 {
@@ -326,6 +334,7 @@ mod tests {
             max_range: 2.0,
             noise_sigma: 0.0,
             enabled: [true; 5],
+            offset: 0.0,
         };
         assert_eq!(us.read(0, Some(0.1), &mut rng), US_TOO_CLOSE);
         assert_eq!(us.read(0, Some(2.5), &mut rng), US_NOTHING);
@@ -335,5 +344,10 @@ mod tests {
         assert_eq!(us.read(3, Some(1.0), &mut rng), US_DISABLED);
         assert_eq!(us.normalise(100), 0.5);
         assert_eq!(us.normalise(US_NOTHING), 1.0);
+        // An offset moves every measured distance, and the codes follow the measured one.
+        us.offset = 0.03;
+        assert_eq!(us.read(0, Some(1.234), &mut rng), 126);
+        assert_eq!(us.read(0, Some(0.23), &mut rng), 26);
+        assert_eq!(us.read(0, Some(1.98), &mut rng), US_NOTHING);
     }
 }
