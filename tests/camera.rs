@@ -4,7 +4,7 @@
 //!
 //! Units: metres, radians; robot frame x forward, y left; pixel 0 is the leftmost.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

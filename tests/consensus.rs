@@ -9,7 +9,7 @@
 //! Units: metres, seconds; per agent the observation is ir (8), us (5), neighbours (4 per other
 //! robot: p_x, p_y, age, valid), own_drift (2), wheel_speeds (2).
 
-mod common;
+use crate::common;
 
 use _core::controllers::Policy;
 use _core::error::Error;

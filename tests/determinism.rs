@@ -4,14 +4,12 @@
 //! seed s + i, across autoresets; and a batch gives the same results, episode statistics
 //! included, at any thread count.
 
-mod common;
-
 use _core::batch::Batch;
 use _core::robot::ActionType;
 use _core::scenario::{Scenario, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
-use common::{every_task_version, scenario_in};
+use crate::common::{every_task_version, scenario_in};
 use rand::{Rng, SeedableRng};
 
 /// Nav with short episodes (the tests of seeding itself).

@@ -7,13 +7,13 @@
 //! Units: metres, seconds; speed units of 0.678181 mm/s where named; accelerometer counts of
 //! 1 mg; world frame.
 
-mod common;
+use crate::common;
 
 use _core::motors::{profile_accel, MotorMode};
 use _core::robot::units_to_speed;
 use _core::sensors::imu::STANDARD_GRAVITY;
 use _core::tasks::{Env, TaskKind};
-use common::drive;
+use crate::common::drive;
 use rapier2d::math::Vector;
 
 /// A Nav env of the latest defaults in a 12 m arena (room to reach full speed and brake far

@@ -6,7 +6,7 @@
 //! Units: metres, seconds, radians; world frame. Observation: camera_offset 0-1, seen 2,
 //! relative_velocity 3-4, drone_velocity 5-6, altitude 7.
 
-mod common;
+use crate::common;
 
 use _core::controllers::Policy;
 use _core::error::Error;

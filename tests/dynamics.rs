@@ -8,13 +8,13 @@
 //!
 //! Units: metres, seconds, radians; world frame, arena centred at the origin.
 
-mod common;
+use crate::common;
 
 use std::cell::Cell;
 use std::f32::consts::FRAC_PI_2;
 
 use _core::tasks::{load_scenario, Env, TaskKind};
-use common::drive;
+use crate::common::drive;
 use rapier2d::math::Vector;
 
 thread_local! {

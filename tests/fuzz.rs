@@ -7,7 +7,7 @@
 //!
 //! The number of cases per property is proptest's `PROPTEST_CASES` (default here: 64, the CI
 //! run). The long run of the closing note:
-//! `PROPTEST_CASES=250000 cargo test --release --test fuzz -- --nocapture`.
+//! `PROPTEST_CASES=250000 cargo test --release --test integration fuzz:: -- --nocapture`.
 
 use _core::batch::Batch;
 use _core::error::Error;

@@ -5,7 +5,7 @@
 //!
 //! Units: metres, raw ground counts; world frame, robot frame x forward, y left.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -6,7 +6,7 @@
 //!
 //! Units: metres, seconds; accelerometer counts of 1 mg; robot frame x forward, y left.
 
-mod common;
+use crate::common;
 
 use _core::sensors::imu::STANDARD_GRAVITY;
 use _core::tasks::{Env, TaskKind};

@@ -4,7 +4,7 @@
 //! and the cross-track sign are what the geometry says, obstacles on the path are met, and the
 //! task is deterministic like the others.
 
-mod common;
+use crate::common;
 
 use _core::batch::Batch;
 use _core::controllers::Policy;

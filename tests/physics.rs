@@ -1,12 +1,12 @@
 //! Physics specification: a robot never leaves the arena, turns in place about its centre, and
 //! drives straight at the commanded speed. Uses the core directly (no Python).
 
-mod common;
+use crate::common;
 
 use _core::scenario::Source;
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
-use common::drive;
+use crate::common::drive;
 use rapier2d::math::Vector;
 
 fn nav_env(overrides: &str) -> Env {

@@ -5,7 +5,7 @@
 //! seeds reproduce episodes bit for bit. (World i ≡ seed s + i, thread counts and saved states:
 //! tests/tasks.rs and tests/state.rs, which iterate over every task.)
 
-mod common;
+use crate::common;
 
 use _core::batch::Batch;
 use _core::controllers::Policy;

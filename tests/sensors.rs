@@ -2,7 +2,7 @@
 //! known distance, the floor value with nothing in range, and the ultrasonic sensors give
 //! whole centimetres and the real codes.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

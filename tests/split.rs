@@ -6,7 +6,7 @@
 //!
 //! Units: metres, seconds, radians; world frame, arena centred at the origin.
 
-mod common;
+use crate::common;
 
 use std::f32::consts::PI;
 
@@ -15,7 +15,7 @@ use _core::robot::ActionType;
 use _core::scenario::{scene, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
-use common::drive;
+use crate::common::drive;
 use rand::{Rng, SeedableRng};
 use rapier2d::math::Vector;
 

@@ -4,15 +4,13 @@
 //! not one, is corrupt, or comes from another batch is refused with a message saying which, and
 //! leaves the batch as it was.
 
-mod common;
-
 use _core::batch::Batch;
 use _core::error::Error;
 use _core::robot::ActionType;
 use _core::scenario::Source;
 use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
-use common::every_task_version;
+use crate::common::every_task_version;
 use rand::{Rng, SeedableRng};
 
 /// A batch of `n` worlds of `task` with `overrides`, behaviour `version` (None: the latest).

@@ -5,7 +5,7 @@
 //!
 //! Units: metres; world frame.
 
-mod common;
+use crate::common;
 
 use _core::robot::ActionType;
 use _core::scenario::{scene, Source};

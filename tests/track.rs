@@ -3,7 +3,7 @@
 //! converges as its linearised closed loop says, position control chasing the reference lags by
 //! v_r over its bandwidth, and the task is deterministic and restorable like the others.
 
-mod common;
+use crate::common;
 
 use _core::batch::Batch;
 use _core::controllers::Policy;
