@@ -26,12 +26,15 @@ use toml::{Table, Value};
 
 use crate::config::{self, limits, ConfigTable, Domain, Param};
 use crate::error::{Error, Result};
-use crate::robot::{RobotConfig, MM_S_PER_SPEED_UNIT};
 
 /// The motor controller's period (s): the PID and the profile run every 10 ms
 /// (`KH4_TIME_BTWN`, manual §4.14).
 pub const CONTROL_PERIOD_S: f32 = 0.01;
 /// One speed unit in m/s.
+/// One `kh4_set_speed` unit in mm/s (pulses per 10 ms): K-Team manual §4.14, the unit of every
+/// speed and of the profile's increments.
+pub const MM_S_PER_SPEED_UNIT: f32 = 0.678181;
+
 const SPEED_UNIT: f32 = MM_S_PER_SPEED_UNIT / 1000.0;
 /// The firmware's range of a profile parameter (one byte, `kh4_SetSpeedProfile`'s `char`s).
 const BYTE_MAX: u32 = 255;
@@ -272,8 +275,9 @@ impl MotorsConfig {
     }
 
     /// The wheels' acceleration limit (m/s²) this drive gives, a range when randomised:
-    /// the profile's rate, the speed mode's estimate, or `robot.wheel_accel_limit` (ramp).
-    pub fn accel(&self, robot: &RobotConfig) -> Param {
+    /// the profile's rate, the speed mode's estimate, or `ramp_limit` (ramp mode's
+    /// `robot.wheel_accel_limit`).
+    pub fn accel(&self, ramp_limit: Param) -> Param {
         match self.mode {
             MotorMode::Profile => match self.acc_inc {
                 Param::Value(inc) => Param::Value(profile_accel(inc, self.acc_div)),
@@ -283,7 +287,7 @@ impl MotorsConfig {
                 ]),
             },
             MotorMode::Speed => self.speed_accel,
-            MotorMode::Ramp => robot.wheel_accel_limit,
+            MotorMode::Ramp => ramp_limit,
         }
     }
 
@@ -305,23 +309,6 @@ impl MotorsConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::ConfigTable;
-
-    fn defaults() -> Table {
-        let mut t = Table::new();
-        t.insert(
-            "motors".into(),
-            Value::Table(MotorsConfig::defaults_table()),
-        );
-        t.insert("robot".into(), Value::Table(RobotConfig::defaults_table()));
-        t
-    }
-
-    fn resolve(overlay: &str) -> Result<MotorsConfig> {
-        let mut table = defaults();
-        config::overlay(&mut table, &config::parse(overlay, "f.toml")?, "", "f.toml")?;
-        MotorsConfig::resolve(&table, &defaults(), "f.toml")
-    }
 
     #[test]
     fn profile_units_give_the_manuals_accelerations() {
@@ -332,77 +319,5 @@ mod tests {
         // Acc_Div 4: every 5 periods (50 ms), manual §4.14.2's example.
         assert!((profile_accel(40.0, 4) - 2.712724 / 5.0).abs() < 1e-6);
         assert!((profile_acc_inc(profile_accel(17.0, 2), 2) - 17.0).abs() < 1e-4);
-    }
-
-    #[test]
-    fn presets_resolve_and_refuse_explicit_keys_beside_them() {
-        let d = resolve("[motors]\npreset = \"kteam_braitenberg\"").expect("preset");
-        assert_eq!(
-            (d.mode, d.acc_inc, d.acc_div),
-            (MotorMode::Profile, Param::Value(10.0), 0)
-        );
-        assert!(d.preset.is_empty());
-        let s = resolve("[motors]\npreset = \"speed_mode\"").expect("preset");
-        assert_eq!(s.mode, MotorMode::Speed);
-        let e = resolve("[motors]\npreset = \"kteam_default\"\nacc_inc = 7").unwrap_err();
-        assert!(
-            e.to_string().contains("motors.acc_inc: motors.preset"),
-            "{e}"
-        );
-        let e = resolve("[motors]\npreset = \"fast\"").unwrap_err();
-        assert!(e.to_string().contains("unknown preset \"fast\""), "{e}");
-        for p in PRESETS {
-            let text = format!("[motors]\npreset = \"{}\"", p.name);
-            resolve(&text).unwrap_or_else(|e| panic!("{}: {e}", p.name));
-        }
-    }
-
-    #[test]
-    fn a_key_the_mode_does_not_use_is_an_error_naming_it() {
-        let e = resolve("[motors]\nspeed_accel = 5.0")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("motors.speed_accel: is used only by motors.mode = \"speed\""),
-            "{e}"
-        );
-        let e = resolve("[motors]\nmode = \"speed\"\nacc_inc = 10")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("motors.acc_inc"), "{e}");
-        let e = resolve("[robot]\nwheel_accel_limit = 0.678")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("robot.wheel_accel_limit") && e.contains("10.0 for 0.678"),
-            "{e}"
-        );
-        // Given at its default, a key changes nothing: a resolved scenario reloads.
-        resolve("[motors]\nspeed_accel = 2.74\nacc_inc = 40").expect("defaults");
-        let ramp = resolve("[motors]\nmode = \"ramp\"\n[robot]\nwheel_accel_limit = 0.678");
-        assert_eq!(ramp.expect("ramp").mode, MotorMode::Ramp);
-    }
-
-    #[test]
-    fn values_the_firmware_refuses_are_errors() {
-        for (text, key) in [
-            ("acc_inc = 0", "motors.acc_inc"),
-            ("acc_inc = 256", "motors.acc_inc"),
-            ("acc_inc = 2.5", "motors.acc_inc"),
-            ("acc_inc = [0.5, 20]", "motors.acc_inc"),
-            ("acc_div = 256", "motors.acc_div"),
-            ("min_speed_acc = 0", "motors.min_speed_acc"),
-            ("acc_inc = nan", "motors.acc_inc"),
-            ("mode = \"fast\"", "motors.mode"),
-        ] {
-            let e = resolve(&format!("[motors]\n{text}"))
-                .unwrap_err()
-                .to_string();
-            assert!(e.contains(key), "{text}: {e}");
-        }
-        let ranged = resolve("[motors]\nacc_inc = [20, 60]").expect("a range");
-        assert!(!ranged.is_exact());
-        let (lo, hi) = ranged.accel(&RobotConfig::default()).bounds();
-        assert!((lo - profile_accel(20.0, 0)).abs() < 1e-6 && (hi - 3.0 * lo).abs() < 1e-5);
     }
 }

@@ -6,6 +6,7 @@
 use crate::config::{limits, Domain, Param};
 use crate::error::{Error, Result};
 use crate::motors::MotorsConfig;
+pub use crate::motors::MM_S_PER_SPEED_UNIT;
 
 /// Body radius (m): 140.8 mm diameter in the mechanical drawing.
 pub const BODY_RADIUS: f32 = 0.0704;
@@ -17,8 +18,6 @@ pub const AXLE_LENGTH: f32 = 0.1054;
 pub const MAX_WHEEL_SPEED: f32 = 0.813;
 /// Smallest controlled wheel speed (m/s); the real PID cannot hold less, so smaller commands give 0.
 pub const MIN_WHEEL_SPEED: f32 = 0.003;
-/// One `kh4_set_speed` unit in mm/s (pulses per 10 ms).
-pub const MM_S_PER_SPEED_UNIT: f32 = 0.678181;
 /// Encoder pulses per wheel revolution: 128 × 4 (quadrature) × 38:1 gearbox.
 pub const PULSES_PER_WHEEL_TURN: f64 = 19456.0;
 
@@ -131,7 +130,7 @@ impl Drive {
             axle_length: cfg.axle_length.bounds().0,
             max_wheel_speed: cfg.max_wheel_speed.bounds().0,
             min_wheel_speed: cfg.min_wheel_speed,
-            wheel_accel_limit: drive.accel(cfg).bounds().0,
+            wheel_accel_limit: drive.accel(cfg.wheel_accel_limit).bounds().0,
             motor_time_constant: cfg.motor_time_constant,
             min_order: drive.min_order(),
         }

@@ -46,7 +46,7 @@ fn test_the_v2_default_is_kteams_profile_at_acc_inc_40() {
     assert_eq!(cfg.motors.mode, MotorMode::Profile);
     assert_eq!((cfg.motors.acc_div, cfg.motors.min_speed_acc), (0, 20));
     // 40 units of 0.678181 mm/s every 10 ms.
-    let a = cfg.motors.accel(&cfg.robot).max();
+    let a = cfg.wheel_accel().max();
     assert!((a - 40.0 * 0.678181e-3 / 0.01).abs() < 1e-5, "{a}");
 }
 

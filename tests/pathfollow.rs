@@ -91,7 +91,7 @@ fn run(cfg: &Scenario, policy: &Policy, n: usize, seed: u64) -> Run {
 fn samson_bounds(cfg: &Scenario) -> (f32, f32) {
     let (kd, zeta, wn) = (44.44f32, 0.7f32, 1.0f32); // SamsonParams defaults and their design
     let v = 0.15f32;
-    let a = cfg.motors.accel(&cfg.robot).bounds().0;
+    let a = cfg.wheel_accel().bounds().0;
     let v0 = (0.1f32.powi(2) + std::f32::consts::FRAC_PI_4.powi(2) / kd).sqrt();
     (v0, v0 * (-zeta * wn * (5.0 - v / a)).exp())
 }
@@ -203,7 +203,7 @@ fn test_lap_time_and_return_follow_from_progress() {
     // progress rate v cos θ̃ / (1 − κd) by at most ~20% for the first ~2 s (≤ 4% of the lap).
     // Without the speed term (tested below), the return is the progress and error terms'.
     let cfg = scenario("path = \"circle\"\nspeed_weight = 0.0");
-    let (dt, a) = (cfg.physics.dt, cfg.motors.accel(&cfg.robot).bounds().0);
+    let (dt, a) = (cfg.physics.dt, cfg.wheel_accel().bounds().0);
     let length = std::f32::consts::TAU * 0.6;
     let expected = length / 0.15 + 0.15 / (2.0 * a);
     let r = run(&cfg, &policy("samson", &cfg), 16, 9);

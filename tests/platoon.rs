@@ -92,7 +92,7 @@ fn test_kanayama_on_every_robot_converges_on_the_circle_within_the_linear_envelo
     // Each robot's reference is the circle's, delayed: the same bound holds for every robot as
     // long as its neighbours keep out of its way (they start apart and converge as it does).
     let cfg = scenario("reference = \"circle\"");
-    let accel = cfg.motors.accel(&cfg.robot).bounds().0;
+    let accel = cfg.wheel_accel().bounds().0;
     let lambda = 1.0f32;
     let e0 = START_OFFSET
         + SPEED * std::f32::consts::FRAC_PI_4.sin() / lambda

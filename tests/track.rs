@@ -120,7 +120,7 @@ fn kanayama_envelope(cfg: &Scenario, t: f32) -> f32 {
     let lambda = kx.min(v_min * ky.sqrt());
     // track.start_offset (m) and start_heading_offset (45 degrees)
     let (offset, heading) = (0.2f32, std::f32::consts::FRAC_PI_4);
-    let accel = cfg.motors.accel(&cfg.robot).bounds().0;
+    let accel = cfg.wheel_accel().bounds().0;
     let e0 = offset + v_max * heading.sin() / lambda + v_max * v_max / (2.0 * accel);
     e0 * (1.0 + lambda * t) * (-lambda * t).exp() + v_max * cfg.physics.dt
 }
@@ -234,7 +234,7 @@ fn test_references_stay_in_the_arena_and_within_the_wheels_limits() {
         let vmax = cfg.robot.max_wheel_speed.bounds().0;
         let wmax = 2.0 * vmax / cfg.robot.axle_length.bounds().0;
         let half_axle = 0.5 * cfg.robot.axle_length.bounds().0;
-        let amax = cfg.motors.accel(&cfg.robot).bounds().0;
+        let amax = cfg.wheel_accel().bounds().0;
         let dt = cfg.physics.dt;
         let mut batch = Batch::new(
             TaskKind::Track,

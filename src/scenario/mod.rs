@@ -363,6 +363,13 @@ impl Scenario {
     pub fn diagonal(&self) -> f32 {
         (self.arena.width * self.arena.width + self.arena.height * self.arena.height).sqrt()
     }
+
+    /// The wheels' acceleration limit (m/s²) of this scenario's drive, a range when randomised:
+    /// [`MotorsConfig::accel`](crate::motors::MotorsConfig::accel) with `robot.wheel_accel_limit`
+    /// as ramp mode's limit.
+    pub fn wheel_accel(&self) -> Param {
+        self.motors.accel(self.robot.wheel_accel_limit)
+    }
 }
 
 /// A section struct as a TOML table, its numbers written as their shortest text (so f32 values

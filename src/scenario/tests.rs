@@ -33,13 +33,13 @@ fn defaults_load_render_and_round_trip() {
         .expect("nav v1");
     // v1: the K-Team firmware's speed profile rate, 3 units per 10 ms (docs/robot.md §3), as a ramp.
     assert_eq!(v1.motors.mode, crate::motors::MotorMode::Ramp);
-    assert!((v1.motors.accel(&v1.robot).max() - 0.2034543).abs() < 1e-6);
+    assert!((v1.wheel_accel().max() - 0.2034543).abs() < 1e-6);
     assert_eq!(v1.physics.drive, DriveModel::Traction);
     let s = NAV.load(&Source::default()).expect("nav");
     assert_eq!(s.task.max_steps, 400);
     // v2: K-Team's profile at Acc_Inc 40, 2.71 m/s^2.
     assert_eq!(s.motors.mode, crate::motors::MotorMode::Profile);
-    assert!((s.motors.accel(&s.robot).max() - 2.712724).abs() < 1e-5);
+    assert!((s.wheel_accel().max() - 2.712724).abs() < 1e-5);
     assert_eq!(s.physics.drive, DriveModel::Traction);
     let e = NAV
         .load(&Source {
@@ -248,4 +248,104 @@ fn a_value_outside_its_domain_is_an_error_naming_the_key_whether_used_or_not() {
         e.starts_with("f.toml: floor.lines[0].b: must have exactly 2 entries, got 3"),
         "{e}"
     );
+}
+
+// `[motors]` resolved against the scenario's `[robot]` table (a preset, keys the mode does not
+// use, `robot.wheel_accel_limit` in a mode with its own acceleration).
+mod motors {
+    use crate::config::{self, ConfigTable, Param};
+    use crate::error::Result;
+    use crate::motors::{profile_accel, MotorMode, MotorsConfig, PRESETS};
+    use crate::robot::RobotConfig;
+    use toml::{Table, Value};
+
+    fn defaults() -> Table {
+        let mut t = Table::new();
+        t.insert(
+            "motors".into(),
+            Value::Table(MotorsConfig::defaults_table()),
+        );
+        t.insert("robot".into(), Value::Table(RobotConfig::defaults_table()));
+        t
+    }
+
+    fn resolve(overlay: &str) -> Result<MotorsConfig> {
+        let mut table = defaults();
+        config::overlay(&mut table, &config::parse(overlay, "f.toml")?, "", "f.toml")?;
+        MotorsConfig::resolve(&table, &defaults(), "f.toml")
+    }
+
+    #[test]
+    fn presets_resolve_and_refuse_explicit_keys_beside_them() {
+        let d = resolve("[motors]\npreset = \"kteam_braitenberg\"").expect("preset");
+        assert_eq!(
+            (d.mode, d.acc_inc, d.acc_div),
+            (MotorMode::Profile, Param::Value(10.0), 0)
+        );
+        assert!(d.preset.is_empty());
+        let s = resolve("[motors]\npreset = \"speed_mode\"").expect("preset");
+        assert_eq!(s.mode, MotorMode::Speed);
+        let e = resolve("[motors]\npreset = \"kteam_default\"\nacc_inc = 7").unwrap_err();
+        assert!(
+            e.to_string().contains("motors.acc_inc: motors.preset"),
+            "{e}"
+        );
+        let e = resolve("[motors]\npreset = \"fast\"").unwrap_err();
+        assert!(e.to_string().contains("unknown preset \"fast\""), "{e}");
+        for p in PRESETS {
+            let text = format!("[motors]\npreset = \"{}\"", p.name);
+            resolve(&text).unwrap_or_else(|e| panic!("{}: {e}", p.name));
+        }
+    }
+
+    #[test]
+    fn a_key_the_mode_does_not_use_is_an_error_naming_it() {
+        let e = resolve("[motors]\nspeed_accel = 5.0")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("motors.speed_accel: is used only by motors.mode = \"speed\""),
+            "{e}"
+        );
+        let e = resolve("[motors]\nmode = \"speed\"\nacc_inc = 10")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("motors.acc_inc"), "{e}");
+        let e = resolve("[robot]\nwheel_accel_limit = 0.678")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("robot.wheel_accel_limit") && e.contains("10.0 for 0.678"),
+            "{e}"
+        );
+        // Given at its default, a key changes nothing: a resolved scenario reloads.
+        resolve("[motors]\nspeed_accel = 2.74\nacc_inc = 40").expect("defaults");
+        let ramp = resolve("[motors]\nmode = \"ramp\"\n[robot]\nwheel_accel_limit = 0.678");
+        assert_eq!(ramp.expect("ramp").mode, MotorMode::Ramp);
+    }
+
+    #[test]
+    fn values_the_firmware_refuses_are_errors() {
+        for (text, key) in [
+            ("acc_inc = 0", "motors.acc_inc"),
+            ("acc_inc = 256", "motors.acc_inc"),
+            ("acc_inc = 2.5", "motors.acc_inc"),
+            ("acc_inc = [0.5, 20]", "motors.acc_inc"),
+            ("acc_div = 256", "motors.acc_div"),
+            ("min_speed_acc = 0", "motors.min_speed_acc"),
+            ("acc_inc = nan", "motors.acc_inc"),
+            ("mode = \"fast\"", "motors.mode"),
+        ] {
+            let e = resolve(&format!("[motors]\n{text}"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key), "{text}: {e}");
+        }
+        let ranged = resolve("[motors]\nacc_inc = [20, 60]").expect("a range");
+        assert!(!ranged.is_exact());
+        let (lo, hi) = ranged
+            .accel(RobotConfig::default().wheel_accel_limit)
+            .bounds();
+        assert!((lo - profile_accel(20.0, 0)).abs() < 1e-6 && (hi - 3.0 * lo).abs() < 1e-5);
+    }
 }

@@ -239,7 +239,7 @@ impl World {
         let rng = &mut self.rng;
         self.drive.axle_length = r.axle_length.sample(rng);
         self.drive.max_wheel_speed = r.max_wheel_speed.sample(rng);
-        self.drive.wheel_accel_limit = cfg.motors.accel(r).sample(rng);
+        self.drive.wheel_accel_limit = cfg.wheel_accel().sample(rng);
         self.sensors.randomise(&cfg.sensors, rng);
         if r.mass.is_random() {
             let mass = r.mass.sample(rng);

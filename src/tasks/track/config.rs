@@ -171,7 +171,7 @@ impl TrackConfig {
     fn robot_limits(cfg: &Scenario) -> (f32, f32, f32) {
         (
             cfg.robot.max_wheel_speed.bounds().0,
-            cfg.motors.accel(&cfg.robot).bounds().0,
+            cfg.wheel_accel().bounds().0,
             cfg.robot.axle_length.bounds().1,
         )
     }
