@@ -62,7 +62,8 @@ def run_episodes(
     Args:
         batch: The env's ``_core.Batch`` (``env.unwrapped._batch``).
         act: Maps the joint observations of every world, (N, obs_dim), to actions (N, act_dim).
-            Worlds whose episode ended still get an action; it is ignored.
+            Worlds whose episode ended still get an action; it is ignored. A stateful policy
+            (one with a ``reset()`` method, e.g. a frame-stacked model) is reset first.
         seed: World i is reset with ``seed + i``; None continues every world's stream.
         on_reset: Called with the first observations, after the reset.
         on_step: Called after every step (see :data:`StepCallback`).
@@ -74,6 +75,9 @@ def run_episodes(
         ``max_steps``.
     """
     n = batch.num_worlds
+    reset = getattr(act, "reset", None)
+    if callable(reset):
+        reset()
     observations = batch.reset(seed)
     if on_reset is not None:
         on_reset(observations)

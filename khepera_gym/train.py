@@ -9,7 +9,9 @@ then evaluates the final model on ``eval_episodes`` seeded episodes. A run direc
 
 * ``model.zip``: the final model (SB3 ``model.save``); ``best_model.zip``: the best evaluated one;
 * ``vecnormalize.pkl``: the ``VecNormalize`` statistics, only when the hyperparameters set
-  ``normalize = true`` (:func:`khepera_gym.sb3.load_policy` applies them);
+  ``normalize = true`` (:func:`khepera_gym.sb3.load_policy` applies them); with
+  ``frame_stack = n`` (n > 1) the policy sees the last n observations (SB3's ``VecFrameStack``,
+  outside ``VecNormalize``), and ``load_policy`` stacks them the same way from ``run.json``;
 * ``run.json``: env, algorithm, seed, resolved hyperparameters, wall time, steps/s, every
   evaluation, and ``meta``: the date, commit, machine and command
   (:mod:`khepera_gym.provenance`); ``progress.csv``: SB3's training log; TensorBoard event
@@ -52,7 +54,7 @@ ALGORITHMS = {"ppo": "PPO", "sac": "SAC"}
 #: Training libraries of ``--backend``: stable-baselines3 (default) or Ray RLlib (PPO only).
 BACKENDS = ("sb3", "rllib")
 #: Keys of a hyperparameter table that configure the run rather than the SB3 algorithm.
-_RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")
+_RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "frame_stack", "env_kwargs")
 #: Activation functions by name, for ``policy_kwargs.activation_fn``.
 _ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 
@@ -255,12 +257,12 @@ def _train(
     device: str,
 ) -> TrainResult:
     from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
 
     from khepera_gym.sb3 import (
         VECNORMALIZE_FILE,
-        NormalizedPolicy,
         SuccessEvalCallback,
+        as_predictor,
         evaluate_episodes,
         make_vec_env,
         resolve_env_id,
@@ -277,6 +279,9 @@ def _train(
     worlds = int(hyperparams.get("n_envs", 1))
     if total < 1 or worlds < 1:
         raise ConfigError(f"timesteps and n_envs must be >= 1, got {total} and {worlds}")
+    frame_stack = hyperparams.get("frame_stack", 1)
+    if isinstance(frame_stack, bool) or not isinstance(frame_stack, int) or frame_stack < 1:
+        raise ConfigError(f"frame_stack must be an integer >= 1, got {frame_stack!r}")
     env_kwargs = dict(hyperparams.get("env_kwargs", {}))
     short_name = env_id.removeprefix("KheperaIV-").lower()
     out = Path(out_dir) if out_dir is not None else Path("runs") / f"{algo}-{short_name}-s{seed}"
@@ -285,6 +290,8 @@ def _train(
     env = VecMonitor(make_vec_env(env_id, worlds, seed=seed, num_threads=num_threads, **env_kwargs))
     if hyperparams.get("normalize", False):
         env = VecNormalize(env, gamma=float(hyperparams.get("gamma", 0.99)))
+    if frame_stack > 1:
+        env = VecFrameStack(env, frame_stack)
     model = build_model(algo, env, hyperparams, seed, device)
     formats = ["csv"] + (["stdout"] if verbose >= 2 else [])
     if importlib.util.find_spec("tensorboard") is not None:
@@ -296,7 +303,12 @@ def _train(
     callback = None
     if every > 0:
         callback = SuccessEvalCallback(
-            eval_env, every, eval_seed, best_model_path=out / "best_model.zip", verbose=verbose
+            eval_env,
+            every,
+            eval_seed,
+            best_model_path=out / "best_model.zip",
+            verbose=verbose,
+            frame_stack=frame_stack,
         )
     if progress_bar and importlib.util.find_spec("rich") is None:
         print("progress bar off: it needs the rich package (pip install 'khepera-gym[sb3]')")
@@ -320,7 +332,7 @@ def _train(
     if history and history[-1].timesteps == model.num_timesteps:
         final = history[-1]  # the callback evaluated the final model at the end of training
     else:
-        policy = model if normalizer is None else NormalizedPolicy(model, normalizer)
+        policy = as_predictor(model, normalizer, frame_stack)
         final = evaluate_episodes(policy, eval_env, eval_seed, model.num_timesteps)
     result = TrainResult(
         env_id=env_id,

@@ -94,10 +94,16 @@ class SB3Policy:
         #: Observation length the model takes (None if it does not say).
         self.obs_dim: int | None = int(shape[0]) if shape and len(shape) == 1 else None
 
+    def reset(self) -> None:
+        """Starts new episodes in every world: empties a frame-stacked model's stacks."""
+        reset = getattr(self.model, "reset", None)
+        if callable(reset):
+            reset()
+
     def __call__(self, observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
         """The model's deterministic actions for observations (N, D) (or one (D,))."""
         array = np.asarray(observation, dtype=np.float32)
-        dim = self.obs_dim
+        dim = getattr(self.model, "obs_dim", self.obs_dim)
         if dim is not None and array.shape[-1] != dim and array.shape[-1] % dim == 0:
             blocks = array.reshape(-1, dim)  # world-major, then follower
             action, _ = self.model.predict(blocks, deterministic=True)

@@ -34,7 +34,10 @@ def is_sb3_model(model: Any) -> bool:
     """Whether ``model`` is an SB3 algorithm or :class:`khepera_gym.sb3.NormalizedPolicy`
     (checked by module, so that stable-baselines3 need not be installed)."""
     module = type(model).__module__
-    wrapped = module.startswith("khepera_gym.sb3") and type(model).__name__ == "NormalizedPolicy"
+    wrapped = module.startswith("khepera_gym.sb3") and type(model).__name__ in (
+        "NormalizedPolicy",
+        "FrameStackPolicy",  # refused by describe_sb3 with its own message
+    )
     return wrapped or module.startswith("stable_baselines3")
 
 
@@ -54,9 +57,20 @@ def load_sb3_zip(path: Path) -> tuple[Any, Any]:
         policy = sb3.load_policy(path, device="cpu")
     except KheperaError as error:
         raise unsupported_model(f"{path} ({error})") from error
+    if isinstance(policy, sb3.FrameStackPolicy):
+        raise frame_stack_unsupported(f"{path}", policy.n_stack)
     if isinstance(policy, sb3.NormalizedPolicy):
         return policy.model, policy.normalizer
     return policy, None
+
+
+def frame_stack_unsupported(what: str, n_stack: int) -> ConfigError:
+    """The error for a policy trained on stacked observations, which the writers do not stack."""
+    return ConfigError(
+        f"cannot export {what}: it was trained with frame_stack = {n_stack} (it acts on its last "
+        f"{n_stack} observations), and the exported program does not stack observations yet; "
+        "export a model trained without frame_stack (--hp frame_stack=1)"
+    )
 
 
 def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
@@ -66,6 +80,8 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
     Raises:
         ConfigError: Another algorithm or policy class, gSDE, or layers the writers lack.
     """
+    if type(model).__name__ == "FrameStackPolicy":
+        raise frame_stack_unsupported("this model", model.n_stack)
     if type(model).__name__ == "NormalizedPolicy":
         model, normalizer = model.model, model.normalizer
     from stable_baselines3 import A2C, PPO, SAC, TD3

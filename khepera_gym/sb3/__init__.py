@@ -48,9 +48,11 @@ from khepera_gym.sb3.evaluate import (
 )
 from khepera_gym.sb3.policy import (
     VECNORMALIZE_FILE,
+    FrameStackPolicy,
     NormalizedPolicy,
     Predictor,
     algorithm_of,
+    as_predictor,
     load_policy,
 )
 from khepera_gym.sb3.vec_env import (
@@ -67,12 +69,14 @@ __all__ = [
     "VECNORMALIZE_FILE",
     "Evaluation",
     "FormationFollowersVecEnv",
+    "FrameStackPolicy",
     "KheperaSB3VecEnv",
     "NormalizedPolicy",
     "Predictor",
     "SharedAgentsVecEnv",
     "SuccessEvalCallback",
     "algorithm_of",
+    "as_predictor",
     "evaluate_episodes",
     "first_episode_stats",
     "load_policy",

@@ -16,7 +16,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from khepera_gym.errors import ConfigError
 from khepera_gym.rollout import run_episodes
-from khepera_gym.sb3.policy import NormalizedPolicy, Predictor
+from khepera_gym.sb3.policy import Predictor, as_predictor
 from khepera_gym.sb3.vec_env import KheperaSB3VecEnv
 
 
@@ -41,6 +41,9 @@ def first_episode_stats(
         actions, _ = policy.predict(env.row_observations(joint), deterministic=deterministic)
         return env.joint_actions(np.asarray(actions, dtype=np.float32))
 
+    reset = getattr(policy, "reset", None)
+    if callable(reset):  # a stateful policy (frame stacking): every world starts an episode
+        reset()
     stats = run_episodes(env._batch, act, seed)
     results: dict[str, list[Any]] = {}
     for world_stats in stats:
@@ -98,7 +101,8 @@ class SuccessEvalCallback(BaseCallback):
     ``eval/success_rate``, ``eval/mean_return``, ``eval/mean_length`` and
     ``eval/mean_collisions`` (then dumps the logger, so TensorBoard and progress.csv get a
     point per evaluation). When the training env is under ``VecNormalize``, observations are
-    normalised with its current statistics. The best model (by success rate, then return) is
+    normalised with its current statistics; with ``frame_stack`` > 1 they are stacked as
+    ``VecFrameStack`` stacks the training env's. The best model (by success rate, then return) is
     saved to ``best_model_path`` when given.
 
     Args:
@@ -108,6 +112,7 @@ class SuccessEvalCallback(BaseCallback):
         seed: Seed of world 0's episode.
         best_model_path: Where to save the best model (a ``.zip`` path), or None.
         verbose: 1 prints one line per evaluation.
+        frame_stack: Observations per stack of the model (1: no stacking).
     """
 
     def __init__(
@@ -117,8 +122,10 @@ class SuccessEvalCallback(BaseCallback):
         seed: int,
         best_model_path: str | Path | None = None,
         verbose: int = 1,
+        frame_stack: int = 1,
     ) -> None:
         super().__init__(verbose)
+        self.frame_stack = frame_stack
         if eval_freq < 1:
             raise ConfigError(f"eval_freq must be >= 1 environment steps, got {eval_freq}")
         self.eval_env = eval_env
@@ -143,9 +150,7 @@ class SuccessEvalCallback(BaseCallback):
         """Runs one evaluation now, logs it and keeps the best model."""
         self._last_eval_timesteps = self.num_timesteps
         normalizer = self.model.get_vec_normalize_env()
-        policy: Predictor = (
-            self.model if normalizer is None else NormalizedPolicy(self.model, normalizer)
-        )
+        policy: Predictor = as_predictor(self.model, normalizer, self.frame_stack)
         result = evaluate_episodes(policy, self.eval_env, self.seed, self.num_timesteps)
         self.history.append(result)
         for name in ("success_rate", "mean_return", "mean_length", "mean_collisions"):

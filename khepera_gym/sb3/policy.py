@@ -1,5 +1,6 @@
-"""Loading models trained by ``khepera-gym train``: the SB3 algorithm of a saved zip, and its
-``VecNormalize`` statistics applied so that ``predict`` takes raw env observations.
+"""Loading models trained by ``khepera-gym train``: the SB3 algorithm of a saved zip, its
+``VecNormalize`` statistics and its frame stacking (``VecFrameStack``) applied so that
+``predict`` takes raw env observations.
 """
 
 from __future__ import annotations
@@ -16,10 +17,13 @@ import numpy.typing as npt
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
-from khepera_gym.errors import KheperaError
+from khepera_gym.errors import ConfigError, KheperaError
 
 #: File next to a saved model holding its ``VecNormalize`` statistics (``khepera-gym train``).
 VECNORMALIZE_FILE = "vecnormalize.pkl"
+#: File next to a saved model describing its run (``khepera-gym train``); :func:`load_policy`
+#: reads the hyperparameter ``frame_stack`` from it.
+RUN_FILE = "run.json"
 #: SB3 algorithms that :func:`load_policy` recognises in a saved zip: (class name, an attribute
 #: that only its saved ``data`` has), tried in order.
 _ALGORITHM_MARKERS = (
@@ -75,6 +79,112 @@ class NormalizedPolicy:
         return self.model.predict(normalized, state, episode_start, deterministic)  # type: ignore[arg-type]
 
 
+class FrameStackPolicy:
+    """A model trained on the last ``n_stack`` observations (SB3's ``VecFrameStack``), fed the
+    same stack from raw env observations.
+
+    Like ``VecFrameStack``, the stack of a world starts as zeros at its episode's start, and every
+    step shifts it by one observation, the newest last: ``[o(t-n+1), ..., o(t)]``. When the model
+    was trained under ``VecNormalize`` too, each observation is normalised with the training
+    statistics before it enters the stack (``VecFrameStack(VecNormalize(env))``, the order of
+    ``khepera-gym train``).
+
+    The stack is state: :meth:`reset` (called by :func:`khepera_gym.rollout.run_episodes` before
+    its episodes) empties it, and ``predict``'s ``episode_start`` empties the rows of worlds whose
+    episode starts with this observation, as SB3's recurrent policies take it.
+
+    Args:
+        model: The loaded SB3 model (its observation has ``n_stack`` times the env's length).
+        n_stack: Observations per stack, >= 2.
+        normalizer: The ``VecNormalize`` the model was trained under, or None.
+    """
+
+    def __init__(
+        self, model: BaseAlgorithm, n_stack: int, normalizer: VecNormalize | None = None
+    ) -> None:
+        if isinstance(n_stack, bool) or not isinstance(n_stack, int) or n_stack < 2:
+            raise ConfigError(f"frame_stack must be an integer >= 2 here, got {n_stack!r}")
+        shape = model.observation_space.shape
+        if shape is None or len(shape) != 1 or shape[0] % n_stack:
+            raise ConfigError(
+                f"the model's observation {shape} is not {n_stack} stacked observations"
+            )
+        self.model = model
+        self.n_stack = n_stack
+        self.normalizer = normalizer
+        self.observation_space = model.observation_space
+        self.action_space = model.action_space
+        #: Length of one env observation.
+        self.obs_dim = shape[0] // n_stack
+        self._stack: npt.NDArray[np.float32] | None = None
+
+    def reset(self) -> None:
+        """Empties every world's stack: the next observation starts an episode."""
+        self._stack = None
+
+    def predict(
+        self,
+        observation: npt.NDArray[np.float32],
+        state: tuple[npt.NDArray[Any], ...] | None = None,
+        episode_start: npt.NDArray[np.bool_] | None = None,
+        deterministic: bool = False,
+    ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]:
+        """Actions for raw observations (obs_dim,) or (N, obs_dim), stacked with the previous
+        ones of the same rows."""
+        rows = np.asarray(observation, dtype=np.float32)
+        single = rows.ndim == 1
+        rows = rows.reshape(1, -1) if single else rows
+        if rows.ndim != 2 or rows.shape[1] != self.obs_dim:
+            raise ConfigError(
+                f"the model stacks {self.n_stack} observations of {self.obs_dim} values; "
+                f"got observations of shape {np.shape(observation)}"
+            )
+        if self.normalizer is not None:
+            rows = np.asarray(self.normalizer.normalize_obs(rows), dtype=np.float32)
+        if self._stack is None or self._stack.shape[0] != rows.shape[0]:
+            self._stack = np.zeros((rows.shape[0], self.n_stack * self.obs_dim), np.float32)
+        if episode_start is not None:
+            self._stack[np.asarray(episode_start, dtype=bool).reshape(-1)] = 0.0
+        self._stack[:, : -self.obs_dim] = self._stack[:, self.obs_dim :].copy()
+        self._stack[:, -self.obs_dim :] = rows
+        stacked = self._stack[0] if single else self._stack.copy()
+        actions, _ = self.model.predict(stacked, None, None, deterministic)
+        return actions, None
+
+
+def as_predictor(
+    model: BaseAlgorithm, normalizer: VecNormalize | None = None, frame_stack: int = 1
+) -> Any:
+    """The model as a :class:`Predictor` on raw env observations: with its ``VecNormalize``
+    statistics (:class:`NormalizedPolicy`) and its frame stacking (:class:`FrameStackPolicy`)
+    when it was trained with them; the model itself otherwise."""
+    if frame_stack > 1:
+        return FrameStackPolicy(model, frame_stack, normalizer)
+    if normalizer is not None:
+        return NormalizedPolicy(model, normalizer)
+    return model
+
+
+def frame_stack_of(path: str | Path) -> int:
+    """The ``frame_stack`` hyperparameter in the ``run.json`` next to a model zip (1 without it).
+
+    Raises:
+        KheperaError: The run.json is there but unreadable, or its frame_stack is not an
+            integer >= 1.
+    """
+    run_path = Path(path).parent / RUN_FILE
+    if not run_path.exists():
+        return 1
+    try:
+        run = json.loads(run_path.read_text(encoding="utf-8"))
+        value = run.get("hyperparams", {}).get("frame_stack", 1)
+    except (OSError, ValueError, AttributeError) as error:
+        raise KheperaError(f"{run_path}: cannot read the run's frame_stack ({error})") from error
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise KheperaError(f"{run_path}: frame_stack must be an integer >= 1, got {value!r}")
+    return value
+
+
 def algorithm_of(path: str | Path) -> str:
     """The SB3 algorithm class name ("PPO", "SAC", ...) that saved the zip at ``path``.
 
@@ -98,7 +208,9 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
 
     The algorithm is read from the zip. When a ``vecnormalize.pkl`` lies next to it (training
     with ``normalize = true``), the result normalises raw observations with those statistics
-    (:class:`NormalizedPolicy`); otherwise it is the SB3 model itself. Either way
+    (:class:`NormalizedPolicy`); when the ``run.json`` next to it has ``frame_stack`` > 1, it
+    stacks the observations as training did (:class:`FrameStackPolicy`, whose ``reset()``
+    starts new episodes); otherwise it is the SB3 model itself. Either way
     ``predict(obs, deterministic=True)`` takes raw env observations, single or batched.
 
     Args:
@@ -114,12 +226,22 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
     algorithm = getattr(stable_baselines3, algorithm_of(path))
     model: BaseAlgorithm = algorithm.load(path, device=device)
     stats_path = path.parent / VECNORMALIZE_FILE
+    normalizer: VecNormalize | None = None
     if stats_path.exists():
         with stats_path.open("rb") as stats_file:
-            normalizer: VecNormalize = pickle.load(stats_file)
+            normalizer = pickle.load(stats_file)
         normalizer.training = False
-        return NormalizedPolicy(model, normalizer)
-    return model
+    return as_predictor(model, normalizer, frame_stack_of(path))  # type: ignore[no-any-return]
 
 
-__all__ = ["VECNORMALIZE_FILE", "NormalizedPolicy", "Predictor", "algorithm_of", "load_policy"]
+__all__ = [
+    "RUN_FILE",
+    "VECNORMALIZE_FILE",
+    "FrameStackPolicy",
+    "NormalizedPolicy",
+    "Predictor",
+    "algorithm_of",
+    "as_predictor",
+    "frame_stack_of",
+    "load_policy",
+]
