@@ -17,7 +17,7 @@ from khepera_gym import bench, cli
 from khepera_gym.compare.command import DEMO_RUNS
 from khepera_gym.envs import formation_heuristic
 from khepera_gym.plot import plot_trajectories
-from khepera_gym.registration import registered_ids
+from khepera_gym.registration import latest_ids, registered_ids
 
 
 def test_plot_trajectories_draws_paths_and_saves_png(tmp_path: Path) -> None:
@@ -116,8 +116,9 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
 ) -> None:
     assert cli.main(["demo", "--episodes", "2", "--out-dir", str(tmp_path)]) == 0
     output = capsys.readouterr().out
-    # The paper's Fig. 6 and Fig. 7 scenes, then every task of the demo's list.
-    assert output.count("2 episodes per policy") == len(DEMO_RUNS)
+    # The paper's Fig. 6 and Fig. 7 scenes, then every registered task on its latest id.
+    assert output.count("2 episodes per policy") == len(DEMO_RUNS) == 2 + len(latest_ids())
+    assert {run[1] for run in DEMO_RUNS} == set(latest_ids().values())
     for task in (NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID):
         assert task in output
     for policy in ("position_control", "braitenberg", "vfh", "leader_follower", "random"):

@@ -5,6 +5,7 @@ comparisons on the paper's scenes and the tasks.
 from __future__ import annotations
 
 import argparse
+import inspect
 import warnings
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,7 @@ from khepera_gym.compare.report import report
 from khepera_gym.compare.run import compare, resolve_env_id
 from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.registration import latest_ids, task_of
+from khepera_gym.registration import ENV_CLASSES, latest_ids, task_of
 
 #: Registered id (latest version) of each task name of ``--task``.
 TASK_IDS = latest_ids()
@@ -159,9 +160,22 @@ def _run_consensus(args: argparse.Namespace) -> int:
     return 0
 
 
-#: The demo's comparisons: (title, env id, config, policies, episodes cap, recorded worlds).
+#: Worlds whose trajectories the demo plots per policy, for tasks where one does not show enough
+#: (Avoid's obstacles change every episode; Track's references are overlaid); others plot one.
+DEMO_PLOTTED_WORLDS = {"avoid": 2, "track": 3}
+
+
+def _task_title(task: str, env_id: str) -> str:
+    """A demo section's title: the id and the first sentence of its env class's manual."""
+    doc = inspect.getdoc(ENV_CLASSES[task]) or task
+    first = " ".join(doc.split("\n\n", 1)[0].split())
+    return f"{env_id}: {first}"
+
+
+#: The demo's comparisons: (title, env id, config, policies, episodes cap, plotted worlds): the
+#: paper's two scenes, then every task with a Gymnasium env on its latest version, with the
+#: task's default policies (all from the registries: a new task joins the demo by itself).
 DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], ...] = (
-    # The paper's figures and every task on the latest version (docs/controllers-v2.md).
     (
         "Paper Fig. 6: Braitenberg vs VFH past a wall and an obstacle",
         TASK_IDS["avoid"],
@@ -178,69 +192,16 @@ DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], 
         None,
         1,
     ),
-    (
-        "Nav: drive to a goal in an empty arena",
-        TASK_IDS["nav"],
-        None,
-        DEFAULT_POLICIES["nav"],
-        None,
-        1,
-    ),
-    (
-        "Avoid: 10 random obstacles, new every episode",
-        TASK_IDS["avoid"],
-        None,
-        DEFAULT_POLICIES["avoid"],
-        None,
-        2,
-    ),
-    (
-        "Formation: cross of four followers, obstacle-free arena",
-        TASK_IDS["formation"],
-        None,
-        DEFAULT_POLICIES["formation"],
-        None,
-        1,
-    ),
-    (
-        "Track: a reference point on a 0.6 m circle at 0.15 m/s",
-        TASK_IDS["track"],
-        None,
-        DEFAULT_POLICIES["track"],
-        None,
-        3,
-    ),
-    (
-        "PathFollow: one lap of a 0.6 m circle at 0.15 m/s, no clock",
-        TASK_IDS["pathfollow"],
-        None,
-        DEFAULT_POLICIES["pathfollow"],
-        None,
-        1,
-    ),
-    (
-        "LineFollow: one lap of a black line on the floor, seen by the ground sensors",
-        TASK_IDS["linefollow"],
-        None,
-        DEFAULT_POLICIES["linefollow"],
-        None,
-        1,
-    ),
-    (
-        "Seek: find a red pillar among obstacles with the colour camera",
-        TASK_IDS["seek"],
-        None,
-        DEFAULT_POLICIES["seek"],
-        None,
-        1,
-    ),
-    (
-        "DroneFollow: a quadcopter keeps a Khepera IV in its downward camera's view",
-        TASK_IDS["dronefollow"],
-        None,
-        DEFAULT_POLICIES["dronefollow"],
-        None,
-        1,
+    *(
+        (
+            _task_title(task, env_id),
+            env_id,
+            None,
+            tuple(DEFAULT_POLICIES[task]),
+            None,
+            DEMO_PLOTTED_WORLDS.get(task, 1),
+        )
+        for task, env_id in TASK_IDS.items()
     ),
 )
 
