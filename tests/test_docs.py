@@ -357,6 +357,20 @@ def test_results_pages_render_every_results_file_with_its_provenance(generated: 
         assert document["meta"]["command"] in text, path
 
 
+def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others() -> None:
+    from khepera_gym._docgen.results import target_name
+
+    meta = {"date": "2026-11-28T00:00:00+00:00"}
+    baselines = {"meta": meta, "env_id": "E-v2", "label": "avoid", "summaries": [{"policy": "vfh"}]}
+    trained = {**baselines, "summaries": [{"policy": "vfh"}, {"policy": "sb3:run/model.zip"}]}
+    assert target_name(baselines) == "compare_E-v2_avoid_2026-11-28.json"
+    assert target_name(trained) == "compare_E-v2_avoid_trained_2026-11-28.json"
+    run = {"meta": meta, "env_id": "E-v2", "algo": "ppo", "seed": 0, "final": {}}
+    assert target_name({**run, "hyperparams": {}}) == "train_E-v2_ppo_seed0_2026-11-28.json"
+    stacked = {**run, "hyperparams": {"frame_stack": 8}}
+    assert target_name(stacked) == "train_E-v2_ppo_seed0_stack8_2026-11-28.json"
+
+
 # --- README -------------------------------------------------------------------------------------
 
 

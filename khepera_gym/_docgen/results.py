@@ -152,7 +152,8 @@ def consensus_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
 
 
 def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
-    """The training runs: env, algorithm, steps, final success, wall time, steps/s."""
+    """The training runs: env, algorithm, steps, observations stacked (``frame_stack``), seed,
+    final success, wall time, steps/s."""
     documents = [d for _, d in files if kind(d) == "train"]
     if not documents:
         return _missing(
@@ -167,6 +168,7 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
                 code(document["env_id"]),
                 document.get("backend", "sb3") + " " + document["algo"].upper(),
                 f"{document['timesteps']:,}",
+                str((document.get("hyperparams") or {}).get("frame_stack", 1)),
                 str(document["seed"]),
                 f"{100 * final['success_rate']:.0f} of {final['episodes']}",
                 f"{document['wall_time']:.0f} s",
@@ -174,7 +176,8 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
                 provenance_line(document.get("meta")),
             ]
         )
-    header = ["env", "algorithm", "steps", "seed", "success %", "wall time", "steps/s", "run"]
+    header = ["env", "algorithm", "steps", "frames", "seed", "success %", "wall time", "steps/s"]
+    header.append("run")
     return table(header, rows)
 
 
@@ -265,9 +268,21 @@ def target_name(document: dict[str, Any]) -> str:
     date, so that a later run of another version or day does not replace it
     (``compare_KheperaIV-Avoid-v1_paper_fig6_2026-11-27.json``)."""
     date = (document.get("meta") or {}).get("date", "undated")[:10]
+    trained = any(
+        str(summary.get("policy", "")).startswith("sb3:")
+        for summary in document.get("summaries", [])
+    )
+    stack = (document.get("hyperparams") or {}).get("frame_stack", 1)
     what = {
-        "compare": lambda: f"{document['env_id']}_{document.get('label') or 'scene'}",
-        "train": lambda: f"{document['env_id']}_{document['algo']}_seed{document['seed']}",
+        # A comparison with trained models next to the baselines does not replace their table.
+        "compare": lambda: (
+            f"{document['env_id']}_{document.get('label') or 'scene'}"
+            + ("_trained" if trained else "")
+        ),
+        "train": lambda: (
+            f"{document['env_id']}_{document['algo']}_seed{document['seed']}"
+            + (f"_stack{stack}" if stack != 1 else "")
+        ),
         "consensus": lambda: "sweep",
         "bench": lambda: f"v{document['version']}",
     }[kind(document)]()
