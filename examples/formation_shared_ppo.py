@@ -10,8 +10,8 @@ distance to its eq. 12 target, minus contacts). One PPO policy learns from all r
 the scripted leader drives to its goal. After training, the policy and the LeaderFollower
 baseline (``khepera_gym.baselines.LeaderFollower``, or the proportional follower heuristic when
 the baselines module is not there) play the same seeded episodes, and their mean formation error
-is printed; finally the policy drives the PettingZoo env ``formation_v1``, one agent per follower.
-Hyperparameters: the ``formation_v1-followers`` table of configs/hyperparams/ppo.toml. Needs the
+is printed; finally the policy drives the PettingZoo env ``formation_v2``, one agent per follower.
+Hyperparameters: the ``formation-followers`` table of configs/hyperparams/ppo.toml. Needs the
 ``sb3`` extra.
 """
 
@@ -24,7 +24,7 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecMonitor
 
-from khepera_gym.pettingzoo import formation_v1
+from khepera_gym.pettingzoo import formation_v2
 from khepera_gym.sb3 import first_episode_stats, make_formation_vec_env
 from khepera_gym.train import build_model, load_hyperparams
 
@@ -66,7 +66,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50, help="evaluation episodes (50)")
     args = parser.parse_args()
 
-    hyperparams = load_hyperparams("ppo", "formation_v1-followers")
+    hyperparams = load_hyperparams("ppo", "formation_v2-followers")
     worlds = args.worlds or hyperparams["n_envs"]
     timesteps = args.timesteps or hyperparams["n_timesteps"]
     envs = VecMonitor(make_formation_vec_env(worlds, seed=0))
@@ -83,13 +83,13 @@ def main() -> None:
     print(summary(name, reference))
 
     # The same policy drives each PettingZoo agent from its own observation.
-    env = formation_v1.parallel_env()
+    env = formation_v2.parallel_env()
     observations, _ = env.reset(seed=EVAL_SEED)
     while env.agents:
         actions = {a: model.predict(observations[a], deterministic=True)[0] for a in env.agents}
         observations, _, _, _, infos = env.step(actions)
     stats = next(iter(infos.values()))["world_episode_stats"]
-    print(f"formation_v1, seed {EVAL_SEED}: error {100 * stats['formation_error_mean']:.1f} cm")
+    print(f"formation_v2, seed {EVAL_SEED}: error {100 * stats['formation_error_mean']:.1f} cm")
 
 
 if __name__ == "__main__":
