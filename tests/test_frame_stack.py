@@ -84,12 +84,14 @@ def test_train_stacks_frames_and_the_saved_model_stacks_them_again(tmp_path: Pat
     arguments += ["--out", str(tmp_path), "--eval-freq", "128", "--eval-episodes", "3"]
     arguments += ["--no-progress", "--verbose", "0", "--num-threads", "1"]
     arguments += ["--hp", "frame_stack=3", "--hp", "n_steps=32", "--hp", "batch_size=64"]
+    arguments += ["--hp", "normalize=true"]
     assert cli.main(arguments) == 0
     run = json.loads((tmp_path / "run.json").read_text())
     assert run["hyperparams"]["frame_stack"] == 3
     policy = load_policy(tmp_path / "model.zip")
     assert isinstance(policy, FrameStackPolicy) and policy.n_stack == 3
     assert policy.observation_space.shape == (3 * policy.obs_dim,)
+    assert policy.normalizer is not None and policy.normalizer.obs_rms.count > 256
 
     # The comparison tool's sb3: policy plays it from raw observations; the episode loop resets
     # its stacks, so the same seeds replay the same episodes with the same policy object.

@@ -413,6 +413,7 @@ def test_training_with_vec_normalize_saves_statistics_that_load_policy_applies(
     arguments += ["--out", str(tmp_path), "--eval-freq", "0", "--eval-episodes", "2"]
     arguments += ["--no-progress", "--verbose", "0", "--hp", "normalize=true"]
     arguments += ["--hp", "n_steps=64", "--hp", "batch_size=64"]
+    arguments += ["--hp", "frame_stack=1"]  # Avoid-v2's table stacks 8 (tests/test_frame_stack.py)
     assert cli.main(arguments) == 0
     policy = load_policy(tmp_path / "model.zip")
     assert isinstance(policy, NormalizedPolicy)
