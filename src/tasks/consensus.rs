@@ -43,7 +43,7 @@
 use std::collections::VecDeque;
 
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
@@ -317,7 +317,7 @@ impl Task for Consensus {
         Ok((0..n)
             .map(|i| Agent {
                 name: format!("robot_{i}"),
-                robot: i,
+                body: Body::Robot(i),
                 layout: layout.clone(),
             })
             .collect())

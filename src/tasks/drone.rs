@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
 use super::nav;
-use super::{Agent, Driver, Task, TaskInfo};
+use super::{Agent, Body, Driver, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -197,16 +197,16 @@ impl Task for DroneFollow {
 
     fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
         let d: DroneConfig = cfg.own()?;
-        // The drone is the task's vehicle 0, after the one robot.
+        // The drone is the task's vehicle 0.
         let mut agents = vec![Agent {
             name: "drone".into(),
-            robot: 1,
+            body: Body::Vehicle(0),
             layout: Self::drone_blocks(&d),
         }];
         if d.driver == Driver::Agent {
             agents.push(Agent {
                 name: "robot".into(),
-                robot: 0,
+                body: Body::Robot(0),
                 layout: nav::nav_blocks(cfg, sensors),
             });
         }

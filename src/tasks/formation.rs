@@ -27,7 +27,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Driver, Task, TaskInfo};
+use super::{Agent, Body, Driver, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -303,14 +303,14 @@ impl Task for Formation {
         if f.leader == Driver::Agent {
             agents.push(Agent {
                 name: "leader".into(),
-                robot: 0,
+                body: Body::Robot(0),
                 layout: nav::nav_blocks(cfg, sensors),
             });
         }
         for k in 0..f.offsets().len() {
             agents.push(Agent {
                 name: format!("follower_{k}"),
-                robot: k + 1,
+                body: Body::Robot(k + 1),
                 layout: Self::follower_blocks(cfg, sensors),
             });
         }

@@ -30,7 +30,7 @@ use toml::Table;
 use super::pathfollow::geometry::Path;
 use super::reference::{random_spline, Curve, Shape};
 use super::track::Direction;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -270,7 +270,7 @@ impl Task for LineFollow {
         let _ = cfg;
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
+            body: Body::Robot(0),
             layout: ObsLayout::new(blocks),
         }])
     }

@@ -12,7 +12,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -124,7 +124,7 @@ impl Task for MultiNav {
         Ok((0..n)
             .map(|i| Agent {
                 name: format!("robot_{i}"),
-                robot: i,
+                body: Body::Robot(i),
                 layout: nav::nav_blocks(cfg, sensors),
             })
             .collect())

@@ -13,7 +13,7 @@
 
 use rapier2d::math::Vector;
 
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::draw::Mark;
 use crate::error::Result;
 use crate::obs::{Block, ObsLayout, ObsWriter};
@@ -86,7 +86,7 @@ impl Task for Nav {
     fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
+            body: Body::Robot(0),
             layout: nav_blocks(cfg, sensors),
         }])
     }

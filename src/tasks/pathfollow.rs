@@ -43,7 +43,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Shape};
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
@@ -237,7 +237,7 @@ impl Task for PathFollow {
         let pf: PathFollowConfig = cfg.own()?;
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
+            body: Body::Robot(0),
             layout: Self::blocks(cfg, &pf, sensors),
         }])
     }

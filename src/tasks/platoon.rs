@@ -41,7 +41,7 @@ use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::Reference;
 use super::track::{draw_reference, Track};
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
 use crate::obs::{Block, ObsWriter};
@@ -216,7 +216,7 @@ impl Task for Platoon {
         Ok((0..platoon.n_robots())
             .map(|k| Agent {
                 name: format!("robot_{k}"),
-                robot: k,
+                body: Body::Robot(k),
                 layout: layout.clone(),
             })
             .collect())

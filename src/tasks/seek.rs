@@ -18,7 +18,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -133,7 +133,7 @@ impl Task for Seek {
         blocks.push(Block::new("wheel_speeds", 2, -1.0, 1.0));
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
+            body: Body::Robot(0),
             layout: ObsLayout::new(blocks),
         }])
     }

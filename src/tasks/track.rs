@@ -31,7 +31,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Posture, Reference, Shape};
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
@@ -161,7 +161,7 @@ impl Task for Track {
         let track: TrackConfig = cfg.own()?;
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
+            body: Body::Robot(0),
             layout: Self::blocks(cfg, &track, sensors),
         }])
     }
