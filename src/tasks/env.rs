@@ -396,9 +396,18 @@ impl Env {
         }
     }
 
+    /// Writes the joint observation: agent after agent, its robot's observed sensor blocks
+    /// (an agent driving a robot), then the task's blocks for it.
     fn observe(&self, obs: &mut [f32]) {
         let mut out = ObsWriter::new(obs);
-        self.task.observe(&self.world, &self.cfg, &mut out);
+        for (k, body) in self.agent_bodies.iter().enumerate() {
+            if let Body::Robot(i) = *body {
+                self.world
+                    .sensors
+                    .observe(&self.world.robots[i].readings, &mut out);
+            }
+            self.task.observe(&self.world, &self.cfg, k, &mut out);
+        }
         debug_assert_eq!(
             out.position(),
             obs.len(),

@@ -37,7 +37,7 @@ use serde::{de::DeserializeOwned, Serialize};
 
 use crate::draw::Mark;
 use crate::error::{Error, Result};
-use crate::obs::{Block, ObsLayout, ObsWriter};
+use crate::obs::{ObsLayout, ObsWriter};
 use crate::scenario::{Scenario, Source, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
@@ -141,9 +141,9 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
     /// How its robots are spawned: how many, and where relative to one another.
     fn spawn(cfg: &Scenario) -> Result<Spawn>;
 
-    /// Its agents, each with its observation blocks (the observed sensors' `sensors`, then the
-    /// task's own).
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>>;
+    /// Its agents, each with the task's own observation blocks ([`Env`] puts a robot's observed
+    /// sensor blocks before them).
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>>;
 
     /// Before the robots are placed: may draw from the world's stream (after the spawner) and
     /// change `layout` (the tracking task starts the robot relative to its reference).
@@ -199,8 +199,9 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
         0.0
     }
 
-    /// Writes the joint observation (every agent's blocks, in agent order).
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter);
+    /// Writes agent `agent`'s own blocks (its index in [`Task::agents`]' order), those its
+    /// [`Task::agents`] layout declares; [`Env`] has written its robot's sensor blocks before.
+    fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter);
 
     /// Goal positions (m).
     fn goals(&self) -> Vec<Vector>;
@@ -263,12 +264,19 @@ macro_rules! task_registry {
                 }
             }
 
-            /// Its agents with their observation layouts, for a scenario.
+            /// Its agents with their observation layouts, for a scenario: an agent driving a
+            /// robot observes its robot's observed sensor blocks, then the task's own blocks.
             pub fn agents(self, cfg: &Scenario) -> Result<Vec<Agent>> {
+                let mut agents = match self {
+                    $(TaskKind::$variant => <$ty as Task>::agents(cfg)?,)*
+                };
                 let sensors = crate::sensors::Suite::new(&cfg.sensors).blocks();
-                match self {
-                    $(TaskKind::$variant => <$ty as Task>::agents(cfg, &sensors),)*
+                for agent in agents.iter_mut().filter(|a| a.body.robot().is_some()) {
+                    let mut blocks = sensors.clone();
+                    blocks.extend_from_slice(agent.layout.blocks());
+                    agent.layout = ObsLayout::new(blocks);
                 }
+                Ok(agents)
             }
 
             fn new_state(self, cfg: &Scenario) -> Result<TaskState> {
@@ -355,9 +363,9 @@ macro_rules! task_registry {
             }
 
             #[inline]
-            fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+            fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter) {
                 match self {
-                    $(TaskState::$variant(t) => t.observe(world, cfg, out),)*
+                    $(TaskState::$variant(t) => t.observe(world, cfg, agent, out),)*
                 }
             }
 
