@@ -1,8 +1,8 @@
 //! Observation layouts: an observation is one flat `f32` vector made of named blocks (`ir`,
-//! `goal_distance`, ...), each with its bounds. A task declares its agents' blocks once (the
-//! observed sensors' blocks, then its own), the batch builds the joint layout from them, the
-//! binding exports it (`obs_layout`), and controllers find the slices they read by name. Nothing
-//! else restates where a value sits.
+//! `goal_distance`, ...), each with its bounds. A task declares its agents' own blocks once
+//! (`TaskKind::agents` puts a robot's observed sensor blocks before them), the batch builds the
+//! joint layout from them, the binding exports it (`obs_layout`), and controllers find the
+//! slices they read by name. Nothing else restates where a value sits.
 //!
 //! Units are each block's (see the task's manual); bounds are what the observation space says.
 

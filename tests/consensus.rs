@@ -293,3 +293,12 @@ fn test_bad_keys_are_config_errors_naming_them() {
         }
     }
 }
+
+#[test]
+fn test_the_consensus_law_reads_slots_of_the_tasks_width() {
+    // The law keeps its own slot width so that controllers need no task; it must be the task's.
+    assert_eq!(
+        _core::controllers::consensus::SLOT,
+        _core::tasks::consensus::SLOT
+    );
+}

@@ -477,3 +477,11 @@ fn test_the_speed_term_costs_driving_faster_than_desired() {
         }
     }
 }
+
+#[test]
+fn test_path_followers_read_every_preview_the_task_allows() {
+    // The followers size their buffer themselves, so that controllers need no task; every
+    // preview a PathFollow scenario may ask for must fit in it.
+    let most = _core::tasks::pathfollow::MAX_PREVIEW_POINTS as usize;
+    assert!(most <= _core::controllers::MAX_PATH_PREVIEW);
+}

@@ -25,7 +25,11 @@ use super::{non_negative, positive, Controller, WheelMap};
 use crate::error::{Error, Result};
 use crate::obs::ObsLayout;
 use crate::sensors::IR_COUNT;
-use crate::tasks::consensus::SLOT;
+
+/// Values per neighbour in the `neighbours` block the law reads, consensus_v1's format: p_x,
+/// p_y (m, robot frame), age (s), valid (1 or 0). The block's length gives the number of
+/// neighbours.
+pub const SLOT: usize = 4;
 
 crate::config_table! {
     /// Parameters of the consensus law.

@@ -217,8 +217,10 @@ controller_registry! {
     Consensus: consensus::ConsensusPolicy,
 }
 
-/// Most preview points a path follower reads (`pathfollow.preview_points`' limit).
-pub const MAX_PATH_PREVIEW: usize = crate::tasks::pathfollow::MAX_PREVIEW_POINTS as usize;
+/// Most preview points a path follower reads: the size of its buffer of path points (no
+/// allocation per step); a layout whose `preview` block holds more is refused when the
+/// controller is built. PathFollow's `preview_points` may be at most as many.
+pub const MAX_PATH_PREVIEW: usize = 16;
 
 impl Policy {
     /// Actions for the rows of `obs`, `obs_dim` values each (row-major).

@@ -185,12 +185,19 @@ impl Batch {
     ) -> PyResult<Vec<(String, usize, usize, usize, Vec<(String, usize, usize)>)>> {
         let env = &self.inner.envs()[0];
         let agents = env.kind().agents(&env.cfg).map_err(|e| to_py(py, e))?;
+        let n_robots = env.world.robots.len();
         let mut start = 0;
         Ok(agents
             .into_iter()
             .map(|a| {
                 let n = a.layout.len();
-                let item = (a.name, a.robot, start, start + n, layout_slices(&a.layout));
+                let item = (
+                    a.name,
+                    a.body.index(n_robots),
+                    start,
+                    start + n,
+                    layout_slices(&a.layout),
+                );
                 start += n;
                 item
             })

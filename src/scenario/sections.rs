@@ -2,7 +2,9 @@
 //! `[spawn]`, `[task]` and `[physics]`, each declared once with [`crate::config_table!`] (key,
 //! default, units, comment), and the checks of `[obstacles]`. The other shared sections are
 //! declared by their owners (`[robot]` in `robot.rs`, `[sensors]` by each sensor in `sensors/`);
-//! the checks that relate several sections are in `scenario/mod.rs`.
+//! the checks that relate several sections are in `scenario/mod.rs`. They are plain data: the
+//! world turns `[arena]` and `obstacles.fixed` into its types (`Scene::of_arena`,
+//! `SceneShape::of_obstacle` in `world/scene.rs`).
 //!
 //! Units: metres, seconds, radians, m/s. Frame: the world frame, origin at the arena's centre,
 //! x right, y up, angles CCW from +x.
@@ -12,7 +14,6 @@ use toml::Value;
 
 use crate::config::{limits, Domain, Field, Param};
 use crate::error::{Error, Result};
-use crate::world::scene::{Scene, SceneShape};
 
 crate::config_table! {
     /// `[arena]`: the rectangle, centred at the origin, walled or open.
@@ -29,18 +30,6 @@ crate::config_table! {
         wall_reflectance: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::REFLECTANCE),
         /// RGB in [0, 1] of the walls for the camera (a light grey)
         wall_color: [f32; 3] = [0.8, 0.8, 0.8] => Domain::UNIT,
-    }
-}
-
-impl ArenaConfig {
-    /// The empty arena this table describes.
-    pub fn scene(&self) -> Scene {
-        Scene {
-            walled: self.walls,
-            wall_reflectance: self.wall_reflectance,
-            wall_color: self.wall_color,
-            ..Scene::arena(self.width, self.height, self.wall_thickness)
-        }
     }
 }
 
@@ -122,41 +111,6 @@ fn is_white(reflectance: &f32) -> bool {
 }
 
 impl ObstacleSpec {
-    /// The obstacle as a scene shape.
-    pub fn shape(&self) -> SceneShape {
-        let v = |p: [f32; 2]| rapier2d::math::Vector::new(p[0], p[1]);
-        let (shape, reflectance, color) = match *self {
-            ObstacleSpec::Circle {
-                center,
-                radius,
-                reflectance,
-                color,
-            } => (SceneShape::circle(v(center), radius), reflectance, color),
-            ObstacleSpec::Box {
-                center,
-                half_extents,
-                angle,
-                reflectance,
-                color,
-            } => (
-                SceneShape::rect(v(center), v(half_extents), angle),
-                reflectance,
-                color,
-            ),
-            ObstacleSpec::Segment {
-                a,
-                b,
-                reflectance,
-                color,
-            } => (SceneShape::segment(v(a), v(b)), reflectance, color),
-        };
-        let shape = shape.with_reflectance(reflectance);
-        match color {
-            Some(color) => shape.with_color(color),
-            None => shape,
-        }
-    }
-
     /// Its colour, if given.
     pub fn color(&self) -> Option<[f32; 3]> {
         match *self {

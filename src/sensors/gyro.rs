@@ -103,34 +103,20 @@ impl Sensor for Gyro {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::scene::Scene;
+    use crate::sensors::TestSurroundings;
     use rand::SeedableRng;
+    use rapier2d::math::Vector;
 
     #[test]
     fn reads_the_yaw_rate_in_whole_counts() {
-        let scene = Scene::arena(2.0, 2.0, 0.05);
+        let fixture = TestSurroundings::new();
         let mut gyro = Gyro {
             noise_sigma: 0.0,
             bias: 0.0,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let mut reading = GyroReading::default();
-        let ctx = SenseContext {
-            scene: &scene,
-            position: rapier2d::math::Vector::ZERO,
-            sin_cos: (0.0, 1.0),
-            radius: 0.07,
-            others: &[],
-            other_leds: &[],
-            other_ids: &[],
-            robot_reflectance: 1.0,
-            yaw_rate: 1.0,
-            acceleration: rapier2d::math::Vector::ZERO,
-            floor: &crate::world::floor::Floor::default(),
-            floor_marks: &crate::world::floor::FloorMarks::default(),
-            dt: 0.05,
-            fresh: false,
-        };
+        let ctx = fixture.context(1.0, Vector::ZERO);
         gyro.read(&ctx, &mut rng, &mut reading);
         // 1 rad/s = 57.2958 °/s = 868.1 counts → 868.
         assert_eq!(reading.raw, 868);
@@ -139,10 +125,7 @@ mod tests {
         gyro.bias = 1.32;
         gyro.read(&ctx, &mut rng, &mut reading);
         assert_eq!(reading.raw, 888);
-        let at_rest = SenseContext {
-            yaw_rate: 0.0,
-            ..ctx
-        };
+        let at_rest = fixture.context(0.0, Vector::ZERO);
         gyro.read(&at_rest, &mut rng, &mut reading);
         assert_eq!(reading.raw, 20);
     }

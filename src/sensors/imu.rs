@@ -161,34 +161,19 @@ impl Sensor for Imu {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::scene::Scene;
+    use crate::sensors::TestSurroundings;
     use rand::SeedableRng;
     use rapier2d::math::Vector;
 
     fn read(acceleration: Vector, yaw_rate: f32) -> ImuReading {
-        let scene = Scene::arena(2.0, 2.0, 0.05);
+        let fixture = TestSurroundings::new();
         let mut imu = Imu {
             accel_noise_sigma: 0.0,
             gyro_noise_sigma: 0.0,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let mut reading = ImuReading::default();
-        let ctx = SenseContext {
-            scene: &scene,
-            position: Vector::ZERO,
-            sin_cos: (0.0, 1.0),
-            radius: 0.07,
-            others: &[],
-            other_leds: &[],
-            other_ids: &[],
-            robot_reflectance: 1.0,
-            yaw_rate,
-            acceleration,
-            floor: &crate::world::floor::Floor::default(),
-            floor_marks: &crate::world::floor::FloorMarks::default(),
-            dt: 0.05,
-            fresh: false,
-        };
+        let ctx = fixture.context(yaw_rate, acceleration);
         imu.read(&ctx, &mut rng, &mut reading);
         reading
     }

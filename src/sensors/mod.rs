@@ -16,6 +16,7 @@
 //! sensor in registry order (so a world's results do not depend on the thread count).
 
 pub mod camera;
+mod context;
 pub mod ground;
 pub mod gyro;
 pub mod imu;
@@ -31,61 +32,16 @@ use crate::config::{self, ConfigTable, KeyDoc};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::{Block, ObsWriter};
-use crate::world::floor::{Floor, FloorMarks};
-use crate::world::scene::Scene;
 
 pub use camera::Camera;
+#[cfg(test)]
+pub(crate) use context::TestSurroundings;
+pub use context::{SenseContext, Surroundings};
 pub use ground::GroundSensors;
 pub use gyro::Gyro;
 pub use imu::Imu;
 pub use ir::{IrRing, IR_BEARINGS, IR_COUNT};
 pub use ultrasonic::{Ultrasonic, US_BEARINGS, US_COUNT, US_DISABLED, US_NOTHING, US_TOO_CLOSE};
-
-/// What a sensor sees of its world when one robot reads it.
-pub struct SenseContext<'a> {
-    /// The static scene (walls and obstacles).
-    pub scene: &'a Scene,
-    /// The robot's centre (m).
-    pub position: Vector,
-    /// sin and cos of its heading.
-    pub sin_cos: (f32, f32),
-    /// Body radius of every robot (m); sensors sit on the rim.
-    pub radius: f32,
-    /// Centres of the other robots of the world (m): all of them in robot order, or in a
-    /// world of many robots those within the suite's [`Sensor::reach`], in any order.
-    pub others: &'a [Vector],
-    /// Their LED colours (RGB in [0, 1]), in the same order: what a camera sees of them.
-    pub other_leds: &'a [[f32; 3]],
-    /// Their indices in the world, in the same order, when `others` is not in robot order (a
-    /// swarm's grid finds them cell by cell); empty when it is. Readings must not depend on
-    /// the order: where two robots are met at exactly the same distance, the one of larger
-    /// index is hit, as a scan in robot order gives ([`Scene::cast_hit`]).
-    pub other_ids: &'a [u32],
-    /// Infrared reflectance of the robots' shells (relative to white paper).
-    pub robot_reflectance: f32,
-    /// The robot's yaw rate over the last step (rad/s).
-    pub yaw_rate: f32,
-    /// The body's planar acceleration around the start of the last step, in the robot frame
-    /// (m/s²); kept only while the robot carries the IMU, else zero.
-    pub acceleration: Vector,
-    /// The scenario's floor (for the ground sensors).
-    pub floor: &'a Floor,
-    /// The task's marks on it this episode.
-    pub floor_marks: &'a FloorMarks,
-    /// The control step (s): the time since the sensors were last read.
-    pub dt: f32,
-    /// A new episode: every sensor takes a new reading, whatever its refresh period.
-    pub fresh: bool,
-}
-
-impl SenseContext<'_> {
-    /// `v` (robot frame) rotated into the world frame.
-    #[inline]
-    pub fn to_world(&self, v: Vector) -> Vector {
-        let (s, c) = self.sin_cos;
-        Vector::new(c * v.x - s * v.y, s * v.x + c * v.y)
-    }
-}
 
 /// Where a robot is, for drawing its sensors.
 pub struct DrawContext {

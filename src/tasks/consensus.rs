@@ -43,7 +43,7 @@
 use std::collections::VecDeque;
 
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
@@ -296,7 +296,7 @@ impl Task for Consensus {
         ))
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         let n = cfg.own::<ConsensusConfig>()?.n_robots as usize;
         let reach = cfg.diagonal() + 2.0 * cfg.arena.width.max(cfg.arena.height);
         let mut low = Vec::with_capacity(SLOT * (n - 1));
@@ -305,19 +305,19 @@ impl Task for Consensus {
             low.extend([-reach, -reach, 0.0, 0.0]);
             high.extend([reach, reach, MAX_AGE, 1.0]);
         }
-        let mut blocks = sensors.to_vec();
-        blocks.push(Block {
-            name: "neighbours".into(),
-            low,
-            high,
-        });
-        blocks.push(Block::new("own_drift", 2, -cfg.diagonal(), cfg.diagonal()));
-        blocks.push(Block::new("wheel_speeds", 2, -1.0, 1.0));
-        let layout = ObsLayout::new(blocks);
+        let layout = ObsLayout::new(vec![
+            Block {
+                name: "neighbours".into(),
+                low,
+                high,
+            },
+            Block::new("own_drift", 2, -cfg.diagonal(), cfg.diagonal()),
+            Block::new("wheel_speeds", 2, -1.0, 1.0),
+        ]);
         Ok((0..n)
             .map(|i| Agent {
                 name: format!("robot_{i}"),
-                robot: i,
+                body: Body::Robot(i),
                 layout: layout.clone(),
             })
             .collect())
@@ -395,36 +395,34 @@ impl Task for Consensus {
         out[3] = self.messages as f32 / (self.n as f32 * seconds);
     }
 
-    fn observe(&self, world: &World, _cfg: &Scenario, out: &mut ObsWriter) {
-        let n = self.n;
-        for i in 0..n {
-            world.sensors.observe(&world.robots[i].readings, out);
-            for j in (0..n).filter(|&j| j != i) {
-                match self.inbox[i * n + j].filter(|_| self.linked(i, j)) {
-                    Some(m) => {
-                        let p = nav::to_robot_frame(
-                            world,
-                            i,
-                            m.position - self.offsets[j] + self.offsets[i],
-                        );
-                        out.put(p.x);
-                        out.put(p.y);
-                        out.put(((self.step - m.sent) as f32 * self.dt).min(MAX_AGE));
-                        out.put(1.0);
-                    }
-                    None => {
-                        for _ in 0..SLOT {
-                            out.put(0.0);
-                        }
+    /// Agent `i` drives robot `i`.
+    fn observe(&self, world: &World, _cfg: &Scenario, agent: usize, out: &mut ObsWriter) {
+        let (n, i) = (self.n, agent);
+        for j in (0..n).filter(|&j| j != i) {
+            match self.inbox[i * n + j].filter(|_| self.linked(i, j)) {
+                Some(m) => {
+                    let p = nav::to_robot_frame(
+                        world,
+                        i,
+                        m.position - self.offsets[j] + self.offsets[i],
+                    );
+                    out.put(p.x);
+                    out.put(p.y);
+                    out.put(((self.step - m.sent) as f32 * self.dt).min(MAX_AGE));
+                    out.put(1.0);
+                }
+                None => {
+                    for _ in 0..SLOT {
+                        out.put(0.0);
                     }
                 }
             }
-            let drift = nav::to_robot_frame(world, i, self.sent[i].position);
-            out.put(drift.x);
-            out.put(drift.y);
-            for w in nav::wheel_obs(world, i) {
-                out.put(w);
-            }
+        }
+        let drift = nav::to_robot_frame(world, i, self.sent[i].position);
+        out.put(drift.x);
+        out.put(drift.y);
+        for w in nav::wheel_obs(world, i) {
+            out.put(w);
         }
     }
 

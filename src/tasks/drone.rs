@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
 use super::nav;
-use super::{Agent, Driver, Task, TaskInfo};
+use super::{Agent, Body, Driver, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -195,19 +195,19 @@ impl Task for DroneFollow {
         Ok(Spawn::Single)
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         let d: DroneConfig = cfg.own()?;
-        // The drone is the task's vehicle 0, after the one robot.
+        // The drone is the task's vehicle 0.
         let mut agents = vec![Agent {
             name: "drone".into(),
-            robot: 1,
+            body: Body::Vehicle(0),
             layout: Self::drone_blocks(&d),
         }];
         if d.driver == Driver::Agent {
             agents.push(Agent {
                 name: "robot".into(),
-                robot: 0,
-                layout: nav::nav_blocks(cfg, sensors),
+                body: Body::Robot(0),
+                layout: nav::nav_blocks(cfg),
             });
         }
         Ok(agents)
@@ -327,7 +327,12 @@ impl Task for DroneFollow {
         out[2] = (self.altitude_squares / n).sqrt() as f32;
     }
 
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+    /// Agent 0 flies the drone; agent 1 (with `driver = "agent"`) drives the robot.
+    fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter) {
+        if agent == 1 {
+            nav::observe_robot(world, 0, self.route[self.next], cfg, out);
+            return;
+        }
         let offset = self.seen.unwrap_or(Vector::ZERO);
         let v = self.params.speed_max;
         out.put(offset.x.clamp(-1.0, 1.0));
@@ -338,9 +343,6 @@ impl Task for DroneFollow {
         out.put(self.drone.velocity.x.clamp(-v, v));
         out.put(self.drone.velocity.y.clamp(-v, v));
         out.put(self.drone.altitude.clamp(0.0, self.params.search_altitude));
-        if self.driver == Driver::Agent {
-            nav::observe_robot(world, 0, self.route[self.next], cfg, out);
-        }
     }
 
     fn goals(&self) -> Vec<Vector> {

@@ -17,7 +17,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
-use super::{action_width, led_color, TaskKind, TaskState, MAX_EXTRA_STATS, WHEEL_ACTIONS};
+use super::{action_width, led_color, Body, TaskKind, TaskState, MAX_EXTRA_STATS, WHEEL_ACTIONS};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::ObsWriter;
@@ -117,7 +117,8 @@ pub struct Env {
     spawner: Arc<Spawner>,
     task: TaskState,
     action_type: ActionType,
-    agent_robots: Vec<usize>,
+    /// What each agent drives, in agent order.
+    agent_bodies: Vec<Body>,
     /// Action values per agent ([`action_width`]).
     action_width: usize,
     obs_dim: usize,
@@ -160,12 +161,11 @@ impl Env {
         let task = kind.new_state(&cfg)?;
         let agents = kind.agents(&cfg)?;
         let obs_dim = agents.iter().map(|a| a.layout.len()).sum();
-        let agent_robots: Vec<usize> = agents.iter().map(|a| a.robot).collect();
-        let n_agents = agent_robots.len();
-        let n_robots = spawner.n_robots();
+        let agent_bodies: Vec<Body> = agents.iter().map(|a| a.body).collect();
+        let n_agents = agent_bodies.len();
         let action_width = action_width(&cfg);
         // A vehicle (DroneFollow's drone) has no LEDs to set.
-        let vehicle = agents.iter().find(|a| a.robot >= n_robots);
+        let vehicle = agents.iter().find(|a| matches!(a.body, Body::Vehicle(_)));
         if let Some(vehicle) = vehicle.filter(|_| cfg.task.led_action) {
             return Err(Error::config(
                 &cfg.origin,
@@ -183,7 +183,7 @@ impl Env {
             spawner,
             task,
             action_type,
-            agent_robots,
+            agent_bodies,
             action_width,
             obs_dim,
             agent_rewards: vec![0.0; n_agents],
@@ -351,19 +351,19 @@ impl Env {
     /// on its success.
     fn record_agents(&mut self, episode_over: bool) {
         let robots = &self.world.robots;
-        let agents = self.agent_robots.iter().zip(&mut self.agent_stats);
-        for (k, (&robot, stats)) in agents.enumerate() {
+        let agents = self.agent_bodies.iter().zip(&mut self.agent_stats);
+        for (k, (&body, stats)) in agents.enumerate() {
             if stats.done {
                 continue;
             }
             stats.ret += self.agent_rewards[k];
             stats.length += 1;
-            match robots.get(robot) {
-                Some(body) => {
-                    stats.path_length += body.step_travel;
-                    stats.collisions += body.in_contact as u32;
+            match body {
+                Body::Robot(i) => {
+                    stats.path_length += robots[i].step_travel;
+                    stats.collisions += robots[i].in_contact as u32;
                 }
-                None => stats.path_length += self.task.vehicle_travel(robot - robots.len()),
+                Body::Vehicle(v) => stats.path_length += self.task.vehicle_travel(v),
             }
             if self.agent_terminated[k] || episode_over {
                 let success = self.stats.success;
@@ -377,16 +377,18 @@ impl Env {
     /// ([`TaskState::act`]), LED colours. An empty `action` (none sent yet) stops the wheels and
     /// leaves the LEDs as they are.
     fn apply(&mut self, action: &[f32]) {
-        let robots = self.world.robots.len();
         let width = self.action_width;
-        for (k, robot) in self.agent_robots.iter().enumerate() {
+        for (k, body) in self.agent_bodies.iter().enumerate() {
             let sent = action.get(k * width..(k + 1) * width);
             let wheels = sent.map_or([0.0; WHEEL_ACTIONS], |a| [a[0], a[1]]);
-            if *robot >= robots {
-                self.task.act(robot - robots, wheels);
-                continue;
-            }
-            let body = &mut self.world.robots[*robot];
+            let robot = match *body {
+                Body::Robot(i) => i,
+                Body::Vehicle(v) => {
+                    self.task.act(v, wheels);
+                    continue;
+                }
+            };
+            let body = &mut self.world.robots[robot];
             body.wheel_command = self.world.drive.wheel_command(wheels, self.action_type);
             if let Some(&[_, _, r, g, b]) = sent {
                 body.led = led_color([r, g, b]);
@@ -394,9 +396,18 @@ impl Env {
         }
     }
 
+    /// Writes the joint observation: agent after agent, its robot's observed sensor blocks
+    /// (an agent driving a robot), then the task's blocks for it.
     fn observe(&self, obs: &mut [f32]) {
         let mut out = ObsWriter::new(obs);
-        self.task.observe(&self.world, &self.cfg, &mut out);
+        for (k, body) in self.agent_bodies.iter().enumerate() {
+            if let Body::Robot(i) = *body {
+                self.world
+                    .sensors
+                    .observe(&self.world.robots[i].readings, &mut out);
+            }
+            self.task.observe(&self.world, &self.cfg, k, &mut out);
+        }
         debug_assert_eq!(
             out.position(),
             obs.len(),
@@ -447,7 +458,7 @@ impl Env {
         let (state, rest): (EnvState, _) = postcard::take_from_bytes(bytes)
             .map_err(|e| Error::SavedState(format!("corrupt env state: {e}")))?;
         let n_robots = self.world.robots.len();
-        let n_agents = self.agent_robots.len();
+        let n_agents = self.agent_bodies.len();
         if state.world.robots.len() != n_robots
             || state.agent_rewards.len() != n_agents
             || state.agent_terminated.len() != n_agents

@@ -27,7 +27,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Driver, Task, TaskInfo};
+use super::{Agent, Body, Driver, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -248,20 +248,18 @@ impl Formation {
         (mean, self.error_max)
     }
 
-    /// One follower's observation blocks: its observed sensors', then target_offset,
+    /// One follower's own observation blocks (after its sensors'): target_offset,
     /// leader_offset (m, clipped to the arena diagonal), leader_heading, leader_velocity and
     /// wheel_speeds.
-    pub fn follower_blocks(cfg: &Scenario, sensors: &[Block]) -> ObsLayout {
+    pub fn follower_blocks(cfg: &Scenario) -> ObsLayout {
         let reach = cfg.diagonal();
-        let mut blocks = sensors.to_vec();
-        blocks.extend([
+        ObsLayout::new(vec![
             Block::new("target_offset", 2, -reach, reach),
             Block::new("leader_offset", 2, -reach, reach),
             Block::new("leader_heading", 2, -1.0, 1.0),
             Block::new("leader_velocity", 2, -1.0, 1.0),
             Block::new("wheel_speeds", 2, -1.0, 1.0),
-        ]);
-        ObsLayout::new(blocks)
+        ])
     }
 }
 
@@ -297,21 +295,21 @@ impl Task for Formation {
         Ok(Spawn::Formation(f.offsets()))
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         let f: FormationConfig = cfg.own()?;
         let mut agents = Vec::new();
         if f.leader == Driver::Agent {
             agents.push(Agent {
                 name: "leader".into(),
-                robot: 0,
-                layout: nav::nav_blocks(cfg, sensors),
+                body: Body::Robot(0),
+                layout: nav::nav_blocks(cfg),
             });
         }
         for k in 0..f.offsets().len() {
             agents.push(Agent {
                 name: format!("follower_{k}"),
-                robot: k + 1,
-                layout: Self::follower_blocks(cfg, sensors),
+                body: Body::Robot(k + 1),
+                layout: Self::follower_blocks(cfg),
             });
         }
         Ok(agents)
@@ -401,36 +399,34 @@ impl Task for Formation {
         }
     }
 
-    /// Writes the joint observation: the leader's Nav block when it is an agent, then one block
-    /// per follower ([`Formation::follower_blocks`]).
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
-        if self.leader_agent {
+    /// Writes an agent's own block: the leader's Nav block when it is an agent (agent 0), or
+    /// a follower's ([`Formation::follower_blocks`]).
+    fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter) {
+        let Some(k) = agent.checked_sub(usize::from(self.leader_agent)) else {
             nav::observe_robot(world, 0, self.goal, cfg, out);
-        }
+            return;
+        };
         let (v, w) = world.drive.twist(world.robots[0].wheel_speeds);
         let leader_velocity = [
             (v / world.drive.max_wheel_speed).clamp(-1.0, 1.0),
             (w / world.drive.max_yaw_rate()).clamp(-1.0, 1.0),
         ];
         let reach = cfg.diagonal();
-        for k in 0..self.n_followers() {
-            let i = k + 1;
-            world.sensors.observe(&world.robots[i].readings, out);
-            let offset = nav::to_robot_frame(world, i, self.target(world, k));
-            out.put(offset.x.clamp(-reach, reach));
-            out.put(offset.y.clamp(-reach, reach));
-            let leader = nav::to_robot_frame(world, i, world.robots[0].position);
-            out.put(leader.x.clamp(-reach, reach));
-            out.put(leader.y.clamp(-reach, reach));
-            let relative = world.robots[0].heading - world.believed_pose(i).1;
-            out.put(relative.sin());
-            out.put(relative.cos());
-            out.put(leader_velocity[0]);
-            out.put(leader_velocity[1]);
-            let [l, r] = nav::wheel_obs(world, i);
-            out.put(l);
-            out.put(r);
-        }
+        let i = k + 1;
+        let offset = nav::to_robot_frame(world, i, self.target(world, k));
+        out.put(offset.x.clamp(-reach, reach));
+        out.put(offset.y.clamp(-reach, reach));
+        let leader = nav::to_robot_frame(world, i, world.robots[0].position);
+        out.put(leader.x.clamp(-reach, reach));
+        out.put(leader.y.clamp(-reach, reach));
+        let relative = world.robots[0].heading - world.believed_pose(i).1;
+        out.put(relative.sin());
+        out.put(relative.cos());
+        out.put(leader_velocity[0]);
+        out.put(leader_velocity[1]);
+        let [l, r] = nav::wheel_obs(world, i);
+        out.put(l);
+        out.put(r);
     }
 
     fn goals(&self) -> Vec<Vector> {

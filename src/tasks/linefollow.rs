@@ -30,7 +30,7 @@ use toml::Table;
 use super::pathfollow::geometry::Path;
 use super::reference::{random_spline, Curve, Shape};
 use super::track::Direction;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -264,14 +264,11 @@ impl Task for LineFollow {
         Ok(Spawn::Single)
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
-        let mut blocks = sensors.to_vec();
-        blocks.push(Block::new("wheel_speeds", 2, -1.0, 1.0));
-        let _ = cfg;
+    fn agents(_cfg: &Scenario) -> Result<Vec<Agent>> {
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
-            layout: ObsLayout::new(blocks),
+            body: Body::Robot(0),
+            layout: ObsLayout::new(vec![Block::new("wheel_speeds", 2, -1.0, 1.0)]),
         }])
     }
 
@@ -356,8 +353,7 @@ impl Task for LineFollow {
         out[1] = (f64::from(self.on_line) / n) as f32;
     }
 
-    fn observe(&self, world: &World, _cfg: &Scenario, out: &mut ObsWriter) {
-        world.sensors.observe(&world.robots[0].readings, out);
+    fn observe(&self, world: &World, _cfg: &Scenario, _agent: usize, out: &mut ObsWriter) {
         for w in super::nav::wheel_obs(world, 0) {
             out.put(w);
         }

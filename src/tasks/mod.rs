@@ -6,9 +6,10 @@
 //! bookkeeping (layout at reset, step counter, termination, statistics, trails) in one place;
 //! the batch, the world, the renderer and the binding never look at which task they hold.
 //!
-//! Agents: a task has one or more agents, each acting on one robot with two normalised numbers
-//! (its wheels; with `task.led_action`, three more for its top LEDs' colour, the same width for
-//! every agent: [`action_width`]) and observing one block of the joint observation. The joint
+//! Agents: a task has one or more agents, each driving one [`Body`] (a robot of the world, or
+//! the task's own vehicle: DroneFollow's drone) with two normalised numbers (a robot's wheels;
+//! with `task.led_action`, three more for its top LEDs' colour, the same width for every agent:
+//! [`action_width`]) and observing one block of the joint observation. The joint
 //! action is the agents' actions in order; the joint reward is the mean of the agents' rewards.
 //!
 //! Dispatch is static: the registry generates an enum of the tasks' states and matches on it;
@@ -36,7 +37,7 @@ use serde::{de::DeserializeOwned, Serialize};
 
 use crate::draw::Mark;
 use crate::error::{Error, Result};
-use crate::obs::{Block, ObsLayout, ObsWriter};
+use crate::obs::{ObsLayout, ObsWriter};
 use crate::scenario::{Scenario, Source, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
@@ -54,14 +55,42 @@ pub struct TaskInfo {
     pub schema: TaskSchema,
 }
 
+/// What an agent drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Body {
+    /// Robot `i` of the world (a Khepera IV): its wheels, LEDs and sensors.
+    Robot(usize),
+    /// The task's own vehicle `v` (DroneFollow's drone), not part of the world: its actions go
+    /// to [`Task::act`], its travel comes from [`Task::vehicle_travel`]; no sensors, no LEDs.
+    Vehicle(usize),
+}
+
+impl Body {
+    /// The robot it is, if it is one.
+    pub fn robot(self) -> Option<usize> {
+        match self {
+            Body::Robot(i) => Some(i),
+            Body::Vehicle(_) => None,
+        }
+    }
+
+    /// Its number in the Python API (`Batch.agents()`): a robot's index, or a vehicle's
+    /// `n_robots + v` (the world's robots first, then the task's vehicles).
+    pub fn index(self, n_robots: usize) -> usize {
+        match self {
+            Body::Robot(i) => i,
+            Body::Vehicle(v) => n_robots + v,
+        }
+    }
+}
+
 /// One agent of a task.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Agent {
     /// Its name (PettingZoo agent id).
     pub name: String,
-    /// The robot it drives, or, from the number of robots on, the task's own vehicle
-    /// `robot - n_robots` (a drone), whose actions go to [`Task::act`].
-    pub robot: usize,
+    /// What it drives: a robot of the world, or the task's own vehicle.
+    pub body: Body,
     /// Its observation block's layout.
     pub layout: ObsLayout,
 }
@@ -112,9 +141,9 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
     /// How its robots are spawned: how many, and where relative to one another.
     fn spawn(cfg: &Scenario) -> Result<Spawn>;
 
-    /// Its agents, each with its observation blocks (the observed sensors' `sensors`, then the
-    /// task's own).
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>>;
+    /// Its agents, each with the task's own observation blocks ([`Env`] puts a robot's observed
+    /// sensor blocks before them).
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>>;
 
     /// Before the robots are placed: may draw from the world's stream (after the spawner) and
     /// change `layout` (the tracking task starts the robot relative to its reference).
@@ -132,8 +161,8 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
     /// Before the world moves (agents' commands are set): commands of scripted robots.
     fn before_step(&self, _world: &mut World) {}
 
-    /// The action of an agent that drives no robot of the world (its [`Agent::robot`] is
-    /// `n_robots + vehicle`: a drone), normalised to [-1, 1]; called before `before_step`.
+    /// The action of an agent that drives the task's vehicle `vehicle` (its [`Agent::body`] is
+    /// [`Body::Vehicle`]: a drone), normalised to [-1, 1]; called before `before_step`.
     fn act(&mut self, _vehicle: usize, _action: [f32; 2]) {}
 
     /// After the world moved and sensed: each agent's reward and termination; returns whether
@@ -163,15 +192,16 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
         episode_success
     }
 
-    /// The distance (m) vehicle `vehicle` (an agent whose [`Agent::robot`] is `n_robots +
-    /// vehicle`: a drone) travelled on the last step, for its agent's path length; asked after
-    /// `judge`. None by default.
+    /// The distance (m) vehicle `vehicle` (an agent whose [`Agent::body`] is
+    /// [`Body::Vehicle`]: a drone) travelled on the last step, for its agent's path length;
+    /// asked after `judge`. None by default.
     fn vehicle_travel(&self, _vehicle: usize) -> f32 {
         0.0
     }
 
-    /// Writes the joint observation (every agent's blocks, in agent order).
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter);
+    /// Writes agent `agent`'s own blocks (its index in [`Task::agents`]' order), those its
+    /// [`Task::agents`] layout declares; [`Env`] has written its robot's sensor blocks before.
+    fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter);
 
     /// Goal positions (m).
     fn goals(&self) -> Vec<Vector>;
@@ -234,12 +264,19 @@ macro_rules! task_registry {
                 }
             }
 
-            /// Its agents with their observation layouts, for a scenario.
+            /// Its agents with their observation layouts, for a scenario: an agent driving a
+            /// robot observes its robot's observed sensor blocks, then the task's own blocks.
             pub fn agents(self, cfg: &Scenario) -> Result<Vec<Agent>> {
+                let mut agents = match self {
+                    $(TaskKind::$variant => <$ty as Task>::agents(cfg)?,)*
+                };
                 let sensors = crate::sensors::Suite::new(&cfg.sensors).blocks();
-                match self {
-                    $(TaskKind::$variant => <$ty as Task>::agents(cfg, &sensors),)*
+                for agent in agents.iter_mut().filter(|a| a.body.robot().is_some()) {
+                    let mut blocks = sensors.clone();
+                    blocks.extend_from_slice(agent.layout.blocks());
+                    agent.layout = ObsLayout::new(blocks);
                 }
+                Ok(agents)
             }
 
             fn new_state(self, cfg: &Scenario) -> Result<TaskState> {
@@ -326,9 +363,9 @@ macro_rules! task_registry {
             }
 
             #[inline]
-            fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+            fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter) {
                 match self {
-                    $(TaskState::$variant(t) => t.observe(world, cfg, out),)*
+                    $(TaskState::$variant(t) => t.observe(world, cfg, agent, out),)*
                 }
             }
 

@@ -12,11 +12,11 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
-use crate::obs::{Block, ObsWriter};
+use crate::obs::ObsWriter;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
@@ -119,13 +119,13 @@ impl Task for MultiNav {
         Ok(Spawn::Multi(cfg.own::<MultiNavConfig>()?.n_robots as usize))
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         let n = cfg.own::<MultiNavConfig>()?.n_robots as usize;
         Ok((0..n)
             .map(|i| Agent {
                 name: format!("robot_{i}"),
-                robot: i,
-                layout: nav::nav_blocks(cfg, sensors),
+                body: Body::Robot(i),
+                layout: nav::nav_blocks(cfg),
             })
             .collect())
     }
@@ -179,10 +179,9 @@ impl Task for MultiNav {
     }
 
     /// Writes every robot's Nav observation, one block after another.
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
-        for (i, goal) in self.goals.iter().enumerate() {
-            nav::observe_robot(world, i, *goal, cfg, out);
-        }
+    /// Agent `i` drives robot `i` toward goal `i`.
+    fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter) {
+        nav::observe_robot(world, agent, self.goals[agent], cfg, out);
     }
 
     fn goals(&self) -> Vec<Vector> {

@@ -13,7 +13,7 @@
 
 use rapier2d::math::Vector;
 
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::draw::Mark;
 use crate::error::Result;
 use crate::obs::{Block, ObsLayout, ObsWriter};
@@ -83,11 +83,11 @@ impl Task for Nav {
         Ok(Spawn::Single)
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
-            layout: nav_blocks(cfg, sensors),
+            body: Body::Robot(0),
+            layout: nav_blocks(cfg),
         }])
     }
 
@@ -109,7 +109,7 @@ impl Task for Nav {
         j.success
     }
 
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+    fn observe(&self, world: &World, cfg: &Scenario, _agent: usize, out: &mut ObsWriter) {
         observe_robot(world, 0, self.goal, cfg, out);
     }
 
@@ -122,18 +122,16 @@ impl Task for Nav {
     }
 }
 
-/// A navigating robot's observation blocks: the observed sensors' blocks, then the goal's
-/// distance (m, up to the arena diagonal) and bearing (sin, cos), then its wheel speeds
-/// (normalised by the maximum wheel speed).
-pub fn nav_blocks(cfg: &Scenario, sensors: &[Block]) -> ObsLayout {
-    let mut blocks = sensors.to_vec();
-    blocks.extend([
+/// A navigating robot's own observation blocks (after its sensors'): the goal's distance (m,
+/// up to the arena diagonal) and bearing (sin, cos), then its wheel speeds (normalised by the
+/// maximum wheel speed).
+pub fn nav_blocks(cfg: &Scenario) -> ObsLayout {
+    ObsLayout::new(vec![
         Block::new("goal_distance", 1, 0.0, cfg.diagonal()),
         Block::new("goal_bearing_sin", 1, -1.0, 1.0),
         Block::new("goal_bearing_cos", 1, -1.0, 1.0),
         Block::new("wheel_speeds", 2, -1.0, 1.0),
-    ]);
-    ObsLayout::new(blocks)
+    ])
 }
 
 /// Reward and success of robot `i` heading for `goal`; updates its previous distance.
@@ -195,10 +193,9 @@ pub fn wheel_obs(world: &World, i: usize) -> [f32; 2] {
         .map(|w| (w / vmax).clamp(-1.0, 1.0))
 }
 
-/// Writes robot `i`'s navigation observation ([`nav_blocks`]) toward `goal`.
+/// Writes robot `i`'s own navigation observation ([`nav_blocks`]) toward `goal`.
 #[inline]
 pub fn observe_robot(world: &World, i: usize, goal: Vector, cfg: &Scenario, out: &mut ObsWriter) {
-    world.sensors.observe(&world.robots[i].readings, out);
     let local = to_robot_frame(world, i, goal);
     let distance = local.length();
     let (bs, bc) = if distance > 0.0 {

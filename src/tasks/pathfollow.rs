@@ -43,7 +43,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Shape};
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
@@ -109,17 +109,16 @@ pub struct PathFollow {
 }
 
 impl PathFollow {
-    /// The observation blocks: sensors', cross_track_error, path_heading_error, curvature,
-    /// preview (when previewing), waypoint, desired_speed, wheel_speeds.
-    pub fn blocks(cfg: &Scenario, pf: &PathFollowConfig, sensors: &[Block]) -> ObsLayout {
+    /// Its own observation blocks (after the sensors'): cross_track_error, path_heading_error,
+    /// curvature, preview (when previewing), waypoint, desired_speed, wheel_speeds.
+    pub fn blocks(cfg: &Scenario, pf: &PathFollowConfig) -> ObsLayout {
         let reach = cfg.diagonal();
         let k = pf.preview_points as usize;
-        let mut blocks = sensors.to_vec();
-        blocks.extend([
+        let mut blocks = vec![
             Block::new("cross_track_error", 1, -reach, reach),
             Block::new("path_heading_error", 2, -1.0, 1.0),
             Block::new("curvature", 1 + k, -CURVATURE_BOUND, CURVATURE_BOUND),
-        ]);
+        ];
         if k > 0 {
             blocks.push(Block::new("preview", 2 * k, -reach, reach));
         }
@@ -233,12 +232,12 @@ impl Task for PathFollow {
         Ok(Spawn::Single)
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         let pf: PathFollowConfig = cfg.own()?;
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
-            layout: Self::blocks(cfg, &pf, sensors),
+            body: Body::Robot(0),
+            layout: Self::blocks(cfg, &pf),
         }])
     }
 
@@ -339,8 +338,7 @@ impl Task for PathFollow {
         self.stats.write(self.dt, out);
     }
 
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
-        world.sensors.observe(&world.robots[0].readings, out);
+    fn observe(&self, world: &World, cfg: &Scenario, _agent: usize, out: &mut ObsWriter) {
         let reach = cfg.diagonal();
         let (position, heading) = world.believed_pose(0);
         let c = self.path.at(self.believed_phase);

@@ -5,12 +5,12 @@
 //! default). One reference is drawn per episode (phase, direction, spline) as Track draws it.
 //!
 //! Agents `robot_0` .. `robot_{N-1}`, robot k driven by agent k, each with Track's observation
-//! of its own reference ([`Track::blocks`]: sensors' blocks, `tracking_error`, `heading_error`,
-//! `reference_rates`, `preview`, `wheel_speeds`), so a tracking controller runs on each agent's
-//! block unchanged, and Track's reward: `−error_weight·‖e_k‖ − heading_weight·(1 − cos e_θk) −
-//! collision_penalty·[robot k in contact]`. The robots are obstacles to one another: their discs
-//! block each other's rays, and rapier resolves their contacts (a contact with a neighbour costs
-//! as one with a wall).
+//! of its own reference (sensors' blocks, then [`Track::blocks`]: `tracking_error`,
+//! `heading_error`, `reference_rates`, `preview`, `wheel_speeds`), so a tracking controller
+//! runs on each agent's block unchanged, and Track's reward: `−error_weight·‖e_k‖ −
+//! heading_weight·(1 − cos e_θk) − collision_penalty·[robot k in contact]`. The robots are
+//! obstacles to one another: their discs block each other's rays, and rapier resolves their
+//! contacts (a contact with a neighbour costs as one with a wall).
 //!
 //! Reset: each robot is placed up to `start_offset` from its own reference point at t = 0 with a
 //! heading up to `start_heading_offset` from its reference heading, at rest, at least a diameter
@@ -41,10 +41,10 @@ use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::Reference;
 use super::track::{draw_reference, Track};
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
-use crate::obs::{Block, ObsWriter};
+use crate::obs::ObsWriter;
 use crate::robot::wrap_angle;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
@@ -209,14 +209,14 @@ impl Task for Platoon {
         Ok(Spawn::Multi(platoon.n_robots()))
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         let table: toml::Table = cfg.own()?;
         let platoon = PlatoonConfig::from_table(&table, &cfg.origin)?;
-        let layout = Track::blocks(cfg, &platoon.track, sensors);
+        let layout = Track::blocks(cfg, &platoon.track);
         Ok((0..platoon.n_robots())
             .map(|k| Agent {
                 name: format!("robot_{k}"),
-                robot: k,
+                body: Body::Robot(k),
                 layout: layout.clone(),
             })
             .collect())
@@ -306,29 +306,28 @@ impl Task for Platoon {
         out[3] = converge;
     }
 
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
+    /// Agent `k` drives robot `k`.
+    fn observe(&self, world: &World, cfg: &Scenario, agent: usize, out: &mut ObsWriter) {
         let reach = cfg.diagonal();
         let vmax = world.drive.max_wheel_speed;
         let wmax = world.drive.max_yaw_rate();
-        for (k, f) in self.robots.iter().enumerate() {
-            world.sensors.observe(&world.robots[k].readings, out);
-            let local = nav::to_robot_frame(world, k, f.position());
+        let (k, f) = (agent, &self.robots[agent]);
+        let local = nav::to_robot_frame(world, k, f.position());
+        out.put(local.x.clamp(-reach, reach));
+        out.put(local.y.clamp(-reach, reach));
+        let heading_error = f.now[2] - world.believed_pose(k).1;
+        out.put(heading_error.sin());
+        out.put(heading_error.cos());
+        out.put((f.now[3] / vmax).clamp(-1.0, 1.0));
+        out.put((f.now[4] / wmax).clamp(-1.0, 1.0));
+        for point in self.preview(k) {
+            let local = nav::to_robot_frame(world, k, point);
             out.put(local.x.clamp(-reach, reach));
             out.put(local.y.clamp(-reach, reach));
-            let heading_error = f.now[2] - world.believed_pose(k).1;
-            out.put(heading_error.sin());
-            out.put(heading_error.cos());
-            out.put((f.now[3] / vmax).clamp(-1.0, 1.0));
-            out.put((f.now[4] / wmax).clamp(-1.0, 1.0));
-            for point in self.preview(k) {
-                let local = nav::to_robot_frame(world, k, point);
-                out.put(local.x.clamp(-reach, reach));
-                out.put(local.y.clamp(-reach, reach));
-            }
-            let [l, r] = nav::wheel_obs(world, k);
-            out.put(l);
-            out.put(r);
         }
+        let [l, r] = nav::wheel_obs(world, k);
+        out.put(l);
+        out.put(r);
     }
 
     /// Each robot's reference point.

@@ -18,7 +18,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -128,13 +128,11 @@ impl Task for Seek {
         Ok(Spawn::Single)
     }
 
-    fn agents(_cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
-        let mut blocks = sensors.to_vec();
-        blocks.push(Block::new("wheel_speeds", 2, -1.0, 1.0));
+    fn agents(_cfg: &Scenario) -> Result<Vec<Agent>> {
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
-            layout: ObsLayout::new(blocks),
+            body: Body::Robot(0),
+            layout: ObsLayout::new(vec![Block::new("wheel_speeds", 2, -1.0, 1.0)]),
         }])
     }
 
@@ -186,8 +184,7 @@ impl Task for Seek {
         j.success
     }
 
-    fn observe(&self, world: &World, _cfg: &Scenario, out: &mut ObsWriter) {
-        world.sensors.observe(&world.robots[0].readings, out);
+    fn observe(&self, world: &World, _cfg: &Scenario, _agent: usize, out: &mut ObsWriter) {
         for w in nav::wheel_obs(world, 0) {
             out.put(w);
         }

@@ -31,7 +31,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Posture, Reference, Shape};
-use super::{Agent, Task, TaskInfo};
+use super::{Agent, Body, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
@@ -105,16 +105,15 @@ impl Track {
         })
     }
 
-    /// The observation blocks: sensors', tracking_error, heading_error, reference_rates,
-    /// preview (when previewing), wheel_speeds.
-    pub fn blocks(cfg: &Scenario, track: &TrackConfig, sensors: &[Block]) -> ObsLayout {
+    /// Its own observation blocks (after the sensors'): tracking_error, heading_error,
+    /// reference_rates, preview (when previewing), wheel_speeds.
+    pub fn blocks(cfg: &Scenario, track: &TrackConfig) -> ObsLayout {
         let reach = cfg.diagonal();
-        let mut blocks = sensors.to_vec();
-        blocks.extend([
+        let mut blocks = vec![
             Block::new("tracking_error", 2, -reach, reach),
             Block::new("heading_error", 2, -1.0, 1.0),
             Block::new("reference_rates", 2, -1.0, 1.0),
-        ]);
+        ];
         if track.preview_points > 0 {
             blocks.push(Block::new(
                 "preview",
@@ -157,12 +156,12 @@ impl Task for Track {
         Ok(Spawn::Single)
     }
 
-    fn agents(cfg: &Scenario, sensors: &[Block]) -> Result<Vec<Agent>> {
+    fn agents(cfg: &Scenario) -> Result<Vec<Agent>> {
         let track: TrackConfig = cfg.own()?;
         Ok(vec![Agent {
             name: "robot".into(),
-            robot: 0,
-            layout: Self::blocks(cfg, &track, sensors),
+            body: Body::Robot(0),
+            layout: Self::blocks(cfg, &track),
         }])
     }
 
@@ -227,8 +226,7 @@ impl Task for Track {
         self.stats.write(self.dt, out);
     }
 
-    fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
-        world.sensors.observe(&world.robots[0].readings, out);
+    fn observe(&self, world: &World, cfg: &Scenario, _agent: usize, out: &mut ObsWriter) {
         let reach = cfg.diagonal();
         let local = nav::to_robot_frame(world, 0, self.reference_point());
         out.put(local.x.clamp(-reach, reach));

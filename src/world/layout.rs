@@ -210,9 +210,9 @@ impl Spawner {
     /// A spawner for `cfg`, checking that its fixed parts are feasible and that its random
     /// obstacles fit; errors name `origin` and the key.
     pub fn new(cfg: &Scenario, spawn: Spawn, origin: &str) -> Result<Self> {
-        let mut base = cfg.arena.scene();
+        let mut base = Scene::of_arena(&cfg.arena);
         for (i, spec) in cfg.obstacles.fixed.iter().enumerate() {
-            let shape = spec.shape();
+            let shape = SceneShape::of_obstacle(spec);
             if shape.wall_gap(cfg.arena.width, cfg.arena.height) < 0.0 {
                 return Err(Error::config(
                     origin,

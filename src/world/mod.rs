@@ -8,6 +8,23 @@
 //!
 //! Units: metres, seconds, radians; world frame with the arena centred at the origin.
 
+/// The world's side of its robots' [`SenseContext`]s for a reading (`fresh` at a reset): a
+/// macro rather than a method, so that it borrows only the fields it names and the robots, the
+/// sensors and the random stream stay free to change while it is held.
+macro_rules! surroundings {
+    ($world:expr, $fresh:expr) => {
+        $crate::sensors::Surroundings {
+            scene: &$world.scene,
+            floor: &$world.floor,
+            floor_marks: &$world.floor_marks,
+            radius: $world.drive.radius,
+            robot_reflectance: $world.robot_reflectance,
+            dt: $world.dt,
+            fresh: $fresh,
+        }
+    };
+}
+
 mod contacts;
 pub mod floor;
 pub mod grid;
@@ -340,6 +357,7 @@ impl World {
             self.sense_swarm(fresh);
             return;
         }
+        let world = surroundings!(self, fresh);
         for i in 0..self.robots.len() {
             self.others.clear();
             self.other_leds.clear();
@@ -350,22 +368,14 @@ impl World {
                 }
             }
             let robot = &mut self.robots[i];
-            let ctx = SenseContext {
-                scene: &self.scene,
-                position: robot.position,
-                sin_cos: robot.heading.sin_cos(),
-                radius: self.drive.radius,
-                others: &self.others,
-                other_leds: &self.other_leds,
-                other_ids: &[],
-                robot_reflectance: self.robot_reflectance,
-                yaw_rate: robot.yaw_rate,
-                acceleration: robot.acceleration,
-                floor: &self.floor,
-                floor_marks: &self.floor_marks,
-                dt: self.dt,
-                fresh,
-            };
+            let ctx = SenseContext::new(
+                world,
+                robot.position,
+                robot.heading,
+                robot.yaw_rate,
+                robot.acceleration,
+            )
+            .seeing(&self.others, &self.other_leds, &[]);
             self.sensors.read(&ctx, &mut self.rng, &mut robot.readings);
         }
     }

@@ -47,9 +47,7 @@ impl World {
         // (the same state as seeding it anew, since nothing was drawn).
         let seeded = ChaCha8Rng::seed_from_u64(base);
         let (grid, positions) = (&self.grid, &self.positions);
-        let scene = &self.scene;
-        let robot_reflectance = self.robot_reflectance;
-        let (floor, floor_marks) = (&*self.floor, &self.floor_marks);
+        let world = surroundings!(self, fresh);
         let read = |scratch: &mut Scratch, (i, robot): (usize, &mut Robot)| {
             scratch.others.clear();
             scratch.leds.clear();
@@ -71,22 +69,14 @@ impl World {
             }
             let mut rng = seeded.clone();
             rng.set_stream(i as u64);
-            let ctx = SenseContext {
-                scene,
-                position: robot.position,
-                sin_cos: robot.heading.sin_cos(),
-                radius,
-                others: &scratch.others,
-                other_leds: &scratch.leds,
-                other_ids: &scratch.near,
-                robot_reflectance,
-                yaw_rate: robot.yaw_rate,
-                acceleration: robot.acceleration,
-                floor,
-                floor_marks,
-                dt,
-                fresh,
-            };
+            let ctx = SenseContext::new(
+                world,
+                robot.position,
+                robot.heading,
+                robot.yaw_rate,
+                robot.acceleration,
+            )
+            .seeing(&scratch.others, &scratch.leds, &scratch.near);
             scratch.suite.read(&ctx, &mut rng, &mut robot.readings);
         };
         let scratch = || Scratch {
