@@ -350,4 +350,52 @@ mod tests {
         assert_eq!(us.read(0, Some(0.23), &mut rng), 26);
         assert_eq!(us.read(0, Some(1.98), &mut rng), US_NOTHING);
     }
+
+    /// Issue 33: a beam without echo is drawn dashed, to the surface it met (never through it)
+    /// or to the sensor's range; an echo is a solid ray to its surface; a disabled sensor draws
+    /// nothing.
+    #[test]
+    fn beams_are_drawn_to_their_surface_dashed_without_echo() {
+        use crate::config::ConfigTable;
+        let us = Ultrasonic::new(
+            &UsConfig::from_table(&UsConfig::defaults_table(), "defaults", "sensors")
+                .expect("the defaults"),
+        );
+        let at = DrawContext {
+            position: Vector::new(0.5, -0.25),
+            heading: 0.3,
+            radius: 0.0704,
+        };
+        let reading = UsReading {
+            // An echo at 1.2 m; a surface 0.6 m away met too obliquely to echo; nothing within
+            // range (the cast stops at the range); too close; disabled.
+            code: [120, US_NOTHING, US_NOTHING, US_TOO_CLOSE, US_DISABLED],
+            hit: [1.2, 0.6, f32::INFINITY, 0.1, 0.9],
+            age: 0.0,
+        };
+        let mut marks = Vec::new();
+        us.draw(&at, &reading, &mut marks);
+        assert_eq!(marks.len(), 4, "a disabled sensor draws nothing");
+        let (s, c) = at.heading.sin_cos();
+        for (i, mark) in marks.iter().enumerate() {
+            let dir = rotate(unit(US_BEARINGS[i]), c, s);
+            let rim = at.position + at.radius * dir;
+            let (from, to, dashed) = match mark {
+                Mark::Ray { from, to, .. } => (*from, *to, false),
+                Mark::Dashed { from, to, .. } => (*from, *to, true),
+                other => panic!("beam {i}: {other:?}"),
+            };
+            let length = [1.2, 0.6, us.model.max_range, 0.1][i];
+            assert!((from - rim).length() < 1e-6, "beam {i} starts on the rim");
+            assert!(
+                ((to - from).length() - length).abs() < 1e-5,
+                "beam {i}: {to:?}"
+            );
+            assert!(
+                (to - from).normalize().dot(dir) > 0.99999,
+                "beam {i} along its bearing"
+            );
+            assert_eq!(dashed, matches!(i, 1 | 2), "beam {i}: dashed iff no echo");
+        }
+    }
 }
