@@ -1,6 +1,7 @@
 """Formation followers driven by one shared PPO policy (parameter sharing), against LeaderFollower.
 
     python examples/formation_shared_ppo.py [--timesteps 200000] [--worlds 8] [--episodes 50]
+    python examples/formation_shared_ppo.py --json shared_ppo.json   # also the results file
 
 Every follower of every world is one row of an SB3 ``VecEnv`` over a Rust Formation batch
 (``khepera_gym.sb3.make_formation_vec_env``): row w·K + k observes follower k's own 23-value block
@@ -10,7 +11,9 @@ distance to its eq. 12 target, minus contacts). One PPO policy learns from all r
 the scripted leader drives to its goal. After training, the policy and the LeaderFollower
 baseline (``khepera_gym.baselines.LeaderFollower``, or the proportional follower heuristic when
 the baselines module is not there) play the same seeded episodes, and their mean formation error
-is printed; finally the policy drives the PettingZoo env ``formation_v2``, one agent per follower.
+is printed (and, with ``--json``, written with the date, commit, machine and command: the results
+page renders it); finally the policy drives the PettingZoo env ``formation_v2``, one agent per
+follower.
 Hyperparameters: the ``formation-followers`` table of configs/hyperparams/ppo.toml. Needs the
 ``sb3`` extra.
 """
@@ -18,6 +21,8 @@ Hyperparameters: the ``formation-followers`` table of configs/hyperparams/ppo.to
 from __future__ import annotations
 
 import argparse
+import json
+import time
 from typing import Any
 
 import numpy as np
@@ -25,6 +30,7 @@ import torch
 from stable_baselines3.common.vec_env import VecMonitor
 
 from khepera_gym.pettingzoo import formation_v2
+from khepera_gym.provenance import provenance
 from khepera_gym.sb3 import first_episode_stats, make_formation_vec_env
 from khepera_gym.train import build_model, load_hyperparams
 
@@ -47,6 +53,40 @@ def baseline_policy() -> tuple[str, Any]:
     return "LeaderFollower", LeaderFollower(shape=None)
 
 
+def learning_record(
+    method: str,
+    steps: int,
+    seconds: float,
+    episodes: int,
+    learned: dict[str, np.ndarray],
+    baseline_name: str,
+    baseline: dict[str, np.ndarray],
+) -> dict[str, Any]:
+    """The results file of a learned formation (docs/results/, ``formation_learning``)."""
+
+    def row(policy: str, stats: dict[str, np.ndarray]) -> dict[str, Any]:
+        return {
+            "policy": policy,
+            "formation_error_mean": float(stats["formation_error_mean"].mean()),
+            "formation_error_max": float(stats["formation_error_max"].mean()),
+            "success_rate": float(stats["success"].mean()),
+            "contact_steps": float(stats["collisions"].mean()),
+        }
+
+    return {
+        "meta": provenance(),
+        "formation_learning": {
+            "method": method,
+            "env": "formation (latest), cross of 4 followers",
+            "steps": int(steps),
+            "train_seconds": seconds,
+            "episodes": int(episodes),
+            "eval_seed": EVAL_SEED,
+            "rows": [row(method, learned), row(baseline_name, baseline)],
+        },
+    }
+
+
 def summary(name: str, stats: dict[str, np.ndarray]) -> str:
     return (
         f"{name:<20} formation error mean {100 * stats['formation_error_mean'].mean():5.1f} cm, "
@@ -64,6 +104,7 @@ def main() -> None:
     parser.add_argument("--timesteps", type=int, help="follower steps (the table's n_timesteps)")
     parser.add_argument("--worlds", type=int, help="training worlds (the table's n_envs)")
     parser.add_argument("--episodes", type=int, default=50, help="evaluation episodes (50)")
+    parser.add_argument("--json", help="also write the figures to this results file")
     args = parser.parse_args()
 
     hyperparams = load_hyperparams("ppo", "formation_v2-followers")
@@ -72,7 +113,9 @@ def main() -> None:
     envs = VecMonitor(make_formation_vec_env(worlds, seed=0))
     print(f"{worlds} worlds x {envs.num_envs // worlds} followers = {envs.num_envs} PPO rows")
     model = build_model("ppo", envs, hyperparams, seed=0)
+    start = time.perf_counter()
     model.learn(timesteps, progress_bar=True)
+    train_seconds = time.perf_counter() - start
 
     eval_envs = make_formation_vec_env(args.episodes)
     learned = first_episode_stats(model, eval_envs, EVAL_SEED)
@@ -81,6 +124,13 @@ def main() -> None:
     print(f"\n{args.episodes} seeded episodes (seeds {EVAL_SEED}..), cross of 4 followers:")
     print(summary("shared PPO", learned))
     print(summary(name, reference))
+    if args.json:
+        record = learning_record(
+            "shared PPO (SB3)", timesteps, train_seconds, args.episodes, learned, name, reference
+        )
+        with open(args.json, "w", encoding="utf-8") as file:
+            json.dump(record, file, indent=1)
+        print(f"saved {args.json}")
 
     # The same policy drives each PettingZoo agent from its own observation.
     env = formation_v2.parallel_env()

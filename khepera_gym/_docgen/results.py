@@ -37,13 +37,16 @@ def load(results_dir: Path) -> list[tuple[Path, dict[str, Any]]]:
 
 
 def kind(document: Any) -> str:
-    """``"compare"``, ``"consensus"``, ``"train"``, ``"bench"`` or ``"unknown"``."""
+    """``"compare"``, ``"consensus"``, ``"train"``, ``"learning"`` (a learned formation, from
+    ``examples/formation_shared_ppo.py --json``), ``"bench"`` or ``"unknown"``."""
     if not isinstance(document, dict):
         return "unknown"
     if "summaries" in document:
         return "compare"
     if "algo" in document and "final" in document:
         return "train"
+    if isinstance(document.get("formation_learning"), dict):
+        return "learning"
     rows = document.get("rows")
     if isinstance(rows, list) and rows and "trigger" in rows[0]:
         return "consensus"
@@ -181,6 +184,35 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     return table(header, rows)
 
 
+def learning_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
+    """Learned formations against the baseline: formation error, per results file."""
+    documents = [d for _, d in files if kind(d) == "learning"]
+    if not documents:
+        return _missing("python examples/formation_shared_ppo.py --json shared_ppo.json")
+    parts = []
+    for document in documents:
+        run = document["formation_learning"]
+        rows = [
+            [
+                escape_cell(row["policy"]),
+                f"{100 * row['formation_error_mean']:.1f} cm",
+                f"{100 * row['formation_error_max']:.1f} cm",
+                f"{100 * row['success_rate']:.0f}",
+                f"{row['contact_steps']:.1f}",
+            ]
+            for row in run["rows"]
+        ]
+        header = ["policy", "formation error mean", "max per episode", "leader arrived %"]
+        header.append("steps in contact")
+        note = (
+            f" {escape_cell(run['env'])}; {run['steps']:,} training steps in "
+            f"{run['train_seconds']:.0f} s; {run['episodes']} episodes from seed "
+            f"{run['eval_seed']}."
+        )
+        parts.append(provenance_line(document.get("meta")) + note + "\n\n" + table(header, rows))
+    return "\n\n".join(parts)
+
+
 def bench_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     """The benchmark runs: env-steps/s per configuration and thread count, memory per world."""
     documents = [d for _, d in files if kind(d) == "bench"]
@@ -245,6 +277,7 @@ FRAGMENTS: dict[str, Callable[[list[tuple[Path, dict[str, Any]]]], str]] = {
     "baselines": compare_fragment,
     "consensus": consensus_fragment,
     "training": train_fragment,
+    "learning": learning_fragment,
     "bench": bench_fragment,
     "swarm": swarm_fragment,
 }
@@ -284,6 +317,10 @@ def target_name(document: dict[str, Any]) -> str:
             + (f"_stack{stack}" if stack != 1 else "")
         ),
         "consensus": lambda: "sweep",
+        "learning": lambda: (
+            "formation_"
+            + "".join(c if c.isalnum() else "_" for c in document["formation_learning"]["method"])
+        ),
         "bench": lambda: f"v{document['version']}",
     }[kind(document)]()
     return f"{kind(document)}_{what}_{date}.json"
