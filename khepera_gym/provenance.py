@@ -105,12 +105,12 @@ def command_line(argv: Sequence[str] | None = None) -> str:
     argv = list(sys.argv if argv is None else argv)
     if not argv:
         return ""
-    program = Path(argv[0]).name
-    if program.endswith(".py"):
-        program = f"python {argv[0]}"
-    elif program in {"-c", ""}:
-        program = "python -c"
-    return shlex.join([program, *argv[1:]]) if len(argv) > 1 else program
+    program = [Path(argv[0]).name]
+    if program[0].endswith(".py"):
+        program = ["python", argv[0]]
+    elif program[0] in {"-c", ""}:
+        program = ["python", "-c"]
+    return shlex.join([*program, *argv[1:]])
 
 
 @contextlib.contextmanager

@@ -357,6 +357,18 @@ def test_results_pages_render_every_results_file_with_its_provenance(generated: 
         assert document["meta"]["command"] in text, path
 
 
+def test_a_results_file_names_its_command_as_typed() -> None:
+    from khepera_gym.provenance import command_line
+
+    assert command_line(["/venv/bin/khepera-gym", "bench", "--json", "b.json"]) == (
+        "khepera-gym bench --json b.json"
+    )
+    assert command_line(["examples/formation_shared_ppo.py", "--json", "a b.json"]) == (
+        "python examples/formation_shared_ppo.py --json 'a b.json'"
+    )
+    assert command_line(["-c", "--x"]) == "python -c --x"
+
+
 def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others() -> None:
     from khepera_gym._docgen.results import target_name
 
