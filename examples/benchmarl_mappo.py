@@ -5,6 +5,7 @@
     python examples/benchmarl_mappo.py --algorithm ippo  # each follower's critic on its own block
     python examples/benchmarl_mappo.py --set wheel_accel_limit=inf  # a scenario key (TOML value)
     python examples/benchmarl_mappo.py --fixed-sigma 0.6 --frames 600000  # learns v1 (README)
+    python examples/benchmarl_mappo.py --json mappo.json  # also the results page's file
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
 ``state``, the joint observation) on ``khepera_gym.benchmarl.KheperaTask.FORMATION``: a
@@ -37,6 +38,7 @@ import torch
 from khepera_gym.baselines import LeaderFollower
 from khepera_gym.benchmarl import KheperaTask
 from khepera_gym.compare import parse_overrides
+from khepera_gym.compare.report import write_formation_learning
 from khepera_gym.errors import ConfigError
 from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
 
@@ -116,6 +118,17 @@ class NoiseReport(Callback):
             )
 
 
+def result_row(policy: str, errors: dict[str, float]) -> dict[str, Any]:
+    """A policy's row of the results file (the leader's arrival is not measured here)."""
+    return {
+        "policy": policy,
+        "formation_error_mean": errors["error_mean"],
+        "formation_error_max": errors["error_max"],
+        "success_rate": None,
+        "contact_steps": errors["collisions"],
+    }
+
+
 def report(name: str, errors: dict[str, float]) -> None:
     print(
         f"{name:<24} formation error mean {100 * errors['error_mean']:6.1f} cm, "
@@ -158,6 +171,7 @@ def main() -> None:
     parser.add_argument(
         "--report-every", type=int, default=20, help="iterations between noise reports (0: none)"
     )
+    parser.add_argument("--json", help="also write the figures to this results file")
     args = parser.parse_args()
     if args.fixed_sigma is not None and not 0.0 < args.fixed_sigma < float("inf"):
         parser.error(f"--fixed-sigma must be a finite number > 0, got {args.fixed_sigma}")
@@ -208,7 +222,8 @@ def main() -> None:
         callbacks=[NoiseReport(args.report_every)],
     )
     print(f"{args.episodes} seeded Formation episodes (4 followers, cross), deterministic actions")
-    report("LeaderFollower", formation_errors(leader_follower_policy(), args.episodes, task_config))
+    baseline = formation_errors(leader_follower_policy(), args.episodes, task_config)
+    report("LeaderFollower", baseline)
     name = args.algorithm.upper()
     report(
         f"{name} before training", formation_errors(experiment.policy, args.episodes, task_config)
@@ -220,9 +235,14 @@ def main() -> None:
         f"trained on {experiment.total_frames:,} env steps ({experiment.n_iters_performed} "
         f"iterations) in {elapsed:.0f} s: {experiment.total_frames / elapsed:,.0f} env steps/s"
     )
-    report(
-        f"{name} after training", formation_errors(experiment.policy, args.episodes, task_config)
-    )
+    learned = formation_errors(experiment.policy, args.episodes, task_config)
+    report(f"{name} after training", learned)
+    if args.json:
+        rows = [result_row(f"{name} (BenchMARL)", learned), result_row("LeaderFollower", baseline)]
+        method = f"{name} (BenchMARL)"
+        frames = experiment.total_frames
+        write_formation_learning(args.json, method, frames, elapsed, args.episodes, EVAL_SEED, rows)
+        print(f"saved {args.json}")
 
 
 if __name__ == "__main__":

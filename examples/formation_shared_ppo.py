@@ -21,7 +21,6 @@ Hyperparameters: the ``formation-followers`` table of configs/hyperparams/ppo.to
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from typing import Any
 
@@ -29,8 +28,8 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecMonitor
 
+from khepera_gym.compare.report import write_formation_learning
 from khepera_gym.pettingzoo import formation_v2
-from khepera_gym.provenance import provenance
 from khepera_gym.sb3 import first_episode_stats, make_formation_vec_env
 from khepera_gym.train import build_model, load_hyperparams
 
@@ -53,37 +52,14 @@ def baseline_policy() -> tuple[str, Any]:
     return "LeaderFollower", LeaderFollower(shape=None)
 
 
-def learning_record(
-    method: str,
-    steps: int,
-    seconds: float,
-    episodes: int,
-    learned: dict[str, np.ndarray],
-    baseline_name: str,
-    baseline: dict[str, np.ndarray],
-) -> dict[str, Any]:
-    """The results file of a learned formation (docs/results/, ``formation_learning``)."""
-
-    def row(policy: str, stats: dict[str, np.ndarray]) -> dict[str, Any]:
-        return {
-            "policy": policy,
-            "formation_error_mean": float(stats["formation_error_mean"].mean()),
-            "formation_error_max": float(stats["formation_error_max"].mean()),
-            "success_rate": float(stats["success"].mean()),
-            "contact_steps": float(stats["collisions"].mean()),
-        }
-
+def result_row(policy: str, stats: dict[str, np.ndarray]) -> dict[str, Any]:
+    """A policy's row of the results file (means over the episodes)."""
     return {
-        "meta": provenance(),
-        "formation_learning": {
-            "method": method,
-            "env": "formation (latest), cross of 4 followers",
-            "steps": int(steps),
-            "train_seconds": seconds,
-            "episodes": int(episodes),
-            "eval_seed": EVAL_SEED,
-            "rows": [row(method, learned), row(baseline_name, baseline)],
-        },
+        "policy": policy,
+        "formation_error_mean": float(stats["formation_error_mean"].mean()),
+        "formation_error_max": float(stats["formation_error_max"].mean()),
+        "success_rate": float(stats["success"].mean()),
+        "contact_steps": float(stats["collisions"].mean()),
     }
 
 
@@ -125,11 +101,10 @@ def main() -> None:
     print(summary("shared PPO", learned))
     print(summary(name, reference))
     if args.json:
-        record = learning_record(
-            "shared PPO (SB3)", timesteps, train_seconds, args.episodes, learned, name, reference
+        rows = [result_row("shared PPO (SB3)", learned), result_row(name, reference)]
+        write_formation_learning(
+            args.json, "shared PPO (SB3)", timesteps, train_seconds, args.episodes, EVAL_SEED, rows
         )
-        with open(args.json, "w", encoding="utf-8") as file:
-            json.dump(record, file, indent=1)
         print(f"saved {args.json}")
 
     # The same policy drives each PettingZoo agent from its own observation.

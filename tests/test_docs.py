@@ -357,6 +357,35 @@ def test_results_pages_render_every_results_file_with_its_provenance(generated: 
         assert document["meta"]["command"] in text, path
 
 
+def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -> None:
+    from khepera_gym._docgen.results import kind, learning_fragment, target_name
+    from khepera_gym.compare.report import write_formation_learning
+
+    rows = [
+        {
+            "policy": "MAPPO (BenchMARL)",
+            "formation_error_mean": 0.021,
+            "formation_error_max": 0.063,
+            "success_rate": None,
+            "contact_steps": 0.0,
+        },
+        {
+            "policy": "LeaderFollower",
+            "formation_error_mean": 0.004,
+            "formation_error_max": 0.008,
+            "success_rate": 1.0,
+            "contact_steps": 0.0,
+        },
+    ]
+    path = write_formation_learning(tmp_path / "m.json", "MAPPO (BenchMARL)", 600, 9.0, 50, 7, rows)
+    document = json.loads(path.read_text())
+    assert kind(document) == "learning" and document["meta"]["command"]
+    assert target_name(document).startswith("learning_formation_MAPPO__BenchMARL__")
+    text = learning_fragment([(path, document)])
+    assert "| MAPPO (BenchMARL) | 2.1 cm | 6.3 cm | – | 0.0 |" in text
+    assert "| LeaderFollower | 0.4 cm | 0.8 cm | 100 | 0.0 |" in text
+
+
 def test_a_results_file_names_its_command_as_typed() -> None:
     from khepera_gym.provenance import command_line
 

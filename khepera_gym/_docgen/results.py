@@ -197,7 +197,7 @@ def learning_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
                 escape_cell(row["policy"]),
                 f"{100 * row['formation_error_mean']:.1f} cm",
                 f"{100 * row['formation_error_max']:.1f} cm",
-                f"{100 * row['success_rate']:.0f}",
+                "–" if row.get("success_rate") is None else f"{100 * row['success_rate']:.0f}",
                 f"{row['contact_steps']:.1f}",
             ]
             for row in run["rows"]

@@ -260,6 +260,46 @@ def report(comparison: Comparison, out_dir: Path | None, plot: bool = True) -> l
     return paths
 
 
+def write_formation_learning(
+    path: str | Path,
+    method: str,
+    steps: int,
+    seconds: float,
+    episodes: int,
+    eval_seed: int,
+    rows: list[dict[str, float | str | None]],
+) -> Path:
+    """Writes the results file of a learned formation against its baseline (the results page's
+    "Learned formations"), with :func:`~khepera_gym.provenance.provenance` under ``meta``.
+
+    Args:
+        path: The JSON file to write.
+        method: What learned ("shared PPO (SB3)", "MAPPO (BenchMARL)").
+        steps: Training steps (follower steps or env steps, as the method counts them).
+        seconds: Wall time of the training (s).
+        episodes: Evaluation episodes, seeded ``eval_seed`` + i.
+        eval_seed: Seed of the first.
+        rows: One per policy: ``policy``, ``formation_error_mean`` and ``formation_error_max``
+            (m, means over the episodes), ``success_rate`` (the leader arrived; None when not
+            measured) and ``contact_steps``.
+    """
+    record = {
+        "meta": provenance(),
+        "formation_learning": {
+            "method": method,
+            "env": "formation (latest), cross of 4 followers",
+            "steps": int(steps),
+            "train_seconds": float(seconds),
+            "episodes": int(episodes),
+            "eval_seed": int(eval_seed),
+            "rows": rows,
+        },
+    }
+    target = Path(path)
+    target.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+    return target
+
+
 __all__ = [
     "PLOT_DPI",
     "format_table",
@@ -268,5 +308,6 @@ __all__ = [
     "report",
     "table_notes",
     "table_rows",
+    "write_formation_learning",
     "write_results",
 ]
