@@ -2,8 +2,8 @@
 regression test, and a sample of the campaign itself (``tests/hostile``), every case in a forked
 process with a memory limit, so that an abort fails the test instead of killing pytest.
 
-The long run is one command (``python -m tests.hostile --cases 100000 --json ...``); its figure
-is recorded in docs/reliability.md.
+The long run is one command (``python tests/hostile_campaign.py --cases 100000 --json ...``);
+its figure is recorded in docs/reliability.md.
 """
 
 from __future__ import annotations
@@ -249,7 +249,8 @@ def test_a_sample_of_the_hostile_campaign_finds_no_failure(tmp_path: Path) -> No
     typed error; nothing aborted, hung, gave a non-finite reward or an observation outside its
     space."""
     report_path = tmp_path / "fuzz.json"
-    command = [sys.executable, "-m", "tests.hostile", "--cases", "60", "--seed", "36"]
+    command = [sys.executable, str(ROOT / "tests" / "hostile_campaign.py"), "--cases", "60"]
+    command += ["--seed", "36"]
     command += ["--workers", "2", "--timeout", "120", "--json", str(report_path)]
     result = subprocess.run(
         command, cwd=ROOT, capture_output=True, text=True, timeout=1800, check=False

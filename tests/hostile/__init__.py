@@ -18,7 +18,7 @@ actions.
 
 One command runs a campaign and prints (and with ``--json``, writes) its counts::
 
-    python -m tests.hostile --cases 100000 --json hostile-report.json
+    python tests/hostile_campaign.py --cases 100000 --json hostile-report.json
 
 ``tests/test_hostile.py`` runs a sample in CI; ``--replay SEED:INDEX`` reruns one case.
 """

@@ -1,7 +1,8 @@
-"""``python -m tests.hostile``: run a hostile-input campaign (see the package's docstring).
+"""``python tests/hostile_campaign.py``: run a hostile-input campaign (see the package's
+docstring).
 
-    python -m tests.hostile --cases 100000 --json hostile-report.json
-    python -m tests.hostile --replay 0:1234
+    python tests/hostile_campaign.py --cases 100000 --json hostile-report.json
+    python tests/hostile_campaign.py --replay 0:1234
 
 Exits 1 if any case failed (an unexpected exception, a crash, a hang, a non-finite reward or
 an observation outside its space), printing each failure's replay command.
@@ -21,7 +22,7 @@ from .campaign import DEFAULT_MEMORY, DEFAULT_TIMEOUT, ROOT, campaign, replay, w
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tests.hostile", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python tests/hostile_campaign.py", description=__doc__)
     parser.add_argument("--cases", type=int, default=1000, help="cases to run (default 1000)")
     parser.add_argument("--seed", type=int, default=0, help="campaign seed (default 0)")
     parser.add_argument("--workers", type=int, default=None, help="worker processes (cores)")
@@ -47,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
         "date": datetime.date.today().isoformat(),
         "commit": _commit(),
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.system()}",
-        "command": "python -m tests.hostile " + " ".join(argv or sys.argv[1:]),
+        "command": "python tests/hostile_campaign.py " + " ".join(argv or sys.argv[1:]),
         "memory_limit_bytes": args.memory,
         "timeout_s": args.timeout,
     }

@@ -1,15 +1,17 @@
 """A fuzzing campaign: many hostile cases, each in a process of its own with a memory limit.
 
-Workers (``python -m tests.hostile --worker``, one per core by default) import khepera_gym once
-and then, for each case the campaign sends them (a seed and an index: the worker draws the case
-itself, :func:`.cases.draw_case`), fork a child that limits its address space
+Workers (``python tests/hostile_campaign.py --worker``, one per core by default) import
+khepera_gym once and then, for each case the campaign sends them (a seed and an index: the
+worker draws the case itself, :func:`.cases.draw_case`), fork a child that limits its address
+space
 (``RLIMIT_AS``: the worker's own size plus ``--memory``), runs the case (:func:`.execute.run_case`)
 and writes its outcome to a pipe. The worker reports the outcome, or what killed the child (an
 abort, a segfault: its signal and the last lines it printed) or that it ran past ``--timeout``
 (killed). A worker never builds an env itself, so the children it forks inherit no threads.
 
 The campaign counts outcomes by case kind and lists every failure with its seed and index
-(``python -m tests.hostile --replay SEED:INDEX`` reruns one, in this process, with a traceback).
+(``python tests/hostile_campaign.py --replay SEED:INDEX`` reruns one, in this process, with a
+traceback).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import traceback
 from pathlib import Path
 from typing import Any, TextIO
 
-#: The repository (``python -m tests.hostile`` runs from here).
+#: The repository (``python tests/hostile_campaign.py`` runs from here).
 ROOT = Path(__file__).resolve().parents[2]
 #: Default memory a case may use beyond the worker's own address space.
 DEFAULT_MEMORY = 2 << 30
@@ -193,8 +195,7 @@ def campaign(
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     command = [
         sys.executable,
-        "-m",
-        "tests.hostile",
+        str(ROOT / "tests" / "hostile_campaign.py"),
         "--worker",
         "--memory",
         str(memory),
