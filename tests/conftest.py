@@ -63,6 +63,18 @@ FORMATION_V0_ID = "KheperaIV-Formation-v0"
 
 
 @pytest.fixture
+def one_torch_thread() -> Iterator[None]:
+    """One torch thread, as ``khepera-gym train`` uses (far faster on 2 cores); the modules that
+    train take it with ``pytestmark = pytest.mark.usefixtures("one_torch_thread")``."""
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)
+
+
+@pytest.fixture
 def nav_env() -> Iterator[gym.Env]:
     """The single Nav env as users get it, through gym.make and its wrappers."""
     env = gym.make(NAV_ID)

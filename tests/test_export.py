@@ -202,13 +202,7 @@ int kh4_revision(char *buffer, knet_dev_t *d)
 """
 
 
-@pytest.fixture(autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    """One torch thread, as ``khepera-gym train`` uses (faster on 2 cores)."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def compile_check(out_dir: Path) -> Path:

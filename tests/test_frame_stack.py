@@ -5,14 +5,12 @@ n observations, trained under SB3's ``VecFrameStack`` and run from raw observati
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
-import torch
 from conftest import AVOID_ID
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
@@ -25,13 +23,7 @@ from khepera_gym.export import export_policy
 from khepera_gym.rollout import run_episodes
 from khepera_gym.sb3 import FrameStackPolicy, load_policy, make_vec_env
 
-
-@pytest.fixture(autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 @pytest.mark.parametrize("normalize", [False, True])

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import pickle
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +17,6 @@ pytest.importorskip(
     "stable_baselines3", reason="needs the sb3 extra: pip install 'khepera-gym[sb3]'"
 )
 
-import torch
 from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID, random_actions
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import EvalCallback
@@ -42,14 +40,7 @@ from khepera_gym.sb3 import (
 )
 from khepera_gym.train import ALGORITHMS, build_model, load_hyperparams, parse_override
 
-
-@pytest.fixture(autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    """Trains with one torch thread, as ``khepera-gym train`` does (far faster on 2 cores)."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 class HeuristicPolicy:
