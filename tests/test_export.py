@@ -601,6 +601,76 @@ def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Pa
     assert run.stdout.startswith("goal reached (by odometry) after 0 steps")
 
 
+def frame_stacked_ppo(n_stack: int) -> Any:
+    """An untrained PPO on ``n_stack`` stacked, normalised Nav observations (VecFrameStack
+    outside VecNormalize, as ``khepera-gym train`` wraps them), as load_policy gives it back."""
+    from stable_baselines3.common.vec_env import VecFrameStack
+
+    from khepera_gym.sb3 import FrameStackPolicy
+
+    normalized = VecNormalize(make_vec_env(NAV_ID, 4, seed=0))
+    venv = VecFrameStack(normalized, n_stack)
+    venv.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(200):  # statistics far from (0, 1), as after training
+        venv.step(rng.uniform(-1, 1, (4, 2)).astype(np.float32))
+    kwargs = {"net_arch": [32, 32]}
+    model = PPO("MlpPolicy", venv, seed=0, device="cpu", n_steps=64, policy_kwargs=kwargs)
+    scale_output_layer(model.policy.action_net, 300.0)
+    normalized.training = False
+    return FrameStackPolicy(model, n_stack, normalized)
+
+
+def test_a_frame_stacked_policy_exports_with_its_memory(
+    nav_recording: export.Recording, tmp_path: Path
+) -> None:
+    policy = frame_stacked_ppo(3)
+    result = export.export_policy(policy, tmp_path, formats=("c", "onnx"), env_id=NAV_ID)
+    width = nav_recording.observations.shape[1]
+    assert result.network.frame_stack == 3 and result.network.obs_dim == width
+    assert result.network.input_dim == 3 * width and result.network.normalization is not None
+    # The export's own check ran the C and ONNX policies over whole episodes against the
+    # Python FrameStackPolicy (a fresh stack at each episode's start).
+    assert result.checks["c_max_abs_error"] < ACTION_TOLERANCE
+    assert result.checks["onnx_max_abs_error"] < ACTION_TOLERANCE
+    assert json.loads((tmp_path / export.MANIFEST_FILE).read_text())["frame_stack"] == 3
+
+    # The same, here, over the recorded episodes; the stack matters: without memory (each
+    # observation from a fresh state) the actions differ by far more than the tolerance.
+    observations, starts = nav_recording.observations, nav_recording.starts
+    assert starts[0] and 1 < starts.sum() < len(starts)
+    expected = export.reference_actions(policy).sequence(observations, starts)
+    assert_actions_span_the_space(expected)
+    binary = compile_check(tmp_path)
+    sequence = run_check(binary, "sequence", np.column_stack([starts, observations]))
+    assert np.max(np.abs(sequence - expected)) < ACTION_TOLERANCE
+    fresh = run_check(binary, "policy", observations)
+    np.testing.assert_array_equal(fresh[starts], sequence[starts])
+    assert np.max(np.abs(fresh - expected)) > 0.1
+    stacked = export.onnx_inputs(result.network, observations, starts)
+    assert stacked.shape == (len(observations), 3 * width)
+    got = export.onnx_actions(tmp_path / export.ONNX_FILE, stacked)
+    assert np.max(np.abs(got - expected)) < ACTION_TOLERANCE
+
+    # The robot program keeps the stack across control periods: on the fake robot's constant
+    # readings, its actions are the Python policy's on that observation repeated.
+    program = robot_program_on_fake_robot(tmp_path)
+    run = subprocess.run(
+        [str(program), "1.0", "0.5", "4"], capture_output=True, text=True, check=True, timeout=10
+    )
+    actions = np.array([[float(v) for v in line.split()[4:6]] for line in run.stdout.splitlines()])
+    ir_raw = [100 + 60 * i for i in range(8)]
+    us_cm = [25, 1000, 80, 2000, 0]
+    speeds = [np.float32(units) * np.float32(0.678181) / np.float32(1000) for units in (300, -200)]
+    row = [*ir_raw, *us_cm, *speeds, 0.0, 0.0, 0.0, 1.0, 0.5]
+    observation = run_check(binary, "observation", [row])
+    repeated = np.repeat(observation, 4, axis=0)
+    starts = np.array([True, False, False, False])
+    want = export.reference_actions(policy).sequence(repeated, starts)
+    np.testing.assert_allclose(actions, want, atol=6e-5)  # the program prints 4 decimals
+    assert np.max(np.abs(want[2] - want[0])) > 1e-3  # the stack filling changes the action
+
+
 def test_robot_program_sets_the_leds_a_led_policy_asks_for(tmp_path: Path) -> None:
     env = gym.make(NAV_ID, led_action=True)
     model = PPO("MlpPolicy", env, seed=0, device="cpu", n_steps=64)

@@ -94,9 +94,12 @@ def test_train_stacks_frames_and_the_saved_model_stacks_them_again(tmp_path: Pat
     comparison = compare(AVOID_ID, [f"sb3:{tmp_path / 'model.zip'}"], episodes=3, progress=False)
     assert [len(results) for results in comparison.results.values()] == [3]
 
-    # The exported program does not stack observations: a clear refusal, not a wrong program.
-    with pytest.raises(ConfigError, match="frame_stack = 3"):
-        export_policy(tmp_path / "model.zip", tmp_path / "export", check=False)
+    # The export reads the stack from run.json's model and writes a program that keeps it; its
+    # own check compares the C policy with this one over whole episodes.
+    result = export_policy(tmp_path / "model.zip", tmp_path / "export", formats=("c",))
+    assert result.network.frame_stack == 3 and result.network.obs_dim == policy.obs_dim
+    assert result.network.normalization is not None
+    assert result.checks["c_max_abs_error"] < 1e-5
 
 
 def test_a_bad_frame_stack_is_a_config_error(tmp_path: Path) -> None:

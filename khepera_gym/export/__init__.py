@@ -1,10 +1,11 @@
 """``khepera-gym export``: a trained policy as ONNX, or as plain C for the real Khepera IV.
 
 A policy network is first reduced to a small description,
-:class:`~khepera_gym.export.network.PolicyNetwork`: the observation normalisation
-(``VecNormalize`` statistics), a list of dense layers with their activations, and the transform
-of the network's output into an action. Both writers work from that one description, so the
-ONNX file and the C code compute the same function. The package, one job a module:
+:class:`~khepera_gym.export.network.PolicyNetwork`: the observation normalisation (``VecNormalize``
+statistics), how many observations it acts on (a frame stack), a list of dense layers with their
+activations, and the transform of the network's output into an action. Both writers work from that
+one description, so the ONNX file and the C code compute the same function. The package, one job a
+module:
 
 * :mod:`~khepera_gym.export.network`: the description, and what is supported;
 * :mod:`~khepera_gym.export.describe` (with :mod:`~khepera_gym.export.from_sb3`,
@@ -39,7 +40,12 @@ from khepera_gym.export.checks import (
     run_check_program,
 )
 from khepera_gym.export.command import add_arguments, run_from_args
-from khepera_gym.export.describe import describe_policy, load_model
+from khepera_gym.export.describe import (
+    ReferencePolicy,
+    describe_policy,
+    load_model,
+    reference_actions,
+)
 from khepera_gym.export.exporter import (
     FORMATS,
     LAYOUT_FILE,
@@ -58,7 +64,13 @@ from khepera_gym.export.network import (
     ObservationNormalization,
     PolicyNetwork,
 )
-from khepera_gym.export.onnx_writer import ONNX_FILE, ONNX_OPSET, build_onnx, onnx_actions
+from khepera_gym.export.onnx_writer import (
+    ONNX_FILE,
+    ONNX_OPSET,
+    build_onnx,
+    onnx_actions,
+    onnx_inputs,
+)
 from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
 
 __all__ = [
@@ -85,6 +97,7 @@ __all__ = [
     "ObservationNormalization",
     "PolicyNetwork",
     "Recording",
+    "ReferencePolicy",
     "RobotInterface",
     "add_arguments",
     "build_onnx",
@@ -95,7 +108,9 @@ __all__ = [
     "load_model",
     "motor_setting",
     "onnx_actions",
+    "onnx_inputs",
     "record_rollouts",
+    "reference_actions",
     "robot_interface",
     "run_check_program",
     "run_from_args",

@@ -3,9 +3,10 @@
 :func:`write_c` writes, from a :class:`~khepera_gym.export.network.PolicyNetwork` and a
 :class:`~khepera_gym.export.robot.RobotInterface`:
 
-* ``policy.c``/``policy.h``: the weights as ``const float`` arrays and
-  ``int policy_forward(const float *observation, float *action)`` (no allocation, libm for
-  tanhf/expf only);
+* ``policy.c``/``policy.h``: the weights as ``const float`` arrays,
+  ``int policy_step(policy_state *state, const float *observation, float *action)`` with the
+  policy's memory (its frame stack) in ``policy_state``, and ``policy_forward`` (a fresh state)
+  (no allocation, libm for tanhf/expf only);
 * ``observation.c``/``.h``: the simulator's normalisation of the raw IR and ultrasonic readings,
   wheel speeds and goal into the observation of the env the policy was trained on, block by
   block in the env's own layout (only the blocks it observes), with the scenario's constants
@@ -176,18 +177,32 @@ def _policy_constants(network: PolicyNetwork) -> str:
 
 
 def _policy_forward(network: PolicyNetwork) -> str:
-    """The statements of ``policy_forward``: normalisation, layers, action transform."""
-    lines = ["    for (i = 0; i < POLICY_OBS_DIM; ++i) {"]
+    """The statements of ``policy_step``: the stack's shift, the new observation's
+    normalisation, layers, action transform."""
+    lines = []
+    if network.frame_stack > 1:
+        lines += [
+            "    /* The stack moves by one observation: the oldest goes. */",
+            "    for (i = 0; i < (POLICY_FRAME_STACK - 1) * POLICY_OBS_DIM; ++i) {",
+            "        state->frames[i] = state->frames[i + POLICY_OBS_DIM];",
+            "    }",
+        ]
+    lines.append("    for (i = 0; i < POLICY_OBS_DIM; ++i) {")
     if network.normalization is not None:
         lines += [
             "        double value = ((double)observation[i] - OBS_MEAN[i]) / OBS_STD[i];",
             "        value = value < -OBS_CLIP ? -OBS_CLIP : value;",
             "        value = value > OBS_CLIP ? OBS_CLIP : value;",
-            "        buffer_a[i] = (float)value;",
+            "        newest[i] = (float)value;",
         ]
     else:
-        lines.append("        buffer_a[i] = observation[i];")
-    lines.append("    }")
+        lines.append("        newest[i] = observation[i];")
+    lines += [
+        "    }",
+        "    for (i = 0; i < POLICY_FRAME_STACK * POLICY_OBS_DIM; ++i) {",
+        "        buffer_a[i] = state->frames[i];",
+        "    }",
+    ]
     source, target = "buffer_a", "buffer_b"
     for index, layer in enumerate(network.layers):
         lines.append(
@@ -223,12 +238,13 @@ def _policy_forward(network: PolicyNetwork) -> str:
 
 def policy_c_sources(network: PolicyNetwork, provenance: str) -> dict[str, str]:
     """``policy.h`` and ``policy.c`` of ``network`` (file name → text)."""
-    widths = [network.obs_dim, *(layer.outputs for layer in network.layers)]
+    widths = [network.input_dim, *(layer.outputs for layer in network.layers)]
     fields = {
         "source": network.source,
         "version": khepera_gym.__version__,
         "provenance": provenance,
         "obs_dim": network.obs_dim,
+        "frame_stack": network.frame_stack,
         "action_dim": network.action_dim,
         "widths": " -> ".join(str(width) for width in widths),
         "max_width": network.max_width,

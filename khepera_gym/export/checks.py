@@ -30,7 +30,8 @@ import numpy.typing as npt
 
 from khepera_gym.errors import KheperaError
 from khepera_gym.export.c_writer import C_SOURCES
-from khepera_gym.export.onnx_writer import ONNX_FILE, onnx_actions
+from khepera_gym.export.network import PolicyNetwork
+from khepera_gym.export.onnx_writer import ONNX_FILE, onnx_actions, onnx_inputs
 from khepera_gym.export.robot import RobotInterface
 from khepera_gym.rollout import run_episodes
 
@@ -74,7 +75,7 @@ def compile_check_program(
 
 def run_check_program(binary: str | Path, mode: str, rows: npt.ArrayLike) -> npt.NDArray[Any]:
     """Feeds rows to ``export_check MODE`` and parses its output rows: float32 (the C values
-    exactly) for "policy" and "observation", integers for "wheels".
+    exactly) for "policy", "sequence" and "observation", integers for "wheels".
 
     Raises:
         KheperaError: The program failed or printed something else than rows of numbers.
@@ -97,10 +98,12 @@ def run_check_program(binary: str | Path, mode: str, rows: npt.ArrayLike) -> npt
 class Recording:
     """Observations of seeded rollouts with what the robot would have measured at each step."""
 
-    #: Policy observations (N, obs_dim), float32.
+    #: Policy observations (N, obs_dim), float32, in the order of the steps.
     observations: npt.NDArray[np.float32]
     #: Rows of ``observation_inputs`` (N, OBSERVATION_INPUT_COUNT) for ``export_check``.
     input_rows: npt.NDArray[np.float64]
+    #: (N,) True at each episode's first observation (where a policy's memory starts empty).
+    starts: npt.NDArray[np.bool_]
 
 
 def input_row(
@@ -153,7 +156,9 @@ def record_rollouts(
         robot: The export's robot side (which agent's block, which inputs).
         act: Maps the policy's observations (M, obs_dim) to actions (M, 2). In a multi-robot
             env it drives every agent whose block has the policy's width (a shared policy);
-            other agents stand still.
+            other agents stand still. It sees every observation, in order (even where a random
+            action replaces its own), and its ``reset()``, if it has one, is called before each
+            episode: a policy with memory is driven as in training.
         seeds: One episode per seed.
         steps: Largest number of steps of an episode.
         random_fraction: The share of steps, drawn from a generator seeded with ``seeds[0]``,
@@ -172,6 +177,14 @@ def record_rollouts(
     rng = np.random.default_rng(seeds[0] if seeds else 0)
     observations: list[npt.NDArray[np.float32]] = []
     rows: list[list[float]] = []
+    starts: list[bool] = []
+    reset = getattr(act, "reset", None)
+
+    def start(joint: npt.NDArray[np.float32]) -> None:
+        if callable(reset):
+            reset()
+        starts.append(True)
+        record(joint)
 
     def record(joint: npt.NDArray[np.float32]) -> None:
         own = np.array(joint[0, robot.offset : robot.offset + width], np.float32)
@@ -182,10 +195,10 @@ def record_rollouts(
         rows.append(input_row(robot, unwrapped.sensor_readings(), pose, goal, own))
 
     def policy(joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        if rng.random() < random_fraction:
-            return rng.uniform(-1.0, 1.0, (1, batch.act_dim)).astype(np.float32)
         blocks = np.stack([joint[0, start : start + width] for start, _ in driven])
         agent_actions = np.asarray(act(blocks), np.float32).reshape(len(driven), 2)
+        if rng.random() < random_fraction:
+            return rng.uniform(-1.0, 1.0, (1, batch.act_dim)).astype(np.float32)
         actions = np.zeros((1, batch.act_dim), np.float32)
         for (_, column), action in zip(driven, agent_actions, strict=True):
             actions[0, column : column + 2] = action
@@ -199,15 +212,19 @@ def record_rollouts(
         done: npt.NDArray[np.bool_],
     ) -> None:
         if not done[0]:  # the episode's last observation is recorded, nothing after it
+            starts.append(False)
             record(joint)
 
     for seed in seeds:
-        run_episodes(batch, policy, seed, on_reset=record, on_step=on_step, max_steps=steps)
-    return Recording(np.array(observations, np.float32), np.array(rows, np.float64))
+        run_episodes(batch, policy, seed, on_reset=start, on_step=on_step, max_steps=steps)
+    return Recording(
+        np.array(observations, np.float32), np.array(rows, np.float64), np.array(starts, bool)
+    )
 
 
 def check_export(
     reference: Callable[[npt.NDArray[np.float32]], npt.ArrayLike],
+    network: PolicyNetwork,
     env: gym.Env[Any, Any],
     robot: RobotInterface,
     out: Path,
@@ -215,7 +232,12 @@ def check_export(
     compiler: str,
 ) -> tuple[dict[str, Any], list[str]]:
     """Measures the exported files in ``out`` against ``reference`` (the Python policy's
-    deterministic actions) on recorded rollouts of ``env``.
+    deterministic actions: a :class:`~khepera_gym.export.describe.ReferencePolicy`, or any
+    function of observations for a policy without memory) on recorded rollouts of ``env``.
+
+    The C policy runs ``policy_step`` over the recorded episodes in order, starting a fresh
+    ``policy_state`` at each episode's start; the ONNX graph gets each step's frame stack
+    (:func:`~khepera_gym.export.onnx_writer.onnx_inputs`).
 
     Returns:
         (figures, failures): "observations" (rows checked), "onnx_max_abs_error",
@@ -226,11 +248,16 @@ def check_export(
         KheperaError: The C code does not compile or ``export_check`` fails.
     """
     recording = record_rollouts(env, robot, reference)
-    expected = np.asarray(reference(recording.observations), np.float64)
+    starts = recording.starts
+    sequence = getattr(reference, "sequence", None)
+    if callable(sequence):
+        expected = np.asarray(sequence(recording.observations, starts), np.float64)
+    else:
+        expected = np.asarray(reference(recording.observations), np.float64)
     checks: dict[str, Any] = {"observations": len(recording.observations)}
     failures = []
     if "onnx" in formats:
-        got = onnx_actions(out / ONNX_FILE, recording.observations)
+        got = onnx_actions(out / ONNX_FILE, onnx_inputs(network, recording.observations, starts))
         checks["onnx_max_abs_error"] = float(np.max(np.abs(got - expected)))
         if checks["onnx_max_abs_error"] > PARITY_TOLERANCE:
             failures.append("ONNX actions")
@@ -244,7 +271,8 @@ def check_export(
                 for name in out.glob("*.h"):
                     shutil.copy(name, build)
                 binary = compile_check_program(build, compiler)
-                got = run_check_program(binary, "policy", recording.observations)
+                rows = np.column_stack([starts.astype(np.float64), recording.observations])
+                got = run_check_program(binary, "sequence", rows)
                 built = run_check_program(binary, "observation", recording.input_rows)
             checks["c_max_abs_error"] = float(np.max(np.abs(got - expected)))
             checks["observation_max_abs_error"] = float(

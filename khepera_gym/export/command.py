@@ -88,6 +88,11 @@ def run_from_args(args: argparse.Namespace) -> int:
     )
     for path in result.files:
         print(f"  {path.name}")
+    if result.network.frame_stack > 1:
+        print(
+            f"memory: the policy acts on its last {result.network.frame_stack} observations; "
+            "the program keeps them in a policy_state, emptied at its start"
+        )
     exact = "" if result.motors.exact else " (nominal: not the trained drive exactly)"
     print(f"motors: {result.motors.note}{exact}; the program calls {result.motors.call()}")
     for key, bounds in result.robot.randomised.items():

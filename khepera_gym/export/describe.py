@@ -10,6 +10,7 @@ Threading: none.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -55,19 +56,59 @@ def as_policy(model: Any) -> Any:
     return RllibPolicy(model, RllibActionConfig(), None) if is_rllib_module(model) else model
 
 
-def reference_actions(
-    model: Any, normalizer: Any = None
-) -> Callable[[npt.NDArray[np.float32]], npt.NDArray[Any]]:
-    """The model's own deterministic actions for observations (N, obs_dim): the reference the
-    exported files are checked against (an SB3 model applies ``normalizer`` first)."""
+@dataclasses.dataclass
+class ReferencePolicy:
+    """A model's own deterministic actions, the reference the exported files are checked against.
+
+    Calling it maps observations (N, obs_dim), one row per robot, to actions. A policy with
+    memory (``stateful``: one trained on stacked observations) keeps one stack per row between
+    calls; :meth:`reset` empties them (an episode starts).
+    """
+
+    act: Callable[[npt.NDArray[np.float32]], npt.NDArray[Any]]
+    reset: Callable[[], None]
+    stateful: bool = False
+
+    def __call__(self, observations: npt.NDArray[np.float32]) -> npt.NDArray[Any]:
+        return self.act(observations)
+
+    def sequence(
+        self, observations: npt.NDArray[np.float32], starts: npt.NDArray[np.bool_]
+    ) -> npt.NDArray[np.float64]:
+        """The actions of one robot's consecutive observations (N, obs_dim), where ``starts``
+        marks each episode's first observation (the memory is emptied there)."""
+        if not self.stateful:
+            return np.asarray(self.act(observations), np.float64)
+        actions = []
+        self.reset()
+        for row, start in zip(observations, starts, strict=True):
+            if start:
+                self.reset()
+            actions.append(np.asarray(self.act(row[None]), np.float64).reshape(-1))
+        self.reset()
+        return np.array(actions, np.float64)
+
+
+def reference_actions(model: Any, normalizer: Any = None) -> ReferencePolicy:
+    """The model's own deterministic actions (:class:`ReferencePolicy`) on raw observations: an
+    SB3 model applies ``normalizer`` first, a ``FrameStackPolicy`` stacks them."""
     model = as_policy(model)
     if isinstance(model, RllibPolicy):
-        return lambda obs: model.predict(obs, deterministic=True)
+        return ReferencePolicy(lambda obs: model.predict(obs, deterministic=True), _no_memory)
     if normalizer is not None and not hasattr(model, "normalizer"):
         from khepera_gym.sb3 import NormalizedPolicy
 
         model = NormalizedPolicy(model, normalizer)
-    return lambda obs: model.predict(obs, deterministic=True)[0]
+    reset = getattr(model, "reset", None)
+    return ReferencePolicy(
+        lambda obs: model.predict(obs, deterministic=True)[0],
+        reset if callable(reset) else _no_memory,
+        stateful=callable(reset),
+    )
+
+
+def _no_memory() -> None:
+    """The reset of a policy without memory."""
 
 
 def describe_policy(model: Any, normalizer: Any = None) -> PolicyNetwork:
@@ -95,4 +136,10 @@ def describe_policy(model: Any, normalizer: Any = None) -> PolicyNetwork:
     raise unsupported_model(f"a {type(model).__module__}.{type(model).__qualname__}")
 
 
-__all__ = ["as_policy", "describe_policy", "load_model", "reference_actions"]
+__all__ = [
+    "ReferencePolicy",
+    "as_policy",
+    "describe_policy",
+    "load_model",
+    "reference_actions",
+]

@@ -176,7 +176,7 @@ def export_policy(
         failures: list[str] = []
         if check:
             reference = reference_actions(model, normalizer)
-            checks, failures = check_export(reference, env, robot, out, formats, compiler)
+            checks, failures = check_export(reference, network, env, robot, out, formats, compiler)
         manifest = {
             "khepera_gym_version": khepera_gym.__version__,
             "model": provenance,
@@ -185,6 +185,7 @@ def export_policy(
             "env_kwargs": {k: str(v) for k, v in env_kwargs.items()},
             "agent": robot.agent,
             "obs_dim": network.obs_dim,
+            "frame_stack": network.frame_stack,
             "action_dim": network.action_dim,
             "action_type": robot.action_type,
             "layers": [

@@ -1,11 +1,13 @@
 """stable-baselines3 models to the exporter's :class:`~khepera_gym.export.network.PolicyNetwork`.
 
-Supported: PPO and A2C with ``MlpPolicy`` (the deterministic action is the Gaussian mean,
-clipped to the action space, as ``predict(deterministic=True)`` gives it), SAC and TD3 (DDPG is a
-TD3) with ``MlpPolicy`` (the actor, tanh-squashed, rescaled to the action bounds as SB3's
-``unscale_action`` does), with the ``VecNormalize`` observation statistics when the model was
-trained under one. Zips are loaded with :func:`khepera_gym.sb3.load_policy` (which also picks up
-a ``vecnormalize.pkl`` beside them). stable-baselines3 is imported when called.
+Supported: PPO and A2C with ``MlpPolicy`` (the deterministic action is the Gaussian mean, clipped to
+the action space, as ``predict(deterministic=True)`` gives it), SAC and TD3 (DDPG is a TD3) with
+``MlpPolicy`` (the actor, tanh-squashed, rescaled to the action bounds as SB3's ``unscale_action``
+does), with the ``VecNormalize`` observation statistics when the model was trained under one, and
+its frame stack when it was trained on stacked observations (a
+:class:`khepera_gym.sb3.FrameStackPolicy`, as ``load_policy`` gives a ``frame_stack`` run). Zips are
+loaded with :func:`khepera_gym.sb3.load_policy` (which also picks up a ``vecnormalize.pkl`` beside
+them). stable-baselines3 is imported when called.
 Threading: none.
 """
 
@@ -36,13 +38,15 @@ def is_sb3_model(model: Any) -> bool:
     module = type(model).__module__
     wrapped = module.startswith("khepera_gym.sb3") and type(model).__name__ in (
         "NormalizedPolicy",
-        "FrameStackPolicy",  # refused by describe_sb3 with its own message
+        "FrameStackPolicy",
     )
     return wrapped or module.startswith("stable_baselines3")
 
 
 def load_sb3_zip(path: Path) -> tuple[Any, Any]:
-    """(model, ``VecNormalize`` or None) of an SB3 zip and the ``vecnormalize.pkl`` beside it.
+    """(model, ``VecNormalize`` or None) of an SB3 zip and the ``vecnormalize.pkl`` beside it;
+    the model of a run trained with ``frame_stack`` is its
+    :class:`khepera_gym.sb3.FrameStackPolicy` (which holds the statistics too).
 
     Raises:
         ImportError: stable-baselines3 is not installed (the message names the pip command).
@@ -58,30 +62,23 @@ def load_sb3_zip(path: Path) -> tuple[Any, Any]:
     except KheperaError as error:
         raise unsupported_model(f"{path} ({error})") from error
     if isinstance(policy, sb3.FrameStackPolicy):
-        raise frame_stack_unsupported(f"{path}", policy.n_stack)
+        return policy, policy.normalizer
     if isinstance(policy, sb3.NormalizedPolicy):
         return policy.model, policy.normalizer
     return policy, None
 
 
-def frame_stack_unsupported(what: str, n_stack: int) -> ConfigError:
-    """The error for a policy trained on stacked observations, which the writers do not stack."""
-    return ConfigError(
-        f"cannot export {what}: it was trained with frame_stack = {n_stack} (it acts on its last "
-        f"{n_stack} observations), and the exported program does not stack observations yet; "
-        "export a model trained without frame_stack (--hp frame_stack=1)"
-    )
-
-
 def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
-    """The :class:`PolicyNetwork` of an SB3 model (or a ``NormalizedPolicy``, whose statistics
-    win over ``normalizer``).
+    """The :class:`PolicyNetwork` of an SB3 model (or a ``NormalizedPolicy`` or
+    ``FrameStackPolicy``, whose statistics win over ``normalizer``).
 
     Raises:
         ConfigError: Another algorithm or policy class, gSDE, or layers the writers lack.
     """
+    frame_stack = 1
     if type(model).__name__ == "FrameStackPolicy":
-        raise frame_stack_unsupported("this model", model.n_stack)
+        frame_stack = int(model.n_stack)
+        model, normalizer = model.model, model.normalizer
     if type(model).__name__ == "NormalizedPolicy":
         model, normalizer = model.model, model.normalizer
     from stable_baselines3 import A2C, PPO, SAC, TD3
@@ -92,7 +89,12 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
     name = f"stable-baselines3 {type(model).__name__}"
     if not isinstance(model, (PPO, A2C, SAC, TD3)):
         raise unsupported_model(f"a {name} model")
-    obs_dim, action_dim = check_spaces(model.observation_space, model.action_space, name)
+    input_dim, action_dim = check_spaces(model.observation_space, model.action_space, name)
+    if input_dim % frame_stack:
+        raise ConfigError(
+            f"the {name} takes {input_dim} values, not {frame_stack} stacked observations"
+        )
+    obs_dim = input_dim // frame_stack
     policy = model.policy
     low = model.action_space.low.astype(np.float32)
     high = model.action_space.high.astype(np.float32)
@@ -127,6 +129,7 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
         normalization=_sb3_normalization(normalizer, obs_dim),
         layers=tuple(layers),
         action=action,
+        frame_stack=frame_stack,
     )
 
 

@@ -2,8 +2,10 @@
 ONNX writer and the C writer both work from, so the two compute the same function.
 
 A policy is reduced to the observation normalisation (``VecNormalize`` statistics: mean,
-variance, epsilon, clip), a list of dense layers with their activations, and the transform of the
-network's output into an action (an affine map and a clip to the action bounds). Weights are
+variance, epsilon, clip), the number of observations it acts on (``frame_stack``: its last n,
+normalised, oldest first, as SB3's ``VecFrameStack`` outside ``VecNormalize`` feeds them), a list
+of dense layers with their activations, and the transform of the network's output into an action
+(an affine map and a clip to the action bounds). Weights are
 float32 as in torch; the normalisation is float64 as stable-baselines3 computes it.
 
 This module also says what the exporter supports (:data:`SUPPORTED_MODELS`, the message of
@@ -100,7 +102,12 @@ class ActionTransform:
 
 @dataclasses.dataclass(frozen=True)
 class PolicyNetwork:
-    """A deterministic policy as normalisation → dense layers → action transform.
+    """A deterministic policy as normalisation → frame stack → dense layers → action transform.
+
+    ``obs_dim`` is the width of one observation (what the env gives and the normalisation
+    statistics cover); the first layer takes ``frame_stack`` of them (:attr:`input_dim`): each
+    observation is normalised as it arrives, the stack holds the last ``frame_stack`` ones, oldest
+    first, and zeros before an episode's first observation.
 
     Raises:
         KheperaError: The layers do not chain from ``obs_dim`` to ``action_dim`` or use an
@@ -115,9 +122,15 @@ class PolicyNetwork:
     normalization: ObservationNormalization | None
     layers: tuple[DenseLayer, ...]
     action: ActionTransform
+    #: Observations the network acts on (1: the current one only).
+    frame_stack: int = 1
 
     def __post_init__(self) -> None:
-        width = self.obs_dim
+        if isinstance(self.frame_stack, bool) or not isinstance(self.frame_stack, int):
+            raise KheperaError(f"frame_stack must be an int, got {self.frame_stack!r}")
+        if self.frame_stack < 1:
+            raise KheperaError(f"frame_stack must be >= 1, got {self.frame_stack}")
+        width = self.input_dim
         for index, layer in enumerate(self.layers):
             if layer.inputs != width:
                 raise KheperaError(f"layer {index} takes {layer.inputs} inputs, not {width}")
@@ -130,9 +143,14 @@ class PolicyNetwork:
             raise KheperaError(f"the network gives {width} values, not {self.action_dim}")
 
     @property
+    def input_dim(self) -> int:
+        """The first layer's width: ``frame_stack`` observations."""
+        return self.obs_dim * self.frame_stack
+
+    @property
     def max_width(self) -> int:
         """The widest vector of the forward pass."""
-        return max([self.obs_dim, *(layer.outputs for layer in self.layers)])
+        return max([self.input_dim, *(layer.outputs for layer in self.layers)])
 
 
 __all__ = [

@@ -2,10 +2,15 @@
 :class:`~khepera_gym.export.network.PolicyNetwork` with ``onnx.helper``, and :func:`onnx_actions`
 runs an exported file with onnxruntime (the check).
 
-The graph has input ``"observation"`` float32 (N, obs_dim) and output ``"action"`` float32
-(N, action_dim), operator set :data:`ONNX_OPSET` and IR version :data:`ONNX_IR_VERSION` (so older
-runtimes, as on small robots, load it), and is checked with ``onnx.checker``. The normalisation
-runs in float64 as stable-baselines3's does, the layers in float32.
+The graph has input ``"observation"`` float32 (N, frame_stack * obs_dim) and output ``"action"``
+float32 (N, action_dim), operator set :data:`ONNX_OPSET` and IR version :data:`ONNX_IR_VERSION` (so
+older runtimes, as on small robots, load it), and is checked with ``onnx.checker``. The
+normalisation runs in float64 as stable-baselines3's does, the layers in float32.
+
+A policy trained on stacked observations (``frame_stack`` n > 1) takes its last n raw
+observations, oldest first; each is normalised in the graph. Before an episode's first
+observation the stack holds what normalises to zero, as in training: the normalisation's mean
+(zeros without one). :func:`onnx_inputs` builds these rows from an episode's observations.
 
 onnx and onnxruntime come with the ``export`` extra and are imported when called.
 Threading: onnxruntime uses its own thread pool inside ``run``.
@@ -44,8 +49,9 @@ def import_onnx() -> Any:
 def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None) -> Any:
     """The ONNX ``ModelProto`` of ``network``, checked with ``onnx.checker``.
 
-    Input ``"observation"`` float32 (N, obs_dim), output ``"action"`` float32 (N, action_dim).
-    The normalisation runs in float64 (as SB3's does), the rest in float32.
+    Input ``"observation"`` float32 (N, input_dim: ``frame_stack`` observations), output
+    ``"action"`` float32 (N, action_dim). The normalisation runs in float64 (as SB3's does), the
+    rest in float32.
 
     Raises:
         ImportError: onnx is not installed (the message names the pip command).
@@ -66,10 +72,12 @@ def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None
 
     current = "observation"
     norm = network.normalization
+    stack = network.frame_stack
     if norm is not None:
+        mean, std = np.tile(norm.mean, stack), np.tile(norm.std, stack)  # the same for each frame
         current = node("Cast", [current], "observation_f64", to=TensorProto.DOUBLE)
-        current = node("Sub", [current, constant("obs_mean", norm.mean, np.float64)], "centred")
-        current = node("Div", [current, constant("obs_std", norm.std, np.float64)], "scaled")
+        current = node("Sub", [current, constant("obs_mean", mean, np.float64)], "centred")
+        current = node("Div", [current, constant("obs_std", std, np.float64)], "scaled")
         current = node("Max", [current, constant("obs_low", [-norm.clip], np.float64)], "lower")
         current = node("Min", [current, constant("obs_high", [norm.clip], np.float64)], "upper")
         current = node("Cast", [current], "normalized", to=TensorProto.FLOAT)
@@ -101,7 +109,7 @@ def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None
     graph = helper.make_graph(
         nodes,
         "khepera_gym_policy",
-        [helper.make_tensor_value_info("observation", TensorProto.FLOAT, ["N", network.obs_dim])],
+        [helper.make_tensor_value_info("observation", TensorProto.FLOAT, ["N", network.input_dim])],
         [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["N", network.action_dim])],
         initializer=initializers,
     )
@@ -119,8 +127,38 @@ def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None
     return model
 
 
+def onnx_inputs(
+    network: PolicyNetwork,
+    observations: npt.NDArray[np.float32],
+    starts: npt.NDArray[np.bool_] | None = None,
+) -> npt.NDArray[np.float32]:
+    """The ONNX graph's input rows (N, input_dim) for one robot's consecutive observations
+    (N, obs_dim): row t stacks observations t-n+1 .. t, oldest first, with the pad (the
+    normalisation's mean, or zeros) in place of those before the episode's start. ``starts``
+    (N,) marks each episode's first observation (None: the first row only).
+    """
+    rows = np.asarray(observations, np.float32)
+    stack = network.frame_stack
+    if stack == 1:
+        return rows
+    norm = network.normalization
+    pad = np.zeros(network.obs_dim, np.float32) if norm is None else norm.mean.astype(np.float32)
+    begins = np.zeros(len(rows), bool) if starts is None else np.array(starts, bool)
+    if len(begins):
+        begins[0] = True
+    stacked = np.empty((len(rows), network.input_dim), np.float32)
+    frames = np.tile(pad, stack)
+    for t, (row, begin) in enumerate(zip(rows, begins, strict=True)):
+        if begin:
+            frames = np.tile(pad, stack)
+        frames = np.concatenate([frames[network.obs_dim :], row])
+        stacked[t] = frames
+    return stacked
+
+
 def onnx_actions(path: str | Path, observations: npt.NDArray[np.float32]) -> npt.NDArray[Any]:
-    """Runs an exported ONNX policy with onnxruntime on observations (N, obs_dim).
+    """Runs an exported ONNX policy with onnxruntime on input rows (N, input_dim): observations,
+    or for a frame-stacked policy the rows of :func:`onnx_inputs`.
 
     Raises:
         ImportError: onnxruntime is not installed (the message names the pip command).
@@ -141,4 +179,5 @@ __all__ = [
     "build_onnx",
     "import_onnx",
     "onnx_actions",
+    "onnx_inputs",
 ]

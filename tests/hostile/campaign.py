@@ -249,7 +249,9 @@ def campaign(
             report.add(kinds.pop(reply["index"]), reply)
             if progress is not None and len(report.failures) > failures:
                 failure = report.failures[-1]  # said at once: a long run shows them as they come
-                progress.write(f"FAIL {failure['replay']} {failure['kind']}: {failure['outcome']}\n")
+                progress.write(
+                    f"FAIL {failure['replay']} {failure['kind']}: {failure['outcome']}\n"
+                )
                 progress.flush()
             if progress is not None and report.cases % 1000 == 0:
                 rate = report.cases / (time.monotonic() - started)

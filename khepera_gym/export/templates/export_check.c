@@ -3,6 +3,10 @@
  * too, on a PC or on the robot, with rows recorded in the simulator).
  *
  *   export_check policy      rows of POLICY_OBS_DIM observation values  -> rows of actions
+ *                            (each from a fresh policy state: policy_forward)
+ *   export_check sequence    rows of 1 + POLICY_OBS_DIM values: a flag (1 when an episode starts
+ *                            with this observation) and the observation -> rows of actions, one
+ *                            policy_step each (the memory of a frame-stacked policy carries over)
  *   export_check observation rows of OBSERVATION_INPUT_COUNT raw inputs -> rows of observations
  *                            (the fields of observation_inputs in order: observation.h)
  *   export_check wheels      rows of 2 action values -> rows of 2 kh4_set_speed units
@@ -53,6 +57,26 @@ static int check_policy(void)
     return read < 0 ? 1 : status;
 }
 
+static int check_sequence(void)
+{
+    float row[1 + POLICY_OBS_DIM];
+    float action[POLICY_ACTION_DIM];
+    policy_state state;
+    int status = 0;
+    int read;
+    policy_reset(&state);
+    while ((read = read_row(row, 1 + POLICY_OBS_DIM)) == 1) {
+        if (row[0] != 0.0f) {
+            policy_reset(&state);
+        }
+        if (policy_step(&state, row + 1, action) != 0) {
+            status = 1;
+        }
+        print_row(action, POLICY_ACTION_DIM);
+    }
+    return read < 0 ? 1 : status;
+}
+
 static int check_observation(void)
 {
     float row[OBSERVATION_INPUT_COUNT];
@@ -96,6 +120,9 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "policy") == 0) {
         return check_policy();
     }
+    if (argc == 2 && strcmp(argv[1], "sequence") == 0) {
+        return check_sequence();
+    }
     if (argc == 2 && strcmp(argv[1], "observation") == 0) {
         return check_observation();
     }
@@ -105,6 +132,6 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "leds") == 0) {
         return check_leds();
     }
-    fprintf(stderr, "usage: %s policy|observation|wheels|leds < rows.txt\n", argv[0]);
+    fprintf(stderr, "usage: %s policy|sequence|observation|wheels|leds < rows.txt\n", argv[0]);
     return 2;
 }

@@ -104,6 +104,7 @@ int main(int argc, char *argv[])
     khepera_readings readings;
     float observation[OBSERVATION_DIM];
     float action[POLICY_ACTION_DIM];
+    policy_state memory; /* the last POLICY_FRAME_STACK observations, for a frame-stacked policy */
     int units[2];
 #if KHEPERA_LED_ACTION
     int leds[3];
@@ -184,6 +185,7 @@ int main(int argc, char *argv[])
         }
     }
 
+    policy_reset(&memory); /* the episode starts: nothing observed yet */
     start_time = khepera_clock_now();
     next_tick = start_time;
     for (step = 0; !stop_requested && (max_steps <= 0 || step < max_steps); ++step) {
@@ -241,7 +243,7 @@ int main(int argc, char *argv[])
 
         /* 3. and 4. Observation, policy, wheel command. */
         observation_build(&inputs, observation);
-        if (policy_forward(observation, action) != 0) {
+        if (policy_step(&memory, observation, action) != 0) {
             fprintf(stderr, "non-finite action at step %ld: stopping\n", step);
             break;
         }

@@ -28,8 +28,25 @@ static void dense(const float *weight, const float *bias, int inputs, int output
     }
 }
 
+void policy_reset(policy_state *state)
+{
+    int i;
+    for (i = 0; i < POLICY_FRAME_STACK * POLICY_OBS_DIM; ++i) {
+        state->frames[i] = 0.0f;
+    }
+}
+
 int policy_forward(const float observation[POLICY_OBS_DIM], float action[POLICY_ACTION_DIM])
 {
+    policy_state state;
+    policy_reset(&state);
+    return policy_step(&state, observation, action);
+}
+
+int policy_step(policy_state *state, const float observation[POLICY_OBS_DIM],
+                float action[POLICY_ACTION_DIM])
+{
+    float *newest = state->frames + (POLICY_FRAME_STACK - 1) * POLICY_OBS_DIM;
     float buffer_a[POLICY_MAX_WIDTH];
     float buffer_b[POLICY_MAX_WIDTH];
     int status = 0;

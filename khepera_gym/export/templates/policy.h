@@ -2,16 +2,35 @@
  * The $source policy exported by khepera_gym $version
  * from $provenance. Generated: export again rather than edit.
  *
- * policy_forward(observation, action): the deterministic action for one observation as the
- * simulator gives it (observation.h builds it on the robot). No allocation, no state; libm for
- * tanhf/expf only. Returns 0, or -1 if an action value is not finite.
+ * The policy acts on its last POLICY_FRAME_STACK observations (1: the current one only), each
+ * normalised as it arrives, oldest first, as it was trained. Run it with a policy_state:
+ *
+ *   policy_state state;
+ *   policy_reset(&state);                          once, before an episode's first observation
+ *   policy_step(&state, observation, action);      every control period
+ *
+ * policy_forward(observation, action) is policy_step on a fresh state: the action of an
+ * episode's first observation; for a policy without memory (POLICY_FRAME_STACK 1), the action of
+ * any observation. Observations are as the simulator gives them (observation.h builds them on the
+ * robot). No allocation; libm for tanhf/expf only. Both return 0, or -1 if an action value is
+ * not finite.
  */
 #ifndef KHEPERA_GYM_POLICY_H
 #define KHEPERA_GYM_POLICY_H
 
 #define POLICY_OBS_DIM $obs_dim
+#define POLICY_FRAME_STACK $frame_stack
 #define POLICY_ACTION_DIM $action_dim
 
+/* The policy's memory: its last POLICY_FRAME_STACK normalised observations, oldest first
+ * (zeros before the episode's first one). */
+typedef struct {
+    float frames[POLICY_FRAME_STACK * POLICY_OBS_DIM];
+} policy_state;
+
+void policy_reset(policy_state *state);
+int policy_step(policy_state *state, const float observation[POLICY_OBS_DIM],
+                float action[POLICY_ACTION_DIM]);
 int policy_forward(const float observation[POLICY_OBS_DIM], float action[POLICY_ACTION_DIM]);
 
 #endif /* KHEPERA_GYM_POLICY_H */
