@@ -5,14 +5,16 @@
 //!
 //! Sections and their owners: `[robot]` (`robot.rs`), `[sensors]` (each sensor in `sensors/`),
 //! `[arena]`, `[obstacles]`, `[spawn]`, `[task]`, `[physics]` (`sections.rs`, re-exported
-//! here), and the task's own table when it has one (`[formation]`, `[multinav]`: the task's file
+//! here), `[floor]` (`floor.rs`), and the task's own table when it has one (`[formation]`, `[multinav]`: the task's file
 //! in `tasks/`). This file holds the [`Scenario`] they make up, the [`TaskSchema`] a task adds,
 //! loading, TOML output, and the checks that relate several sections. It never calls into the
-//! world: whether layouts fit is checked once, when a batch builds its spawner.
+//! world: whether layouts fit is checked, and the floor image read, once, when a batch builds
+//! its spawner.
 //!
 //! Units: metres, seconds, radians, m/s, raw sensor counts where stated. Frame: the world frame,
 //! arena centred at the origin.
 
+pub mod floor;
 mod scenes;
 pub mod sections;
 mod versions;
@@ -26,7 +28,7 @@ use crate::motors::MotorsConfig;
 use crate::odometry::OdometryConfig;
 use crate::robot::RobotConfig;
 use crate::sensors::SensorsConfig;
-use crate::world::floor::{FloorConfig, SharedFloor};
+pub use floor::FloorConfig;
 
 pub use crate::config::Param;
 pub use scenes::{scene, SCENES};
@@ -78,8 +80,9 @@ pub struct Scenario {
     pub odometry: OdometryConfig,
     /// `[floor]`: what the ground sensors see.
     pub floor: FloorConfig,
-    /// The floor built from it (image decoded, marks as segments), shared by every world.
-    pub floor_model: SharedFloor,
+    /// The scenario file's folder, where a relative `floor.image` path starts (None: the
+    /// working directory).
+    pub floor_dir: Option<std::path::PathBuf>,
     /// The task's own table (name, checked values), if it has one.
     pub own: Option<(String, Table)>,
     /// Where the last part of the scenario came from (a file's name, `<override>` or
@@ -201,13 +204,15 @@ impl TaskSchema {
             config::overlay(&mut table, &over, "", OVERRIDE_ORIGIN)?;
             scenario = Scenario::from_table(&table, &defaults, self, OVERRIDE_ORIGIN)?;
         }
-        // A floor image's relative path starts at the scenario file's folder.
-        let dir = source
+        // The floor's marks are checked once the scenario is whole; the image is read when a
+        // batch builds its floor. A relative image path starts at the scenario file's folder.
+        scenario.floor.check(&scenario.origin)?;
+        scenario.floor_dir = source
             .file
             .map(|(_, name)| std::path::Path::new(name))
             .filter(|path| path.is_file())
-            .and_then(|path| path.parent());
-        scenario.floor_model = SharedFloor::new(scenario.floor.build(dir, &scenario.origin)?);
+            .and_then(|path| path.parent())
+            .map(std::path::Path::to_path_buf);
         Ok(scenario)
     }
 }
@@ -247,7 +252,7 @@ impl Scenario {
             physics: PhysicsConfig::from_table(&section("physics"), origin, "physics")?,
             odometry: OdometryConfig::from_table(&section("odometry"), origin, "odometry")?,
             floor: FloorConfig::from_table(&section("floor"), origin, "floor")?,
-            floor_model: SharedFloor::default(),
+            floor_dir: None,
             own: schema
                 .section
                 .map(|s| (s.name.to_string(), section(s.name))),

@@ -157,7 +157,12 @@ impl Env {
         spawner: Arc<Spawner>,
         action_type: ActionType,
     ) -> Result<Self> {
-        let world = World::new(&cfg, spawner.base.clone(), spawner.n_robots());
+        let world = World::new(
+            &cfg,
+            spawner.base.clone(),
+            spawner.floor.clone(),
+            spawner.n_robots(),
+        );
         let task = kind.new_state(&cfg)?;
         let agents = kind.agents(&cfg)?;
         let obs_dim = agents.iter().map(|a| a.layout.len()).sum();

@@ -21,130 +21,20 @@ use std::sync::Arc;
 use rapier2d::math::Vector;
 use serde::{Deserialize, Serialize};
 
-use crate::config::{limits, Domain, Field};
 use crate::error::{Error, Result};
+pub use crate::scenario::floor::{arc_chords, ArcMark, FloorConfig, LineMark, TrackMark};
 
 /// Largest image side (pixels): a 4096 x 4096 image costs 64 MiB while it is decoded (RGBA,
 /// 8 bits a channel) and 64 MiB of grey levels (f32) once built, shared by every world.
 pub const MAX_IMAGE_SIDE: u32 = 4096;
-/// Most points of a `floor.tracks` polyline, and most chords of a `floor.arcs` arc.
-pub const MAX_MARK_POINTS: usize = 100_000;
-/// Most segments of a scenario's floor marks (lines, arcs' chords and polylines' sides
-/// together): 24 bytes each, 24 MB at most, shared by every world.
-pub const MAX_FLOOR_SEGMENTS: usize = 1_000_000;
 /// Most entries of the grid that finds marks near a point (a segment is listed in every cell
 /// its bounding box touches): 4 bytes each, 16 MiB at most; above it the cells grow (the
 /// grid only finds candidates, so the floor reads the same).
 const MAX_GRID_MEMBERS: usize = 1 << 22;
-/// Widest mark (m).
-const MAX_MARK_WIDTH: f64 = 10.0;
-/// A floor coordinate or angle: finite and within [`limits::LENGTH`].
-const COORDINATE: Domain = Domain::range(-limits::LENGTH, limits::LENGTH);
-/// A mark's width (m).
-const WIDTH: Domain = Domain::POSITIVE.at_most(MAX_MARK_WIDTH);
-
-/// The fields of a `floor.lines` entry.
-const LINE_FIELDS: &[Field] = &[
-    Field::new("a", "[f32; 2]", COORDINATE),
-    Field::new("b", "[f32; 2]", COORDINATE),
-    Field::new("width", "f32", WIDTH),
-    Field::new("grey", "f32", Domain::UNIT),
-];
-/// The fields of a `floor.arcs` entry.
-const ARC_FIELDS: &[Field] = &[
-    Field::new("center", "[f32; 2]", COORDINATE),
-    Field::new("radius", "f32", Domain::POSITIVE.at_most(limits::LENGTH)),
-    Field::new("start", "f32", COORDINATE),
-    Field::new("end", "f32", COORDINATE),
-    Field::new("width", "f32", WIDTH),
-    Field::new("grey", "f32", Domain::UNIT),
-];
-/// The fields of a `floor.tracks` entry.
-const TRACK_FIELDS: &[Field] = &[
-    Field::new(
-        "points",
-        "Vec<[f32; 2]>",
-        COORDINATE.between_entries(2, MAX_MARK_POINTS),
-    ),
-    Field::new("width", "f32", WIDTH),
-    Field::new("grey", "f32", Domain::UNIT),
-];
-/// Largest sagitta (m) between an arc and the chords that stand for it.
-const ARC_SAGITTA: f32 = 0.001;
 /// Side (m) of the cells of the grid that finds marks near a point.
 const CELL: f32 = 0.05;
 /// Most cells along a side of that grid.
 const MAX_CELLS_PER_SIDE: usize = 1024;
-
-/// A straight mark.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LineMark {
-    /// One end (m).
-    pub a: [f32; 2],
-    /// The other end (m).
-    pub b: [f32; 2],
-    /// Width (m).
-    pub width: f32,
-    /// Grey level, 0 black .. 1 white.
-    #[serde(default)]
-    pub grey: f32,
-}
-
-/// An arc of a circle, counter-clockwise from `start` to `end` (rad).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ArcMark {
-    /// Centre (m).
-    pub center: [f32; 2],
-    /// Radius (m).
-    pub radius: f32,
-    /// Start angle (rad, from +x).
-    pub start: f32,
-    /// End angle (rad); `end − start` of 2π or more draws the whole circle.
-    pub end: f32,
-    /// Width (m).
-    pub width: f32,
-    /// Grey level.
-    #[serde(default)]
-    pub grey: f32,
-}
-
-/// A polyline; a closed one is a track.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TrackMark {
-    /// Its points (m).
-    pub points: Vec<[f32; 2]>,
-    /// Whether the last point joins the first.
-    #[serde(default)]
-    pub closed: bool,
-    /// Width (m).
-    pub width: f32,
-    /// Grey level.
-    #[serde(default)]
-    pub grey: f32,
-}
-
-crate::config_table! {
-    /// `[floor]`: what the ground sensors see.
-    pub struct FloorConfig {
-        /// grey level of the bare floor, 0 black .. 1 white paper
-        background: f32 = 1.0 => Domain::UNIT,
-        /// straight marks {a = [x, y], b = [x, y], width (m), grey (0 black, the default)}
-        lines: Vec<LineMark> = [] => Domain::tables(LINE_FIELDS),
-        /// arcs {center = [x, y], radius, start, end (rad, counter-clockwise), width, grey}
-        arcs: Vec<ArcMark> = [] => Domain::tables(ARC_FIELDS),
-        /// polylines {points = [[x, y], ...], closed (a track), width, grey}
-        tracks: Vec<TrackMark> = [] => Domain::tables(TRACK_FIELDS),
-        /// grey-scale PNG under the marks ("" = none), a path relative to the scenario file
-        image: String = "",
-        /// m per pixel of the image
-        image_scale: f32 = 0.01 => Domain::POSITIVE.at_most(1.0),
-        /// m, world position of the image's lower-left corner
-        image_origin: [f32; 2] = [-1.0, -1.0] => COORDINATE,
-    }
-}
 
 /// One segment of a mark, with half its width and its grey level.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -453,62 +343,19 @@ pub fn polyline(points: &[Vector], closed: bool, width: f32, grey: f32) -> Vec<S
     out
 }
 
-/// Chords (at least 2, at most [`MAX_MARK_POINTS`]) that stand for an arc within
-/// [`ARC_SAGITTA`].
-fn arc_chords(arc: &ArcMark) -> usize {
-    let sweep = (arc.end - arc.start).min(std::f32::consts::TAU);
-    // A chord of angle φ lies r(1 − cos(φ/2)) ≈ rφ²/8 from its arc.
-    let step = (8.0 * ARC_SAGITTA / arc.radius).sqrt().min(0.5);
-    ((sweep / step).ceil() as usize).clamp(2, MAX_MARK_POINTS)
-}
-
-impl FloorConfig {
-    /// Checks what the keys' domains cannot (an arc's direction, the number of segments all
-    /// marks make together) and builds the floor; `dir` is the scenario file's folder (relative
-    /// image paths start there). Errors name `origin` and the key.
-    pub fn build(&self, dir: Option<&Path>, origin: &str) -> Result<Floor> {
-        let bad = |key: &str, message: String| -> Result<Floor> {
-            Err(Error::config(origin, key, message))
-        };
-        if let Some(i) = self.arcs.iter().position(|arc| arc.end <= arc.start) {
-            return bad(
-                "floor.arcs",
-                format!("entry {i}: needs end > start (counter-clockwise)"),
-            );
-        }
-        let counts = [
-            ("floor.lines", self.lines.len()),
-            ("floor.arcs", self.arcs.iter().map(arc_chords).sum()),
-            (
-                "floor.tracks",
-                self.tracks.iter().map(|t| t.points.len()).sum(),
-            ),
-        ];
-        let total: usize = counts.iter().map(|(_, n)| n).sum();
-        if total > MAX_FLOOR_SEGMENTS {
-            let (key, _) = counts
-                .iter()
-                .max_by_key(|(_, n)| *n)
-                .copied()
-                .unwrap_or(counts[0]);
-            let bytes = total * std::mem::size_of::<Segment>();
-            return bad(
-                key,
-                format!(
-                    "the floor's marks make {total} segments ({:.0} MB), more than the limit of \
-                     {MAX_FLOOR_SEGMENTS} ({:.0} MB): fewer or shorter marks, or arcs of a \
-                     smaller radius",
-                    bytes as f64 / 1e6,
-                    (MAX_FLOOR_SEGMENTS * std::mem::size_of::<Segment>()) as f64 / 1e6
-                ),
-            );
-        }
+impl Floor {
+    /// The floor a scenario's `[floor]` describes (its marks as segments, its image decoded);
+    /// `dir` is the scenario file's folder (relative image paths start there). The marks were
+    /// checked with the scenario ([`FloorConfig::check`]); errors (an image that cannot be
+    /// read) name `origin` and the key.
+    pub fn build(cfg: &FloorConfig, dir: Option<&Path>, origin: &str) -> Result<Floor> {
+        cfg.check(origin)?;
         let mut segments = Vec::new();
-        for l in &self.lines {
+        for l in &cfg.lines {
             let (a, b) = (Vector::from(l.a), Vector::from(l.b));
             segments.extend(polyline(&[a, b], false, l.width, l.grey));
         }
-        for arc in &self.arcs {
+        for arc in &cfg.arcs {
             let sweep = (arc.end - arc.start).min(std::f32::consts::TAU);
             let n = arc_chords(arc);
             let c = Vector::from(arc.center);
@@ -520,23 +367,23 @@ impl FloorConfig {
                 .collect();
             segments.extend(polyline(&points, false, arc.width, arc.grey));
         }
-        for t in &self.tracks {
+        for t in &cfg.tracks {
             let points: Vec<Vector> = t.points.iter().map(|p| Vector::from(*p)).collect();
             segments.extend(polyline(&points, t.closed, t.width, t.grey));
         }
-        let image = if self.image.is_empty() {
+        let image = if cfg.image.is_empty() {
             None
         } else {
-            let path = Path::new(&self.image);
+            let path = Path::new(&cfg.image);
             let path = match dir {
                 Some(dir) if path.is_relative() => dir.join(path),
                 _ => path.to_path_buf(),
             };
-            let origin_m = Vector::from(self.image_origin);
-            Some(FloorImage::load(&path, self.image_scale, origin_m, origin)?)
+            let origin_m = Vector::from(cfg.image_origin);
+            Some(FloorImage::load(&path, cfg.image_scale, origin_m, origin)?)
         };
         Ok(Floor {
-            background: self.background,
+            background: cfg.background,
             image,
             marks: FloorMarks::new(segments),
         })
@@ -546,6 +393,14 @@ impl FloorConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_segment_costs_what_the_scenario_check_counts() {
+        assert_eq!(
+            std::mem::size_of::<Segment>(),
+            crate::scenario::floor::SEGMENT_BYTES
+        );
+    }
 
     #[test]
     fn a_line_covers_exactly_its_width_and_later_marks_paint_over() {
@@ -566,7 +421,7 @@ mod tests {
             ],
             ..FloorConfig::default()
         };
-        let floor = cfg.build(None, "t").expect("floor");
+        let floor = Floor::build(&cfg, None, "t").expect("floor");
         let none = FloorMarks::default();
         assert_eq!(floor.grey_at(Vector::new(0.0, 0.0134), &none), 0.0);
         assert_eq!(floor.grey_at(Vector::new(0.0, 0.0136), &none), 1.0);

@@ -13,7 +13,7 @@
 use rand::Rng;
 use rapier2d::math::Vector;
 
-use super::floor::Segment;
+use super::floor::{Floor, Segment, SharedFloor};
 use super::scene::{Scene, SceneShape};
 use crate::error::{Error, Result};
 use crate::scenario::{ObstacleKind, Placement, Scenario};
@@ -201,15 +201,19 @@ pub struct Spawner {
     spawn: Spawn,
     /// The arena with the fixed obstacles.
     pub base: Scene,
+    /// The scenario's floor (marks as segments, image decoded), shared by every world.
+    pub floor: SharedFloor,
     grid: Option<Grid>,
     radius: f32,
     half: (f32, f32),
 }
 
 impl Spawner {
-    /// A spawner for `cfg`, checking that its fixed parts are feasible and that its random
-    /// obstacles fit; errors name `origin` and the key.
+    /// A spawner for `cfg`, with its floor built (the image read first), checking that its
+    /// fixed parts are feasible and that its random obstacles fit; errors name `origin` and the
+    /// key.
     pub fn new(cfg: &Scenario, spawn: Spawn, origin: &str) -> Result<Self> {
+        let floor = SharedFloor::new(Floor::build(&cfg.floor, cfg.floor_dir.as_deref(), origin)?);
         let mut base = Scene::of_arena(&cfg.arena);
         for (i, spec) in cfg.obstacles.fixed.iter().enumerate() {
             let shape = SceneShape::of_obstacle(spec);
@@ -240,6 +244,7 @@ impl Spawner {
         let spawner = Self {
             spawn,
             base,
+            floor,
             grid,
             radius,
             half,

@@ -196,8 +196,8 @@ fn contact_prediction(cfg: &Scenario) -> f32 {
 }
 
 impl World {
-    /// A world of `n_robots` robots in `scene`, configured by `cfg`.
-    pub fn new(cfg: &Scenario, scene: Scene, n_robots: usize) -> Self {
+    /// A world of `n_robots` robots in `scene` on `floor`, configured by `cfg`.
+    pub fn new(cfg: &Scenario, scene: Scene, floor: SharedFloor, n_robots: usize) -> Self {
         let drive = Drive::from_config(&cfg.robot, &cfg.motors);
         let physics = Physics::new(
             &scene,
@@ -217,7 +217,7 @@ impl World {
             drive,
             sensors: Suite::new(&cfg.sensors),
             scene,
-            floor: cfg.floor_model.clone(),
+            floor,
             floor_marks: FloorMarks::default(),
             robots: vec![Robot::default(); n_robots],
             rng: ChaCha8Rng::seed_from_u64(0),

@@ -72,9 +72,14 @@ pub fn drive(env: &mut Env, action: &[f32], steps: usize, mut each: impl FnMut(&
     }
 }
 
-/// The key and message of the config error `task`'s scenario with `overrides` must raise.
+/// The key and message of the config error `task`'s scenario with `overrides` must raise, when
+/// it is loaded or when a batch builds what its worlds share (the spawner, the floor), as
+/// making an env does.
 pub fn config_error(task: &str, overrides: &str) -> (String, String) {
-    match load_scenario(task, &source(overrides)) {
+    let kind = TaskKind::parse(task).expect("a registered task");
+    let built = load_scenario(task, &source(overrides))
+        .and_then(|cfg| Env::spawner(kind, &cfg).map(|_| cfg));
+    match built {
         Err(Error::Config { key, message, .. }) => (key, message),
         other => panic!("{overrides}: expected a config error, got {other:?}"),
     }
