@@ -136,6 +136,11 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **overrides: Any,
     ) -> None:
+        if not isinstance(task, str):
+            raise ConfigError(
+                f"task names the task here (a name of the core's registry), got {task!r}; give "
+                "[task] keys by their names (goal_radius=0.1), or use gym.make_vec with the id"
+            )
         check_render_mode(render_mode, self.metadata["render_modes"])
         #: How a world that ended is reset (see the class docstring).
         self.autoreset_mode = resolve_autoreset_mode(autoreset_mode)
@@ -314,10 +319,14 @@ class _TaskVectorEnv(KheperaVectorEnv):
 
     def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
         if "task" in kwargs:
-            raise ConfigError(
-                f"{type(self).__name__} runs the task {self.TASK!r}; "
-                "use KheperaVectorEnv(task=...) for another"
-            )
+            section = kwargs.pop("task")
+            if not isinstance(section, Mapping):
+                raise ConfigError(
+                    f"{type(self).__name__} runs the task {self.TASK!r}; "
+                    "use KheperaVectorEnv(task=...) for another (a table is the [task] section)"
+                )
+            # The scenario's [task] section, as everywhere else: its keys, dotted.
+            kwargs.update({f"task.{key}": value for key, value in section.items()})
         super().__init__(num_envs, task=self.TASK, **kwargs)
 
 

@@ -26,11 +26,11 @@ crate::config_table! {
     /// `[low, high]` ranges, drawn at every reset (domain randomisation).
     pub struct RobotConfig {
         /// body radius (m): 140.8 mm diameter (K-Team manual fig. 8.1)
-        radius: f32 = 0.0704 => Domain::POSITIVE.at_most(limits::LENGTH),
+        radius: f32 = 0.0704 => Domain::range(limits::BODY_PART, limits::LENGTH),
         /// m: 42 mm wheels (K-Team manual §4.14)
-        wheel_radius: f32 = 0.021 => Domain::POSITIVE.at_most(limits::LENGTH),
+        wheel_radius: f32 = 0.021 => Domain::range(limits::BODY_PART, limits::LENGTH),
         /// wheel separation (m), KH4_WHEELS_DISTANCE; may be a [low, high] range
-        axle_length: Param = 0.1054 => Domain::POSITIVE.at_most(limits::LENGTH),
+        axle_length: Param = 0.1054 => Domain::range(limits::BODY_PART, limits::LENGTH),
         /// m/s, closed-loop limit (about 1200 speed units, manual §4.14.1); may be a range
         max_wheel_speed: Param = 0.813 => Domain::POSITIVE.at_most(limits::SPEED),
         /// m/s; smaller commands give 0 (the real PID's floor, manual §4.14.1)

@@ -106,6 +106,10 @@ OUT_OF_DOMAIN = [
     (DRONE_ID, {"speed_max": 1e10}, "drone.speed_max"),
     (FORMATION_ID, {"error_weight": 3.4e38}, "formation.error_weight"),
     (TRACK_ID, {"heading_weight": 3.4e38}, "track.heading_weight"),
+    # A positive axle so thin that wheel speeds became infinite turn rates (NaN poses), found by
+    # the 10^5-case run: body dimensions are at least a millimetre.
+    (FORMATION_ID, {"axle_length": 1e-30}, "robot.axle_length"),
+    (NAV_ID, {"robot": {"axle_length": [1e-45, 0.1]}}, "robot.axle_length"),
     # Fixed-length arrays with extra entries, once silently truncated.
     (NAV_ID, {"us_enabled": [True] * 6}, "sensors.us_enabled"),
     (NAV_ID, {"led_color": [0.0, 0.5, 0.5, 0.5]}, "robot.led_color"),
@@ -214,6 +218,42 @@ def test_pettingzoo_table_keywords_take_a_table(module: Any, keywords: dict[str,
 def test_vector_env_arguments_are_config_errors(arguments: dict[str, Any]) -> None:
     with pytest.raises(ConfigError):
         gym.make_vec(NAV_ID, **arguments)
+
+
+def _task_table_entry_points() -> dict[str, Any]:
+    """Every public constructor that takes scenario keywords, as (kwargs) -> env."""
+    entries: dict[str, Any] = {
+        "gym.make": lambda **kw: gym.make(NAV_ID, **kw),
+        "gym.make_vec": lambda **kw: gym.make_vec(NAV_ID, num_envs=2, **kw),
+        "array_env": lambda **kw: multinav_v1.array_env(2, **kw),
+        "parallel_env": lambda **kw: multinav_v1.parallel_env(**kw),
+    }
+    try:
+        from khepera_gym.sb3 import make_vec_env
+
+        entries["sb3"] = lambda **kw: make_vec_env(NAV_ID, 2, **kw)
+    except ImportError:
+        pass
+    try:
+        from khepera_gym.torchrl import KheperaTorchEnv
+
+        entries["torchrl"] = lambda **kw: KheperaTorchEnv("nav", 2, **kw)
+    except ImportError:
+        pass
+    return entries
+
+
+@pytest.mark.parametrize("entry", list(_task_table_entry_points()))
+def test_the_task_section_as_a_table_reaches_the_scenario_everywhere(entry: str) -> None:
+    # The campaign found `task={...}` (the [task] section, as the README documents tables)
+    # raising TypeError where the constructor's first parameter is also called task.
+    make = _task_table_entry_points()[entry]
+    env = make(task={"goal_radius": 0.1})
+    batch = env._batch if hasattr(env, "_batch") else env.unwrapped._batch
+    assert "goal_radius = 0.1\n" in batch.config_toml()
+    env.close()
+    with pytest.raises(ConfigError, match=r"task\.led_action"):
+        make(task={"led_action": [[1, 2], [3]]})
 
 
 @pytest.mark.parametrize("index", [-1, 2, 1.5, "1", np.float64(1.0), True])

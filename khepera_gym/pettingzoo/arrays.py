@@ -64,6 +64,7 @@ class MultiAgentArrayEnv(BatchFace):
     def __init__(
         self,
         task: str,
+        /,
         num_envs: int = 1,
         *,
         version: int | None = None,
@@ -184,6 +185,14 @@ class MultiAgentArrayEnv(BatchFace):
         """World 0's frame (height, width, 3) uint8 with ``render_mode="rgb_array"``, else
         None."""
         return self._renderer.render()
+
+    def close(self) -> None:
+        """Closes the renderer, if any (the Rust worlds are freed with the env), as every env
+        kind of the package can be closed; safe to call twice, and on an env whose
+        construction failed."""
+        renderer = getattr(self, "_renderer", None)
+        if renderer is not None:
+            renderer.close()
 
 
 __all__ = ["ACTION_DIM", "MultiAgentArrayEnv"]

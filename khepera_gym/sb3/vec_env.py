@@ -86,6 +86,7 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
     def __init__(
         self,
         task: str,
+        /,
         num_worlds: int,
         *,
         seed: int | None = None,

@@ -105,6 +105,7 @@ class KheperaTorchEnv(BatchFace, EnvBase):
     def __init__(
         self,
         task: str,
+        /,
         num_worlds: int,
         *,
         config: ConfigArg = None,

@@ -10,6 +10,10 @@
 /// Largest length or coordinate (m): an arena's side, a curve's size, a sensor's range.
 /// Positions are float32 metres, which keep millimetre precision well beyond this.
 pub const LENGTH: f64 = 1000.0;
+/// Smallest dimension of a robot's body (m): its radius, wheel radius and axle length. A
+/// millimetre, 70 times below the Khepera IV's; a thinner axle divides wheel speeds into turn
+/// rates that overflow float32 physics (an axle of 1e-30 m gave NaN poses).
+pub const BODY_PART: f64 = 1.0e-3;
 /// Largest speed (m/s): over 100 times the Khepera IV's 0.813 m/s.
 pub const SPEED: f64 = 100.0;
 /// Largest acceleration (m/s^2), other than `inf` where a key takes it for "none".
