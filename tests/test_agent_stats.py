@@ -305,3 +305,16 @@ def test_vector_env_step_before_reset_raises_and_steps_nothing(env_id: str, mode
     envs.reset(seed=0)
     envs.step(np.zeros(envs.action_space.shape, np.float32))
     envs.close()
+
+
+@pytest.mark.parametrize("name", list(PETTINGZOO_MODULES))
+def test_parallel_env_step_before_reset_raises_and_steps_nothing(name: str) -> None:
+    env = PETTINGZOO_MODULES[name].parallel_env()
+    state = env.unwrapped.get_state()
+    actions = {agent: np.zeros(2, np.float32) for agent in env.possible_agents}
+    with pytest.raises(KheperaError, match="before reset"):
+        env.step(actions)
+    assert env.unwrapped.get_state() == state
+    env.reset(seed=0)
+    env.step({agent: env.action_space(agent).sample() * 0 for agent in env.agents})
+    env.close()

@@ -230,6 +230,8 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
                 live, or holds a non-numeric, wrongly shaped or NaN/inf action.
             KheperaError: ``step`` with no live agents (call ``reset()``).
         """
+        if not self._has_reset:
+            raise KheperaError("step() before reset(): the world was never started; call reset()")
         if not self.agents:
             raise KheperaError("step() with no live agents: the episode has ended, call reset()")
         self._fill_joint_actions(actions)
