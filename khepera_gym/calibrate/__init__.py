@@ -19,7 +19,9 @@ compares a log with the simulator driven by the same commands. One job a module:
 * :mod:`~khepera_gym.calibrate.synthetic`: logs made by the simulator with known parameters (the
   tests' robot);
 * :mod:`~khepera_gym.calibrate.fit`: the fit (scipy.optimize.least_squares), with
-  uncertainties;
+  uncertainties: its two stages in :mod:`~khepera_gym.calibrate.geometry` (geometry and
+  sensors) and :mod:`~khepera_gym.calibrate.drive_fit` (the drive), on the shared machinery of
+  :mod:`~khepera_gym.calibrate.solver`;
 * :mod:`~khepera_gym.calibrate.scenario`: the calibrated scenario as TOML;
 * :mod:`~khepera_gym.calibrate.report`: the plots and numbers;
 * :mod:`~khepera_gym.calibrate.command`: the command lines.
