@@ -204,7 +204,7 @@ fn every_key_that_holds_numbers_declares_its_domain_and_the_default_file_shows_i
             .find(|l| l.starts_with("radius ="))
             .expect("robot.radius");
         assert!(
-            radius.ends_with("; allowed: finite, > 0, <= 1000"),
+            radius.ends_with("; allowed: finite, >= 0.001, <= 1000"),
             "{radius}"
         );
     }
