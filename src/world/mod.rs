@@ -32,6 +32,7 @@ pub mod layout;
 mod motion;
 pub mod physics;
 pub mod rays;
+mod reach;
 pub mod scene;
 mod split;
 mod swarm;
