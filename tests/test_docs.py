@@ -410,6 +410,21 @@ def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others(
     assert target_name({**run, "hyperparams": {}}) == "train_E-v2_ppo_seed0_2026-11-28.json"
     stacked = {**run, "hyperparams": {"frame_stack": 8}}
     assert target_name(stacked) == "train_E-v2_ppo_seed0_stack8_2026-11-28.json"
+    # A variant of a shipped table is named, and shown, by what it changed.
+    from khepera_gym._docgen.results import train_fragment
+
+    shipped = {"frame_stack": 8, "learning_rate": 0.0005, "gamma": 0.99}
+    variant = {**run, "env_id": "KheperaIV-Avoid-v2", "hyperparams": {**shipped, "gamma": 0.995}}
+    assert (
+        target_name(variant)
+        == "train_KheperaIV-Avoid-v2_ppo_seed0_stack8_gamma0.995_2026-11-28.json"
+    )
+    assert target_name({**variant, "hyperparams": shipped}).endswith(
+        "_seed0_stack8_2026-11-28.json"
+    )
+    final = {"success_rate": 0.9, "episodes": 100}
+    figures = {"final": final, "timesteps": 300_000, "wall_time": 100.0, "steps_per_second": 3e3}
+    assert "| gamma 0.995 |" in train_fragment([(Path("r.json"), {**variant, **figures})])
 
 
 # --- README -------------------------------------------------------------------------------------

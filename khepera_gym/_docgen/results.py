@@ -21,6 +21,8 @@ from khepera_gym._docgen.markdown import code, escape_cell, table
 from khepera_gym.compare.report import table_notes, table_rows
 from khepera_gym.compare.run import Comparison
 from khepera_gym.compare.stats import Estimate
+from khepera_gym.errors import ConfigError
+from khepera_gym.hyperparams import load_hyperparams
 
 #: Episodes per policy of a full comparison (the project's published tables).
 FULL_EPISODES = 200
@@ -154,6 +156,22 @@ def consensus_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     return "\n\n".join(parts)
 
 
+def table_changes(document: dict[str, Any]) -> dict[str, Any]:
+    """The hyperparameters of a training run that differ from today's shipped table of its env
+    and algorithm (``frame_stack`` and the step count aside, shown on their own); empty when
+    there is no such table."""
+    try:
+        shipped = load_hyperparams(document["algo"], document["env_id"])
+    except (ConfigError, KeyError):
+        return {}
+    used = document.get("hyperparams") or {}
+    return {
+        key: value
+        for key, value in sorted(used.items())
+        if key not in ("frame_stack", "n_timesteps") and key in shipped and shipped[key] != value
+    }
+
+
 def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     """The training runs: env, algorithm, steps, observations stacked (``frame_stack``), seed,
     final success, wall time, steps/s."""
@@ -172,6 +190,9 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
                 document.get("backend", "sb3") + " " + document["algo"].upper(),
                 f"{document['timesteps']:,}",
                 str((document.get("hyperparams") or {}).get("frame_stack", 1)),
+                escape_cell(
+                    ", ".join(f"{k} {v}" for k, v in table_changes(document).items()) or "–"
+                ),
                 str(document["seed"]),
                 f"{100 * final['success_rate']:.0f} of {final['episodes']}",
                 f"{document['wall_time']:.0f} s",
@@ -179,7 +200,8 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
                 provenance_line(document.get("meta")),
             ]
         )
-    header = ["env", "algorithm", "steps", "frames", "seed", "success %", "wall time", "steps/s"]
+    header = ["env", "algorithm", "steps", "frames", "changed from the shipped table", "seed"]
+    header += ["success %", "wall time", "steps/s"]
     header.append("run")
     return table(header, rows)
 
@@ -315,6 +337,10 @@ def target_name(document: dict[str, Any]) -> str:
         "train": lambda: (
             f"{document['env_id']}_{document['algo']}_seed{document['seed']}"
             + (f"_stack{stack}" if stack != 1 else "")
+            + "".join(
+                "_" + "".join(c if c.isalnum() or c in ".-" else "_" for c in f"{k}{v}")
+                for k, v in table_changes(document).items()
+            )
         ),
         "consensus": lambda: "sweep",
         "learning": lambda: (
