@@ -238,8 +238,10 @@ def main() -> None:
     learned = formation_errors(experiment.policy, args.episodes, task_config)
     report(f"{name} after training", learned)
     if args.json:
-        rows = [result_row(f"{name} (BenchMARL)", learned), result_row("LeaderFollower", baseline)]
-        method = f"{name} (BenchMARL)"
+        # A run with a held σ is another method: its file does not replace the plain run's.
+        sigma = "" if args.fixed_sigma is None else f", sigma fixed at {args.fixed_sigma:g}"
+        method = f"{name} (BenchMARL{sigma})"
+        rows = [result_row(method, learned), result_row("LeaderFollower", baseline)]
         frames = experiment.total_frames
         write_formation_learning(args.json, method, frames, elapsed, args.episodes, EVAL_SEED, rows)
         print(f"saved {args.json}")
