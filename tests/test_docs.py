@@ -427,6 +427,21 @@ def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others(
     assert "| gamma 0.995 |" in train_fragment([(Path("r.json"), {**variant, **figures})])
 
 
+def test_a_hostile_campaign_report_renders_with_its_counts_and_failures() -> None:
+    from khepera_gym._docgen.results import hostile_fragment, kind, target_name
+
+    meta = {"date": "2026-11-28T00:00:00+00:00", "command": "python tests/hostile_campaign.py"}
+    by_kind = {"make": {"built": 3, "refused: ConfigError": 5}, "state": {"restored": 2}}
+    failure = {"replay": "3:17", "kind": "make", "outcome": "FAIL: TypeError", "detail": ""}
+    document = {"meta": meta, "cases": 10, "seed": 3, "seconds": 1.0, "accepted": 5}
+    document |= {"refused": 5, "failures": 1, "by_kind": by_kind, "failure_list": [failure]}
+    assert kind(document) == "hostile"
+    assert target_name(document) == "hostile_10cases_seed3_2026-11-28.json"
+    text = hostile_fragment([(Path("h.json"), document)])
+    assert "**10 cases, 1 failures**" in text and "`3:17` make: FAIL: TypeError" in text
+    assert "| `make` | built 3, refused: ConfigError 5 | 8 |" in text
+
+
 # --- README -------------------------------------------------------------------------------------
 
 

@@ -40,7 +40,8 @@ def load(results_dir: Path) -> list[tuple[Path, dict[str, Any]]]:
 
 def kind(document: Any) -> str:
     """``"compare"``, ``"consensus"``, ``"train"``, ``"learning"`` (a learned formation, from
-    ``examples/formation_shared_ppo.py --json``), ``"bench"`` or ``"unknown"``."""
+    ``examples/formation_shared_ppo.py --json``), ``"bench"``, ``"hostile"`` (a hostile-input
+    campaign, ``python tests/hostile_campaign.py --json``) or ``"unknown"``."""
     if not isinstance(document, dict):
         return "unknown"
     if "summaries" in document:
@@ -54,6 +55,8 @@ def kind(document: Any) -> str:
         return "consensus"
     if isinstance(rows, list) and "swarm" in document:
         return "bench"
+    if isinstance(document.get("by_kind"), dict) and "failures" in document:
+        return "hostile"
     return "unknown"
 
 
@@ -295,6 +298,48 @@ def _missing(command: str, what: str = "the JSON file it writes") -> str:
 
 
 #: The fragments and what renders each.
+def hostile_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
+    """The hostile-input campaigns: cases by kind and outcome, failures, per results file."""
+    documents = [d for _, d in files if kind(d) == "hostile"]
+    if not documents:
+        return _missing(
+            "python tests/hostile_campaign.py --cases 100000 --json hostile.json", "hostile.json"
+        )
+    parts = []
+    for document in sorted(documents, key=lambda d: (d.get("meta") or {}).get("date", "")):
+        rows = [
+            [
+                code(case_kind),
+                ", ".join(f"{outcome} {n:,}" for outcome, n in sorted(outcomes.items())),
+                f"{sum(outcomes.values()):,}",
+            ]
+            for case_kind, outcomes in sorted(document["by_kind"].items())
+        ]
+        summary = (
+            f"**{document['cases']:,} cases, {document['failures']} failures**: "
+            f"{document['accepted']:,} accepted, {document['refused']:,} refused with their "
+            f"typed error, in {document['seconds']:,.0f} s."
+        )
+        failures = [
+            f"`{f['replay']}` {escape_cell(f['kind'])}: {escape_cell(f['outcome'])}"
+            for f in document.get("failure_list", [])
+        ]
+        listed = (
+            ("\n\nFailures (replay with `--replay SEED:INDEX`): " + "; ".join(failures))
+            if failures
+            else ""
+        )
+        parts.append(
+            provenance_line(document.get("meta"))
+            + "\n\n"
+            + summary
+            + listed
+            + "\n\n"
+            + table(["kind of case", "outcomes", "cases"], rows)
+        )
+    return "\n\n".join(parts)
+
+
 FRAGMENTS: dict[str, Callable[[list[tuple[Path, dict[str, Any]]]], str]] = {
     "baselines": compare_fragment,
     "consensus": consensus_fragment,
@@ -302,6 +347,7 @@ FRAGMENTS: dict[str, Callable[[list[tuple[Path, dict[str, Any]]]], str]] = {
     "learning": learning_fragment,
     "bench": bench_fragment,
     "swarm": swarm_fragment,
+    "hostile": hostile_fragment,
 }
 
 
@@ -314,7 +360,7 @@ def fragments(results_dir: Path) -> dict[str, str]:
     files = load(results_dir)
     for path, document in files:
         if kind(document) == "unknown":
-            raise ValueError(f"{path}: not a results file of compare, train or bench")
+            raise ValueError(f"{path}: not a results file of compare, train, bench or a campaign")
     return {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
 
 
@@ -348,6 +394,7 @@ def target_name(document: dict[str, Any]) -> str:
             + "".join(c if c.isalnum() else "_" for c in document["formation_learning"]["method"])
         ),
         "bench": lambda: f"v{document['version']}",
+        "hostile": lambda: f"{document['cases']}cases_seed{document['seed']}",
     }[kind(document)]()
     return f"{kind(document)}_{what}_{date}.json"
 
@@ -357,14 +404,14 @@ def import_results(paths: list[Path], results_dir: Path) -> list[Path]:
     comparison's per-episode rows (the tables need only the summaries).
 
     Raises:
-        ValueError: A file that is not a results file of compare, train or bench.
+        ValueError: A file that is not a results file of compare, train, bench or a campaign.
     """
     written = []
     results_dir.mkdir(parents=True, exist_ok=True)
     for path in paths:
         document = json.loads(path.read_text(encoding="utf-8"))
         if kind(document) == "unknown":
-            raise ValueError(f"{path}: not a results file of compare, train or bench")
+            raise ValueError(f"{path}: not a results file of compare, train, bench or a campaign")
         document.pop("episodes", None)
         target = results_dir / target_name(document)
         target.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")

@@ -11,14 +11,12 @@ an observation outside its space), printing each failure's replay command.
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
-import os
-import platform
-import subprocess
 import sys
 
-from .campaign import DEFAULT_MEMORY, DEFAULT_TIMEOUT, ROOT, campaign, replay, worker
+from khepera_gym.provenance import provenance
+
+from .campaign import DEFAULT_MEMORY, DEFAULT_TIMEOUT, campaign, replay, worker
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,14 +42,10 @@ def main(argv: list[str] | None = None) -> int:
         args.cases, args.seed, args.workers, args.memory, args.timeout, progress=sys.stderr
     )
     summary = report.summary()
-    summary["meta"] = {
-        "date": datetime.date.today().isoformat(),
-        "commit": _commit(),
-        "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.system()}",
-        "command": "python tests/hostile_campaign.py " + " ".join(argv or sys.argv[1:]),
-        "memory_limit_bytes": args.memory,
-        "timeout_s": args.timeout,
-    }
+    # The provenance every results file has (the docs' results importer reads it).
+    command = "python tests/hostile_campaign.py " + " ".join(argv or sys.argv[1:])
+    summary["meta"] = provenance(command)
+    summary["limits"] = {"memory_limit_bytes": args.memory, "timeout_s": args.timeout}
     print(
         f"{summary['cases']} cases in {summary['seconds']} s: {summary['accepted']} accepted, "
         f"{summary['refused']} refused with a typed error, {summary['failures']} failures"
@@ -66,19 +60,6 @@ def main(argv: list[str] | None = None) -> int:
             json.dump(summary, out, indent=1, default=repr)
             out.write("\n")
     return 1 if report.failures else 0
-
-
-def _commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 if __name__ == "__main__":
