@@ -14,7 +14,7 @@ import argparse
 import json
 import sys
 
-from khepera_gym.provenance import provenance
+from khepera_gym.provenance import command_line, provenance
 
 from .campaign import DEFAULT_MEMORY, DEFAULT_TIMEOUT, campaign, replay, worker
 
@@ -43,8 +43,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     summary = report.summary()
     # The provenance every results file has (the docs' results importer reads it).
-    command = "python tests/hostile_campaign.py " + " ".join(argv or sys.argv[1:])
-    summary["meta"] = provenance(command)
+    arguments = sys.argv[1:] if argv is None else argv
+    summary["meta"] = provenance(command_line(["tests/hostile_campaign.py", *arguments]))
     summary["limits"] = {"memory_limit_bytes": args.memory, "timeout_s": args.timeout}
     print(
         f"{summary['cases']} cases in {summary['seconds']} s: {summary['accepted']} accepted, "
