@@ -44,7 +44,9 @@ first worlds overlaid, one panel per policy, and each policy's error over time
   :class:`~khepera_gym.baselines.BlobVFH` on the camera (Seek task);
 * ``random``: uniform actions in [-1, 1] from a generator seeded with the comparison's seed;
 * ``sb3:path/to/model.zip``: a stable-baselines3 model, loaded with ``--algo``'s class or by
-  trying PPO, SAC, TD3, A2C and DQN in turn, acting deterministically (needs the ``sb3`` extra).
+  trying PPO, SAC, TD3, A2C and DQN in turn, acting deterministically (needs the ``sb3`` extra);
+  with ``--sample-actions`` it samples its actions from its distribution, torch seeded with
+  ``--seed``, and is named ``sb3:path/to/model.zip (sampled)``.
 
 Command line (``khepera-gym compare --help``)::
 

@@ -57,6 +57,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(default: those that fit the task)",
     )
     parser.add_argument("--algo", help="stable-baselines3 algorithm of sb3: models (PPO, SAC, ...)")
+    parser.add_argument(
+        "--sample-actions",
+        action="store_true",
+        help="sb3: models sample their actions (seeded with --seed) instead of taking the mode",
+    )
     parser.add_argument("--episodes", type=int, default=100, help="episodes per policy (100)")
     parser.add_argument("--seed", type=int, default=0, help="world i is reset with seed + i (0)")
     parser.add_argument(
@@ -114,6 +119,7 @@ def run_from_args(args: argparse.Namespace) -> int:
             record_worlds=worlds if args.plot else 0,
             progress=args.progress,
             algo=args.algo,
+            sample_actions=args.sample_actions,
             overrides=overrides,
             before_running=lambda: cli_checks.output_folder(args.out, "--out"),
         )

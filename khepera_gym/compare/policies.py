@@ -73,7 +73,8 @@ class RandomPolicy:
 
 
 class SB3Policy:
-    """A stable-baselines3 model as a policy: ``model.predict(obs, deterministic=True)``.
+    """A stable-baselines3 model as a policy: ``model.predict(obs, deterministic=True)``, or,
+    with ``sample_seed``, actions sampled from the model's distribution (``deterministic=False``).
 
     A model whose observation is one follower's block (parameter sharing, e.g. trained on
     ``khepera_gym.sb3.make_formation_vec_env``) acts on a joint Formation observation of K
@@ -84,35 +85,47 @@ class SB3Policy:
             result, which normalises observations when the model was trained under
             ``VecNormalize``).
         path: The model file, for messages.
+        sample_seed: None for the model's deterministic actions (its distribution's mode);
+            a seed to sample them. torch's generator is seeded with it at every ``reset()``,
+            so the same episodes give the same actions.
     """
 
-    def __init__(self, model: Any, path: str) -> None:
+    def __init__(self, model: Any, path: str, sample_seed: int | None = None) -> None:
         self.model = model
         self.path = path
+        self.sample_seed = sample_seed
         space = getattr(model, "observation_space", None)
         shape = getattr(space, "shape", None)
         #: Observation length the model takes (None if it does not say).
         self.obs_dim: int | None = int(shape[0]) if shape and len(shape) == 1 else None
 
     def reset(self) -> None:
-        """Starts new episodes in every world: empties a frame-stacked model's stacks."""
+        """Starts new episodes in every world: empties a frame-stacked model's stacks and
+        reseeds the sampling."""
         reset = getattr(self.model, "reset", None)
         if callable(reset):
             reset()
+        if self.sample_seed is not None:
+            import torch  # stable-baselines3 samples with torch's global generator
+
+            torch.manual_seed(self.sample_seed)
 
     def __call__(self, observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
-        """The model's deterministic actions for observations (N, D) (or one (D,))."""
+        """The model's actions for observations (N, D) (or one (D,))."""
         array = np.asarray(observation, dtype=np.float32)
         dim = getattr(self.model, "obs_dim", self.obs_dim)
+        deterministic = self.sample_seed is None
         if dim is not None and array.shape[-1] != dim and array.shape[-1] % dim == 0:
             blocks = array.reshape(-1, dim)  # world-major, then follower
-            action, _ = self.model.predict(blocks, deterministic=True)
+            action, _ = self.model.predict(blocks, deterministic=deterministic)
             return np.asarray(action, dtype=np.float32).reshape(*array.shape[:-1], -1)
-        action, _ = self.model.predict(array, deterministic=True)
+        action, _ = self.model.predict(array, deterministic=deterministic)
         return np.asarray(action, dtype=np.float32)
 
 
-def load_sb3_policy(path: str | Path, algo: str | None = None) -> SB3Policy:
+def load_sb3_policy(
+    path: str | Path, algo: str | None = None, sample_seed: int | None = None
+) -> SB3Policy:
     """Loads a stable-baselines3 model file as a policy (on the CPU).
 
     Without ``algo`` the model is loaded by ``khepera_gym.sb3.load_policy`` (which reads the
@@ -123,9 +136,11 @@ def load_sb3_policy(path: str | Path, algo: str | None = None) -> SB3Policy:
     Args:
         path: The ``.zip`` saved by ``model.save`` or ``khepera-gym train``.
         algo: The algorithm class ("PPO", "SAC", ...), or None.
+        sample_seed: None for deterministic actions, or the seed of sampled ones
+            (:class:`SB3Policy`).
 
     Returns:
-        The policy (deterministic actions).
+        The policy.
 
     Raises:
         ImportError: stable-baselines3 is not installed (``pip install khepera-gym[sb3]``).
@@ -149,7 +164,7 @@ def load_sb3_policy(path: str | Path, algo: str | None = None) -> SB3Policy:
             failures.append(f"khepera_gym.sb3: {error}")
         else:
             try:
-                return SB3Policy(load_policy(path), str(path))
+                return SB3Policy(load_policy(path), str(path), sample_seed)
             except KheperaError as error:
                 failures.append(str(error))
     names = SB3_ALGORITHMS if algo is None else (algo.upper(),)
@@ -164,12 +179,16 @@ def load_sb3_policy(path: str | Path, algo: str | None = None) -> SB3Policy:
         except Exception as error:  # any failure means "not this algorithm"
             failures.append(f"{name}: {type(error).__name__}: {error}")
             continue
-        return SB3Policy(model, str(path))
+        return SB3Policy(model, str(path), sample_seed)
     raise ValueError(f"cannot load {path} as a stable-baselines3 model: " + "; ".join(failures))
 
 
 def make_policy(
-    name: str, env: gym.vector.VectorEnv, seed: int = 0, algo: str | None = None
+    name: str,
+    env: gym.vector.VectorEnv,
+    seed: int = 0,
+    algo: str | None = None,
+    sample_actions: bool = False,
 ) -> Policy:
     """The policy of a name for an environment (see the module docstring for the names).
 
@@ -180,6 +199,8 @@ def make_policy(
             from its action space.
         seed: Seed of the ``random`` policy.
         algo: stable-baselines3 algorithm of an ``sb3:`` model (None: try them in turn).
+        sample_actions: An ``sb3:`` model samples its actions (seeded with ``seed``) instead
+            of taking its distribution's mode. Baselines are deterministic either way.
 
     Returns:
         A callable mapping a batch of observations (N, D) to actions (N, A).
@@ -191,7 +212,7 @@ def make_policy(
     """
     task = getattr(env.unwrapped, "task", None)
     if name.startswith(SB3_PREFIX):
-        return load_sb3_policy(name[len(SB3_PREFIX) :], algo)
+        return load_sb3_policy(name[len(SB3_PREFIX) :], algo, seed if sample_actions else None)
     if name not in POLICY_NAMES:
         raise ConfigError(
             f"unknown policy {name!r}; known: {', '.join(POLICY_NAMES)} or sb3:path/to/model.zip"

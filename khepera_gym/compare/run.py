@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from khepera_gym import registration
 from khepera_gym.compare.metrics import TaskMetrics, summarize_errors, task_metrics
-from khepera_gym.compare.policies import Policy, make_policy
+from khepera_gym.compare.policies import SB3_PREFIX, Policy, make_policy
 from khepera_gym.compare.stats import Estimate, bootstrap_interval, wilson_interval
 from khepera_gym.errors import ConfigError
 from khepera_gym.plot import Rollout, control_step
@@ -409,6 +409,11 @@ def _label(env_id: str, config: str | None, overrides: dict[str, Any] | None = N
     return label
 
 
+def _shown_name(name: str, sample_actions: bool) -> str:
+    """A policy's name in the results: an ``sb3:`` model that samples its actions says so."""
+    return f"{name} (sampled)" if sample_actions and name.startswith(SB3_PREFIX) else name
+
+
 def compare(
     env_id: str,
     policies: Sequence[str],
@@ -421,6 +426,7 @@ def compare(
     algo: str | None = None,
     overrides: dict[str, Any] | None = None,
     before_running: Callable[[], Any] | None = None,
+    sample_actions: bool = False,
 ) -> Comparison:
     """Runs every policy on the same N seeded episodes and summarises them.
 
@@ -438,6 +444,9 @@ def compare(
             ``{"wheel_accel_limit": 0.678}``).
         before_running: Called once everything is checked (the env made, every policy built)
             and before the first step: the command line's output folder is made there.
+        sample_actions: ``sb3:`` models sample their actions from their distribution (torch
+            seeded with ``seed``) instead of acting on its mode; they are then named
+            ``"sb3:path.zip (sampled)"`` in the results.
 
     Returns:
         The :class:`Comparison`.
@@ -463,7 +472,10 @@ def compare(
     metrics = task_metrics(task)
     try:
         # Every policy is built (sb3 models loaded) before anything runs: errors come first.
-        built = {name: make_policy(name, env, seed, algo) for name in policies}
+        built = {
+            _shown_name(name, sample_actions): make_policy(name, env, seed, algo, sample_actions)
+            for name in policies
+        }
         if before_running is not None:
             before_running()
         results, rollouts, traces = {}, {}, {}
@@ -486,7 +498,7 @@ def compare(
         episodes=episodes,
         dt=dt,
         results=results,
-        summaries=[summarize(name, results[name], metrics) for name in policies],
+        summaries=[summarize(name, results[name], metrics) for name in built],
         rollouts=rollouts,
         task=task,
         overrides=overrides,
