@@ -5,6 +5,7 @@
     python examples/benchmarl_mappo.py --algorithm ippo  # each follower's critic on its own block
     python examples/benchmarl_mappo.py --set wheel_accel_limit=inf  # a scenario key (TOML value)
     python examples/benchmarl_mappo.py --fixed-sigma 0.6 --frames 600000  # learns v1 (README)
+    python examples/benchmarl_mappo.py --no-tanh --entropy-coef 0.001  # other noise settings
     python examples/benchmarl_mappo.py --json mappo.json  # also the results page's file
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
@@ -20,7 +21,10 @@ BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every ``--rep
 iterations the script prints the policy's mean action noise (the σ of its Gaussian before the
 tanh) over the batch just collected: on v1 it shows why MAPPO fails there (README), and
 ``--fixed-sigma`` holds σ constant (a scale mapping registered with tensordict's
-``add_custom_mapping``), with which MAPPO learns v1.
+``add_custom_mapping``), with which MAPPO learns v1. ``--no-tanh`` samples actions from a plain
+Gaussian clipped to the bounds (as SB3's PPO does) instead of BenchMARL's tanh-squashed one, and
+``--entropy-coef`` rewards the policy's entropy (BenchMARL's default: 0), which pushes against
+a collapsing σ.
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
@@ -169,12 +173,26 @@ def main() -> None:
         help="hold the policy's action noise (σ before the tanh) at SIGMA instead of learning it",
     )
     parser.add_argument(
+        "--no-tanh",
+        action="store_true",
+        help="a Gaussian clipped to the action bounds instead of BenchMARL's tanh-squashed one",
+    )
+    parser.add_argument(
+        "--entropy-coef",
+        type=float,
+        default=0.0,
+        metavar="C",
+        help="weight of the policy's entropy in the loss (BenchMARL's default: 0)",
+    )
+    parser.add_argument(
         "--report-every", type=int, default=20, help="iterations between noise reports (0: none)"
     )
     parser.add_argument("--json", help="also write the figures to this results file")
     args = parser.parse_args()
     if args.fixed_sigma is not None and not 0.0 < args.fixed_sigma < float("inf"):
         parser.error(f"--fixed-sigma must be a finite number > 0, got {args.fixed_sigma}")
+    if not 0.0 <= args.entropy_coef < float("inf"):
+        parser.error(f"--entropy-coef must be a finite number >= 0, got {args.entropy_coef}")
     task_config = dict(TASK_CONFIG)
     try:
         task_config.update(parse_overrides(args.set))
@@ -204,6 +222,8 @@ def main() -> None:
     config.save_folder = tempfile.mkdtemp(prefix="benchmarl_mappo_")
     algorithm = (MappoConfig if args.algorithm == "mappo" else IppoConfig).get_from_yaml()
     algorithm.lmbda = 0.95
+    algorithm.use_tanh_normal = not args.no_tanh
+    algorithm.entropy_coef = args.entropy_coef
     if args.fixed_sigma is not None:
         # BenchMARL maps the second half of the actor's output to σ through a named mapping: a
         # constant one holds σ where it is (those outputs then get no gradient).
@@ -238,9 +258,16 @@ def main() -> None:
     learned = formation_errors(experiment.policy, args.episodes, task_config)
     report(f"{name} after training", learned)
     if args.json:
-        # A run with a held σ is another method: its file does not replace the plain run's.
-        sigma = "" if args.fixed_sigma is None else f", sigma fixed at {args.fixed_sigma:g}"
-        method = f"{name} (BenchMARL{sigma})"
+        # A run with other noise settings is another method: its file does not replace the
+        # plain run's.
+        settings = []
+        if args.fixed_sigma is not None:
+            settings.append(f"sigma fixed at {args.fixed_sigma:g}")
+        if args.no_tanh:
+            settings.append("Gaussian without tanh")
+        if args.entropy_coef:
+            settings.append(f"entropy coefficient {args.entropy_coef:g}")
+        method = f"{name} (BenchMARL{''.join(', ' + part for part in settings)})"
         rows = [result_row(method, learned), result_row("LeaderFollower", baseline)]
         frames = experiment.total_frames
         write_formation_learning(args.json, method, frames, elapsed, args.episodes, EVAL_SEED, rows)
