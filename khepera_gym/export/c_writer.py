@@ -224,16 +224,42 @@ def _policy_forward(network: PolicyNetwork) -> str:
     ]
     if network.action.is_affine:
         lines.append("        value = ACTION_SCALE[i] * value + ACTION_OFFSET[i];")
-    if network.action.low is not None:
-        lines += [
-            "        if (value < ACTION_LOW[i]) {",
-            "            value = ACTION_LOW[i];",
-            "        } else if (value > ACTION_HIGH[i]) {",
-            "            value = ACTION_HIGH[i];",
-            "        }",
-        ]
     lines += ["        action[i] = value;", "    }"]
     return "\n".join(lines)
+
+
+def _action_clip(network: PolicyNetwork) -> str:
+    """The statements of ``clip_action``: the action to its bounds, when it has some."""
+    if network.action.low is None:
+        return "    (void)action; /* the action transform ends in the bounds: nothing to clip */"
+    return "\n".join(
+        [
+            "    int i;",
+            "    for (i = 0; i < POLICY_ACTION_DIM; ++i) {",
+            "        if (action[i] < ACTION_LOW[i]) {",
+            "            action[i] = ACTION_LOW[i];",
+            "        } else if (action[i] > ACTION_HIGH[i]) {",
+            "            action[i] = ACTION_HIGH[i];",
+            "        }",
+            "    }",
+        ]
+    )
+
+
+def _sampling_fields(network: PolicyNetwork) -> dict[str, str]:
+    """policy.h's declarations and policy.c's code of sampled actions: the whole of
+    ``sampling.c`` when the network knows its Gaussian's σ, else a note."""
+    if network.action_std is None:
+        note = (
+            "#define POLICY_SAMPLES 0 /* this policy's action noise is not exported (only PPO's "
+            "and A2C's σ is): policy_step gives its deterministic action */"
+        )
+        return {"sampling_api": note, "sampling": ""}
+    std = ", ".join(_c_float(v) for v in network.action_std)
+    return {
+        "sampling_api": load_template("sampling.h").template,
+        "sampling": load_template("sampling.c").substitute(action_std=std),
+    }
 
 
 def policy_c_sources(network: PolicyNetwork, provenance: str) -> dict[str, str]:
@@ -250,6 +276,8 @@ def policy_c_sources(network: PolicyNetwork, provenance: str) -> dict[str, str]:
         "max_width": network.max_width,
         "constants": _policy_constants(network),
         "forward": _policy_forward(network),
+        "clip": _action_clip(network),
+        **_sampling_fields(network),
     }
     return {name: load_template(name).substitute(fields) for name in ("policy.h", "policy.c")}
 
@@ -402,10 +430,26 @@ def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
 
 
 def robot_c_sources(
-    robot: RobotInterface, network: PolicyNetwork, motors: MotorSetting
+    robot: RobotInterface,
+    network: PolicyNetwork,
+    motors: MotorSetting,
+    sample_seed: int | None = None,
 ) -> dict[str, str]:
     """The wheel command, the template program and its constants (the motor controller's
-    setting among them), the check program, the Makefile (name → text)."""
+    setting among them; with ``sample_seed``, actions sampled from the policy's Gaussian with
+    that seed, else its mean), the check program, the Makefile (name → text).
+
+    Raises:
+        ConfigError: The policy's width is not one robot's action, ``sample_seed`` is not a
+            64-bit unsigned integer, or the network lacks the σ that sampling needs.
+    """
+    if sample_seed is not None:
+        check_sample_seed(sample_seed)
+        if network.action_std is None:
+            raise ConfigError(
+                f"the {network.source} policy's action noise cannot be exported (only PPO's and "
+                "A2C's state-independent σ can): export it without --sample-actions"
+            )
     takes = 5 if robot.led_action else 2
     if network.action_dim != takes:
         what = "its wheels, then its LEDs' red, green, blue" if robot.led_action else "its wheels"
@@ -447,6 +491,8 @@ def robot_c_sources(
         if robot.observes("us")
         else 0,
         "led_action": int(robot.led_action),
+        "sample_actions": int(sample_seed is not None),
+        "sample_seed": 0 if sample_seed is None else sample_seed,
         "motor_profile": int(motors.mode == "profile"),
         "acc_inc": motors.acc_inc,
         "acc_div": motors.acc_div,
@@ -470,6 +516,12 @@ def robot_c_sources(
     }
 
 
+def check_sample_seed(seed: int) -> None:
+    """Raises ConfigError unless ``seed`` is an int in [0, 2^64) (the C generator's state)."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**64:
+        raise ConfigError(f"the sampling seed must be an integer in [0, 2^64), got {seed!r}")
+
+
 def readme(network: PolicyNetwork, robot: RobotInterface) -> str:
     """The README of an export: its files, the observation layout, building and checking."""
     return load_template("README.md").safe_substitute(
@@ -488,20 +540,21 @@ def write_c(
     motors: MotorSetting,
     out_dir: str | Path,
     provenance: str,
+    sample_seed: int | None = None,
 ) -> list[Path]:
     """Writes the C sources, the Makefile and the README into ``out_dir``; returns their
-    paths.
+    paths. With ``sample_seed`` the program samples its actions (:func:`robot_c_sources`).
 
     Raises:
-        ConfigError: The policy does not give one robot's two wheel actions, or a constant is
-            not finite.
+        ConfigError: The policy does not give one robot's two wheel actions, a constant is
+            not finite, or sampling is asked of a policy without a σ to sample with.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sources = {
         **policy_c_sources(network, provenance),
         **observation_c_sources(robot),
-        **robot_c_sources(robot, network, motors),
+        **robot_c_sources(robot, network, motors, sample_seed),
         "README.md": readme(network, robot),
     }
     paths = []
@@ -517,6 +570,7 @@ __all__ = [
     "ROBOT_HEADERS",
     "ROBOT_SOURCES",
     "c_double",
+    "check_sample_seed",
     "imu_samples",
     "load_template",
     "mm_s_per_unit",

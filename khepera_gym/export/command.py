@@ -16,6 +16,7 @@ import argparse
 from pathlib import Path
 
 from khepera_gym.config import parse_key_values
+from khepera_gym.errors import ConfigError
 from khepera_gym.export.exporter import FORMATS, export_policy
 from khepera_gym.export.motors import DRIVE_CHOICES
 
@@ -62,6 +63,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the motor controller's setting: the trained drive exactly (default; an error when "
         "the robot cannot be set to it), or its nominal firmware setting",
     )
+    parser.add_argument(
+        "--sample-actions",
+        action="store_true",
+        help="the program samples its actions from the policy's Gaussian, as in training, "
+        "instead of acting on its mean (PPO, A2C)",
+    )
+    parser.add_argument(
+        "--sample-seed",
+        type=int,
+        default=None,
+        help="seed of the sampled actions' draws (0; with --sample-actions)",
+    )
 
 
 def run_from_args(args: argparse.Namespace) -> int:
@@ -69,6 +82,9 @@ def run_from_args(args: argparse.Namespace) -> int:
     model = Path(args.model)
     out = args.out if args.out is not None else model.resolve().parent / "export"
     overrides = parse_key_values(args.set, "--set")
+    if args.sample_seed is not None and not args.sample_actions:
+        raise ConfigError("--sample-seed sets the draws of --sample-actions: give both")
+    sample_seed = (args.sample_seed or 0) if args.sample_actions else None
     result = export_policy(
         model,
         out,
@@ -79,6 +95,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         check=not args.no_check,
         compiler=args.cc,
         drive=args.drive,
+        sample_seed=sample_seed,
         **overrides,
     )
     agent = f" (one agent's block, as {result.robot.agent})" if result.robot.agent else ""
@@ -93,6 +110,12 @@ def run_from_args(args: argparse.Namespace) -> int:
             f"memory: the policy acts on its last {result.network.frame_stack} observations; "
             "the program keeps them in a policy_state, emptied at its start"
         )
+    std = result.network.action_std
+    if args.sample_actions and std is not None:
+        sigma = ", ".join(f"{value:.3g}" for value in std)
+        print(f"actions: sampled from the policy's Gaussian (sigma {sigma}), seed {sample_seed}")
+    elif "c" in args.format:
+        print("actions: the policy's mean (its deterministic action)")
     exact = "" if result.motors.exact else " (nominal: not the trained drive exactly)"
     print(f"motors: {result.motors.note}{exact}; the program calls {result.motors.call()}")
     for key, bounds in result.robot.randomised.items():

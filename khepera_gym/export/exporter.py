@@ -99,6 +99,7 @@ def export_policy(
     check: bool = True,
     compiler: str = "cc",
     drive: str = "trained",
+    sample_seed: int | None = None,
     **overrides: Any,
 ) -> ExportResult:
     """Exports a policy with its observation pipeline for the real robot.
@@ -125,6 +126,10 @@ def export_policy(
             ``[motors]`` drove the simulated robot (an error if the robot cannot be set so:
             v0's and v1's ramp, or a randomised profile); "nominal": its nearest firmware
             setting (:func:`~khepera_gym.export.motors.motor_setting`).
+        sample_seed: None: the program acts on the policy's mean (its deterministic action);
+            an int in [0, 2^64): it samples its actions from the policy's Gaussian as in
+            training, its generator seeded with it (PPO and A2C only; the C format; ONNX
+            gives the mean either way).
         **overrides: Scenario keys as in training (``max_steps=200``, ``observe=["ir"]``).
 
     Raises:
@@ -145,6 +150,8 @@ def export_policy(
         normalizer = normalizer if normalizer is not None else loaded_normalizer
     model = as_policy(model)
     network = describe_policy(model, normalizer)
+    if sample_seed is not None and "c" not in formats:
+        raise ConfigError("sampled actions are a feature of the C program: export format 'c'")
     env_id, trained_overrides = _env_of(model_path, model, env_id)
     env_kwargs: dict[str, Any] = {**trained_overrides, **overrides}
     if config is not None:
@@ -171,7 +178,7 @@ def export_policy(
             (out / ONNX_FILE).write_bytes(build_onnx(network, metadata).SerializeToString())
             files.append(out / ONNX_FILE)
         if "c" in formats:
-            files += write_c(network, robot, motors, out, provenance)
+            files += write_c(network, robot, motors, out, provenance, sample_seed)
         checks: dict[str, Any] = {}
         failures: list[str] = []
         if check:
@@ -195,6 +202,11 @@ def export_policy(
             "vecnormalize": network.normalization is not None,
             "randomised_constants_at_midpoint": {k: list(v) for k, v in robot.randomised.items()},
             "motors": motors.as_dict(),
+            "actions": {
+                "sampled": sample_seed is not None,
+                "seed": sample_seed,
+                "std": None if network.action_std is None else network.action_std.tolist(),
+            },
             "formats": list(formats),
             "checks": checks,
         }

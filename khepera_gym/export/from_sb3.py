@@ -1,7 +1,8 @@
 """stable-baselines3 models to the exporter's :class:`~khepera_gym.export.network.PolicyNetwork`.
 
 Supported: PPO and A2C with ``MlpPolicy`` (the deterministic action is the Gaussian mean, clipped to
-the action space, as ``predict(deterministic=True)`` gives it), SAC and TD3 (DDPG is a TD3) with
+the action space, as ``predict(deterministic=True)`` gives it; the Gaussian's σ is kept for
+sampled actions), SAC and TD3 (DDPG is a TD3) with
 ``MlpPolicy`` (the actor, tanh-squashed, rescaled to the action bounds as SB3's ``unscale_action``
 does), with the ``VecNormalize`` observation statistics when the model was trained under one, and
 its frame stack when it was trained on stacked observations (a
@@ -108,6 +109,8 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
         modules = [*policy.mlp_extractor.policy_net, policy.action_net]
         ones = np.ones(action_dim, np.float32)
         action = ActionTransform(ones, np.zeros(action_dim, np.float32), low, high)
+        # The Gaussian's σ, one learned number per action value (DiagGaussianDistribution).
+        action_std = np.exp(policy.log_std.detach().cpu().numpy()).astype(np.float32)
     else:
         actor = policy.actor
         if not isinstance(actor.features_extractor, FlattenExtractor):
@@ -119,6 +122,7 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
         # SB3's unscale_action: low + 0.5 * (y + 1) * (high - low).
         scale = (0.5 * (high - low)).astype(np.float32)
         action = ActionTransform(scale, (low + scale).astype(np.float32), None, None)
+        action_std = None
     layers = dense_layers(modules, f"the {name} policy")
     if isinstance(model, (SAC, TD3)) and (not layers or layers[-1].activation != "tanh"):
         raise unsupported_model(f"a {name} whose actor does not end in tanh")
@@ -130,6 +134,7 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
         layers=tuple(layers),
         action=action,
         frame_stack=frame_stack,
+        action_std=action_std,
     )
 
 

@@ -124,6 +124,11 @@ class PolicyNetwork:
     action: ActionTransform
     #: Observations the network acts on (1: the current one only).
     frame_stack: int = 1
+    #: The standard deviation of the policy's Gaussian around the action before its clip, one
+    #: per action value (float32), when it does not depend on the observation (PPO's and A2C's
+    #: ``log_std``): what sampling its actions as in training needs. None for a policy whose
+    #: noise the writers cannot reproduce (SAC's state-dependent σ, TD3, RLlib).
+    action_std: npt.NDArray[np.float32] | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.frame_stack, bool) or not isinstance(self.frame_stack, int):
@@ -141,6 +146,14 @@ class PolicyNetwork:
             width = layer.outputs
         if width != self.action_dim:
             raise KheperaError(f"the network gives {width} values, not {self.action_dim}")
+        if self.action_std is not None:
+            std = np.asarray(self.action_std)
+            if std.shape != (self.action_dim,):
+                raise KheperaError(f"action_std has shape {std.shape}, not ({self.action_dim},)")
+            if not (np.all(np.isfinite(std)) and np.all(std > 0.0)):
+                raise ConfigError(
+                    f"the {self.source} policy's action noise must be finite and > 0, got {std}"
+                )
 
     @property
     def input_dim(self) -> int:

@@ -7,6 +7,9 @@
  *   export_check sequence    rows of 1 + POLICY_OBS_DIM values: a flag (1 when an episode starts
  *                            with this observation) and the observation -> rows of actions, one
  *                            policy_step each (the memory of a frame-stacked policy carries over)
+ *   export_check sample SEED as sequence, but each action sampled from the policy's Gaussian
+ *                            (policy_sample_step, the draws seeded with SEED): only for a policy
+ *                            exported with its noise (POLICY_SAMPLES 1)
  *   export_check observation rows of OBSERVATION_INPUT_COUNT raw inputs -> rows of observations
  *                            (the fields of observation_inputs in order: observation.h)
  *   export_check wheels      rows of 2 action values -> rows of 2 kh4_set_speed units
@@ -16,6 +19,7 @@
  * float32). Exit status: 0, or 1 on malformed input or a non-finite action.
  */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "observation.h"
@@ -77,6 +81,30 @@ static int check_sequence(void)
     return read < 0 ? 1 : status;
 }
 
+#if POLICY_SAMPLES
+static int check_sample(uint64_t seed)
+{
+    float row[1 + POLICY_OBS_DIM];
+    float action[POLICY_ACTION_DIM];
+    policy_state state;
+    policy_rng rng;
+    int status = 0;
+    int read;
+    policy_reset(&state);
+    policy_rng_seed(&rng, seed);
+    while ((read = read_row(row, 1 + POLICY_OBS_DIM)) == 1) {
+        if (row[0] != 0.0f) {
+            policy_reset(&state);
+        }
+        if (policy_sample_step(&state, &rng, row + 1, action) != 0) {
+            status = 1;
+        }
+        print_row(action, POLICY_ACTION_DIM);
+    }
+    return read < 0 ? 1 : status;
+}
+#endif
+
 static int check_observation(void)
 {
     float row[OBSERVATION_INPUT_COUNT];
@@ -123,6 +151,14 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "sequence") == 0) {
         return check_sequence();
     }
+    if (argc == 3 && strcmp(argv[1], "sample") == 0) {
+#if POLICY_SAMPLES
+        return check_sample((uint64_t)strtoull(argv[2], NULL, 10));
+#else
+        fprintf(stderr, "this policy was exported without its action noise\n");
+        return 2;
+#endif
+    }
     if (argc == 2 && strcmp(argv[1], "observation") == 0) {
         return check_observation();
     }
@@ -132,6 +168,7 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "leds") == 0) {
         return check_leds();
     }
-    fprintf(stderr, "usage: %s policy|sequence|observation|wheels|leds < rows.txt\n", argv[0]);
+    fprintf(stderr, "usage: %s policy|sequence|sample SEED|observation|wheels|leds < rows.txt\n",
+            argv[0]);
     return 2;
 }

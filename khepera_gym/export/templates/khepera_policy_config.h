@@ -14,6 +14,8 @@
 #define KHEPERA_IMU_SAMPLES $imu_samples /* newest IMU samples (100 Hz) a log row averages: a control period's */
 #define KHEPERA_US_MASK $us_mask /* kh4_activate_us bits: sensors.us_enabled, 0 if not observed */
 #define KHEPERA_LED_ACTION $led_action /* task.led_action: the action's last 3 values set the LEDs */
+#define KHEPERA_SAMPLE_ACTIONS $sample_actions /* 1: actions sampled from the policy's Gaussian (export --sample-actions), 0: its mean */
+#define KHEPERA_SAMPLE_SEED UINT64_C($sample_seed) /* export --sample-seed: the draws' seed */
 
 $motor_note
 #define KHEPERA_MOTOR_PROFILE $motor_profile /* 1: kh4RegSpeedProfile (motors.mode = "profile"), 0: kh4RegSpeed */

@@ -105,6 +105,9 @@ int main(int argc, char *argv[])
     float observation[OBSERVATION_DIM];
     float action[POLICY_ACTION_DIM];
     policy_state memory; /* the last POLICY_FRAME_STACK observations, for a frame-stacked policy */
+#if KHEPERA_SAMPLE_ACTIONS
+    policy_rng rng; /* the draws of sampled actions */
+#endif
     int units[2];
 #if KHEPERA_LED_ACTION
     int leds[3];
@@ -186,6 +189,13 @@ int main(int argc, char *argv[])
     }
 
     policy_reset(&memory); /* the episode starts: nothing observed yet */
+#if KHEPERA_SAMPLE_ACTIONS
+    policy_rng_seed(&rng, KHEPERA_SAMPLE_SEED);
+    fprintf(stderr, "actions: sampled from the policy's Gaussian, seed %llu\n",
+            (unsigned long long)KHEPERA_SAMPLE_SEED);
+#else
+    fprintf(stderr, "actions: the policy's mean\n");
+#endif
     start_time = khepera_clock_now();
     next_tick = start_time;
     for (step = 0; !stop_requested && (max_steps <= 0 || step < max_steps); ++step) {
@@ -243,7 +253,11 @@ int main(int argc, char *argv[])
 
         /* 3. and 4. Observation, policy, wheel command. */
         observation_build(&inputs, observation);
+#if KHEPERA_SAMPLE_ACTIONS
+        if (policy_sample_step(&memory, &rng, observation, action) != 0) {
+#else
         if (policy_step(&memory, observation, action) != 0) {
+#endif
             fprintf(stderr, "non-finite action at step %ld: stopping\n", step);
             break;
         }

@@ -43,19 +43,41 @@ int policy_forward(const float observation[POLICY_OBS_DIM], float action[POLICY_
     return policy_step(&state, observation, action);
 }
 
-int policy_step(policy_state *state, const float observation[POLICY_OBS_DIM],
-                float action[POLICY_ACTION_DIM])
+/* One step of the network: the stack takes the observation, and `action` gets the network's
+ * output before its clip to the action bounds. */
+static void policy_output(policy_state *state, const float observation[POLICY_OBS_DIM],
+                          float action[POLICY_ACTION_DIM])
 {
     float *newest = state->frames + (POLICY_FRAME_STACK - 1) * POLICY_OBS_DIM;
     float buffer_a[POLICY_MAX_WIDTH];
     float buffer_b[POLICY_MAX_WIDTH];
-    int status = 0;
     int i;
 $forward
+}
+
+static void clip_action(float action[POLICY_ACTION_DIM])
+{
+$clip
+}
+
+/* 0, or -1 if an action value is NaN or infinite. */
+static int finite_action(const float action[POLICY_ACTION_DIM])
+{
+    int status = 0;
+    int i;
     for (i = 0; i < POLICY_ACTION_DIM; ++i) {
-        if (!(action[i] - action[i] == 0.0f)) { /* NaN or infinite */
+        if (!(action[i] - action[i] == 0.0f)) {
             status = -1;
         }
     }
     return status;
 }
+
+int policy_step(policy_state *state, const float observation[POLICY_OBS_DIM],
+                float action[POLICY_ACTION_DIM])
+{
+    policy_output(state, observation, action);
+    clip_action(action);
+    return finite_action(action);
+}
+$sampling

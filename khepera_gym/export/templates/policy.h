@@ -12,11 +12,13 @@
  * policy_forward(observation, action) is policy_step on a fresh state: the action of an
  * episode's first observation; for a policy without memory (POLICY_FRAME_STACK 1), the action of
  * any observation. Observations are as the simulator gives them (observation.h builds them on the
- * robot). No allocation; libm for tanhf/expf only. Both return 0, or -1 if an action value is
- * not finite.
+ * robot). No allocation; libm for tanhf/expf (and sqrt, log, cos for sampled actions) only.
+ * They return 0, or -1 if an action value is not finite.
  */
 #ifndef KHEPERA_GYM_POLICY_H
 #define KHEPERA_GYM_POLICY_H
+
+#include <stdint.h>
 
 #define POLICY_OBS_DIM $obs_dim
 #define POLICY_FRAME_STACK $frame_stack
@@ -32,5 +34,7 @@ void policy_reset(policy_state *state);
 int policy_step(policy_state *state, const float observation[POLICY_OBS_DIM],
                 float action[POLICY_ACTION_DIM]);
 int policy_forward(const float observation[POLICY_OBS_DIM], float action[POLICY_ACTION_DIM]);
+
+$sampling_api
 
 #endif /* KHEPERA_GYM_POLICY_H */
