@@ -6,6 +6,7 @@
     python examples/benchmarl_mappo.py --set wheel_accel_limit=inf  # a scenario key (TOML value)
     python examples/benchmarl_mappo.py --fixed-sigma 0.6 --frames 600000  # learns v1 (README)
     python examples/benchmarl_mappo.py --no-tanh --entropy-coef 0.001  # other noise settings
+    python examples/benchmarl_mappo.py --normalize-advantage --max-grad-norm 0.5  # SB3's PPO's
     python examples/benchmarl_mappo.py --json mappo.json  # also the results page's file
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
@@ -24,7 +25,9 @@ tanh) over the batch just collected: on v1 it shows why MAPPO fails there (READM
 ``add_custom_mapping``), with which MAPPO learns v1. ``--no-tanh`` samples actions from a plain
 Gaussian clipped to the bounds (as SB3's PPO does) instead of BenchMARL's tanh-squashed one, and
 ``--entropy-coef`` rewards the policy's entropy (BenchMARL's default: 0), which pushes against
-a collapsing σ.
+a collapsing σ. ``--normalize-advantage`` standardises the advantages of each minibatch (SB3's PPO
+does; BenchMARL's MAPPO builds torchrl's loss without it) and ``--max-grad-norm`` sets the
+gradient clip (BenchMARL's default 5, SB3's 0.5).
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
@@ -185,12 +188,26 @@ def main() -> None:
         help="weight of the policy's entropy in the loss (BenchMARL's default: 0)",
     )
     parser.add_argument(
+        "--normalize-advantage",
+        action="store_true",
+        help="standardise each minibatch's advantages, as SB3's PPO does (BenchMARL: not)",
+    )
+    parser.add_argument(
+        "--max-grad-norm",
+        type=float,
+        default=None,
+        metavar="N",
+        help="clip the gradients' norm to N (BenchMARL's default: 5; SB3's PPO: 0.5)",
+    )
+    parser.add_argument(
         "--report-every", type=int, default=20, help="iterations between noise reports (0: none)"
     )
     parser.add_argument("--json", help="also write the figures to this results file")
     args = parser.parse_args()
     if args.fixed_sigma is not None and not 0.0 < args.fixed_sigma < float("inf"):
         parser.error(f"--fixed-sigma must be a finite number > 0, got {args.fixed_sigma}")
+    if args.max_grad_norm is not None and not 0.0 < args.max_grad_norm < float("inf"):
+        parser.error(f"--max-grad-norm must be a finite number > 0, got {args.max_grad_norm}")
     if not 0.0 <= args.entropy_coef < float("inf"):
         parser.error(f"--entropy-coef must be a finite number >= 0, got {args.entropy_coef}")
     task_config = dict(TASK_CONFIG)
@@ -214,6 +231,8 @@ def main() -> None:
     config.on_policy_n_minibatch_iters = args.epochs
     config.lr = args.lr
     config.gamma = args.gamma
+    if args.max_grad_norm is not None:
+        config.clip_grad_val = args.max_grad_norm
     config.evaluation = False
     config.render = False
     config.loggers = []
@@ -241,6 +260,9 @@ def main() -> None:
         config=config,
         callbacks=[NoiseReport(args.report_every)],
     )
+    if args.normalize_advantage:
+        for loss in experiment.losses.values():
+            loss.normalize_advantage = True  # torchrl's ClipPPOLoss option
     print(f"{args.episodes} seeded Formation episodes (4 followers, cross), deterministic actions")
     baseline = formation_errors(leader_follower_policy(), args.episodes, task_config)
     report("LeaderFollower", baseline)
@@ -267,6 +289,10 @@ def main() -> None:
             settings.append("Gaussian without tanh")
         if args.entropy_coef:
             settings.append(f"entropy coefficient {args.entropy_coef:g}")
+        if args.normalize_advantage:
+            settings.append("normalised advantages")
+        if args.max_grad_norm is not None:
+            settings.append(f"gradient norm clipped at {args.max_grad_norm:g}")
         method = f"{name} (BenchMARL{''.join(', ' + part for part in settings)})"
         rows = [result_row(method, learned), result_row("LeaderFollower", baseline)]
         frames = experiment.total_frames
