@@ -406,6 +406,8 @@ def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others(
     trained = {**baselines, "summaries": [{"policy": "vfh"}, {"policy": "sb3:run/model.zip"}]}
     assert target_name(baselines) == "compare_E-v2_avoid_2026-11-28.json"
     assert target_name(trained) == "compare_E-v2_avoid_trained_2026-11-28.json"
+    sampled = {**baselines, "summaries": [{"policy": "sb3:run/model.zip (sampled)"}]}
+    assert target_name(sampled) == "compare_E-v2_avoid_trained_sampled_2026-11-28.json"
     run = {"meta": meta, "env_id": "E-v2", "algo": "ppo", "seed": 0, "final": {}}
     assert target_name({**run, "hyperparams": {}}) == "train_E-v2_ppo_seed0_2026-11-28.json"
     stacked = {**run, "hyperparams": {"frame_stack": 8}}

@@ -369,9 +369,11 @@ def target_name(document: dict[str, Any]) -> str:
     date, so that a later run of another version or day does not replace it
     (``compare_KheperaIV-Avoid-v1_paper_fig6_2026-11-27.json``)."""
     date = (document.get("meta") or {}).get("date", "undated")[:10]
-    trained = any(
-        str(summary.get("policy", "")).startswith("sb3:")
-        for summary in document.get("summaries", [])
+    policies = [str(summary.get("policy", "")) for summary in document.get("summaries", [])]
+    trained = any(policy.startswith("sb3:") for policy in policies)
+    # Sampled actions (compare --sample-actions) are other figures of the same models.
+    sampled = any(
+        policy.startswith("sb3:") and policy.endswith(" (sampled)") for policy in policies
     )
     stack = (document.get("hyperparams") or {}).get("frame_stack", 1)
     what = {
@@ -379,6 +381,7 @@ def target_name(document: dict[str, Any]) -> str:
         "compare": lambda: (
             f"{document['env_id']}_{document.get('label') or 'scene'}"
             + ("_trained" if trained else "")
+            + ("_sampled" if sampled else "")
         ),
         "train": lambda: (
             f"{document['env_id']}_{document['algo']}_seed{document['seed']}"
