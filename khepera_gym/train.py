@@ -151,6 +151,9 @@ class TrainResult:
     #: The periodic evaluations.
     history: list[Evaluation]
     out_dir: Path
+    #: The final model on the same episodes, sampling its actions from its distribution as it
+    #: did while it trained (torch seeded with the evaluation seed).
+    final_sampled: Evaluation | None = None
 
     @property
     def model_path(self) -> Path:
@@ -332,8 +335,17 @@ def _train(
     if history and history[-1].timesteps == model.num_timesteps:
         final = history[-1]  # the callback evaluated the final model at the end of training
     else:
-        policy = as_predictor(model, normalizer, frame_stack)
-        final = evaluate_episodes(policy, eval_env, eval_seed, model.num_timesteps)
+        final = evaluate_episodes(
+            as_predictor(model, normalizer, frame_stack), eval_env, eval_seed, model.num_timesteps
+        )
+    # A policy's mean can stall where the policy it learnt does not (Avoid-v2, docs/training.md).
+    final_sampled = evaluate_episodes(
+        as_predictor(model, normalizer, frame_stack),
+        eval_env,
+        eval_seed,
+        model.num_timesteps,
+        sample_seed=eval_seed,
+    )
     result = TrainResult(
         env_id=env_id,
         algo=algo,
@@ -347,6 +359,7 @@ def _train(
         final=final,
         history=history,
         out_dir=out,
+        final_sampled=final_sampled,
     )
     record = result.to_json()
     record["versions"] = _versions()
@@ -360,6 +373,10 @@ def _train(
             f"{result.eval_time:.0f} s); final model: success {100 * final.success_rate:.1f} % "
             f"of {final.episodes} episodes (seeds {eval_seed}..{eval_seed + final.episodes - 1}),"
             f" mean return {final.mean_return:.2f}, mean length {final.mean_length:.1f}"
+        )
+        print(
+            f"sampling its actions (compare/export --sample-actions): success "
+            f"{100 * final_sampled.success_rate:.1f} %, mean length {final_sampled.mean_length:.1f}"
         )
         print(f"saved {out / 'model.zip'}")
     return result

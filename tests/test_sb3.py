@@ -3,6 +3,7 @@ callbacks, and ``khepera-gym train`` end to end (a short PPO run whose zip loads
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pickle
 from pathlib import Path
@@ -380,6 +381,9 @@ def test_khepera_gym_train_runs_ppo_end_to_end_and_the_zip_loads_and_predicts(
     assert run["hyperparams"]["n_steps"] == 64
     assert [evaluation["timesteps"] for evaluation in run["history"]] == [1024, 2048]
     assert run["final"]["episodes"] == 8 and 0.0 <= run["final"]["success_rate"] <= 1.0
+    # The same episodes again, sampling the actions as in training.
+    assert run["final_sampled"]["episodes"] == 8
+    assert run["final_sampled"]["timesteps"] == run["final"]["timesteps"] == 2048
     assert {"date", "commit", "machine", "command"} <= run["meta"].keys()
 
     model = load_policy(out / "model.zip")
@@ -438,3 +442,20 @@ def test_vec_env_pickles_mid_episode_and_continues_like_the_original() -> None:
         expected, got = venv.step(action), clone.step(action)
         for a, b in zip(expected[:3], got[:3], strict=True):
             np.testing.assert_array_equal(a, b)
+
+
+def test_a_sampled_evaluation_repeats_and_differs_from_the_deterministic_one() -> None:
+    """``evaluate_episodes(sample_seed=...)``: the policy's noise (σ = 1 untrained) changes the
+    episodes, and the seed makes them repeat."""
+    from khepera_gym.sb3.evaluate import evaluate_episodes
+
+    env = make_vec_env(NAV_ID, 4, seed=0, num_threads=1, max_steps=50)
+    model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, seed=0, device="cpu")
+    figures = [
+        dataclasses.replace(evaluate_episodes(model, env, 7, sample_seed=seed), seconds=0.0)
+        for seed in (3, 3, 4, None)
+    ]
+    assert figures[0] == figures[1]
+    assert figures[0].mean_return != figures[2].mean_return
+    assert figures[0].mean_return != figures[3].mean_return
+    env.close()

@@ -177,7 +177,8 @@ def table_changes(document: dict[str, Any]) -> dict[str, Any]:
 
 def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     """The training runs: env, algorithm, steps, observations stacked (``frame_stack``), seed,
-    final success, wall time, steps/s."""
+    final success on the mean action and sampling actions (runs that recorded it), wall time,
+    steps/s."""
     documents = [d for _, d in files if kind(d) == "train"]
     if not documents:
         return _missing(
@@ -187,6 +188,7 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     rows = []
     for document in sorted(documents, key=lambda d: (d["env_id"], d["algo"], d["seed"])):
         final = document["final"]
+        sampled = document.get("final_sampled")
         rows.append(
             [
                 code(document["env_id"]),
@@ -198,13 +200,14 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
                 ),
                 str(document["seed"]),
                 f"{100 * final['success_rate']:.0f} of {final['episodes']}",
+                "–" if sampled is None else f"{100 * sampled['success_rate']:.0f}",
                 f"{document['wall_time']:.0f} s",
                 f"{document['steps_per_second']:,.0f}",
                 provenance_line(document.get("meta")),
             ]
         )
     header = ["env", "algorithm", "steps", "frames", "changed from the shipped table", "seed"]
-    header += ["success %", "wall time", "steps/s"]
+    header += ["success %", "sampled %", "wall time", "steps/s"]
     header.append("run")
     return table(header, rows)
 

@@ -74,14 +74,24 @@ class Evaluation:
 
 
 def evaluate_episodes(
-    policy: Predictor, env: KheperaSB3VecEnv, seed: int, timesteps: int = 0
+    policy: Predictor,
+    env: KheperaSB3VecEnv,
+    seed: int,
+    timesteps: int = 0,
+    sample_seed: int | None = None,
 ) -> Evaluation:
-    """Success rate and means over one seeded episode per world of ``env`` (deterministic).
+    """Success rate and means over one seeded episode per world of ``env``: on the policy's
+    deterministic actions, or with ``sample_seed`` on actions sampled from its distribution
+    (torch's generator seeded with ``sample_seed`` first, so the figures repeat).
 
     World w plays the episode seeded ``seed + w``; see :func:`first_episode_stats`.
     """
     start = time.perf_counter()
-    stats = first_episode_stats(policy, env, seed, deterministic=True)
+    if sample_seed is not None:
+        import torch  # stable-baselines3 samples with torch's global generator
+
+        torch.manual_seed(sample_seed)
+    stats = first_episode_stats(policy, env, seed, deterministic=sample_seed is None)
     return Evaluation(
         timesteps=timesteps,
         episodes=len(stats["success"]),
