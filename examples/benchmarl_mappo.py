@@ -6,7 +6,7 @@
     python examples/benchmarl_mappo.py --set wheel_accel_limit=inf  # a scenario key (TOML value)
     python examples/benchmarl_mappo.py --fixed-sigma 0.6 --frames 600000  # learns v1 (README)
     python examples/benchmarl_mappo.py --no-tanh --entropy-coef 0.001  # other noise settings
-    python examples/benchmarl_mappo.py --normalize-advantage --max-grad-norm 0.5  # SB3's PPO's
+    python examples/benchmarl_mappo.py --no-normalize-advantage --max-grad-norm 5  # BenchMARL's
     python examples/benchmarl_mappo.py --json mappo.json  # also the results page's file
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
@@ -17,17 +17,20 @@ minus contacts); the scripted leader drives to its goal. Before and after traini
 (deterministic actions) plays the same ``--episodes`` seeded episodes (seeds 10000 + i), as
 does the LeaderFollower baseline for reference, and the mean formation error is printed.
 Hyperparameters mirror the ``formation-followers`` table of configs/hyperparams/ppo.toml
-(1,024 env steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs);
-BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every ``--report-every``
-iterations the script prints the policy's mean action noise (the σ of its Gaussian before the
-tanh) over the batch just collected: on v1 it shows why MAPPO fails there (README), and
+(1,024 env steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs) and
+SB3's PPO: each minibatch's advantages standardised, the gradients' norm clipped at 0.5
+(BenchMARL's MAPPO does not standardise them and clips at 5; with its settings MAPPO stays at
+1.0 cm after 600k env steps, above LeaderFollower's 0.4 cm, and with these it reaches 0.3 cm:
+docs/training.md). BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every
+``--report-every`` iterations the script prints the policy's mean action noise (the σ of its
+Gaussian before the tanh) over the batch just collected: on v1 it shows why MAPPO fails there
+(README), and
 ``--fixed-sigma`` holds σ constant (a scale mapping registered with tensordict's
 ``add_custom_mapping``), with which MAPPO learns v1. ``--no-tanh`` samples actions from a plain
 Gaussian clipped to the bounds (as SB3's PPO does) instead of BenchMARL's tanh-squashed one, and
 ``--entropy-coef`` rewards the policy's entropy (BenchMARL's default: 0), which pushes against
-a collapsing σ. ``--normalize-advantage`` standardises the advantages of each minibatch (SB3's PPO
-does; BenchMARL's MAPPO builds torchrl's loss without it) and ``--max-grad-norm`` sets the
-gradient clip (BenchMARL's default 5, SB3's 0.5).
+a collapsing σ. ``--no-normalize-advantage`` and ``--max-grad-norm 5`` go back to BenchMARL's
+own settings. A results file names the settings that differ from BenchMARL's defaults.
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
@@ -60,6 +63,10 @@ with torchrl_import_warnings_ignored():
 
 #: Evaluation episodes are seeded EVAL_SEED + i, away from the training worlds' seeds.
 EVAL_SEED = 10_000
+#: The gradient clip of SB3's PPO (its ``max_grad_norm``), this example's default, and of
+#: BenchMARL's experiment config (``clip_grad_val``).
+SB3_MAX_GRAD_NORM = 0.5
+BENCHMARL_MAX_GRAD_NORM = 5.0
 #: The task's scenario: Formation's defaults (4 followers in a cross, scripted leader).
 TASK_CONFIG: dict[str, Any] = {"n_followers": 4, "shape": "cross"}
 
@@ -189,15 +196,18 @@ def main() -> None:
     )
     parser.add_argument(
         "--normalize-advantage",
-        action="store_true",
-        help="standardise each minibatch's advantages, as SB3's PPO does (BenchMARL: not)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="standardise each minibatch's advantages, as SB3's PPO does (default; BenchMARL's "
+        "MAPPO does not)",
     )
     parser.add_argument(
         "--max-grad-norm",
         type=float,
-        default=None,
+        default=SB3_MAX_GRAD_NORM,
         metavar="N",
-        help="clip the gradients' norm to N (BenchMARL's default: 5; SB3's PPO: 0.5)",
+        help=f"clip the gradients' norm to N ({SB3_MAX_GRAD_NORM:g}, SB3's PPO's; BenchMARL's: "
+        f"{BENCHMARL_MAX_GRAD_NORM:g})",
     )
     parser.add_argument(
         "--report-every", type=int, default=20, help="iterations between noise reports (0: none)"
@@ -206,7 +216,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.fixed_sigma is not None and not 0.0 < args.fixed_sigma < float("inf"):
         parser.error(f"--fixed-sigma must be a finite number > 0, got {args.fixed_sigma}")
-    if args.max_grad_norm is not None and not 0.0 < args.max_grad_norm < float("inf"):
+    if not 0.0 < args.max_grad_norm < float("inf"):
         parser.error(f"--max-grad-norm must be a finite number > 0, got {args.max_grad_norm}")
     if not 0.0 <= args.entropy_coef < float("inf"):
         parser.error(f"--entropy-coef must be a finite number >= 0, got {args.entropy_coef}")
@@ -231,8 +241,7 @@ def main() -> None:
     config.on_policy_n_minibatch_iters = args.epochs
     config.lr = args.lr
     config.gamma = args.gamma
-    if args.max_grad_norm is not None:
-        config.clip_grad_val = args.max_grad_norm
+    config.clip_grad_val = args.max_grad_norm
     config.evaluation = False
     config.render = False
     config.loggers = []
@@ -280,8 +289,8 @@ def main() -> None:
     learned = formation_errors(experiment.policy, args.episodes, task_config)
     report(f"{name} after training", learned)
     if args.json:
-        # A run with other noise settings is another method: its file does not replace the
-        # plain run's.
+        # A run with other settings is another method: its name lists those that differ from
+        # BenchMARL's defaults, so that its file does not replace another's.
         settings = []
         if args.fixed_sigma is not None:
             settings.append(f"sigma fixed at {args.fixed_sigma:g}")
@@ -291,7 +300,7 @@ def main() -> None:
             settings.append(f"entropy coefficient {args.entropy_coef:g}")
         if args.normalize_advantage:
             settings.append("normalised advantages")
-        if args.max_grad_norm is not None:
+        if args.max_grad_norm != BENCHMARL_MAX_GRAD_NORM:
             settings.append(f"gradient norm clipped at {args.max_grad_norm:g}")
         method = f"{name} (BenchMARL{''.join(', ' + part for part in settings)})"
         rows = [result_row(method, learned), result_row("LeaderFollower", baseline)]
