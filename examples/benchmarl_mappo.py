@@ -305,7 +305,9 @@ def main() -> None:
         method = f"{name} (BenchMARL{''.join(', ' + part for part in settings)})"
         rows = [result_row(method, learned), result_row("LeaderFollower", baseline)]
         frames = experiment.total_frames
-        write_formation_learning(args.json, method, frames, elapsed, args.episodes, EVAL_SEED, rows)
+        write_formation_learning(
+            args.json, method, frames, elapsed, args.episodes, EVAL_SEED, rows, args.seed
+        )
         print(f"saved {args.json}")
 
 

@@ -11,7 +11,9 @@ comparison of fewer than :data:`FULL_EPISODES` episodes per policy is marked as 
 
 from __future__ import annotations
 
+import itertools
 import json
+import shlex
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -212,6 +214,19 @@ def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     return table(header, rows)
 
 
+def learning_seed(document: dict[str, Any]) -> int | None:
+    """The training seed of a learned formation: its ``train_seed``, or for a file written
+    before it was recorded, the ``--seed`` of its command line (None if neither says)."""
+    seed = document["formation_learning"].get("train_seed")
+    if seed is not None:
+        return int(seed)
+    words = shlex.split(str((document.get("meta") or {}).get("command", "")))
+    for flag, value in itertools.pairwise(words):
+        if flag == "--seed" and value.isdigit():
+            return int(value)
+    return None
+
+
 def learning_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     """Learned formations against the baseline: formation error, per results file."""
     documents = [d for _, d in files if kind(d) == "learning"]
@@ -234,8 +249,9 @@ def learning_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
         header.append("steps in contact")
         note = (
             f" {escape_cell(run['env'])}; {run['steps']:,} training steps in "
-            f"{run['train_seconds']:.0f} s; {run['episodes']} episodes from seed "
-            f"{run['eval_seed']}."
+            f"{run['train_seconds']:.0f} s"
+            + ("" if (seed := learning_seed(document)) is None else f", training seed {seed}")
+            + f"; {run['episodes']} episodes from seed {run['eval_seed']}."
         )
         parts.append(provenance_line(document.get("meta")) + note + "\n\n" + table(header, rows))
     return "\n\n".join(parts)
@@ -398,6 +414,7 @@ def target_name(document: dict[str, Any]) -> str:
         "learning": lambda: (
             "formation_"
             + "".join(c if c.isalnum() else "_" for c in document["formation_learning"]["method"])
+            + (f"_seed{seed}" if (seed := learning_seed(document)) else "")
         ),
         "bench": lambda: f"v{document['version']}",
         "hostile": lambda: f"{document['cases']}cases_seed{document['seed']}",

@@ -268,6 +268,7 @@ def write_formation_learning(
     episodes: int,
     eval_seed: int,
     rows: list[dict[str, float | str | None]],
+    train_seed: int | None = None,
 ) -> Path:
     """Writes the results file of a learned formation against its baseline (the results page's
     "Learned formations"), with :func:`~khepera_gym.provenance.provenance` under ``meta``.
@@ -282,6 +283,7 @@ def write_formation_learning(
         rows: One per policy: ``policy``, ``formation_error_mean`` and ``formation_error_max``
             (m, means over the episodes), ``success_rate`` (the leader arrived; None when not
             measured) and ``contact_steps``.
+        train_seed: The training's seed, when it has one.
     """
     record = {
         "meta": provenance(),
@@ -292,6 +294,7 @@ def write_formation_learning(
             "train_seconds": float(seconds),
             "episodes": int(episodes),
             "eval_seed": int(eval_seed),
+            "train_seed": None if train_seed is None else int(train_seed),
             "rows": rows,
         },
     }
