@@ -16,21 +16,20 @@ with its own 23-value observation and its own reward (minus its distance to its 
 minus contacts); the scripted leader drives to its goal. Before and after training the policy
 (deterministic actions) plays the same ``--episodes`` seeded episodes (seeds 10000 + i), as
 does the LeaderFollower baseline for reference, and the mean formation error is printed.
-Hyperparameters mirror the ``formation-followers`` table of configs/hyperparams/ppo.toml
-(1,024 env steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs) and
-SB3's PPO: each minibatch's advantages standardised, the gradients' norm clipped at 0.5
-(BenchMARL's MAPPO does not standardise them and clips at 5; with its settings MAPPO stays at
-1.0 cm after 600k env steps, above LeaderFollower's 0.4 cm, and with these it reaches 0.3 cm:
+Hyperparameters mirror the ``formation-followers`` table of configs/hyperparams/ppo.toml (1,024 env
+steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs) and SB3's PPO: each
+minibatch's advantages standardised, the gradients' norm clipped at 0.5 (BenchMARL's MAPPO does not
+standardise them and clips at 5: with its settings MAPPO ends 600k env steps at 1.0, 8.0 and 4.1 cm
+over three training seeds, with these at 0.3, 0.8 and 0.9 cm; LeaderFollower 0.4 cm;
 docs/training.md). BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every
 ``--report-every`` iterations the script prints the policy's mean action noise (the σ of its
 Gaussian before the tanh) over the batch just collected: on v1 it shows why MAPPO fails there
-(README), and
-``--fixed-sigma`` holds σ constant (a scale mapping registered with tensordict's
+(README), and ``--fixed-sigma`` holds σ constant (a scale mapping registered with tensordict's
 ``add_custom_mapping``), with which MAPPO learns v1. ``--no-tanh`` samples actions from a plain
 Gaussian clipped to the bounds (as SB3's PPO does) instead of BenchMARL's tanh-squashed one, and
-``--entropy-coef`` rewards the policy's entropy (BenchMARL's default: 0), which pushes against
-a collapsing σ. ``--no-normalize-advantage`` and ``--max-grad-norm 5`` go back to BenchMARL's
-own settings. A results file names the settings that differ from BenchMARL's defaults.
+``--entropy-coef`` rewards the policy's entropy (BenchMARL's default: 0), which pushes against a
+collapsing σ. ``--no-normalize-advantage`` and ``--max-grad-norm 5`` go back to BenchMARL's own
+settings. A results file names the settings that differ from BenchMARL's defaults.
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
