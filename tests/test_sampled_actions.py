@@ -111,3 +111,28 @@ def test_compare_samples_actions_reproducibly_and_says_so(model_path: Path, tmp_
     (results,) = out.glob("*_results.json")
     shown = [row["policy"] for row in json.loads(results.read_text())["summaries"]]
     assert shown == [f"{name} (sampled)"]
+
+
+def test_sampling_without_a_model_to_sample_is_refused(tmp_path: Path) -> None:
+    """The baselines are deterministic: asking them to sample is an error, not a no-op."""
+    from khepera_gym.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=r"sample-actions.*sb3: models"):
+        compare(NAV_ID, ["position_control"], episodes=2, progress=False, sample_actions=True)
+    with pytest.raises(SystemExit, match="sample-actions"):
+        cli.main(
+            [
+                "compare",
+                "--env",
+                NAV_ID,
+                "--policy",
+                "position_control",
+                "--sample-actions",
+                "--episodes",
+                "2",
+                "--no-plot",
+                "--no-progress",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )

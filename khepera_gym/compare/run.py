@@ -453,7 +453,8 @@ def compare(
 
     Raises:
         ConfigError: No policies, N < 1, duplicate or unknown policies, a policy that does not
-            fit the task (all also ValueError), or a bad scenario or override.
+            fit the task, sampled actions without an ``sb3:`` model (all also ValueError), or a
+            bad scenario or override.
         ImportError: An ``sb3:`` policy without stable-baselines3.
         KheperaError: A policy error.
     """
@@ -463,6 +464,11 @@ def compare(
         raise ConfigError(f"a policy is listed twice: {list(policies)}")
     if episodes < 1:
         raise ConfigError(f"episodes must be >= 1, got {episodes}")
+    if sample_actions and not any(name.startswith(SB3_PREFIX) for name in policies):
+        raise ConfigError(
+            "sample_actions (--sample-actions) applies to sb3: models, and none is compared: "
+            f"{list(policies)} act deterministically"
+        )
     overrides = dict(overrides or {})
     label = _label(env_id, config, overrides)
     env = gym.make_vec(
