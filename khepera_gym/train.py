@@ -332,19 +332,14 @@ def _train(
     if normalizer is not None:
         normalizer.save(str(out / VECNORMALIZE_FILE))
     history = callback.history if callback is not None else []
+    policy = as_predictor(model, normalizer, frame_stack)
     if history and history[-1].timesteps == model.num_timesteps:
         final = history[-1]  # the callback evaluated the final model at the end of training
     else:
-        final = evaluate_episodes(
-            as_predictor(model, normalizer, frame_stack), eval_env, eval_seed, model.num_timesteps
-        )
+        final = evaluate_episodes(policy, eval_env, eval_seed, model.num_timesteps)
     # A policy's mean can stall where the policy it learnt does not (Avoid-v2, docs/training.md).
     final_sampled = evaluate_episodes(
-        as_predictor(model, normalizer, frame_stack),
-        eval_env,
-        eval_seed,
-        model.num_timesteps,
-        sample_seed=eval_seed,
+        policy, eval_env, eval_seed, model.num_timesteps, sample_seed=eval_seed
     )
     result = TrainResult(
         env_id=env_id,

@@ -20,6 +20,7 @@ from typing import Any
 
 from khepera_gym import catalog
 from khepera_gym._docgen.markdown import code, escape_cell, table
+from khepera_gym.compare.policies import SAMPLED_SUFFIX, SB3_PREFIX
 from khepera_gym.compare.report import table_notes, table_rows
 from khepera_gym.compare.run import Comparison
 from khepera_gym.compare.stats import Estimate
@@ -316,7 +317,6 @@ def _missing(command: str, what: str = "the JSON file it writes") -> str:
     return f"```{{note}}\nNo data yet. Run {code(command)} and copy {what} into docs/results/.\n```"
 
 
-#: The fragments and what renders each.
 def hostile_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     """The hostile-input campaigns: cases by kind and outcome, failures, per results file."""
     documents = [d for _, d in files if kind(d) == "hostile"]
@@ -359,6 +359,7 @@ def hostile_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     return "\n\n".join(parts)
 
 
+#: The fragments and what renders each.
 FRAGMENTS: dict[str, Callable[[list[tuple[Path, dict[str, Any]]]], str]] = {
     "baselines": compare_fragment,
     "consensus": consensus_fragment,
@@ -389,10 +390,10 @@ def target_name(document: dict[str, Any]) -> str:
     (``compare_KheperaIV-Avoid-v1_paper_fig6_2026-11-27.json``)."""
     date = (document.get("meta") or {}).get("date", "undated")[:10]
     policies = [str(summary.get("policy", "")) for summary in document.get("summaries", [])]
-    trained = any(policy.startswith("sb3:") for policy in policies)
+    trained = any(policy.startswith(SB3_PREFIX) for policy in policies)
     # Sampled actions (compare --sample-actions) are other figures of the same models.
     sampled = any(
-        policy.startswith("sb3:") and policy.endswith(" (sampled)") for policy in policies
+        policy.startswith(SB3_PREFIX) and policy.endswith(SAMPLED_SUFFIX) for policy in policies
     )
     stack = (document.get("hyperparams") or {}).get("frame_stack", 1)
     what = {

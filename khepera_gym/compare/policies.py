@@ -37,6 +37,8 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
 POLICY_NAMES = tuple(dict.fromkeys((*BASELINES, *VARIANTS, "random")))
 #: Prefix of a stable-baselines3 model file among the policies.
 SB3_PREFIX = "sb3:"
+#: What an ``sb3:`` model's name gets in the results when it samples its actions.
+SAMPLED_SUFFIX = " (sampled)"
 #: stable-baselines3 algorithms tried in turn to load a model without ``--algo``.
 SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DQN")
 #: Policies compared when none is given.
@@ -234,6 +236,7 @@ def make_policy(
 __all__ = [
     "DEFAULT_POLICIES",
     "POLICY_NAMES",
+    "SAMPLED_SUFFIX",
     "SB3_ALGORITHMS",
     "SB3_PREFIX",
     "Policy",

@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 from khepera_gym import registration
 from khepera_gym.compare.metrics import TaskMetrics, summarize_errors, task_metrics
-from khepera_gym.compare.policies import SB3_PREFIX, Policy, make_policy
+from khepera_gym.compare.policies import SAMPLED_SUFFIX, SB3_PREFIX, Policy, make_policy
 from khepera_gym.compare.stats import Estimate, bootstrap_interval, wilson_interval
 from khepera_gym.errors import ConfigError
 from khepera_gym.plot import Rollout, control_step
@@ -411,7 +411,7 @@ def _label(env_id: str, config: str | None, overrides: dict[str, Any] | None = N
 
 def _shown_name(name: str, sample_actions: bool) -> str:
     """A policy's name in the results: an ``sb3:`` model that samples its actions says so."""
-    return f"{name} (sampled)" if sample_actions and name.startswith(SB3_PREFIX) else name
+    return name + SAMPLED_SUFFIX if sample_actions and name.startswith(SB3_PREFIX) else name
 
 
 def compare(

@@ -444,12 +444,7 @@ def robot_c_sources(
             64-bit unsigned integer, or the network lacks the σ that sampling needs.
     """
     if sample_seed is not None:
-        check_sample_seed(sample_seed)
-        if network.action_std is None:
-            raise ConfigError(
-                f"the {network.source} policy's action noise cannot be exported (only PPO's and "
-                "A2C's state-independent σ can): export it without --sample-actions"
-            )
+        check_sampling(network, sample_seed)
     takes = 5 if robot.led_action else 2
     if network.action_dim != takes:
         what = "its wheels, then its LEDs' red, green, blue" if robot.led_action else "its wheels"
@@ -516,10 +511,16 @@ def robot_c_sources(
     }
 
 
-def check_sample_seed(seed: int) -> None:
-    """Raises ConfigError unless ``seed`` is an int in [0, 2^64) (the C generator's state)."""
+def check_sampling(network: PolicyNetwork, seed: int) -> None:
+    """Raises ConfigError unless ``network`` can be exported sampling its actions with ``seed``:
+    it knows its Gaussian's σ, and ``seed`` is an int in [0, 2^64) (the C generator's state)."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**64:
         raise ConfigError(f"the sampling seed must be an integer in [0, 2^64), got {seed!r}")
+    if network.action_std is None:
+        raise ConfigError(
+            f"the {network.source} policy's action noise cannot be exported (only PPO's and "
+            "A2C's state-independent σ can): export it without --sample-actions"
+        )
 
 
 def readme(network: PolicyNetwork, robot: RobotInterface) -> str:
@@ -570,7 +571,7 @@ __all__ = [
     "ROBOT_HEADERS",
     "ROBOT_SOURCES",
     "c_double",
-    "check_sample_seed",
+    "check_sampling",
     "imu_samples",
     "load_template",
     "mm_s_per_unit",

@@ -24,7 +24,7 @@ import gymnasium as gym
 
 import khepera_gym
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.export.c_writer import check_sample_seed, write_c
+from khepera_gym.export.c_writer import check_sampling, write_c
 from khepera_gym.export.checks import check_export
 from khepera_gym.export.describe import as_policy, describe_policy, load_model, reference_actions
 from khepera_gym.export.from_rllib import RllibPolicy
@@ -151,14 +151,9 @@ def export_policy(
     model = as_policy(model)
     network = describe_policy(model, normalizer)
     if sample_seed is not None:  # before anything is written
-        check_sample_seed(sample_seed)
         if "c" not in formats:
             raise ConfigError("sampled actions are a feature of the C program: export format 'c'")
-        if network.action_std is None:
-            raise ConfigError(
-                f"the {network.source} policy's action noise cannot be exported (only PPO's and "
-                "A2C's state-independent σ can): export it without --sample-actions"
-            )
+        check_sampling(network, sample_seed)
     env_id, trained_overrides = _env_of(model_path, model, env_id)
     env_kwargs: dict[str, Any] = {**trained_overrides, **overrides}
     if config is not None:

@@ -61,6 +61,11 @@ static int check_policy(void)
     return read < 0 ? 1 : status;
 }
 
+#if POLICY_SAMPLES
+/* The draws of `export_check sample SEED`; NULL for `sequence`. */
+static policy_rng *sample_draws = NULL;
+#endif
+
 static int check_sequence(void)
 {
     float row[1 + POLICY_OBS_DIM];
@@ -70,40 +75,24 @@ static int check_sequence(void)
     int read;
     policy_reset(&state);
     while ((read = read_row(row, 1 + POLICY_OBS_DIM)) == 1) {
+        int failed;
         if (row[0] != 0.0f) {
             policy_reset(&state);
         }
-        if (policy_step(&state, row + 1, action) != 0) {
-            status = 1;
-        }
-        print_row(action, POLICY_ACTION_DIM);
-    }
-    return read < 0 ? 1 : status;
-}
-
 #if POLICY_SAMPLES
-static int check_sample(uint64_t seed)
-{
-    float row[1 + POLICY_OBS_DIM];
-    float action[POLICY_ACTION_DIM];
-    policy_state state;
-    policy_rng rng;
-    int status = 0;
-    int read;
-    policy_reset(&state);
-    policy_rng_seed(&rng, seed);
-    while ((read = read_row(row, 1 + POLICY_OBS_DIM)) == 1) {
-        if (row[0] != 0.0f) {
-            policy_reset(&state);
-        }
-        if (policy_sample_step(&state, &rng, row + 1, action) != 0) {
+        failed = sample_draws != NULL
+                     ? policy_sample_step(&state, sample_draws, row + 1, action)
+                     : policy_step(&state, row + 1, action);
+#else
+        failed = policy_step(&state, row + 1, action);
+#endif
+        if (failed != 0) {
             status = 1;
         }
         print_row(action, POLICY_ACTION_DIM);
     }
     return read < 0 ? 1 : status;
 }
-#endif
 
 static int check_observation(void)
 {
@@ -153,7 +142,10 @@ int main(int argc, char **argv)
     }
     if (argc == 3 && strcmp(argv[1], "sample") == 0) {
 #if POLICY_SAMPLES
-        return check_sample((uint64_t)strtoull(argv[2], NULL, 10));
+        policy_rng draws;
+        policy_rng_seed(&draws, (uint64_t)strtoull(argv[2], NULL, 10));
+        sample_draws = &draws;
+        return check_sequence();
 #else
         fprintf(stderr, "this policy was exported without its action noise\n");
         return 2;
