@@ -7,6 +7,7 @@
     python examples/benchmarl_mappo.py --fixed-sigma 0.6 --frames 600000  # learns v1 (README)
     python examples/benchmarl_mappo.py --no-tanh --entropy-coef 0.001  # other noise settings
     python examples/benchmarl_mappo.py --no-normalize-advantage --max-grad-norm 5  # BenchMARL's
+    python examples/benchmarl_mappo.py --shared-sigma  # one learned σ per action, as SB3's PPO
     python examples/benchmarl_mappo.py --json mappo.json  # also the results page's file
 
 BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
@@ -29,7 +30,9 @@ Gaussian before the tanh) over the batch just collected: on v1 it shows why MAPP
 Gaussian clipped to the bounds (as SB3's PPO does) instead of BenchMARL's tanh-squashed one, and
 ``--entropy-coef`` rewards the policy's entropy (BenchMARL's default: 0), which pushes against a
 collapsing σ. ``--no-normalize-advantage`` and ``--max-grad-norm 5`` go back to BenchMARL's own
-settings. A results file names the settings that differ from BenchMARL's defaults.
+settings. ``--shared-sigma`` learns σ as SB3's PPO does, one number per action whatever the state
+(its log starts at 0, σ = 1), instead of from the actor's output. A results file names the
+settings that differ from BenchMARL's defaults.
 Needs the ``benchmarl`` extra (``pip install 'khepera-gym[benchmarl]'``).
 """
 
@@ -182,6 +185,11 @@ def main() -> None:
         help="hold the policy's action noise (σ before the tanh) at SIGMA instead of learning it",
     )
     parser.add_argument(
+        "--shared-sigma",
+        action="store_true",
+        help="learn one σ per action whatever the state (SB3's PPO), not σ from the actor's output",
+    )
+    parser.add_argument(
         "--no-tanh",
         action="store_true",
         help="a Gaussian clipped to the action bounds instead of BenchMARL's tanh-squashed one",
@@ -213,6 +221,8 @@ def main() -> None:
     )
     parser.add_argument("--json", help="also write the figures to this results file")
     args = parser.parse_args()
+    if args.fixed_sigma is not None and args.shared_sigma:
+        parser.error("--fixed-sigma and --shared-sigma are two ways to set σ: choose one")
     if args.fixed_sigma is not None and not 0.0 < args.fixed_sigma < float("inf"):
         parser.error(f"--fixed-sigma must be a finite number > 0, got {args.fixed_sigma}")
     if not 0.0 < args.max_grad_norm < float("inf"):
@@ -257,6 +267,13 @@ def main() -> None:
         sigma = args.fixed_sigma
         algorithm.scale_mapping = f"khepera_fixed_sigma_{sigma}"
         add_custom_mapping(algorithm.scale_mapping, lambda x: torch.full_like(x, sigma))
+    log_sigma = None
+    if args.shared_sigma:
+        # As SB3's PPO: log σ is a parameter of its own, one per action, that the actor's loss
+        # trains (added to its optimizer below); the actor's σ outputs then get no gradient.
+        log_sigma = torch.nn.Parameter(torch.zeros(2))  # a follower commands two wheels
+        algorithm.scale_mapping = "khepera_shared_sigma"
+        add_custom_mapping(algorithm.scale_mapping, lambda x: log_sigma.exp().expand_as(x))
     model = MlpConfig.get_from_yaml()
     model.num_cells = list(args.hidden)
     experiment = Experiment(
@@ -268,6 +285,9 @@ def main() -> None:
         config=config,
         callbacks=[NoiseReport(args.report_every)],
     )
+    if log_sigma is not None:
+        for optimizers in experiment.optimizers.values():
+            optimizers["loss_objective"].add_param_group({"params": [log_sigma]})
     if args.normalize_advantage:
         for loss in experiment.losses.values():
             loss.normalize_advantage = True  # torchrl's ClipPPOLoss option
@@ -293,6 +313,8 @@ def main() -> None:
         settings = []
         if args.fixed_sigma is not None:
             settings.append(f"sigma fixed at {args.fixed_sigma:g}")
+        if args.shared_sigma:
+            settings.append("one σ per action")
         if args.no_tanh:
             settings.append("Gaussian without tanh")
         if args.entropy_coef:
