@@ -134,6 +134,33 @@ class NoiseReport(Callback):
             )
 
 
+class SharedSigma:
+    """σ learned as SB3's PPO learns it: one parameter per action (its log, from 0: σ = 1),
+    whatever the state, instead of from the actor's output (BenchMARL's ``NormalParamExtractor``
+    maps half of the actor's outputs to σ; with this mapping those outputs get no gradient)."""
+
+    #: The name of the scale mapping registered with tensordict.
+    MAPPING = "khepera_shared_sigma"
+
+    def __init__(self, algorithm: MappoConfig | IppoConfig, actions: int = 2) -> None:
+        """Sets ``algorithm``'s scale mapping to σ = exp(``log_sigma``), one per action (a
+        follower commands two wheels)."""
+        self.log_sigma = torch.nn.Parameter(torch.zeros(actions))
+        algorithm.scale_mapping = self.MAPPING
+        add_custom_mapping(self.MAPPING, lambda x: self.log_sigma.exp().expand_as(x))
+
+    def train_with(self, experiment: Experiment) -> None:
+        """Adds ``log_sigma`` to the optimizer of every group's actor loss (and so to its
+        gradient clip), as SB3 trains its ``log_std`` with the policy."""
+        for optimizers in experiment.optimizers.values():
+            optimizers["loss_objective"].add_param_group({"params": [self.log_sigma]})
+
+    @property
+    def sigma(self) -> torch.Tensor:
+        """The current σ, one per action."""
+        return self.log_sigma.detach().exp()
+
+
 def result_row(policy: str, errors: dict[str, float]) -> dict[str, Any]:
     """A policy's row of the results file (the leader's arrival is not measured here)."""
     return {
@@ -267,13 +294,7 @@ def main() -> None:
         sigma = args.fixed_sigma
         algorithm.scale_mapping = f"khepera_fixed_sigma_{sigma}"
         add_custom_mapping(algorithm.scale_mapping, lambda x: torch.full_like(x, sigma))
-    log_sigma = None
-    if args.shared_sigma:
-        # As SB3's PPO: log σ is a parameter of its own, one per action, that the actor's loss
-        # trains (added to its optimizer below); the actor's σ outputs then get no gradient.
-        log_sigma = torch.nn.Parameter(torch.zeros(2))  # a follower commands two wheels
-        algorithm.scale_mapping = "khepera_shared_sigma"
-        add_custom_mapping(algorithm.scale_mapping, lambda x: log_sigma.exp().expand_as(x))
+    shared_sigma = SharedSigma(algorithm) if args.shared_sigma else None
     model = MlpConfig.get_from_yaml()
     model.num_cells = list(args.hidden)
     experiment = Experiment(
@@ -285,9 +306,8 @@ def main() -> None:
         config=config,
         callbacks=[NoiseReport(args.report_every)],
     )
-    if log_sigma is not None:
-        for optimizers in experiment.optimizers.values():
-            optimizers["loss_objective"].add_param_group({"params": [log_sigma]})
+    if shared_sigma is not None:
+        shared_sigma.train_with(experiment)
     if args.normalize_advantage:
         for loss in experiment.losses.values():
             loss.normalize_advantage = True  # torchrl's ClipPPOLoss option

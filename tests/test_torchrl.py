@@ -6,8 +6,10 @@ Needs the ``torchrl`` and ``benchmarl`` extras, which ``make test`` installs.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import pickle
 import sys
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -628,11 +630,8 @@ def test_benchmarl_task_config_from_yaml_and_errors(tmp_path: Any) -> None:
         KheperaTask.FORMATION.get_from_yaml(tmp_path / "list.yaml")
 
 
-@pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
-@pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
-def test_benchmarl_mappo_trains_on_formation(tmp_path: Any) -> None:
-    """Two MAPPO iterations on the batch: BenchMARL collects the frames asked for, from the
-    batch itself, and the policy's weights change."""
+def small_mappo(tmp_path: Any, algorithm: MappoConfig | None = None) -> Experiment:
+    """Two MAPPO iterations of 1,200 frames on Formation with two followers in a line."""
     torch.manual_seed(0)
     config = ExperimentConfig.get_from_yaml()
     config.sampling_device = config.train_device = config.buffer_device = "cpu"
@@ -649,14 +648,22 @@ def test_benchmarl_mappo_trains_on_formation(tmp_path: Any) -> None:
     config.save_folder = str(tmp_path)
     model = MlpConfig.get_from_yaml()
     model.num_cells = [32, 32]
-    experiment = Experiment(
+    return Experiment(
         task=KheperaTask.FORMATION.get_task(config={"n_followers": 2, "shape": "line"}),
-        algorithm_config=MappoConfig.get_from_yaml(),
+        algorithm_config=algorithm or MappoConfig.get_from_yaml(),
         model_config=model,
         critic_model_config=model,
         seed=0,
         config=config,
     )
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
+@pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
+def test_benchmarl_mappo_trains_on_formation(tmp_path: Any) -> None:
+    """Two MAPPO iterations on the batch: BenchMARL collects the frames asked for, from the
+    batch itself, and the policy's weights change."""
+    experiment = small_mappo(tmp_path)
     assert isinstance(experiment.test_env.base_env, KheperaTorchEnv)
     weights = [p.detach().clone() for p in experiment.policy.parameters()]
     experiment.run()
@@ -666,3 +673,32 @@ def test_benchmarl_mappo_trains_on_formation(tmp_path: Any) -> None:
         not torch.equal(w, p) for w, p in zip(weights, experiment.policy.parameters(), strict=True)
     ]
     assert any(changed)
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
+@pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
+def test_mappo_example_learns_one_sigma_per_action_whatever_the_state(tmp_path: Any) -> None:
+    """examples/benchmarl_mappo.py --shared-sigma: σ is one trained number per action (SB3's
+    PPO), the same in every state, where BenchMARL's actor outputs it per state."""
+    path = Path(__file__).resolve().parents[1] / "examples" / "benchmarl_mappo.py"
+    spec = importlib.util.spec_from_file_location("benchmarl_mappo_example", path)
+    assert spec is not None and spec.loader is not None
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    algorithm = MappoConfig.get_from_yaml()
+    shared = example.SharedSigma(algorithm)
+    experiment = small_mappo(tmp_path, algorithm)
+    shared.train_with(experiment)
+    assert torch.equal(shared.sigma, torch.ones(2))
+    experiment.run()
+    assert experiment.n_iters_performed == 2
+    sigma = shared.sigma
+    assert not torch.equal(sigma, torch.ones(2))  # the actor's loss trained it
+    env = KheperaTorchEnv("formation", 3, seed=5, n_followers=2, shape="line")
+    with torch.no_grad():
+        output = experiment.policy(env.reset())
+    scale = output["followers", "scale"]
+    assert scale.shape == (3, 2, 2)  # worlds, followers, wheels: different states
+    assert torch.equal(scale, sigma.expand_as(scale))
+    loc = output["followers", "loc"]
+    assert not torch.equal(loc[0], loc[1])  # the states differ; their σ does not
