@@ -32,7 +32,7 @@ pub use crate::config::Param;
 pub use scenes::{scene, SCENES};
 pub use sections::{
     ArenaConfig, DriveModel, Localization, MotionSplit, ObstacleConfig, ObstacleKind, ObstacleSpec,
-    PhysicsConfig, Placement, SlipSolver, SpawnConfig, TaskConfig,
+    PhysicsConfig, Placement, SceneSolver, SlipSolver, SpawnConfig, TaskConfig,
 };
 pub use versions::VERSION_DEFAULTS;
 
