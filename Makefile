@@ -1,8 +1,9 @@
 # Developer entry points. On a fresh machine (Python >= 3.10 and a Rust toolchain):
 #   make demo    build the extension into .venv and run the Nav demo
 #   make test    build with the sb3 extra (torch, ~5 GB), then run the Rust and Python tests
+#   make docs    the documentation site into docs/_build/html (Sphinx, MyST, Furo)
 # CI (.ci/run) then runs `make test-floors` (the Python tests at the declared floors, on Python
-# 3.10) and `make wheel` (the abi3 wheel, smoke-tested in a fresh venv).
+# 3.10), `make wheel` (the abi3 wheel, smoke-tested in a fresh venv) and `make docs`.
 # Everything Python lives in the virtual environment .venv (created here when missing).
 
 VENV      := .venv
@@ -16,6 +17,7 @@ RUST_SRC  := Cargo.toml $(wildcard Cargo.lock) pyproject.toml \
 TOOLS     := $(VENV)/.tools-installed
 BUILT     := $(VENV)/.khepera-gym-built
 SB3       := $(VENV)/.sb3-installed
+DOCS_TOOLS := $(VENV)/.docs-installed
 
 # The floors leg: a Python 3.10 venv whose packages are pyproject.toml's floors.
 FLOORS_VENV        := .venv-floors
@@ -36,7 +38,7 @@ FLOORS_CANDIDATES   = python3.10 $(wildcard $(PYENV_ROOT)/versions/3.10*/bin/pyt
 FLOORS_PYTHON      ?= $(firstword $(foreach candidate,$(FLOORS_CANDIDATES), \
                         $(call is_python310,$(candidate))))
 
-.PHONY: develop test test-floors demo bench lint format clean wheel
+.PHONY: develop test test-floors demo bench lint format clean wheel docs
 
 develop: $(BUILT)
 
@@ -108,6 +110,23 @@ demo: develop
 bench: develop
 	$(PYTHON) examples/benchmark.py
 
+# The docs extra's packages (Sphinx, MyST, Furo), read from pyproject.toml and installed with pip
+# beside the built extension (no rebuild).
+$(DOCS_TOOLS): pyproject.toml $(TOOLS)
+	$(PYTHON) -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['optional-dependencies']['docs']))" > $(VENV)/docs-requirements.txt
+	$(PYTHON) -m pip install --quiet -r $(VENV)/docs-requirements.txt
+	touch $@
+
+# The site, into docs/_build/html, from a clean state: docs/conf.py first writes the generated
+# pages (docs/generated/: every env, scene, sensor, baseline, and the results tables from
+# docs/results/) from the code. Warnings are errors (-W, all reported with --keep-going) and
+# every cross-reference must resolve (-n): a broken internal link, a missing page or label, a
+# stale include fails the build.
+docs: develop $(DOCS_TOOLS)
+	rm -rf docs/_build docs/generated
+	$(PYTHON) -m sphinx -W --keep-going -n -q -b html docs docs/_build/html
+	@echo "docs: open docs/_build/html/index.html"
+
 # Clippy runs twice: the binding (src/python/) is compiled only with the `python` feature.
 lint: develop
 	cargo fmt --check
@@ -122,7 +141,7 @@ format: develop
 	$(VENV)/bin/ruff check --fix khepera_gym tests examples
 
 clean:
-	rm -rf $(BUILT) demo_out
+	rm -rf $(BUILT) demo_out docs/_build docs/generated
 	rm -f khepera_gym/_core*.so khepera_gym/_core*.pyd
 
 # An abi3 wheel (one wheel for every CPython >= 3.10) and the sdist in dist/, then a smoke test:

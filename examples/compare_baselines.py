@@ -1,9 +1,10 @@
-"""The paper's controllers compared on the same seeded episodes: the README's tables and figures.
+"""The paper's controllers compared on the same seeded episodes: the documentation's tables and
+figures.
 
 Usage: ``python examples/compare_baselines.py [--episodes 200] [--fig6-episodes 20]
-[--out compare_out] [--docs docs] [--version 1]``. Runs, with :func:`khepera_gym.compare.compare`,
-on the envs of behaviour ``--version`` (default: the latest; 0 is the paper's V-REP-like
-dynamics):
+[--out compare_out] [--docs docs/images] [--version 1]``. Runs, with
+:func:`khepera_gym.compare.compare`, on the envs of behaviour ``--version`` (default: the
+latest; 0 is the paper's V-REP-like dynamics):
 
 1. the paper's Fig. 6 scene (``config="paper_fig6"``): Braitenberg vs VFH (and position control
    alone), and how much each turns (total heading change, turn-direction reversals: the paper

@@ -4,7 +4,8 @@ event-triggered (when a robot has moved 1 cm since its last message). Prints eac
 error and messages; saves a figure of both runs: the paths with a dot wherever a robot
 broadcast, and the disagreement over time.
 
-Usage: ``python examples/consensus.py [--robots 6] [--seed 3] [--figure docs/consensus_v1.png]``.
+Usage: ``python examples/consensus.py [--robots 6] [--seed 3]
+[--figure docs/images/consensus_v1.png]``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """The quadcopter of the KH4VREP paper's Fig. 8 following a Khepera IV (KheperaIV-DroneFollow-v1):
 PD pursuit against a random command, over seeded episodes, with 95 % intervals; saves a frame.
 
-Usage: ``python examples/drone_follow.py [--episodes 200] [--frame docs/dronefollow_v1.png]``.
+Usage: ``python examples/drone_follow.py [--episodes 200]
+[--frame docs/images/dronefollow_v1.png]``.
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 (:func:`khepera_gym.envs.avoid_heuristic`), through the array env that returns every agent's data
 at once. Prints how many arrived, the contacts and the speed; saves the last frame.
 
-Usage: ``python examples/swarm.py [--robots 1000] [--steps 600] [--frame docs/swarm_v1.png]``.
+Usage: ``python examples/swarm.py [--robots 1000] [--steps 600]
+[--frame docs/images/swarm_v1.png]``.
 """
 
 from __future__ import annotations

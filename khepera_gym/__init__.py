@@ -11,16 +11,14 @@ Importing the package registers the environments with Gymnasium::
 Registered ids (``gym.make("KheperaIV-Nav")`` picks the latest version, with Gymnasium's warning
 that it did so), made from the task list the Rust core exports (:mod:`khepera_gym.registration`):
 
-* ``KheperaIV-Nav-v1``: :class:`khepera_gym.envs.NavEnv`, vector env
-  :class:`khepera_gym.vector.NavVectorEnv`;
-* ``KheperaIV-Avoid-v1``: :class:`khepera_gym.envs.AvoidEnv`, vector env
-  :class:`khepera_gym.vector.AvoidVectorEnv`;
-* ``KheperaIV-Formation-v1``: :class:`khepera_gym.envs.FormationEnv`, vector env
-  :class:`khepera_gym.vector.FormationVectorEnv`.
+``KheperaIV-<Task>-v<n>`` for every task the core exports with a Gymnasium id and every
+behaviour version it exists in, each with its single env (:mod:`khepera_gym.envs`) and its native
+vector env (:mod:`khepera_gym.vector`); ``khepera-gym list`` prints them, and
+:func:`khepera_gym.registration.registered_ids` returns them. The multi-agent (PettingZoo) envs
+are the ``*_vN`` modules of :mod:`khepera_gym.pettingzoo`.
 
-Multi-agent versions (PettingZoo) live in :mod:`khepera_gym.pettingzoo`: ``formation_v1`` (one
-agent per follower), ``multinav_v1`` (several robots, each with its own goal) and ``platoon_v1``
-(several robots tracking time-shifted copies of one reference trajectory).
+Discovery: :func:`default_config` gives a task's scenario keys with their defaults and comments,
+:func:`scenes` the built-in scenes that ``config=`` takes.
 
 No ``max_episode_steps`` is registered: the Rust core truncates episodes itself at the scenario's
 ``max_steps``. ``gym.make(id, max_episode_steps=k)`` still adds Gymnasium's ``TimeLimit`` wrapper
@@ -30,6 +28,7 @@ on top; to change the episode length of the simulator itself pass ``max_steps=k`
 from __future__ import annotations
 
 from khepera_gym import _core, errors
+from khepera_gym.catalog import default_config, scenes
 from khepera_gym.layout import obs_layout
 from khepera_gym.registration import register_envs
 
@@ -53,9 +52,11 @@ register_envs()
 
 __all__ = [
     "__version__",
+    "default_config",
     "errors",
     "motor_presets",
     "obs_layout",
+    "scenes",
     "speed_to_units",
     "units_to_speed",
 ]

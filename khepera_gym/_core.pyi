@@ -198,10 +198,11 @@ def formation_offsets(shape: str, spacing: float, n_followers: int) -> list[tupl
 def braitenberg_weights(name: str) -> list[list[float]]:
     """Weight matrices of the Braitenberg block: "default" or "kteam" (m/s per unit proximity)."""
 
-def default_config(name: str) -> str:
-    """A built-in scenario file (TOML text): a task's defaults ("nav", "avoid", "formation",
-    "multinav", "track", "pathfollow", "platoon", every key
-    documented) or a scene ("paper_fig6", "paper_fig7")."""
+def default_config(name: str, version: int | None = None) -> str:
+    """A built-in scenario file (TOML text): a task's defaults for behaviour ``version`` (None:
+    the latest; every key with its comment) or a scene (``builtin_configs()`` lists both;
+    ConfigError for a version the task does not exist in). The public form is
+    ``khepera_gym.default_config`` (tasks) and ``khepera_gym.scenes`` (scenes)."""
 
 def _batch_from_state(
     task: str,

@@ -10,23 +10,30 @@ Measures env-steps per second of
 
 with uniform random actions generated beforehand, a warm-up, then a fixed wall time per
 configuration; and the resident memory per world of a 4096-world batch (Linux ``/proc``).
-Timing is wall-clock (``time.perf_counter``) and includes the Python layer.
+Timing is wall-clock (``time.perf_counter``) and includes the Python layer. ``--json PATH``
+writes the rows with the date, commit, machine and command (:mod:`khepera_gym.provenance`), the
+data of the documentation's performance tables.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import gc
+import json
 import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 import khepera_gym
 from khepera_gym import _core
+from khepera_gym.provenance import provenance
 from khepera_gym.swarm_bench import swarm_rows
 
 NAV_ID = f"KheperaIV-Nav-v{_core.LATEST_VERSION}"
@@ -74,6 +81,7 @@ class Measurement:
 
     @property
     def env_steps_per_second(self) -> float:
+        """Env-steps (one world advanced by one control step) per second of wall time."""
         return self.num_envs * self.steps / self.seconds
 
     @property
@@ -178,9 +186,11 @@ def run(
     task_envs: int = 1024,
     version: int = _core.LATEST_VERSION,
     swarm: Sequence[int] = (),
+    json_path: str | Path | None = None,
 ) -> list[Measurement]:
     """Runs the benchmark of behaviour ``version``'s envs and prints a table; returns the
-    measurements."""
+    measurements, and with ``json_path`` writes them, the memory per world, the swarm rows and
+    the provenance (``meta``) there."""
     nav_id = f"KheperaIV-Nav-v{version}"
     print(f"khepera_gym {khepera_gym.__version__} benchmark: {nav_id}, uniform random actions,")
     print(f"{duration:.1f} s per configuration after warm-up; {os.cpu_count()} CPU(s) visible\n")
@@ -226,6 +236,7 @@ def run(
             f"{result.microseconds_per_step:>10.1f} {'':>9}",
             flush=True,
         )
+    per_world = None
     if memory:
         per_world = memory_per_world()
         print()
@@ -236,9 +247,27 @@ def run(
                 f"memory per world: {per_world / 1024:.1f} KiB "
                 f"(resident-set growth of a {_MEMORY_WORLDS}-world Nav batch)"
             )
-    if swarm and version >= 1:
-        swarm_rows(swarm, num_threads, duration)
+    swarm_table = swarm_rows(swarm, num_threads, duration) if swarm and version >= 1 else []
+    if json_path is not None:
+        document = {
+            "meta": provenance(),
+            "version": version,
+            "duration": duration,
+            "rows": [
+                dataclasses.asdict(m) | {"env_steps_per_second": m.env_steps_per_second}
+                for m in measurements
+            ],
+            "memory_per_world_bytes": per_world,
+            "swarm": swarm_table,
+        }
+        _write_json(Path(json_path), document)
     return measurements
+
+
+def _write_json(path: Path, document: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    print(f"\nsaved {path}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -274,6 +303,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=_core.LATEST_VERSION,
         help=f"behaviour version of the envs (default {_core.LATEST_VERSION}, the latest)",
     )
+    parser.add_argument(
+        "--json",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="also write the rows, with date, commit, machine and command, to this JSON file",
+    )
 
 
 def run_from_args(args: argparse.Namespace) -> int:
@@ -289,6 +325,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         memory=not args.no_memory,
         version=args.version,
         swarm=(4, 1000) if quick else (4, 32, 100, 300, 1000),
+        json_path=args.json,
     )
     return 0
 

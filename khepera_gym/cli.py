@@ -1,5 +1,9 @@
-"""The ``khepera-gym`` command: ``demo``, ``compare``, ``train``, ``render``, ``export`` and
-``bench``.
+"""The ``khepera-gym`` command: ``list``, ``demo``, ``compare``, ``train``, ``render``,
+``export`` and ``bench``.
+
+``list`` prints what the package has, read from the registries (:mod:`khepera_gym.catalog`):
+the Gymnasium ids, the PettingZoo modules, the built-in scenes, the sensors and the policies
+``compare`` and ``render`` take.
 
 ``train`` trains a stable-baselines3 agent on the Rust batch (:mod:`khepera_gym.train`; SB3 and
 torch are imported only then). ``export`` writes a trained policy as C for the real robot or as
@@ -19,7 +23,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, compare, export, record, train
+from khepera_gym import bench, catalog, compare, export, provenance, record, train
+from khepera_gym.compare.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
+from khepera_gym.registration import registered_ids
+
+#: What ``khepera-gym list`` can print.
+LIST_TOPICS = ("envs", "pettingzoo", "scenes", "sensors", "policies")
 
 #: Episodes per policy of each comparison of the demo.
 DEMO_EPISODES = 50
@@ -31,6 +40,52 @@ def demo(episodes: int = DEMO_EPISODES, out_dir: Path = Path("demo_out")) -> int
     return compare.demo(episodes, out_dir)
 
 
+def _policy_tasks(name: str) -> str:
+    """The tasks a policy of ``compare`` is a default for (random: every task)."""
+    if name == "random":
+        return "every task"
+    tasks = [task for task, names in DEFAULT_POLICIES.items() if name in names]
+    return ", ".join(tasks) if tasks else "tasks whose observation it reads"
+
+
+def list_catalog(topics: Sequence[str] = LIST_TOPICS) -> str:
+    """The text of ``khepera-gym list``: one section per topic, from the registries."""
+    sections = []
+    if "envs" in topics:
+        lines = ["Gymnasium ids (gym.make; without -vN: the latest):"]
+        for task, ids in registered_ids().items():
+            lines.append(f"  {', '.join(ids):<52} task {task}")
+        sections.append("\n".join(lines))
+    if "pettingzoo" in topics:
+        lines = ["PettingZoo modules (khepera_gym.pettingzoo.<name>.parallel_env()):"]
+        for module in catalog.pettingzoo_modules():
+            lines.append(f"  {module.name:<20} task {module.task}")
+        sections.append("\n".join(lines))
+    if "scenes" in topics:
+        lines = ["Built-in scenes (config=NAME; also every task's name for its defaults):"]
+        lines += [f"  {name:<12} {summary}" for name, summary in catalog.scenes().items()]
+        sections.append("\n".join(lines))
+    if "sensors" in topics:
+        lines = ["Sensors (scenario keys sensors.carry and sensors.observe):"]
+        for sensor in catalog.sensors():
+            default = "observed" if sensor.observed else "carried" if sensor.carried else "off"
+            values = f"{sensor.values} value{'s' if sensor.values > 1 else ''}"
+            lines.append(f"  {sensor.name:<8} {values:>10}   default: {default}")
+        sections.append("\n".join(lines))
+    if "policies" in topics:
+        lines = ["Policies (khepera-gym compare --policy, render --policy):"]
+        for name in POLICY_NAMES:
+            controller = VARIANTS.get(name, (name, {}))[0]
+            cls = BASELINES.get(controller)
+            what = f"baselines.{cls.__name__}" if cls is not None else "uniform random actions"
+            if name in VARIANTS and VARIANTS[name][1]:
+                what += "(" + ", ".join(f"{k}={v!r}" for k, v in VARIANTS[name][1].items()) + ")"
+            lines.append(f"  {name:<24} {what}; for {_policy_tasks(name)}")
+        lines.append("  sb3:PATH.zip             a stable-baselines3 model (the sb3 extra)")
+        sections.append("\n".join(lines))
+    return "\n\n".join(sections)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``khepera-gym`` and its subcommands."""
     parser = argparse.ArgumentParser(
@@ -39,6 +94,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=khepera_gym.__version__)
     commands = parser.add_subparsers(dest="command", required=True)
+
+    list_parser = commands.add_parser(
+        "list", help="the envs, PettingZoo modules, scenes, sensors and policies there are"
+    )
+    list_parser.add_argument(
+        "topics",
+        nargs="*",
+        metavar="TOPIC",
+        help=f"what to list: {', '.join(LIST_TOPICS)} (default: all)",
+    )
 
     demo_parser = commands.add_parser(
         "demo", help="compare the baselines on the paper's scenes and every task; plot them"
@@ -81,6 +146,22 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``khepera-gym`` console script."""
     args = build_parser().parse_args(argv)
+    if argv is None:
+        return _run(args)
+    with provenance.running_command(["khepera-gym", *argv]):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Runs the parsed subcommand."""
+    if args.command == "list":
+        unknown = sorted(set(args.topics) - set(LIST_TOPICS))
+        if unknown:
+            raise SystemExit(
+                f"khepera-gym list: unknown topic {unknown[0]!r}; known: {LIST_TOPICS}"
+            )
+        print(list_catalog(args.topics or LIST_TOPICS))
+        return 0
     if args.command == "demo":
         if args.episodes < 1:
             raise SystemExit("khepera-gym demo: --episodes must be >= 1")

@@ -4,9 +4,9 @@ A scenario is a TOML file overlaid by the Rust core on the task's built-in defau
 ``configs/*.toml``, embedded in the extension, so installed wheels have them). ``config`` may be:
 
 * ``None``: the task's built-in defaults;
-* a built-in scenario name: a task's defaults (``"nav"``, ``"avoid"``, ``"formation"``,
-  ``"multinav"``) or a scene (``"paper_fig6"``, ``"paper_fig7"``), overlaid on the task's
-  defaults like a file (``_core.builtin_configs()`` lists them);
+* a built-in scenario name: a task's name (its defaults) or a scene (``"paper_fig6"``, ...),
+  overlaid on the task's defaults like a file (:func:`khepera_gym.scenes` lists the scenes,
+  ``khepera-gym list scenes`` prints them);
 * a path (``str`` or ``os.PathLike``) to a ``.toml`` file.
 
 Keys are validated by the Rust core: unknown keys and impossible values raise

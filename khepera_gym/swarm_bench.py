@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -64,8 +65,10 @@ def swarm_rows(
     robot_counts: Sequence[int] = (4, 32, 100, 300, 1000),
     num_threads: Sequence[int] = (1, 2),
     duration: float = 1.5,
-) -> None:
-    """Prints the scaling table: one row per robot count and thread count, then the scene."""
+) -> list[dict[str, Any]]:
+    """Prints the scaling table: one row per robot count and thread count, then the scene;
+    returns the rows (robots, scene, split, threads, world-steps/s, robot-steps/s, × real
+    time)."""
     header = (
         f"{'robots per world':<22} {'split':>5} {'threads':>7} {'world-steps/s':>13} "
         f"{'robot-steps/s':>13} {'× real time':>11}"
@@ -74,21 +77,34 @@ def swarm_rows(
     print(header)
     print("-" * len(header))
     cases = [(n, False) for n in robot_counts] + [(1000, True)]
+    rows = []
     for robots, scene in cases:
         for split in ("world", "robot") if robots >= 100 else ("world",):
             for threads in num_threads:
-                _row(robots, scene, split, threads, duration)
+                rows.append(_row(robots, scene, split, threads, duration))
+    return rows
 
 
-def _row(robots: int, scene: bool, split: str, threads: int, duration: float) -> None:
+def _row(robots: int, scene: bool, split: str, threads: int, duration: float) -> dict[str, Any]:
     rate = bench_swarm(robots, threads, duration, scene, split)
     label = f"{robots} (swarm scene)" if scene else f"{robots}"
     worlds = max(1, 1024 // robots)
+    real_time = rate / worlds * _DT
     print(
         f"{label:<22} {split:>5} {threads:>7} {rate:>13,.0f} {rate * robots:>13,.0f} "
-        f"{rate / worlds * _DT:>11.1f}",
+        f"{real_time:>11.1f}",
         flush=True,
     )
+    return {
+        "robots": robots,
+        "worlds": worlds,
+        "scene": "swarm" if scene else None,
+        "split": split,
+        "threads": threads,
+        "world_steps_per_second": rate,
+        "robot_steps_per_second": rate * robots,
+        "real_time_factor": real_time,
+    }
 
 
 __all__ = ["bench_swarm", "swarm_rows"]

@@ -11,8 +11,9 @@ then evaluates the final model on ``eval_episodes`` seeded episodes. A run direc
 * ``vecnormalize.pkl``: the ``VecNormalize`` statistics, only when the hyperparameters set
   ``normalize = true`` (:func:`khepera_gym.sb3.load_policy` applies them);
 * ``run.json``: env, algorithm, seed, resolved hyperparameters, wall time, steps/s, every
-  evaluation; ``progress.csv``: SB3's training log; TensorBoard event files when the
-  ``tensorboard`` package is installed (``tensorboard --logdir runs``).
+  evaluation, and ``meta``: the date, commit, machine and command
+  (:mod:`khepera_gym.provenance`); ``progress.csv``: SB3's training log; TensorBoard event
+  files when the ``tensorboard`` package is installed (``tensorboard --logdir runs``).
 
 SB3 and torch are imported only when training starts, so ``khepera-gym demo`` stays light.
 
@@ -38,6 +39,7 @@ import khepera_gym
 from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
 from khepera_gym.hyperparams import EVAL_SEED, HYPERPARAMS_DIR, load_hyperparams, parse_override
+from khepera_gym.provenance import provenance
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
@@ -335,6 +337,7 @@ def _train(
     )
     record = result.to_json()
     record["versions"] = _versions()
+    record["meta"] = provenance()
     (out / "run.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     env.close()
     eval_env.close()

@@ -2,7 +2,7 @@
 //! orders, as a choice the real robot can be set to.
 //!
 //! The Khepera IV's firmware has two modes a program drives in (K-Team Khepera IV User Manual
-//! 3.0, §4.14; the project's notes in docs and `shared/research/drive.md`):
+//! 3.0, §4.14; docs/drive.md):
 //! * **profile** (`kh4_SetMode(kh4RegSpeedProfile)`): the order given to the wheels' PID ramps
 //!   toward each new speed by `acc_inc` speed units every `acc_div + 1` control periods of 10 ms,
 //!   and a nonzero order never lies below `min_speed_acc` units. The firmware computes the ramp,
@@ -89,7 +89,7 @@ pub struct MotorPreset {
     pub source: &'static str,
 }
 
-/// The drives real programs set on the Khepera IV (shared/research/drive.md tabulates them).
+/// The drives real programs set on the Khepera IV (docs/drive.md tabulates them).
 pub const PRESETS: &[MotorPreset] = &[
     MotorPreset {
         name: "kteam_default",

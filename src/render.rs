@@ -149,7 +149,8 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
         }
         if env.cfg.task.led_action {
             // The three top LEDs where the real robot has them: a front pair at (39, ±24) mm, one
-            // at (−48, 0) mm (Webots' Khepera IV model; spec §6), in the colour its agent set.
+            // at (−48, 0) mm (Webots' Khepera IV model; docs/robot.md §6), in the colour its agent
+            // set.
             let rgb = robot.led.map(|c| (c * 255.0).round() as u8);
             for (x, y) in [(0.039, 0.024), (0.039, -0.024), (-0.048, 0.0)] {
                 let at = robot.position + x * dir(0.0) + y * dir(std::f32::consts::FRAC_PI_2);

@@ -1,6 +1,6 @@
 //! The Khepera IV's body, differential drive and speed units.
 //!
-//! Numbers come from `shared/khepera4_spec.md` §1 (K-Team user manual 3.0). Units are SI: metres,
+//! Numbers come from docs/robot.md §1 (K-Team user manual 3.0). Units are SI: metres,
 //! seconds, radians. Robot frame: x forward, y left, angles counter-clockwise. World state is f32.
 
 use crate::config::Param;

@@ -150,8 +150,8 @@ fn test_another_robot_occludes_with_its_leds_colour() {
 #[test]
 fn test_an_agents_led_action_shows_in_another_robots_camera_at_its_next_observation() {
     // Agent 1 sets its LEDs to (0.5, -1, 1): levels round(0.75 · 63) = 47, 0 and 63 of the real
-    // LEDs' 64 (spec §6); agent 0 leaves its own at full green. With `action_delay = 1` the
-    // colour arrives one step later, like the wheels.
+    // LEDs' 64 (docs/robot.md §6); agent 0 leaves its own at full green. With `action_delay = 1`
+    // the colour arrives one step later, like the wheels.
     let other = Vector::new(0.4, 0.05);
     let action = [0.0, 0.0, -1.0, 1.0, -1.0, 0.0, 0.0, 0.5, -1.0, 1.0];
     let set = [47.0 / 63.0, 0.0, 1.0];

@@ -130,7 +130,7 @@ fn test_wall_impact_slows_the_robot_as_coulomb_friction_predicts() {
 fn test_robot_pushed_into_a_wall_turns_head_on_and_stalls() {
     on_versions(|_| {
         // Wall friction yaws the robot toward the wall's normal while the tyres slip, until it is
-        // head-on and stuck (fidelity.md §3.2): at every angle, within 4 s.
+        // head-on and stuck (docs/fidelity.md §3.2): at every angle, within 4 s.
         for alpha_deg in [10.0f32, 30.0, 45.0, 60.0, 75.0] {
             let poses = wall_run(alpha_deg, MU, 4.0, 0.005);
             let end = poses[poses.len() - 1];
@@ -178,7 +178,7 @@ fn test_frictionless_wall_keeps_the_tangential_speed_and_the_heading() {
 fn test_wall_contact_converges_as_substeps_grow() {
     on_versions(|_| {
         // One second against the wall at 45 deg, with the default 2, 4 and 16 substeps: the end
-        // poses agree to a few millimetres (fidelity.md T4: 5 mm).
+        // poses agree to a few millimetres (docs/fidelity.md T4: 5 mm).
         let end = |substeps: u32| {
             let mut env = nav(&format!("substeps = {substeps}"));
             env.world.place_robot(
@@ -254,7 +254,7 @@ fn test_acceleration_and_braking_follow_the_speed_profile_in_both_motion_paths()
 
 #[test]
 fn test_one_step_of_full_command_from_rest_stays_under_the_profile() {
-    // fidelity.md gap 2: after one 50 ms step of full command, v <= a dt.
+    // docs/fidelity.md gap 2: after one 50 ms step of full command, v <= a dt.
     let mut env = nav("");
     drive(&mut env, &[1.0, 1.0], 1, |_| {});
     let a = env.world.drive.wheel_accel_limit;

@@ -9,7 +9,7 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rapier2d::math::Vector;
 
-/// Khepera IV body radius (m), khepera4_spec.md.
+/// Khepera IV body radius (m), docs/robot.md.
 const RADIUS: f32 = 0.0704;
 
 /// (distance bits, centre of the robot hit, if a robot) of a hit.

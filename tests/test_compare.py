@@ -17,6 +17,7 @@ from conftest import AVOID_ID, DRONE_ID, FORMATION_ID, LINEFOLLOW_ID, NAV_ID, TR
 
 from khepera_gym import cli, compare
 from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
+from khepera_gym.compare.policies import DEFAULT_POLICIES
 from khepera_gym.errors import ConfigError
 from khepera_gym.plot import plot_rollouts, record_rollout
 
@@ -113,6 +114,8 @@ def test_cli_compare_writes_table_csv_json_and_plots(
     ]
     document = json.loads((tmp_path / "paper_fig6_results.json").read_text())
     assert document["env_id"] == "KheperaIV-Avoid-v0" and document["config"] == "paper_fig6"
+    assert document["meta"]["command"].startswith("khepera-gym compare --env KheperaIV-Avoid-v0")
+    assert {"date", "commit", "machine"} <= document["meta"].keys()
     assert [s["policy"] for s in document["summaries"]] == ["braitenberg", "vfh"]
     success = document["summaries"][0]["success_rate"]
     assert success["value"] == 1.0 and success["n"] == 3
@@ -133,6 +136,15 @@ def test_cli_compare_formation_reports_the_formation_error(
     assert not list(tmp_path.glob("*.png"))  # --no-plot
     document = json.loads((tmp_path / "formation_results.json").read_text())
     assert document["summaries"][0]["formation_error_mean"]["value"] < 0.1
+
+
+def test_an_older_version_compares_its_tasks_default_policies(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["compare", "--env", "KheperaIV-Formation-v0", "--episodes", "1", "--no-progress"]
+    assert cli.main([*argv, "--out", str(tmp_path), "--no-plot"]) == 0
+    document = json.loads((tmp_path / "formation_results.json").read_text())
+    assert [s["policy"] for s in document["summaries"]] == list(DEFAULT_POLICIES["formation"])
 
 
 @pytest.mark.parametrize(

@@ -125,7 +125,9 @@ def test_compare_task_consensus_prints_and_saves_the_sweep(
     monkeypatch.setattr(sys, "argv", argv)
     assert cli.main() == 0
     table = capsys.readouterr().out
-    rows = json.loads((tmp_path / "consensus_sweep.json").read_text())
+    document = json.loads((tmp_path / "consensus_sweep.json").read_text())
+    assert document["meta"]["command"].startswith("khepera-gym compare --task consensus")
+    rows = document["rows"]
     assert len(rows) == len(sweep.PERIODS) + len(sweep.THRESHOLDS)
     assert "| event 0.01 m |" in table
     assert (tmp_path / "consensus_tradeoff.png").stat().st_size > 10_000

@@ -1,15 +1,16 @@
-"""The env manuals stay true: examples run, tables cover the layout, bounds and every key."""
+"""The documentation stays true to the code: the env manuals' examples run and their tables
+cover the layout and bounds; the defaults they state are the code's; the generated pages
+(docs/generated/, ``make docs``) table every id, block and key from the registries; the README's
+env table is the generated one; every env page has its animation; the results files render; code
+comments cite pages that exist."""
 
 from __future__ import annotations
 
 import doctest
+import json
 import re
-from typing import Any
-
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
-    import tomli as tomllib
+import shutil
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -26,7 +27,11 @@ from conftest import (
 )
 
 import khepera_gym
-from khepera_gym import _core, envs
+import khepera_gym.baselines
+import khepera_gym.catalog
+import khepera_gym.registration
+from khepera_gym import envs
+from khepera_gym.config import tomllib
 from khepera_gym.envs import (
     AvoidEnv,
     DroneFollowEnv,
@@ -38,6 +43,8 @@ from khepera_gym.envs import (
     TrackEnv,
 )
 
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
 MANUAL_SECTIONS = [
     "Description",
     "Action Space",
@@ -103,23 +110,6 @@ def _block_layout(task: str) -> dict[str, slice]:
     return {name.removeprefix(prefix): s for name, s in layout.items() if name.startswith(prefix)}
 
 
-def _toml_text(value: Any) -> str:
-    """A scenario value as the manuals write it in their Default column."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_text(item) for item in value) + "]"
-    return str(value)
-
-
-def _key_row(manual: str, key: str) -> str:
-    """The Scenario file table's line that names ``key`` (in backquotes)."""
-    for line in _section(manual, "Scenario file").splitlines():
-        if line.strip().startswith("|") and f"`{key}`" in line:
-            return line
-    raise AssertionError(f"{key} has no row in the Scenario file table")
-
-
 @pytest.mark.parametrize("env_class", [m[0] for m in MANUALS], ids=MANUAL_IDS)
 def test_manual_has_every_section_in_order(env_class: type) -> None:
     manual = env_class.__doc__ or ""
@@ -168,41 +158,266 @@ def test_formation_manual_states_the_agent_leader_block_is_navs() -> None:
     env.close()
 
 
-def test_nav_manual_documents_every_scenario_key() -> None:
-    manual = NavEnv.__doc__ or ""
-    scenario = tomllib.loads(_core.default_config("nav"))
-    assert scenario
-    for section, keys in scenario.items():
-        for key in keys:
-            assert f"`{section}.{key}`" in manual, f"{section}.{key} missing from the manual"
+# --- the defaults the manuals state are the code's ---------------------------------------------
 
-
-@pytest.mark.parametrize(
-    ("env_class", "task"),
-    [
-        (AvoidEnv, "avoid"),
-        (FormationEnv, "formation"),
-        (TrackEnv, "track"),
-        (PathFollowEnv, "pathfollow"),
-    ],
+#: A dotted key in backquotes followed by its value: "`task.max_steps` (400" or "` = 0.7".
+_STATED_DEFAULT = re.compile(
+    r"`(?P<key>[a-z_]+\.[a-z_]+)` (?:\(|= )(?P<approx>≈)?(?P<number>-?\d+(?:\.\d+)?)"
+    r"\s*(?P<unit>mm/s|m/s²|m/s|cm|mm|m|s|°)?(?![\w.])"
 )
-def test_task_manual_documents_every_key_that_differs_from_nav(env_class: type, task: str) -> None:
-    """A task manual tables the keys whose default differs from Nav's and its own sections; for
-    the other keys it refers to NavEnv's table, which documents them (test above)."""
-    manual = env_class.__doc__ or ""
-    assert ":class:`NavEnv`" in _section(manual, "Scenario file")
-    nav = tomllib.loads(_core.default_config("nav"))
-    scenario = tomllib.loads(_core.default_config(task))
-    documented = set()
-    for section, keys in scenario.items():
+#: Units a manual states a default in, as SI factors (° to radians).
+_UNITS = {None: 1.0, "m": 1.0, "s": 1.0, "m/s": 1.0, "m/s²": 1.0, "cm": 0.01, "mm": 0.001}
+_UNITS |= {"mm/s": 0.001, "°": np.pi / 180}
+
+
+def _stated_defaults(text: str) -> list[tuple[str, float, float, int | None]]:
+    """The defaults a text states: (key, value in SI, tolerance, version it names or None).
+
+    The tolerance is half a unit of the last digit written ("0.203" matches 0.2034543), 5 % for
+    "≈". A version named just before the key ("in v0 (`physics.friction` = 0)") is the version
+    the value is of.
+    """
+    stated = []
+    for match in _STATED_DEFAULT.finditer(text):
+        number = match.group("number")
+        factor = _UNITS[match.group("unit")]
+        decimals = len(number.split(".")[1]) if "." in number else 0
+        value = float(number) * factor
+        tolerance = 0.5 * 10.0**-decimals * factor
+        if match.group("approx"):
+            tolerance = max(tolerance, 0.05 * abs(value))
+        named = re.search(r"\bv(\d+)\W*$", text[max(0, match.start() - 16) : match.start()])
+        stated.append(
+            (match.group("key"), value, tolerance, int(named.group(1)) if named else None)
+        )
+    return stated
+
+
+def _manuals() -> list[tuple[str, str]]:
+    """(task, manual) of every env page: the env classes' and the PettingZoo manuals."""
+    from khepera_gym._docgen.envs import env_pages
+
+    return [(page.task, page.manual) for page in env_pages()]
+
+
+def test_the_stated_default_parser_reads_units_versions_and_precision() -> None:
+    text = "It stops within `task.goal_radius` (5 cm). In v0 (`physics.friction` = 0) it slid."
+    assert _stated_defaults(text) == [
+        ("task.goal_radius", pytest.approx(0.05), pytest.approx(0.005), None),
+        ("physics.friction", 0.0, 0.5, 0),
+    ]
+    assert _stated_defaults("`track.start_heading_offset` (45°")[0][1] == pytest.approx(np.pi / 4)
+
+
+@pytest.mark.parametrize(("task", "manual"), _manuals(), ids=[t for t, _ in _manuals()])
+def test_every_default_a_manual_states_is_the_codes(task: str, manual: str) -> None:
+    """A manual that says "`task.max_steps` (400)" or "`physics.friction` = 0.7" says what the
+    task's latest version has (or the version the sentence names); the version histories are
+    left out (they tell what older versions had)."""
+    from khepera_gym._docgen.scenario import task_keys
+
+    text = manual.split("## Version History")[0]
+    versions = khepera_gym.catalog.task_versions(task)
+    checked = 0
+    for key, value, tolerance, version in _stated_defaults(text):
+        version = versions[-1] if version is None else version
+        defaults = {k.dotted: k.value for k in task_keys(task, version)}
+        if key not in defaults or not isinstance(defaults[key], int | float):
+            continue
+        assert abs(float(defaults[key]) - value) <= tolerance + 1e-9, (
+            f"{task} manual: `{key}` stated as {value:g}; v{version}'s default is {defaults[key]}"
+        )
+        checked += 1
+    assert checked or task in ("multinav",), f"{task}: no stated default found to check"
+
+
+def test_no_manual_copies_a_key_table_any_more() -> None:
+    """The key tables are generated on the env pages; the manuals point there."""
+    for task, manual in _manuals():
+        scenario = manual.split("## Scenario file")[-1].split("## Version History")[0]
+        assert "| Key" not in scenario and "|---" not in scenario, task
+
+
+# --- the generated pages --------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def generated(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """docs/ with its images and results, and the generated pages written into a copy."""
+    from khepera_gym._docgen import write_all
+
+    docs = tmp_path_factory.mktemp("docs")
+    shutil.copytree(DOCS / "images", docs / "images")
+    shutil.copytree(DOCS / "results", docs / "results")
+    write_all(docs)
+    return docs / "generated"
+
+
+def _table_rows(markdown: str) -> list[list[str]]:
+    return [
+        [cell.strip() for cell in line.strip().strip("|").split(" | ")]
+        for line in markdown.splitlines()
+        if line.startswith("| `")
+    ]
+
+
+def test_every_task_with_an_id_or_a_module_has_a_page(generated: Path) -> None:
+    from khepera_gym.registration import registered_ids
+
+    tasks = set(registered_ids()) | {m.task for m in khepera_gym.catalog.pettingzoo_modules()}
+    assert {path.stem for path in (generated / "envs").glob("*.md")} == tasks
+    table = (generated / "env-table.md").read_text(encoding="utf-8")
+    for ids in registered_ids().values():
+        for env_id in ids:
+            assert f"`{env_id}`" in table
+            page = generated / "envs" / f"{khepera_gym.registration.task_of(env_id)}.md"
+            assert f"`{env_id}`" in page.read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("task", khepera_gym.catalog.task_names())
+def test_a_page_tables_every_key_with_the_codes_default_in_each_version(
+    generated: Path, task: str
+) -> None:
+    page = generated / "envs" / f"{task}.md"
+    if not page.is_file():
+        pytest.skip(f"{task} has no page (no id, no PettingZoo module)")
+    text = page.read_text(encoding="utf-8").split("## Scenario file")[1].split("\n## ")[0]
+    versions = khepera_gym.catalog.task_versions(task)
+    latest = tomllib.loads(khepera_gym.default_config(task))
+    rows = {row[0].strip("`"): row for row in _table_rows(text) if "." in row[0]}
+    for section, keys in latest.items():
         for key, value in keys.items():
-            name = f"{section}.{key}"
-            if section in nav and nav[section].get(key) == value:
-                continue
-            row = _key_row(manual, name)
-            assert _toml_text(value) in row, f"{name}: default {value!r} not in {row!r}"
-            documented.add(name)
-    assert documented
-    # Every key the table lists is one of them, with the default the file has.
-    listed = re.findall(r"^\s*\| `([a-z_]+\.[a-z_]+)`", _section(manual, "Scenario file"), re.M)
-    assert set(listed) == documented
+            row = rows[f"{section}.{key}"]
+            default = re.match(r"`([^`]*)`", row[1]).group(1)
+            assert tomllib.loads(f"x = {default}")["x"] == value, (section, key)
+            for version in versions[:-1]:
+                old = tomllib.loads(khepera_gym.default_config(task, version))[section][key]
+                if old != value:
+                    shown = re.search(rf"v{version}: `([^`]*)`", row[1]).group(1)
+                    assert tomllib.loads(f"x = {shown}")["x"] == old, (section, key, version)
+
+
+@pytest.mark.parametrize(("env_class", "env_id", "task"), MANUALS, ids=MANUAL_IDS)
+def test_a_page_tables_the_observation_blocks_with_their_bounds(
+    generated: Path, env_class: type, env_id: str, task: str
+) -> None:
+    text = (generated / "envs" / f"{task}.md").read_text(encoding="utf-8")
+    layout = _block_layout(task)
+    env = gym.make(env_id)
+    for name, block in layout.items():
+        indices = f"{block.start}" if block.stop - block.start == 1 else f"{block.start}–"
+        line = next(row for row in text.splitlines() if row.startswith(f"| `{name}` |"))
+        assert f"| {indices}" in line, (name, line)
+        assert f"{env.observation_space.low[block.start]:.4g}" in line, (name, line)
+    env.close()
+
+
+def test_reference_fragments_name_every_scene_sensor_policy_and_baseline(generated: Path) -> None:
+    from khepera_gym.compare.policies import POLICY_NAMES
+
+    scenes = (generated / "scenes.md").read_text(encoding="utf-8")
+    assert all(f"`{name}`" in scenes for name in khepera_gym.scenes())
+    sensors = (generated / "sensors.md").read_text(encoding="utf-8")
+    assert all(f"`{s.name}`" in sensors for s in khepera_gym.catalog.sensors())
+    policies = (generated / "policies.md").read_text(encoding="utf-8")
+    assert all(f"`{name}`" in policies for name in POLICY_NAMES)
+    baselines = (generated / "baselines.md").read_text(encoding="utf-8")
+    for controller, _ in khepera_gym._core.controllers():
+        assert f"controller `{controller}`" in baselines
+        for name, _, _ in khepera_gym.baselines.parameters(controller):
+            assert f"| `{name}` |" in baselines
+
+
+def test_every_env_page_has_a_small_animation_of_a_baseline() -> None:
+    from khepera_gym._docgen.envs import ANIMATIONS, env_pages
+
+    index = json.loads((DOCS / ANIMATIONS / "animations.json").read_text(encoding="utf-8"))
+    for page in env_pages():
+        record = index[page.task]
+        path = DOCS / ANIMATIONS / record["file"]
+        assert path.stat().st_size < 400_000, path
+        assert record["policy"] in {cls.__name__ for cls in baselines_of(page.task)}
+
+
+def baselines_of(task: str) -> tuple[type, ...]:
+    from khepera_gym._docgen.envs import baselines
+
+    return baselines(task)
+
+
+def test_results_pages_render_every_results_file_with_its_provenance(generated: Path) -> None:
+    from khepera_gym._docgen.results import kind, load
+
+    files = load(DOCS / "results")
+    assert files, "docs/results/ holds no results file"
+    text = "".join(path.read_text() for path in generated.glob("results-*.md"))
+    for path, document in files:
+        assert kind(document) != "unknown", path
+        assert document["meta"]["date"][:10] in text, path
+        assert document["meta"]["command"] in text, path
+
+
+# --- README -------------------------------------------------------------------------------------
+
+
+def test_readme_is_a_short_front_door_whose_links_exist() -> None:
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 300
+    for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", readme):
+        if "://" not in target:
+            assert (ROOT / target).exists(), target
+
+
+def test_readme_env_table_is_the_generated_one() -> None:
+    """Refresh it with ``python -m khepera_gym._docgen --readme`` when the registries change."""
+    from khepera_gym._docgen import readme_env_table
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    start = readme.index("<!-- env-table:start -->") + len("<!-- env-table:start -->")
+    end = readme.index("<!-- env-table:end -->")
+    assert readme[start:end].strip() == readme_env_table().strip(), (
+        "the README's env table differs from the registries: run "
+        "`python -m khepera_gym._docgen --readme`"
+    )
+
+
+# --- citations ----------------------------------------------------------------------------------
+
+#: A citation of a research note by section: "spec §6", "tasks.md §3", "fidelity.md §3.2".
+_CITATION = re.compile(
+    r"(?P<note>spec|robot\.md|tasks\.md|task-design\.md|fidelity\.md) §(?P<section>\d+)"
+)
+_LABELS = {"spec": "spec", "robot.md": "spec", "tasks.md": "tasks", "task-design.md": "tasks"}
+_LABELS |= {"fidelity.md": "fidelity"}
+
+
+def test_every_cited_section_of_a_research_note_is_a_section_of_a_docs_page() -> None:
+    """Comments and scenario comments cite the notes by section; the pages that hold the notes
+    now (docs/robot.md, task-design.md, fidelity.md) keep those numbers as labels."""
+    labels = set()
+    for page in DOCS.glob("*.md"):
+        labels |= set(re.findall(r"^\((?P<label>[a-z]+-\d+)\)=$", page.read_text(), re.M))
+    sources = [
+        *ROOT.glob("src/**/*.rs"),
+        *ROOT.glob("khepera_gym/**/*.py"),
+        *ROOT.glob("configs/*.toml"),
+    ]
+    sources += [*ROOT.glob("tests/*.rs"), *ROOT.glob("tests/*.py")]
+    cited = 0
+    for path in sources:
+        if path.name == Path(__file__).name:
+            continue
+        for match in _CITATION.finditer(path.read_text(encoding="utf-8")):
+            assert f"{_LABELS[match.group('note')]}-{match.group('section')}" in labels, (
+                f"{path.relative_to(ROOT)} cites {match.group(0)}, which no docs page holds"
+            )
+            cited += 1
+    assert cited > 50
+
+
+def test_python_comments_cite_the_docs_pages_not_the_research_folder() -> None:
+    for path in [*ROOT.glob("khepera_gym/**/*.py"), *ROOT.glob("tests/*.py")]:
+        if path.name == Path(__file__).name or path.parent.name == "_docgen":
+            continue  # this test and the generator, which links the old citations
+        text = path.read_text(encoding="utf-8")
+        assert "research/" not in text and "khepera4_spec.md" not in text, path

@@ -55,7 +55,7 @@ SEEDS = (0, 1, 2)
 STEPS = 150
 
 # Declarations of the libkhepera calls the template uses, written here from K-Team's documented
-# signatures (khepera4_spec.md §10) only to check the template's syntax and types: this is not
+# signatures (docs/robot.md §10) only to check the template's syntax and types: this is not
 # K-Team's header and is not shipped.
 LIBKHEPERA_STUB = """
 #ifndef STUB_KHEPERA_H

@@ -1,11 +1,10 @@
 """Robots' top LEDs set by an action (issue 15, item 4): with ``task.led_action`` every agent's
 action is its two wheel values then its LEDs' red, green, blue in [-1, 1], quantised to the real
-LEDs' 64 levels (6 bits a colour, ``kh4_SetRGBLeds`` 0..63, spec §6). The LEDs change nothing
-else: the same wheel actions give the same run bit for bit. Every interface (Gymnasium, vector,
-PettingZoo parallel and array envs, the SB3 shared-agents VecEnv, TorchRL) takes five values per
-agent; a drone, which has no LEDs, refuses the key. The camera side (another robot sees the
-colour where it occludes) is tested in tests/camera.rs.
-"""
+LEDs' 64 levels (6 bits a colour, ``kh4_SetRGBLeds`` 0..63, docs/robot.md §6). The LEDs change
+nothing else: the same wheel actions give the same run bit for bit. Every interface (Gymnasium,
+vector, PettingZoo parallel and array envs, the SB3 shared-agents VecEnv, TorchRL) takes five values
+per agent; a drone, which has no LEDs, refuses the key. The camera side (another robot sees the
+colour where it occludes) is tested in tests/camera.rs."""
 
 from __future__ import annotations
 
@@ -19,7 +18,7 @@ from khepera_gym.pettingzoo import consensus_v1, multinav_v1
 from khepera_gym.sb3 import SharedAgentsVecEnv
 
 NAV = "KheperaIV-Avoid-v1"
-#: Highest level of one LED colour (6 bits, spec §6).
+#: Highest level of one LED colour (6 bits, docs/robot.md §6).
 LEVELS = 63
 
 

@@ -18,7 +18,7 @@ from khepera_gym.envs import pathfollow_heuristic
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.registration import resolve_env_id
 
-#: Scenario defaults the bounds below use (configs/pathfollow.toml; research/tasks.md §4).
+#: Scenario defaults the bounds below use (configs/pathfollow.toml; docs/task-design.md §4).
 START_OFFSET = 0.1  # m, pathfollow.start_offset
 START_HEADING_OFFSET = math.pi / 4  # rad, pathfollow.start_heading_offset
 LOST_DISTANCE = 0.3  # m, pathfollow.lost_distance

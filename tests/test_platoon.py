@@ -21,7 +21,7 @@ from khepera_gym.baselines import Kanayama
 from khepera_gym.errors import ConfigError
 from khepera_gym.pettingzoo import platoon_v1
 
-#: Scenario defaults the bounds use (configs/platoon.toml; research/tasks.md §3).
+#: Scenario defaults the bounds use (configs/platoon.toml; docs/task-design.md §3).
 ROBOTS = 3  # platoon.robots
 TIME_GAP = 2.0  # s, platoon.time_gap
 SPEED = 0.15  # m/s, platoon.speed

@@ -425,6 +425,7 @@ def test_train_cli_rllib_ppo_learns_nav_and_saves_a_restorable_policy(tmp_path: 
     assert code == 0
     run = json.loads((out / "run.json").read_text())
     assert run["backend"] == "rllib" and run["timesteps"] >= 24576 and run["steps_per_second"] > 0
+    assert {"date", "commit", "machine", "command"} <= run["meta"].keys()
     final = rllib.Evaluation(**run["final"])
     nav = gym.make_vec(latest_ids()["nav"], num_envs=1, vectorization_mode="vector_entry_point")
     min_goal_distance = tomllib.loads(nav.unwrapped.config_toml())["spawn"]["min_goal_distance"]

@@ -382,6 +382,7 @@ def test_khepera_gym_train_runs_ppo_end_to_end_and_the_zip_loads_and_predicts(
     assert run["hyperparams"]["n_steps"] == 64
     assert [evaluation["timesteps"] for evaluation in run["history"]] == [1024, 2048]
     assert run["final"]["episodes"] == 8 and 0.0 <= run["final"]["success_rate"] <= 1.0
+    assert {"date", "commit", "machine", "command"} <= run["meta"].keys()
 
     model = load_policy(out / "model.zip")
     assert isinstance(model, PPO)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+from unittest import mock
 
 import gymnasium as gym
 import numpy as np
@@ -165,6 +167,24 @@ def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixtu
     ]
     assert all(m.steps > 0 and m.env_steps_per_second > 0 for m in measurements)
     assert "env-steps/s" in capsys.readouterr().out
+
+
+def test_bench_writes_its_rows_with_date_commit_machine_and_command(tmp_path: Path) -> None:
+    path = tmp_path / "bench.json"
+    argv = ["bench", "--num-envs", "2", "--threads", "1", "--duration", "0.02", "--no-single"]
+    argv += ["--no-memory", "--json", str(path)]
+    with (
+        mock.patch.object(bench, "OTHER_TASKS", ()),
+        mock.patch.object(bench, "CAMERA_ROWS", ()),
+        mock.patch.object(bench, "swarm_rows", lambda *args: [{"robots": 4}]),
+    ):
+        assert cli.main(argv) == 0
+    document = json.loads(path.read_text())
+    assert document["meta"]["command"] == "khepera-gym " + " ".join(argv)
+    assert document["meta"]["machine"]["cpus"] >= 1 and "date" in document["meta"]
+    assert [row["label"] for row in document["rows"]] == ["make_vec n=2"]
+    assert document["rows"][0]["env_steps_per_second"] > 0
+    assert document["swarm"] == [{"robots": 4}] and document["memory_per_world_bytes"] is None
 
 
 def test_memory_per_world_is_measured_on_linux() -> None:

@@ -16,7 +16,7 @@ from khepera_gym.baselines import Kanayama, PositionChase
 from khepera_gym.envs import track_heuristic
 from khepera_gym.errors import ConfigError, KheperaError
 
-#: Scenario defaults the bounds below use (configs/track.toml; research/tasks.md §3).
+#: Scenario defaults the bounds below use (configs/track.toml; docs/task-design.md §3).
 START_OFFSET = 0.2  # m, track.start_offset
 START_HEADING_OFFSET = math.pi / 4  # rad, track.start_heading_offset
 TRANSIENT = 5.0  # s, track.transient

@@ -375,7 +375,7 @@ fn test_track_has_no_version_zero() {
 
 #[test]
 fn test_episode_is_one_period_plus_the_margin_and_lost_terminates() {
-    // Circle: 2π·0.6 m at 0.15 m/s = 25.13 s, + 2 s = 542.7 → 543 steps (research/tasks.md §3).
+    // Circle: 2π·0.6 m at 0.15 m/s = 25.13 s, + 2 s = 542.7 → 543 steps (docs/task-design.md §3).
     let cfg = scenario("");
     let mut batch = Batch::new(
         TaskKind::Track,

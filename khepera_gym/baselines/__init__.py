@@ -8,7 +8,8 @@ trajectory tracking, :class:`Kanayama` (Kanayama et al. 1990) and :class:`Positi
 :class:`PurePursuit` (Coulter 1992) and :class:`WaypointSwitching` (eqs. 1-4 toward successive
 waypoints); for the quadcopter of Fig. 8, :class:`DronePursuit` (PD pursuit); for line
 following, :class:`LineThreshold` (K-Team's demo) and :class:`LineProportional`; for the camera,
-:class:`BlobServo`; for consensus with messages, :class:`ConsensusLaw`. Each is a drop-in
+:class:`BlobServo` and :class:`BlobVFH` (VFH on the pillar the camera sees); for consensus with
+messages, :class:`ConsensusLaw`. Each is a drop-in
 policy for the environments created with ``action_type="wheels"``::
 
     from khepera_gym.baselines import Braitenberg
@@ -53,7 +54,7 @@ from khepera_gym.baselines.navigation import VFH, Braitenberg, PositionControl, 
 from khepera_gym.baselines.paths import PurePursuit, Samson, WaypointSwitching
 from khepera_gym.baselines.quadcopter import DronePursuit
 from khepera_gym.baselines.tracking import Kanayama, PositionChase
-from khepera_gym.baselines.vision import BlobServo
+from khepera_gym.baselines.vision import BlobServo, BlobVFH
 
 __all__ = [
     "BRAITENBERG_WEIGHT_SETS",
@@ -63,6 +64,7 @@ __all__ = [
     "VFH",
     "BaselinePolicy",
     "BlobServo",
+    "BlobVFH",
     "Braitenberg",
     "ConsensusLaw",
     "DronePursuit",

@@ -1,4 +1,4 @@
-"""The consensus baseline for ``consensus_v1`` (research/tasks.md §8): the consensus law on what
+"""The consensus baseline for ``consensus_v1`` (docs/task-design.md §8): the consensus law on what
 the neighbours broadcast, with periodic or event-triggered messages (the scenario's
 ``consensus.trigger``). Units: metres, seconds; robot frame x forward, y left."""
 

@@ -1,4 +1,4 @@
-"""Line followers for KheperaIV-LineFollow, on the four ground sensors (research/tasks.md §5.2).
+"""Line followers for KheperaIV-LineFollow, on the four ground sensors (docs/task-design.md §5.2).
 Units: raw ground counts (0..1023), m/s; robot frame x forward, y left."""
 
 from __future__ import annotations

@@ -97,34 +97,48 @@ class Braitenberg(BaselinePolicy):
 
 class VFH(BaselinePolicy):
     r"""Vector Field Histogram obstacle avoidance (paper §3.4, eqs. 8-11, after Ulrich and
-    Borenstein 2000).
+    Borenstein 2000), with the obstacle enlargement and direction choice of VFH+ (Ulrich and
+    Borenstein 1998).
 
     A polar histogram of ``sectors`` sectors is rebuilt at every step from the 8 IR proximities
-    and the 5 ultrasonic readings: each sensor adds its obstacle magnitude (IR: its proximity;
-    ultrasonic: :math:`1 - d / \text{us\_range}` for echoes closer than ``us_range``, a "too
-    close" reading counting as an echo at the sensor's 25 cm minimum range, the IR ring covering
-    what is nearer) to every sector within ``beam_width / 2`` of its bearing, then the histogram is
-    smoothed over neighbouring sectors. Sectors under ``threshold`` are free. Each free valley at
-    least ``min_valley`` wide offers one direction: the goal bearing clamped ``min_valley / 2``
-    inside its edges; the robot takes the one with the lowest VFH+-style cost (angle to the goal
-    + ``heading_weight`` × angle to straight ahead, + ``switch_penalty`` rad for a valley on the
-    other side of its current turn, read from its wheel speeds, against flip-flopping). Boxed in,
-    it turns in place. Eq. 9 is applied at full rate once the direction is behind the robot. With
-    :math:`\theta_e` that heading error and :math:`h'_c` the density in the sector straight ahead:
+    and the 5 ultrasonic readings. Each reading is an obstacle at its sensor's bearing and a
+    distance :math:`d` from the rim (IR: K-Team's response curve inverted, with the observation's
+    floor ``ir_floor_value``; ultrasonic: its range, a "too close" reading counting as an echo at
+    the sensor's 25 cm minimum range, the IR ring covering what is nearer). It adds its magnitude
+    (IR: its proximity; ultrasonic: :math:`1 - d / \text{us\_range}` for echoes closer than
+    ``us_range``) to every sector within half its beam (``beam_width`` for the IR ring,
+    ``us_beam_width`` for the sonars) plus VFH+'s enlargement
+    :math:`\gamma = \arcsin\big(\min(1, (r_r + d_s) / (r_r + d))\big)` of its bearing, with
+    :math:`r_r` = ``robot_radius`` and :math:`d_s` = ``safety_distance``: every direction whose
+    straight path would pass within :math:`r_r + d_s` of the obstacle is blocked. The histogram
+    is smoothed over neighbouring sectors; sectors under ``threshold`` are free.
 
-    * eq. 9: :math:`\omega = \omega_{max} \sin(\theta_e)`;
+    Each free valley at least ``min_valley`` wide offers VFH+'s candidate directions: a narrow
+    valley's centre; in a wide one each edge ``min_valley / 2`` inside, and the goal bearing when
+    it lies between them. The robot takes the candidate of least cost: angle to the goal +
+    ``heading_weight`` × angle to straight ahead + ``previous_weight`` × angle to the previous
+    direction (VFH+'s :math:`\mu_1 : \mu_2 : \mu_3` = 5 : 2 : 2), + ``switch_penalty`` rad for
+    a candidate on the other side of its current turn. The controller is stateless: it reads the
+    previous direction from its turn rate (the observation's wheel speeds), eq. 9 inverted. Boxed
+    in, it turns in place. With :math:`\theta_e` the chosen direction and :math:`h'_c` the
+    density in the sector straight ahead:
+
+    * eq. 9: :math:`\omega = \omega_{max} \sin(\theta_e)` (full rate once the direction is
+      behind);
     * eq. 11: :math:`h'_c = \min(h'_c, h_m)`;
     * eq. 10: :math:`v' = v_{max} (1 - h'_c / h_m)`;
     * eq. 8: :math:`v = v' (1 - |\omega| / \omega_{max})`;
 
     within ``kr`` of the goal :math:`v` is also capped by eq. 3's docking law, and the robot stops
     within ``stop_radius``. The histogram has no memory, so an obstacle that leaves every beam
-    leaves the histogram and the robot turns back toward it: it zigzags, as the paper observed.
-    Beams narrower than the sensors' 45° spacing leave blind zones between them (the paper's
-    explanation); ``beam_width = math.radians(10)`` shows that at its worst.
+    leaves the histogram and the robot turns back toward it: it zigzags, as the paper observed,
+    and a thin wall whose end lies between two IR rays is not seen at all. IR beams narrower than
+    the sensors' 45° spacing leave blind zones between them (the paper's explanation);
+    ``beam_width = math.radians(10)`` shows that at its worst.
 
     The ultrasonic observation is read as distance / ``us_max_range`` (the scenario's
-    ``sensors.us_max_range``, 2 m by default).
+    ``sensors.us_max_range``, 2 m by default). docs/notes/controllers-v2.md gives the reasons
+    for the enlargement and the measurements on v0, v1 and v2.
     """
 
     CONTROLLER: ClassVar[str] = "vfh"

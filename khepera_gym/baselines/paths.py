@@ -22,7 +22,7 @@ class Samson(BaselinePolicy):
 
     :math:`V = d^2 + \tilde\theta^2 / k_d` never grows (kinematic model); linearised,
     :math:`s^2 + k_\theta v s + k_d v^2 = 0`. The defaults (``kd`` = 44.4 m⁻², ``ktheta`` =
-    9.33 m⁻¹) give :math:`\omega_n` = 1 rad/s, ζ = 0.7 at 0.15 m/s (research/tasks.md §4).
+    9.33 m⁻¹) give :math:`\omega_n` = 1 rad/s, ζ = 0.7 at 0.15 m/s (docs/task-design.md §4).
     """
 
     CONTROLLER: ClassVar[str] = "samson"

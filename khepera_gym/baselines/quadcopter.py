@@ -1,4 +1,4 @@
-"""The quadcopter's baseline for DroneFollow (research/tasks.md §7). Units: metres, seconds,
+"""The quadcopter's baseline for DroneFollow (docs/task-design.md §7). Units: metres, seconds,
 radians; world frame (the drone holds its yaw)."""
 
 from __future__ import annotations

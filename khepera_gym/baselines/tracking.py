@@ -23,7 +23,7 @@ class Kanayama(BaselinePolicy):
     :math:`s^2 + v_r K_\theta s + v_r^2 K_y = 0`: :math:`\omega_n = v_r \sqrt{K_y}`, critically
     damped when :math:`K_y = K_\theta^2 / 4`. The defaults (``kx`` = 1 s⁻¹, ``ky`` = 44.4 m⁻²,
     ``ktheta`` = 13.3 m⁻¹) give :math:`\omega_n` = 1 rad/s, ζ = 1 at :math:`v_r` = 0.15 m/s
-    (research/tasks.md §3).
+    (docs/task-design.md §3).
     """
 
     CONTROLLER: ClassVar[str] = "kanayama"

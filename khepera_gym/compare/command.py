@@ -17,7 +17,7 @@ from khepera_gym.compare.report import report
 from khepera_gym.compare.run import compare, resolve_env_id
 from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.registration import latest_ids
+from khepera_gym.registration import latest_ids, task_of
 
 #: Registered id (latest version) of each task name of ``--task``.
 TASK_IDS = latest_ids()
@@ -95,7 +95,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         return _run_consensus(args)
     try:
         env_id = resolve_env_id(args.task, args.env)
-        task = next((t for t, i in TASK_IDS.items() if i == env_id), None)
+        task = task_of(env_id)  # any version's id: v0 and v1 compare their task's baselines too
         policies = args.policy or list(DEFAULT_POLICIES.get(task or "", ("random",)))
         overrides = parse_overrides(getattr(args, "overrides", None) or [])
         worlds = args.plot_worlds
@@ -143,20 +143,18 @@ def _run_consensus(args: argparse.Namespace) -> int:
 
 #: The demo's comparisons: (title, env id, config, policies, episodes cap, recorded worlds).
 DEMO_RUNS: tuple[tuple[str, str, str | None, tuple[str, ...], int | None, int], ...] = (
-    # The paper's figures on the paper's dynamics (v0, V-REP-like); the tasks below on v1. The
-    # README's "Measured on v1" shows the paper's controllers at full speed on v1's dynamics.
+    # The paper's figures and every task on the latest version (docs/controllers-v2.md).
     (
-        "Paper Fig. 6 (v0, the paper's dynamics): Braitenberg vs VFH past a wall and an obstacle",
-        "KheperaIV-Avoid-v0",
+        "Paper Fig. 6: Braitenberg vs VFH past a wall and an obstacle",
+        TASK_IDS["avoid"],
         "paper_fig6",
         ("braitenberg", "vfh", "position_control"),
         None,
         1,
     ),
     (
-        "Paper Fig. 7 (v0, the paper's dynamics): cross formation of four LeaderFollower "
-        "followers past obstacles",
-        "KheperaIV-Formation-v0",
+        "Paper Fig. 7: cross formation of four LeaderFollower followers past obstacles",
+        TASK_IDS["formation"],
         "paper_fig7",
         ("leader_follower",),
         None,

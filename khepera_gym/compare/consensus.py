@@ -36,6 +36,7 @@ from khepera_gym.compare.stats import (
 from khepera_gym.config import ConfigArg
 from khepera_gym.errors import ConfigError
 from khepera_gym.pettingzoo.arrays import MultiAgentArrayEnv
+from khepera_gym.provenance import provenance
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -209,8 +210,9 @@ def plot_tradeoff(rows: Sequence[SweepRow], title: str = "") -> Figure:
 
 
 def report(rows: Sequence[SweepRow], out_dir: Path | None, plot: bool = True) -> list[Path]:
-    """Prints the table; with ``out_dir`` writes ``consensus_sweep.csv``, ``.json`` and (with
-    ``plot``) ``consensus_tradeoff.png``, and says where they are."""
+    """Prints the table; with ``out_dir`` writes ``consensus_sweep.csv``, ``.json`` (``meta``:
+    date, commit, machine and command; ``rows``: one per trigger setting) and (with ``plot``)
+    ``consensus_tradeoff.png``, and says where they are."""
     print(format_table(rows))
     if out_dir is None:
         return []
@@ -229,11 +231,14 @@ def report(rows: Sequence[SweepRow], out_dir: Path | None, plot: bool = True) ->
                 cells += [e.value, e.low, e.high]
             writer.writerow(cells)
     json_path = out_dir / "consensus_sweep.json"
-    document = [
-        {"trigger": r.trigger, "value": json_number(r.value)}
-        | {f: getattr(r, f).to_json() for f in fields}
-        for r in rows
-    ]
+    document = {
+        "meta": provenance(),
+        "rows": [
+            {"trigger": r.trigger, "value": json_number(r.value)}
+            | {f: getattr(r, f).to_json() for f in fields}
+            for r in rows
+        ],
+    }
     json_path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
     paths = [csv_path, json_path]
     if plot:

@@ -49,7 +49,7 @@ DEFAULT_POLICIES = {
     "pathfollow": ("samson", "pure_pursuit", "waypoint_switching", "random"),
     "linefollow": ("line_threshold", "line_proportional", "random"),
     "dronefollow": ("drone_pursuit", "random"),
-    "seek": ("blob_servo", "random"),
+    "seek": ("blob_vfh", "blob_servo", "random"),
 }
 
 Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]

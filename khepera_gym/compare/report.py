@@ -18,6 +18,7 @@ from khepera_gym.compare.reference_plots import plot_error_over_time, plot_refer
 from khepera_gym.compare.run import TIME_PERCENTILE, Comparison, EpisodeResult, PolicySummary
 from khepera_gym.compare.stats import CONFIDENCE, Estimate, json_number
 from khepera_gym.plot import panel_title, plot_rollouts
+from khepera_gym.provenance import provenance
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -62,8 +63,10 @@ def _format(estimate: Estimate | None, scale: float, digits: int) -> str:
     return "–" if estimate is None else estimate.format(scale, digits)
 
 
-def format_table(comparison: Comparison) -> str:
-    """The summary table: one row per policy, estimates with their 95% intervals."""
+def table_rows(comparison: Comparison) -> list[list[str]]:
+    """The summary table's cells: the header, then one row per policy (estimates with their 95%
+    intervals). :func:`format_table` prints them; the documentation's results pages render them
+    from the JSON files (:meth:`Comparison.from_json`)."""
     metrics = comparison.metrics
     columns: list[Column] = [("policy", lambda s: s.policy)]
     if metrics.success is not None:
@@ -90,19 +93,12 @@ def format_table(comparison: Comparison) -> str:
         )
     rows = [[header for header, _ in columns]]
     rows += [[cell(summary) for _, cell in columns] for summary in comparison.summaries]
-    widths = [max(len(row[i]) for row in rows) for i in range(len(columns))]
+    return rows
 
-    def line(row: list[str]) -> str:
-        return "  ".join(
-            cell.ljust(width) if i == 0 else cell.rjust(width)
-            for i, (cell, width) in enumerate(zip(row, widths, strict=True))
-        )
 
-    title = (
-        f"{comparison.env_id}{comparison.scenario}: {comparison.episodes} episodes per policy, "
-        f"seeds {comparison.seed}..{comparison.seed + comparison.episodes - 1}"
-    )
-    rule = "-" * len(line(rows[0]))
+def table_notes(comparison: Comparison) -> str:
+    """What the table's columns mean (printed under it)."""
+    metrics = comparison.metrics
     notes = "estimate [95% interval]: Wilson for rates, bootstrap for means and percentiles"
     if metrics.success is not None:
         notes += f"; {metrics.time}, path{' and speed' if metrics.speed else ''} over "
@@ -124,12 +120,33 @@ def format_table(comparison: Comparison) -> str:
             "\nformation: success = the leader reached its goal, path summed over the robots, "
             "error = followers' mean distance to their eq. 12 targets"
         )
+    return notes
+
+
+def format_table(comparison: Comparison) -> str:
+    """The summary table: one row per policy, estimates with their 95% intervals."""
+    rows = table_rows(comparison)
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+
+    def line(row: list[str]) -> str:
+        return "  ".join(
+            cell.ljust(width) if i == 0 else cell.rjust(width)
+            for i, (cell, width) in enumerate(zip(row, widths, strict=True))
+        )
+
+    title = (
+        f"{comparison.env_id}{comparison.scenario}: {comparison.episodes} episodes per policy, "
+        f"seeds {comparison.seed}..{comparison.seed + comparison.episodes - 1}"
+    )
+    rule = "-" * len(line(rows[0]))
+    notes = table_notes(comparison)
     return "\n".join([title, rule, line(rows[0]), rule, *map(line, rows[1:]), rule, notes])
 
 
 def write_results(comparison: Comparison, out_dir: Path) -> list[Path]:
     """Writes ``<label>_episodes.csv`` (one row per episode) and ``<label>_results.json``
-    (settings, summaries with intervals, and every episode) into ``out_dir``."""
+    (``meta``: date, commit, machine and command; settings, summaries with intervals, and every
+    episode) into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = [r.row() for results in comparison.results.values() for r in results]
     csv_path = out_dir / f"{comparison.label}_episodes.csv"
@@ -141,7 +158,10 @@ def write_results(comparison: Comparison, out_dir: Path) -> list[Path]:
         writer.writerows({k: "" if v is None else v for k, v in row.items()} for row in rows)
     json_path = out_dir / f"{comparison.label}_results.json"
     document = {
+        "meta": provenance(),
         "env_id": comparison.env_id,
+        "task": comparison.task,
+        "label": comparison.label,
         "config": comparison.config,
         "overrides": comparison.overrides,
         "seed": comparison.seed,
@@ -243,5 +263,7 @@ __all__ = [
     "plot_comparison",
     "plot_errors",
     "report",
+    "table_notes",
+    "table_rows",
     "write_results",
 ]

@@ -21,7 +21,7 @@ from khepera_gym.compare.policies import Policy, make_policy
 from khepera_gym.compare.stats import Estimate, bootstrap_interval, wilson_interval
 from khepera_gym.errors import ConfigError
 from khepera_gym.plot import Rollout, control_step
-from khepera_gym.registration import latest_ids
+from khepera_gym.registration import latest_ids, task_of
 from khepera_gym.rollout import run_episodes
 
 #: Percentile of the time to goal in the table.
@@ -112,6 +112,26 @@ class PolicySummary:
             return value
 
         return {f.name: convert(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_json(cls, record: dict[str, Any]) -> PolicySummary:
+        """The summary :meth:`to_json` wrote (a results file read back)."""
+
+        def estimate(value: Any) -> Estimate | None:
+            return None if value is None else Estimate.from_json(value)
+
+        fields = {f.name for f in dataclasses.fields(cls)}
+        values: dict[str, Any] = {}
+        for name, value in record.items():
+            if name not in fields:
+                continue
+            if name == "errors":
+                values[name] = {k: Estimate.from_json(v) for k, v in value.items()}
+            elif isinstance(value, dict):
+                values[name] = estimate(value)
+            else:
+                values[name] = value
+        return cls(**values)
 
 
 def summarize(
@@ -308,6 +328,25 @@ class Comparison:
     overrides: dict[str, Any] = dataclasses.field(default_factory=dict)
     error_traces: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
     config_toml: str = ""
+
+    @classmethod
+    def from_json(cls, document: dict[str, Any]) -> Comparison:
+        """A comparison from its ``<label>_results.json`` (:func:`write_results`): settings and
+        summaries, without episodes, rollouts or error traces (enough for its table)."""
+        env_id = document["env_id"]
+        return cls(
+            env_id=env_id,
+            config=document.get("config"),
+            label=document.get("label", ""),
+            seed=int(document["seed"]),
+            episodes=int(document["episodes_per_policy"]),
+            dt=float(document["dt"]),
+            results={},
+            summaries=[PolicySummary.from_json(s) for s in document["summaries"]],
+            rollouts={},
+            task=document.get("task") or task_of(env_id),
+            overrides=dict(document.get("overrides") or {}),
+        )
 
     @property
     def is_formation(self) -> bool:

@@ -56,6 +56,17 @@ class Estimate:
         strings "inf" and "-inf"."""
         return {name: json_number(x) for name, x in dataclasses.asdict(self).items()}
 
+    @classmethod
+    def from_json(cls, record: dict[str, Any]) -> Estimate:
+        """The estimate :meth:`to_json` wrote (None back to NaN, "inf" back to inf)."""
+
+        def number(x: Any) -> float:
+            return math.nan if x is None else float(x)
+
+        return cls(
+            number(record["value"]), number(record["low"]), number(record["high"]), int(record["n"])
+        )
+
 
 def json_number(x: Any) -> Any:
     """``x`` for strict JSON: a NaN float becomes None, ±inf "inf"/"-inf"; anything else as is."""

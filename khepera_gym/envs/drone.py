@@ -21,7 +21,7 @@ class DroneFollowEnv(KheperaEnv):
     ## Description
 
     The last experiment of the KH4VREP paper (Farias et al., IFAC 2017, §4.2, Fig. 8): a
-    quadcopter follows a Khepera IV. Definitions from research/tasks.md §7. The Khepera
+    quadcopter follows a Khepera IV. Definitions from docs/task-design.md §7. The Khepera
     (robot 0) drives a closed route of `drone.route_points` (6) random waypoints in the 2 m ×
     2 m walled arena, scripted with the paper's position control (eqs. 1-4, 0.15 m/s) and
     Braitenberg avoidance (eqs. 5-7), heading for the next waypoint once within
@@ -76,7 +76,7 @@ class DroneFollowEnv(KheperaEnv):
     ## Rewards
 
     Every step: −‖p_drone − p_robot‖ (horizontal distance, m) − `drone.unseen_penalty` (0.5)
-    while the robot is out of view (research/tasks.md §7).
+    while the robot is out of view (docs/task-design.md §7).
 
     ## Starting State
 
@@ -133,7 +133,7 @@ class DroneFollowEnv(KheperaEnv):
     ## Robot model
 
     The Khepera as in :class:`NavEnv` (v1 dynamics). The drone: the 2.5-D model above (no
-    contacts, no rotor dynamics; research/tasks.md §7), integrated exactly over 4 substeps of
+    contacts, no rotor dynamics; docs/task-design.md §7), integrated exactly over 4 substeps of
     the 0.05 s control step.
 
     ## Sensors
@@ -143,28 +143,11 @@ class DroneFollowEnv(KheperaEnv):
 
     ## Scenario file
 
-    The keys of :class:`NavEnv` plus a `[drone]` table
-    (`khepera_gym._core.default_config("dronefollow")`); defaults that differ from Nav, and the
-    `[drone]` keys ([E]: an estimate; sources in the default file's comments):
-
-    | Key                     | Default | Meaning                                            |
-    |-------------------------|---------|----------------------------------------------------|
-    | `task.max_steps`        | 800     | steps before truncation (40 s)                     |
-    | `drone.tilt_max`        | 0.2618  | rad, largest tilt: a_max = g tan(tilt_max) [E]     |
-    | `drone.speed_max`       | 1.0     | m/s, terminal speed [E]                            |
-    | `drone.altitude_tau`    | 0.3     | s, altitude time constant [E]                      |
-    | `drone.track_altitude`  | 0.5     | m, altitude while the robot is in view             |
-    | `drone.search_altitude` | 1.5     | m, altitude while searching [E]                    |
-    | `drone.search_delay`    | 0.5     | s out of view before climbing [E]                  |
-    | `drone.fov`             | 1.0472  | rad, the camera cone's full angle (60°) [E]        |
-    | `drone.lost_time`       | 3.0     | s out of view before the episode ends              |
-    | `drone.unseen_penalty`  | 0.5     | reward lost per step out of view                   |
-    | `drone.start_offset`    | 0.1     | m, largest start distance from above the robot     |
-    | `drone.route_points`    | 6       | waypoints of the robot's route, 2..32              |
-    | `drone.waypoint_radius` | 0.1     | m, next waypoint within this                       |
-    | `drone.robot_vmax`      | 0.15    | m/s, the robot's cruise speed (eqs. 1-4)           |
-    | `drone.robot_wmax`      | 1.0     | rad/s, the robot's largest turn rate               |
-    | `drone.driver`          | scripted| who drives the robot: `"scripted"` or `"agent"`    |
+    The keys of :class:`NavEnv` plus a `[drone]` table (the drone's tilt, speed and altitudes, its
+    camera, when it is lost, the robot's route and who drives it). Every key, with its default in
+    each version, its units, its comment and its source, is tabled on this env's page of the
+    documentation (generated from the core's declarations by `make docs`);
+    `khepera_gym.default_config("dronefollow")` prints them as a TOML file.
 
     A tilt outside (0, 1.2) rad, a camera cone outside (0, 3) rad, a non-positive speed, time or
     altitude, a search altitude below the tracking one, a start offset that would leave the robot
@@ -175,6 +158,8 @@ class DroneFollowEnv(KheperaEnv):
 
     * v1: Initial version (issue 16), on the v1 dynamics. There is no v0. `drone.driver`
       (default `"scripted"`, the behaviour unchanged) was added later within v1.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "dronefollow"
@@ -187,7 +172,7 @@ DRONEFOLLOW_POLICY = DronePursuit()
 
 
 def dronefollow_heuristic(observation: npt.ArrayLike) -> npt.NDArray[np.float32]:
-    """PD pursuit of the robot seen by the drone's camera (research/tasks.md §7).
+    """PD pursuit of the robot seen by the drone's camera (docs/task-design.md §7).
 
     :class:`khepera_gym.baselines.DronePursuit` with its defaults (k_p = 4 s⁻², k_d = 4 s⁻¹:
     critically damped, ω_n = 2 rad/s; drag compensated; brakes when the robot is out of view

@@ -160,30 +160,12 @@ class FormationEnv(KheperaEnv):
 
     ## Scenario file
 
-    The keys of :class:`NavEnv` (its Scenario file section tables them) plus a `[formation]`
-    table; `khepera_gym._core.default_config("formation")` is the resolved default file.
-    `spawn.start` and `spawn.goal` are the leader's. Defaults that differ from Nav, and the
-    `[formation]` keys:
-
-    | Key                      | Default  | Meaning                                           |
-    |--------------------------|----------|---------------------------------------------------|
-    | `arena.width`            | 3.0      | m, room for a formation to travel                 |
-    | `arena.height`           | 3.0      | m                                                 |
-    | `spawn.min_goal_distance`| 1.5      | least leader start-goal distance (m)              |
-    | `task.max_steps`         | 800      | steps before truncation (40 s)                    |
-    | `formation.shape`        | cross    | cross, line, wedge, circle or custom              |
-    | `formation.n_followers`  | 4        | K followers, 1..16 (ignored by "custom")          |
-    | `formation.spacing`      | 0.5      | r (m) of the nearest followers; further ones at   |
-    |                          |          | 2r, 3r, ... along the same directions             |
-    | `formation.offsets`      | []       | custom shape: [[r, beta], ...] (m, rad CCW from   |
-    |                          |          | the leader's heading), 1 to 16 of them            |
-    | `formation.leader`       | scripted | "scripted" (position control + Braitenberg in     |
-    |                          |          | Rust) or "agent" (driven by the action)           |
-    | `formation.leader_vmax`  | 0.15     | m/s, scripted leader's speed (eq. 3)              |
-    | `formation.leader_wmax`  | 1.0      | rad/s, scripted leader's turn-rate limit (eq. 4)  |
-    | `formation.leader_kr`    | 0.15     | m, scripted leader's slow-down radius (eq. 3)     |
-    | `formation.error_weight` | 1.0      | reward per metre of a follower's own error        |
-    | `formation.team_weight`  | 0.0      | reward per metre of the followers' mean error     |
+    The keys of :class:`NavEnv` plus a `[formation]` table (shape, followers, spacing, the scripted
+    leader's gains, the reward's weights), in a 3 m × 3 m arena. `spawn.start` and `spawn.goal` are
+    the leader's. Every key, with its default in each version, its units, its comment and its
+    source, is tabled on this env's page of the documentation (generated from the core's
+    declarations by `make docs`); `khepera_gym.default_config("formation")` prints them as a TOML
+    file.
 
     Shapes: "cross" puts follower i at β = i · 90° (ahead, left, behind, right); "line" at
     ±90° (left, right alternately); "wedge" at ±135°; "circle" evenly at r. Robots in formation
@@ -197,6 +179,8 @@ class FormationEnv(KheperaEnv):
     * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
       gyroscope, sonar timing and acceptance cone (the Version History of :class:`NavEnv` has the
       details).
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "formation"

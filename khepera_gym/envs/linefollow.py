@@ -21,7 +21,7 @@ class LineFollowEnv(KheperaEnv):
     ## Description
 
     Line following with the four ground IR sensors under the robot's front (issue 15;
-    research/tasks.md §5.2), K-Team's classic demo. A black line `linefollow.width` = 2.7 cm
+    docs/task-design.md §5.2), K-Team's classic demo. A black line `linefollow.width` = 2.7 cm
     wide (K-Team's demo needs at least that) is drawn on the white floor of the 2 m × 2 m
     arena along a closed curve (`linefollow.track`): `"circle"` (radius `linefollow.size` =
     0.6 m, a 3.77 m lap), `"lemniscate"` (a figure eight that crosses itself), `"spline"` (a
@@ -51,7 +51,7 @@ class LineFollowEnv(KheperaEnv):
     |       |              | right: raw / 1023 (white ≈ 0.93, black tape ≈ 0.29) |     |     |
     | 12-13 | wheel_speeds | left, right wheel speed / 0.813 m/s                | -1  | 1   |
 
-    The ground sensors sit at (+20, ±58.5) and (+62, ±10) mm (spec §4) and read
+    The ground sensors sit at (+20, ±58.5) and (+62, ±10) mm (docs/robot.md §4) and read
     black + (white − black) · g, g the floor's grey level (0 black .. 1 white) averaged over a
     3 mm spot, white `sensors.ground_white` = 954 (Webots at 4.5 mm), black
     `sensors.ground_black` = 300 [E], Gaussian noise of 4 counts; K-Team's demo takes < 800 as
@@ -62,7 +62,7 @@ class LineFollowEnv(KheperaEnv):
     Every step: `linefollow.progress_weight` · Δs − `linefollow.error_weight` · |d|
     − `task.collision_penalty` · [contact], with Δs the progress (m) of the line's point closest
     to the robot's centre and d the centre's distance from the line (ground truth, used only
-    here and in the statistics; research/tasks.md §5.2).
+    here and in the statistics; docs/task-design.md §5.2).
 
     ## Starting State
 
@@ -130,32 +130,12 @@ class LineFollowEnv(KheperaEnv):
 
     ## Scenario file
 
-    The keys of :class:`NavEnv` plus a `[linefollow]` table; defaults that differ from Nav, and
-    the `[linefollow]` keys:
-
-    | Key                               | Default        | Meaning                              |
-    |-----------------------------------|----------------|--------------------------------------|
-    | `sensors.carry`                   | ir, us, gyro,  | the ground sensors see the line      |
-    |                                   | ground         |                                      |
-    | `sensors.observe`                 | ir, ground     | no sonars, no pose                   |
-    | `task.max_steps`                  | 4000           | cap; truncation is laps at the       |
-    |                                   |                | reference speed                      |
-    | `linefollow.track`                | circle         | circle, lemniscate, square, spline   |
-    |                                   |                | or waypoints (`linefollow.points`)   |
-    | `linefollow.size`                 | 0.6            | m: radius, half-width or half-side   |
-    | `linefollow.width`                | 0.027          | m, the line's width                  |
-    | `linefollow.grey`                 | 0.0            | the line's grey level (black)        |
-    | `linefollow.direction`            | random         | random, ccw or cw                    |
-    | `linefollow.spline_irregularity`  | 0.3            | spline: harmonics' amplitudes [E]    |
-    | `linefollow.start_heading_offset` | 0.1745         | rad, largest start heading error     |
-    | `linefollow.lost_time`            | 1.0            | s without black before lost          |
-    | `linefollow.lost_distance`        | 0.1            | m from the line to be lost [E]       |
-    | `linefollow.progress_weight`      | 10.0           | reward per metre of progress         |
-    | `linefollow.error_weight`         | 1.0            | reward per metre from the line       |
-    | `linefollow.reference_speed`      | 0.061          | m/s, the demo's speed                |
-    | `linefollow.truncation_factor`    | 2.0            | laps at reference_speed              |
-    | `linefollow.points`               | []             | waypoints: [[x, y], ...] (m), the    |
-    |                                   |                | last repeating the first             |
+    The keys of :class:`NavEnv` plus a `[linefollow]` table (the line's shape, size, width and grey,
+    the start, when the robot is lost, the reward's weights, the reference speed); the robot carries
+    the ground sensors and observes no pose. Every key, with its default in each version, its units,
+    its comment and its source, is tabled on this env's page of the documentation (generated from
+    the core's declarations by `make docs`); `khepera_gym.default_config("linefollow")` prints them
+    as a TOML file.
 
     A size that leaves the arena, a width outside [5 mm, 20 cm], waypoints that are fewer than 4,
     not closed, closer than 1 mm or whose line leaves the arena, or a scenario that does not carry
@@ -164,6 +144,8 @@ class LineFollowEnv(KheperaEnv):
     ## Version History
 
     * v1: Initial version (issue 15), on the v1 dynamics. There is no v0.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "linefollow"

@@ -27,8 +27,9 @@ class NavEnv(KheperaEnv):
     point at least 0.5 m away, as in the position-control exercise of the KH4VREP paper (Farias
     et al., IFAC 2017, §3.3). The goal's distance and bearing are observed directly (as from
     odometry with a known goal); the infrared and ultrasonic readings show the walls. Physics
-    (rapier2d) stops the robot at the walls; a robot in contact slides along them.
-    :func:`nav_heuristic`, the paper's position controller (eqs. 1-4), solves it in about 90 steps.
+    (rapier2d) stops the robot at the walls: from v1 on the shell rubs on them with friction, so
+    a robot pushing into a wall turns toward it and stalls (in v0 it slid along it).
+    :func:`nav_heuristic`, the paper's position controller (eqs. 1-4), solves most episodes.
 
     ## Action Space
 
@@ -147,12 +148,13 @@ class NavEnv(KheperaEnv):
     ## Robot model
 
     Khepera IV: a disc of radius 0.0704 m, wheels of radius 0.021 m, 0.1054 m apart; each wheel
-    speed limited to ±0.813 m/s; commands below 3 mm/s give 0 (the real controller's floor); an
-    optional wheel acceleration limit (`robot.wheel_accel_limit`, none by default). A dynamic
-    rapier2d body whose planar velocity follows the wheels; contacts stop or deflect it. Control
-    step `physics.dt` = 0.05 s (V-REP's default) with `physics.substeps` = 4 physics substeps.
-    Ground truth: `env.unwrapped.poses()` (n_robots, 3) x, y, θ in the world frame (x right, y up,
-    arena centred at the origin); `env.unwrapped.goals()` (n_goals, 2).
+    speed limited to ±0.813 m/s; commands below 3 mm/s give 0 (the real controller's floor). The
+    wheels follow K-Team's default speed profile, 0.203 m/s² (`robot.wheel_accel_limit`; v0:
+    none, the command within a step). A dynamic rapier2d body driven by its tyres' bounded grip
+    (`physics.drive = "traction"`; v0: its velocity imposed); contacts stop, turn or stall it.
+    Control step `physics.dt` = 0.05 s (V-REP's default) with `physics.substeps` = 2 physics
+    substeps (v0: 4). Ground truth: `env.unwrapped.poses()` (n_robots, 3) x, y, θ in the world
+    frame (x right, y up, arena centred at the origin); `env.unwrapped.goals()` (n_goals, 2).
 
     ## Sensors
 
@@ -170,124 +172,15 @@ class NavEnv(KheperaEnv):
 
     ## Scenario file
 
-    `config="path.toml"` overlays a TOML file on the built-in defaults below
-    (`khepera_gym._core.default_config("nav")`); a file may change any key and add none.
+    `config="path.toml"` overlays a TOML file on the built-in defaults; a file may change any key
+    and add none. Every key, with its default in each version, its units, its comment and its
+    source, is tabled on this env's page of the documentation (generated from the core's
+    declarations by `make docs`); `khepera_gym.default_config("nav")` prints them as a TOML file.
     `robot.axle_length`, `robot.max_wheel_speed`, `robot.wheel_accel_limit`, `robot.mass`,
-    `sensors.ir_floor_value`, `sensors.ir_noise_sigma` and `sensors.us_noise_sigma` may be given
-    as `[low, high]` ranges, drawn anew at every reset (domain randomisation). Built-in scenes
-    such as `config="paper_fig6"` overlay their keys the same way.
+    `sensors.ir_floor_value`, `sensors.ir_noise_sigma` and `sensors.us_noise_sigma` may be given as
+    `[low, high]` ranges, drawn anew at every reset (domain randomisation). Built-in scenes
+    (`khepera_gym.scenes()`, e.g. `config="paper_fig6"`) overlay their keys the same way.
     `env.unwrapped.config_toml()` returns the resolved scenario.
-
-    | Key                           | Default | Meaning                                      |
-    |-------------------------------|---------|----------------------------------------------|
-    | `robot.radius`                | 0.0704  | body radius (m)                              |
-    | `robot.wheel_radius`          | 0.021   | wheel radius (m)                             |
-    | `robot.axle_length`           | 0.1054  | distance between the wheels (m)              |
-    | `robot.max_wheel_speed`       | 0.813   | wheel speed limit (m/s); action 1 maps to it |
-    | `robot.min_wheel_speed`       | 0.003   | smaller commands give 0 (m/s)                |
-    | `robot.wheel_accel_limit`     | 0.203   | wheel acceleration (m/s²): K-Team's default  |
-    |                               |         | speed profile; 0.678 = its Braitenberg demo, |
-    |                               |         | 2.74 = Webots' motor; inf = none (v0)        |
-    | `robot.motor_time_constant`   | 0.0     | s, first-order lag after the profile [E]     |
-    | `robot.mass`                  | 0.54    | kg                                           |
-    | `robot.tyre_friction`         | 1.0     | tyre-floor friction (grip) [E: Webots]       |
-    | `robot.shell_reflectance`     | 1.0     | shell's IR reflectance (1 = white paper) [E] |
-    | `robot.led_color`             | [0.0, 0.8, 0.0] | RGB of its top LEDs, what a camera   |
-    |                               |         | sees of a robot [E]                          |
-    | `arena.width`, `arena.height` | 2.0     | inner arena size (m), centred at the origin  |
-    | `arena.wall_thickness`        | 0.05    | m, outside the inner rectangle               |
-    | `arena.walls`                 | true    | false: open floor (size bounds spawning only) |
-    | `arena.wall_reflectance`      | 1.0     | walls' IR reflectance (1 = white paper) [E]  |
-    | `arena.wall_color`            | [0.8, 0.8, 0.8] | walls' RGB for the camera            |
-    | `obstacles.fixed`             | []      | fixed obstacles: inline tables `{kind =      |
-    |                               |         | "circle", center, radius}`, `{kind = "box",  |
-    |                               |         | center, half_extents, angle}`, `{kind =      |
-    |                               |         | "segment", a, b}`; each may add a            |
-    |                               |         | `reflectance` (IR, 1 = white paper) and a    |
-    |                               |         | `color` (RGB in [0, 1], for the camera)      |
-    | `obstacles.count`             | 0       | random obstacles drawn at every reset        |
-    | `obstacles.kinds`             | all 3   | shapes of the random obstacles               |
-    | `obstacles.circle_radius`     | [0.04, 0.10] | range of random circle radii (m)        |
-    | `obstacles.box_half_extent`   | [0.03, 0.10] | range of random box half sides (m)      |
-    | `obstacles.segment_length`    | [0.20, 0.45] | range of random segment lengths (m)     |
-    | `obstacles.placement`         | between | "between" start and goal, or "anywhere"      |
-    | `obstacles.corridor_width`    | 0.8     | band around start→goal for "between" (m)     |
-    | `obstacles.min_gap`           | 0.16    | free gap around random obstacles (m); ≥ the  |
-    |                               |         | robot's diameter + 1 cm keeps goals reachable |
-    | `obstacles.spawn_clearance`   | 0.05    | gap between obstacles and start/goal (m)     |
-    | `spawn.wall_margin`           | 0.05    | clearance from the walls at reset (m)        |
-    | `spawn.min_goal_distance`     | 0.5     | least start-goal distance at reset (m)       |
-    | `spawn.start`                 | []      | [] random, or fixed [x, y, heading]          |
-    | `spawn.goal`                  | []      | [] random, or fixed [x, y]                   |
-    | `sensors.ir_range`            | 0.25    | m; beyond it the IR reads the floor value    |
-    | `sensors.ir_floor_value`      | 100.0   | raw IR count with nothing in range           |
-    | `sensors.ir_noise_sigma`      | 10.0    | raw counts, Gaussian                         |
-    | `sensors.us_min_range`        | 0.25    | m; closer reads code 0                       |
-    | `sensors.us_max_range`        | 2.0     | m; farther reads code 1000                   |
-    | `sensors.us_noise_sigma`      | 0.01    | m, Gaussian                                  |
-    | `sensors.us_enabled`          | 5×true  | per sensor; a disabled one reads code 2000   |
-    | `sensors.us_period`           | 0.1     | s between sonar readings (K-Team: 100 ms for |
-    |                               |         | all five); 0 = every step (v0)               |
-    | `sensors.us_acceptance`       | 22.5°   | rad; no echo from a surface hit further from |
-    |                               |         | its normal [S: Webots]; π/2 = any (v0)       |
-    | `sensors.gyro_noise_sigma`    | 0.2     | °/s, Gaussian [E]                            |
-    | `sensors.imu_accel_noise_sigma` | 0.002 | g, Gaussian, per axis (imu) [E]              |
-    | `sensors.imu_gyro_noise_sigma` | 0.2    | °/s, Gaussian, per axis (imu) [E]            |
-    | `sensors.ground_white`        | 954.0   | ground sensors' raw count over white paper   |
-    |                               |         | [S: Webots at 4.5 mm]                        |
-    | `sensors.ground_black`        | 300.0   | raw count over black tape [E]                |
-    | `sensors.ground_noise_sigma`  | 4.0     | raw counts, Gaussian [S: Webots]             |
-    | `sensors.ground_spot_radius`  | 0.003   | m, floor spot a ground sensor averages [E]   |
-    | `sensors.camera_pixels`       | 32      | camera scanline pixels over its field [D]    |
-    | `sensors.camera_fov`          | 2.287   | rad, horizontal field of view (131°)         |
-    | `sensors.camera_range`        | 2.0     | m, farthest surface a pixel sees [E]         |
-    | `sensors.camera_noise_sigma`  | 0.0     | per colour channel, Gaussian [E]             |
-    | `sensors.camera_depth`        | true    | the observation holds each pixel's depth     |
-    | `sensors.camera_rays_per_pixel` | 4     | rays across a pixel; it shows the nearest    |
-    |                               |         | surface they meet [E]                        |
-    | `sensors.carry`               | ir, us, | sensors each robot has (ir, us, gyro, imu,   |
-    |                               | gyro    | ground, camera; others cost nothing; v0: ir, |
-    |                               |         | us)                                          |
-    | `sensors.observe`             | ir, us  | carried sensors whose blocks the observation |
-    |                               |         | holds (in this order whatever the list's)    |
-    | `task.goal_radius`            | 0.05    | success distance (m)                         |
-    | `task.max_steps`              | 400     | steps before truncation                      |
-    | `task.progress_weight`        | 10.0    | reward per metre of progress                 |
-    | `task.time_cost`              | 0.01    | reward subtracted per step                   |
-    | `task.success_bonus`          | 10.0    | reward on success                            |
-    | `task.collision_penalty`      | 0.1     | reward subtracted per step in contact        |
-    | `task.terminate_on_collision` | false   | end the episode on contact                   |
-    | `task.localization`           | ground_truth | or "odometry": goal distance and bearing |
-    |                               |         | from dead reckoning (encoders + gyro)        |
-    | `task.action_delay`           | 0       | steps before an action reaches the wheels    |
-    | `task.observation_delay`      | 0       | steps before the world shows in observations |
-    | `task.led_action`             | false   | actions also set the top LEDs: (left, right, |
-    |                               |         | red, green, blue), colours to 0..63 (spec §6)|
-    | `physics.dt`                  | 0.05    | control step (s)                             |
-    | `physics.substeps`            | 2       | physics substeps per control step (v0: 4)    |
-    | `physics.solver_iterations`   | 4       | rapier solver iterations for contact steps   |
-    | `physics.drive`               | traction | "traction": tyres with bounded grip move the |
-    |                               |         | body; "kinematic": velocity imposed (v0)     |
-    | `physics.friction`            | 0.7     | shell-wall/obstacle friction [S: ARGoS]; v0: |
-    |                               |         | 0 (robots slid along walls)                  |
-    | `physics.robot_friction`      | 0.7     | shell-shell friction [S: ARGoS]              |
-    | `physics.split`               | world   | "world": one robot that can touch something  |
-    |                               |         | sends every robot through rapier; "robot":   |
-    |                               |         | only those that can touch something or slip  |
-    |                               |         | (the others on exact arcs: faster swarms)    |
-    | `odometry.radius_error`       | 0.01    | believed wheel radius error, per episode [E] |
-    | `odometry.axle_error`         | 0.007   | believed axle error, per episode [D]         |
-    | `odometry.slip_noise`         | 0.029   | per-step wheel travel noise [E: Enki]        |
-    | `floor.background`            | 1.0     | grey level of the bare floor, 0 black ..     |
-    |                               |         | 1 white paper (for the ground sensors)       |
-    | `floor.lines`                 | []      | straight marks {a, b, width, grey}           |
-    | `floor.arcs`                  | []      | arcs {center, radius, start, end, width,     |
-    |                               |         | grey}, counter-clockwise                     |
-    | `floor.tracks`                | []      | polylines {points, closed, width, grey}      |
-    | `floor.image`                 | ""      | grey-scale PNG under the marks, a path       |
-    |                               |         | relative to the scenario file                |
-    | `floor.image_scale`           | 0.01    | m per pixel                                  |
-    | `floor.image_origin`          | [-1, -1] | m, the image's lower-left corner            |
 
     ## Version History
 
@@ -302,6 +195,15 @@ class NavEnv(KheperaEnv):
       100 ms and do not echo beyond 22.5° from a surface's normal. Pushed into a wall a robot
       slows, turns toward it and stalls; a stopped robot resists being shoved. New keys: IR
       reflectances, `task.localization` with `[odometry]`, action and observation delays.
+    * v2: One robot in the simulator and on the bench (issue 32). The wheels follow K-Team's speed
+      profile as the firmware computes it (`[motors]`: `mode = "profile"`, Acc_Inc 40 speed
+      units per 10 ms = 2.71 m/s², orders under Min_Speed_Acc = 20 units raised to it), which the
+      program `khepera-gym export` writes sets on the robot with `kh4_SetSpeedProfile` (v1's
+      0.203 m/s² ramp was not what that program set). With it the paper's reactive controllers
+      work at the paper's speeds. Also: rapier makes contacts ahead of two robots closing at full
+      speed, a slipping robot that can touch nothing is moved by its tyres without rapier, and
+      a world split by robot rolls each robot substep by substep. Contacts, sensors and rewards
+      are v1's. `motors.preset` names the drives real programs set (`khepera_gym.motor_presets()`).
     """
 
     TASK: ClassVar[str] = "nav"
@@ -418,8 +320,9 @@ class AvoidEnv(KheperaEnv):
     ## Robot model
 
     As :class:`NavEnv`: a Khepera IV disc (radius 0.0704 m, wheels 0.1054 m apart, ±0.813 m/s),
-    a dynamic rapier2d body that obstacles stop or deflect. `physics.friction` (0) lets it slide
-    along walls and obstacles.
+    a dynamic rapier2d body that obstacles stop or deflect. From v1 on, `physics.friction` = 0.7
+    holds it against what it touches (it turns toward a wall it pushes and stalls); in v0
+    (`physics.friction` = 0) it slid along walls and obstacles.
 
     ## Sensors
 
@@ -429,17 +332,11 @@ class AvoidEnv(KheperaEnv):
 
     ## Scenario file
 
-    The keys are those of :class:`NavEnv` (its Scenario file section tables them all; the
-    resolved defaults are `khepera_gym._core.default_config("avoid")`). Defaults that differ from
-    Nav:
-
-    | Key                         | Default    | Meaning                                      |
-    |-----------------------------|------------|----------------------------------------------|
-    | `obstacles.count`           | 10         | random obstacles drawn at every reset        |
-    | `obstacles.placement`       | anywhere   | uniform in the arena ("between": start-goal) |
-    | `spawn.min_goal_distance`   | 1.0        | least start-goal distance (m)                |
-    | `task.max_steps`            | 600        | steps before truncation (30 s)               |
-    | `task.collision_penalty`    | 0.5        | reward subtracted per step in contact        |
+    The keys of :class:`NavEnv`, with Avoid's defaults: 10 random obstacles placed anywhere, a goal
+    at least 1 m away, 600 steps, 0.5 per step in contact. Every key, with its default in each
+    version, its units, its comment and its source, is tabled on this env's page of the
+    documentation (generated from the core's declarations by `make docs`);
+    `khepera_gym.default_config("avoid")` prints them as a TOML file.
 
     Fixed obstacles go in `obstacles.fixed`, e.g.
     `fixed = [{kind = "box", center = [0.0, 0.2], half_extents = [0.025, 0.4], angle = 0.0}]`.
@@ -455,6 +352,8 @@ class AvoidEnv(KheperaEnv):
     * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
       gyroscope, sonar timing and acceptance cone (the Version History of `NavEnv` has the
       details).
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "avoid"

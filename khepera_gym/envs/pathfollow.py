@@ -21,7 +21,7 @@ class PathFollowEnv(KheperaEnv):
     ## Description
 
     Path following, one of the control problems the KH4VREP paper (Farias et al., IFAC 2017)
-    names in its abstract; definitions from research/tasks.md §4. The path is a closed curve
+    names in its abstract; definitions from docs/task-design.md §4. The path is a closed curve
     centred in the 2 m × 2 m walled arena, given by its geometry only: unlike
     :class:`TrackEnv`, no point moves along it in time, so the controller chooses its own
     timing, and the task asks for one lap at about the desired speed `pathfollow.speed`
@@ -86,11 +86,11 @@ class PathFollowEnv(KheperaEnv):
     max(0, Δs/dt - v_d) / v_d`, with Δs the arc length p_c moved along the direction of travel
     during the step (m; negative backwards), d the cross-track error after it and v_d the desired
     speed (`pathfollow.progress_weight` = 10, `pathfollow.error_weight` = 1,
-    `pathfollow.time_penalty` = 0.01, research/tasks.md §4; `pathfollow.speed_weight` = 0.02
+    `pathfollow.time_penalty` = 0.01, docs/task-design.md §4; `pathfollow.speed_weight` = 0.02
     [E]), minus `task.collision_penalty` (0.1) on every step that ends in contact. A lap is
     worth 10 · 3.77 = 37.7 on the circle whatever the speed; the time penalty favours fast laps
     and the speed term slow ones: with any `speed_weight` above `time_penalty` a lap costs least
-    at v_d. The speed term is this project's (research/tasks.md's reward pays progress at any
+    at v_d. The speed term is this project's (docs/task-design.md's reward pays progress at any
     speed). It costs only speeding: costing slowness too made standing still expensive, and PPO
     learned to get lost within 3 s instead. PPO (500k steps) still laps at about twice v_d: the
     term makes that cost 2.5 of a lap's 37.7, a gradient it does not follow in 1M steps.
@@ -170,43 +170,12 @@ class PathFollowEnv(KheperaEnv):
 
     ## Scenario file
 
-    The keys of :class:`NavEnv` (its Scenario file section tables them) plus a `[pathfollow]`
-    table; `khepera_gym._core.default_config("pathfollow")` is the resolved default file (also
-    `configs/pathfollow.toml`). Defaults that differ from Nav, and the `[pathfollow]` keys ([E]:
-    an estimate; sources in the default file's comments):
-
-    | Key                                | Default   | Meaning                                     |
-    |------------------------------------|-----------|---------------------------------------------|
-    | `task.max_steps`                   | 4000      | cap; truncation is truncation_factor laps   |
-    | `pathfollow.path`                  | circle    | circle, lemniscate, square, spline or       |
-    |                                    |           | waypoints                                   |
-    | `pathfollow.size`                  | 0.6       | m: radius, half-width, half-side, or the    |
-    |                                    |           | spline's largest radius                     |
-    | `pathfollow.speed`                 | 0.15      | m/s, desired speed v_d (observed)           |
-    | `pathfollow.direction`             | random    | random, ccw (the curve's own) or cw         |
-    | `pathfollow.random_start`          | true      | uniform start point; false: phase 0         |
-    | `pathfollow.start_offset`          | 0.1       | m, largest start distance from the path [E] |
-    | `pathfollow.start_heading_offset`  | 0.7853982 | rad, largest start heading error (45°)      |
-    | `pathfollow.spline_irregularity`   | 0.3       | spline: harmonics' amplitudes, 0..0.5 [E]   |
-    | `pathfollow.max_wheel_fraction`    | 0.5       | wheel speed the path's curvature may ask at |
-    |                                    |           | v_d, of robot.max_wheel_speed [E]           |
-    | `pathfollow.lost_distance`         | 0.3       | m, terminated as lost beyond this error     |
-    | `pathfollow.truncation_factor`     | 2.0       | laps at v_d before truncation               |
-    | `pathfollow.preview_points`        | 3         | path points previewed, 0..16                |
-    | `pathfollow.preview_spacing`       | 0.1       | m of arc between previewed points           |
-    | `pathfollow.progress_weight`       | 10.0      | reward per metre of progress                |
-    | `pathfollow.error_weight`          | 1.0       | reward per metre of cross-track error       |
-    | `pathfollow.time_penalty`          | 0.01      | reward lost every step                      |
-    | `pathfollow.speed_weight`          | 0.02      | reward lost per relative speed over v_d [E] |
-    | `pathfollow.transient`             | 5.0       | s excluded from the RMS and max statistics  |
-    | `pathfollow.converge_radius`       | 0.02      | m, the convergence statistic's radius       |
-    | `pathfollow.waypoint_spacing`      | 0.2       | m of arc between waypoints [E]              |
-    | `pathfollow.waypoint_radius`       | 0.1       | m, next waypoint within this (IR-SIM)       |
-    | `pathfollow.obstacle_count`        | 0         | cylinders on or near the path, 0..16        |
-    | `pathfollow.obstacle_radius`       | 0.04      | m, their radius [E]                         |
-    | `pathfollow.obstacle_offset`       | 0.05      | m, their largest distance from the path [E] |
-    | `pathfollow.points`                | []        | path = "waypoints": [[x, y], ...] (m), the  |
-    |                                    |           | last repeating the first                    |
+    The keys of :class:`NavEnv` plus a `[pathfollow]` table (the path, its size, the desired speed,
+    the start offsets, the preview, the waypoints, the reward's weights, the statistics' transient
+    and radius, obstacles on the path). Every key, with its default in each version, its units, its
+    comment and its source, is tabled on this env's page of the documentation (generated from the
+    core's declarations by `make docs`); `khepera_gym.default_config("pathfollow")` prints them as a
+    TOML file.
 
     A path outside the arena (with the start offset or obstacles, the robot's radius and
     `spawn.wall_margin`) raises `khepera_gym.errors.ConfigError` naming `pathfollow.size`; one
@@ -221,6 +190,8 @@ class PathFollowEnv(KheperaEnv):
     * v1: Initial version, on the v1 dynamics (the real robot's: tyre grip, contact friction,
       K-Team's speed profile). There is no v0: v0 means the paper's older V-REP-like dynamics,
       and the task is newer than them.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "pathfollow"

@@ -21,7 +21,7 @@ class TrackEnv(KheperaEnv):
     ## Description
 
     Trajectory tracking, one of the control problems the KH4VREP paper (Farias et al., IFAC
-    2017) names in its abstract; definitions from research/tasks.md §3. A reference point moves
+    2017) names in its abstract; definitions from docs/task-design.md §3. A reference point moves
     on a closed curve centred in the 2 m × 2 m walled arena, once per period
     T = length / `track.speed`; the robot must be at the reference point p_r(t) at time t,
     heading along the curve (θ_r(t)). Curves (`track.reference`): `"circle"` (radius
@@ -71,7 +71,7 @@ class TrackEnv(KheperaEnv):
 
     Every step: `-error_weight · ‖e‖ - heading_weight · (1 - cos e_θ)`, with ‖e‖ the distance
     from the robot's centre to the reference point after the step (m) and e_θ the heading error
-    (`track.error_weight` = 1, `track.heading_weight` = 0.1, research/tasks.md §3), minus
+    (`track.error_weight` = 1, `track.heading_weight` = 0.1, docs/task-design.md §3), minus
     `task.collision_penalty` (0.1) on every step that ends in contact.
 
     ## Starting State
@@ -145,40 +145,12 @@ class TrackEnv(KheperaEnv):
 
     ## Scenario file
 
-    The keys of :class:`NavEnv` (its Scenario file section tables them) plus a `[track]` table;
-    `khepera_gym._core.default_config("track")` is the resolved default file (also
-    `configs/track.toml`). Defaults that differ from Nav, and the `[track]` keys ([E]: an
-    estimate; sources in the default file's comments):
-
-    | Key                          | Default    | Meaning                                       |
-    |------------------------------|------------|-----------------------------------------------|
-    | `task.max_steps`             | 4000       | cap on the steps; the episode is truncated    |
-    |                              |            | after one period + the margin                 |
-    | `track.reference`            | circle     | circle, lemniscate, square, spline or         |
-    |                              |            | waypoints                                     |
-    | `track.size`                 | 0.6        | m: radius, half-width A, half-side, or the    |
-    |                              |            | spline's largest radius                       |
-    | `track.speed`                | 0.15       | m/s, mean speed; period = length / speed      |
-    | `track.direction`            | random     | random, ccw (the curve's own) or cw           |
-    | `track.random_phase`         | true       | uniform starting phase; false: phase 0        |
-    | `track.start_offset`         | 0.2        | m, largest start distance from the reference  |
-    | `track.start_heading_offset` | 0.7853982  | rad, largest start heading error (45°)        |
-    | `track.spline_irregularity`  | 0.3        | spline: sum of the harmonics' relative        |
-    |                              |            | amplitudes, 0..0.5 [E]                        |
-    | `track.max_wheel_fraction`   | 0.5        | reference wheel speeds within this fraction   |
-    |                              |            | of robot.max_wheel_speed [E]                  |
-    | `track.max_accel_fraction`   | 0.5        | reference wheel accelerations within this     |
-    |                              |            | fraction of robot.wheel_accel_limit [E]       |
-    | `track.lost_distance`        | 0.5        | m, terminated as lost beyond this error       |
-    | `track.truncation_margin`    | 2.0        | s after one period before truncation          |
-    | `track.preview_points`       | 4          | reference points previewed, 0..16             |
-    | `track.preview_step`         | 0.25       | s between previewed points                    |
-    | `track.error_weight`         | 1.0        | reward per metre of position error            |
-    | `track.heading_weight`       | 0.1        | reward per unit of 1 - cos(heading error)     |
-    | `track.transient`            | 5.0        | s excluded from the RMS and max statistics    |
-    | `track.converge_radius`      | 0.02       | m, the convergence statistic's radius         |
-    | `track.waypoints`            | []         | reference = "waypoints": [[t, x, y], ...]     |
-    |                              |            | (s, m, m); `track.speed` is then unused       |
+    The keys of :class:`NavEnv` plus a `[track]` table (the reference, its size and speed, the start
+    offsets, the speed and acceleration fractions a reference may ask of the wheels, the preview,
+    the reward's weights, the statistics' transient and radius). Every key, with its default in each
+    version, its units, its comment and its source, is tabled on this env's page of the
+    documentation (generated from the core's declarations by `make docs`);
+    `khepera_gym.default_config("track")` prints them as a TOML file.
 
     A reference outside the arena (with the start offset, the robot's radius and
     `spawn.wall_margin`) raises `khepera_gym.errors.ConfigError` naming `track.size`; one that
@@ -191,6 +163,8 @@ class TrackEnv(KheperaEnv):
     * v1: Initial version, on the v1 dynamics (the real robot's: tyre grip, contact friction,
       K-Team's speed profile). There is no v0: v0 means the paper's older V-REP-like dynamics,
       and the task is newer than them.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "track"

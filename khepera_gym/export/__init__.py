@@ -62,12 +62,10 @@ from khepera_gym.export.onnx_writer import ONNX_FILE, ONNX_OPSET, build_onnx, on
 from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
 
 __all__ = [
-    "DRIVE_CHOICES",
-    "MotorSetting",
-    "motor_setting",
     "ACTIVATIONS",
     "C_FLAGS",
     "C_SOURCES",
+    "DRIVE_CHOICES",
     "EXPORT_EXTRA",
     "FORMATS",
     "LAYOUT_FILE",
@@ -81,6 +79,7 @@ __all__ = [
     "ActionTransform",
     "DenseLayer",
     "ExportResult",
+    "MotorSetting",
     "ObservationNormalization",
     "PolicyNetwork",
     "Recording",
@@ -92,11 +91,12 @@ __all__ = [
     "export_policy",
     "input_row",
     "load_model",
+    "motor_setting",
     "onnx_actions",
     "record_rollouts",
     "robot_interface",
-    "toml_loads",
     "run_check_program",
     "run_from_args",
+    "toml_loads",
     "write_c",
 ]

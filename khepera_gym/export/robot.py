@@ -26,12 +26,12 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10: tomli, a dependency there
     import tomli as tomllib
 
-#: One ``kh4_set_speed`` unit in mm/s (src/robot.rs, khepera4_spec.md §1).
+#: One ``kh4_set_speed`` unit in mm/s (src/robot.rs, docs/robot.md §1).
 MM_S_PER_SPEED_UNIT = 0.678181
-#: Largest closed-loop ``kh4_set_speed`` command (about 813 mm/s; khepera4_spec.md §1, the
+#: Largest closed-loop ``kh4_set_speed`` command (about 813 mm/s; docs/robot.md §1, the
 #: serial protocol's ``D,l,r`` takes ±1200).
 MAX_SPEED_UNITS = 1200
-#: Encoder pulses per wheel turn: 128 × 4 (quadrature) × 38:1 (khepera4_spec.md §1).
+#: Encoder pulses per wheel turn: 128 × 4 (quadrature) × 38:1 (docs/robot.md §1).
 PULSES_PER_WHEEL_TURN = 19456
 #: Observation blocks the C observation builder computes from the robot's own readings, with
 #: their widths (src/sensors/ir.rs, ultrasonic.rs; the body's wheel speeds); with the goal

@@ -25,7 +25,7 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     ## Description
 
     The KH4VREP paper's future work (§6): multi-agent consensus with event-based communication
-    (issue 16, item 3; research/tasks.md §8). N robots start at random in the 2 m × 2 m walled
+    (issue 16, item 3; docs/task-design.md §8). N robots start at random in the 2 m × 2 m walled
     arena. Robot i has an offset c_i: 0 for `consensus.objective = "rendezvous"`, the vertex i
     of a regular polygon of radius `consensus.formation_radius` (0.3 m) for `"formation"` (the
     default). They agree when the displacements z_i = x_i − c_i are equal (a displacement-based
@@ -140,7 +140,7 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     `range` (1.0 m, [E]), `edges` ([]), `objective` ("formation"), `formation_radius` (0.3 m),
     `trigger` ("periodic"), `period` (0.05 s, rounded to whole steps), `threshold` (0.01 m,
     [E]), `drop` (0), `delay_steps` (0), `tolerance` (0.03 m), `error_weight` (1). The resolved
-    default file is `khepera_gym._core.default_config("consensus")` (also
+    default file is `khepera_gym.default_config("consensus")` (also
     `configs/consensus.toml`). `khepera_gym.errors.ConfigError` names the key when:
     `n_robots` is outside 2..32 or more than the arena fits (the message says how many);
     `graph` or `trigger` or `objective` is unknown; `graph = "edges"` has no pairs, a pair
@@ -155,6 +155,8 @@ class ConsensusParallelEnv(KheperaParallelEnv):
 
     * v1: Initial version, on the v1 dynamics (tyre grip, contact friction, K-Team's speed
       profile); there is no v0.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     metadata: ClassVar[dict[str, Any]] = {

@@ -147,7 +147,7 @@ class PlatoonParallelEnv(KheperaParallelEnv):
     (2.0 s, [E]: 0.30 m at 0.15 m/s, the road's two-second headway), then every key of Track's
     `[track]` table with Track's default (:class:`khepera_gym.envs.TrackEnv`'s Scenario file
     table), named `platoon.<key>` (a scenario has one task table). The resolved default file is
-    `khepera_gym._core.default_config("platoon")` (also `configs/platoon.toml`).
+    `khepera_gym.default_config("platoon")` (also `configs/platoon.toml`).
     `khepera_gym.errors.ConfigError` names the key when: `platoon.robots` is outside 1..16 or
     more robots than one lap holds (N · τ > the period); `platoon.time_gap` is not positive, or
     τ times the mean reference speed is less than a robot's diameter plus 2 cm (0.16 m), or the
@@ -160,6 +160,8 @@ class PlatoonParallelEnv(KheperaParallelEnv):
 
     * v1: Initial version, on the v1 dynamics (tyre grip, contact friction, K-Team's speed
       profile), like :class:`khepera_gym.envs.TrackEnv`; there is no v0.
+    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
+      the robot (the Version History of `NavEnv` has the details).
     """
 
     metadata: ClassVar[dict[str, Any]] = {

@@ -29,6 +29,7 @@ from ray.rllib.algorithms.algorithm_config import AlgorithmConfig
 import khepera_gym
 from khepera_gym.errors import ConfigError
 from khepera_gym.hyperparams import EVAL_SEED
+from khepera_gym.provenance import provenance
 from khepera_gym.registration import resolve_env_id
 from khepera_gym.rllib.config import build_algo, check_config, load_hyperparams, ppo_config
 from khepera_gym.rllib.evaluation import Evaluation, evaluate_policy, module_policy
@@ -221,6 +222,7 @@ def train(
         "torch": torch.__version__,
         "python": platform.python_version(),
     }
+    record["meta"] = provenance()
     (out / "run.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     if verbose:
         final = result.final

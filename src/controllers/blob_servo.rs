@@ -1,4 +1,4 @@
-//! Colour-blob servoing for Seek (research/tasks.md §6.3): steer toward the camera pixels of the
+//! Colour-blob servoing for Seek (docs/task-design.md §6.3): steer toward the camera pixels of the
 //! target colour and slow down as they fill the view.
 //!
 //! With the blob's centroid x̄ ∈ [−1, 1] (positive to the right: pixel 0 is the leftmost) and
@@ -47,11 +47,41 @@ crate::config_table! {
     }
 }
 
+/// A colour to find in the camera's pixels: each channel within `tolerance` of `target`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetColour {
+    target: [f32; 3],
+    tolerance: f32,
+}
+
+impl TargetColour {
+    /// The colour `target` (RGB in [0, 1]) with a `tolerance` >= 0 per channel; `who` names the
+    /// controller in errors.
+    pub fn new(who: &str, target: [f32; 3], tolerance: f32) -> Result<Self> {
+        if target.iter().any(|c| !(0.0..=1.0).contains(c)) {
+            return Err(Error::Param(format!(
+                "{who}: target must be [r, g, b] in [0, 1], got {target:?}"
+            )));
+        }
+        Ok(Self {
+            target,
+            tolerance: non_negative(who, "tolerance", tolerance)?,
+        })
+    }
+
+    /// Whether a pixel's r, g, b is of this colour.
+    #[inline]
+    pub fn matches(&self, rgb: &[f32]) -> bool {
+        rgb.iter()
+            .zip(self.target)
+            .all(|(c, t)| (c - t).abs() <= self.tolerance)
+    }
+}
+
 /// The blob servo on a Seek observation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BlobServoPolicy {
-    target: [f32; 3],
-    tolerance: f32,
+    colour: TargetColour,
     k: f32,
     vmax: f32,
     wmax: f32,
@@ -89,15 +119,8 @@ impl Controller for BlobServoPolicy {
                 camera.len()
             )));
         }
-        if params.target.iter().any(|c| !(0.0..=1.0).contains(c)) {
-            return Err(Error::Param(format!(
-                "{who}: target must be [r, g, b] in [0, 1], got {:?}",
-                params.target
-            )));
-        }
         Ok(Self {
-            target: params.target,
-            tolerance: non_negative(who, "tolerance", params.tolerance)?,
+            colour: TargetColour::new(who, params.target, params.tolerance)?,
             k: non_negative(who, "k", params.k)?,
             vmax: positive(who, "vmax", params.vmax)?,
             wmax: positive(who, "wmax", params.wmax)?,
@@ -122,11 +145,7 @@ impl Controller for BlobServoPolicy {
         let (mut count, mut sum) = (0usize, 0.0f32);
         for i in 0..self.pixels {
             let px = &obs[self.camera + i * self.per..self.camera + i * self.per + 3];
-            let matches = px
-                .iter()
-                .zip(self.target)
-                .all(|(c, t)| (c - t).abs() <= self.tolerance);
-            if matches {
+            if self.colour.matches(px) {
                 count += 1;
                 // Pixel centres from −1 (left edge) to 1 (right edge).
                 sum += 2.0 * (i as f32 + 0.5) / self.pixels as f32 - 1.0;

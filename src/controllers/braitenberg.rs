@@ -221,8 +221,8 @@ impl Braitenberg {
     }
 }
 
-/// The weights of K-Team's `braitenbergAvoidance` demo (spec §8: left +2 +3 +4 −7 −4 −3 −2 +1,
-/// right −2 −3 −4 −9 +4 +3 +2 +1 on raw counts less 80, summed and divided by 5, in speed
+/// The weights of K-Team's `braitenbergAvoidance` demo (docs/robot.md §8: left +2 +3 +4 −7 −4 −3 −2
+/// +1, right −2 −3 −4 −9 +4 +3 +2 +1 on raw counts less 80, summed and divided by 5, in speed
 /// units), converted to m/s per unit of proximity: × 923 counts / 5 × 0.678 mm/s ≈ × 0.125.
 pub const KTEAM_WEIGHTS: [[f32; IR_COUNT]; 2] = {
     const S: f32 = 923.0 / 5.0 * 0.000678181;

@@ -1,4 +1,4 @@
-//! The consensus law on what neighbours broadcast (consensus_v1; research/tasks.md §8).
+//! The consensus law on what neighbours broadcast (consensus_v1; docs/task-design.md §8).
 //!
 //! With x̂_j the last message of neighbour j, x̂_i the robot's own last broadcast and c the
 //! formation offsets, the law of Dimarogonas, Frazzoli & Johansson (IEEE TAC 57(5), 2012,

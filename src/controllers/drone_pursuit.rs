@@ -1,4 +1,4 @@
-//! PD pursuit for the quadcopter of DroneFollow (research/tasks.md §7): steer the drone's
+//! PD pursuit for the quadcopter of DroneFollow (docs/task-design.md §7): steer the drone's
 //! horizontal acceleration so that the robot's offset e (metres, from the camera's image
 //! coordinates times the footprint's radius z·tan(fov/2)) and its rate ė (the observed
 //! relative velocity) obey ë + k_d·ė + k_p·e = a_robot:

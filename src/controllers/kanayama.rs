@@ -9,9 +9,9 @@
 //! Linearised about zero error on a straight or curved reference, the longitudinal error decays
 //! at rate K_x and the lateral loop is s² + v_r·K_θ·s + v_r²·K_y = 0: natural frequency
 //! ω_n = v_r·√K_y, critically damped when K_y = K_θ²/4. The defaults give ω_n = 1 rad/s and
-//! ζ = 1 at v_r = 0.15 m/s (research/tasks.md §3): K_y = (1/0.15)² = 44.4 m⁻², K_θ = 2/0.15 =
+//! ζ = 1 at v_r = 0.15 m/s (docs/task-design.md §3): K_y = (1/0.15)² = 44.4 m⁻², K_θ = 2/0.15 =
 //! 13.3 m⁻¹, K_x = 1 s⁻¹. (The paper's own gains, K_x = 10 s⁻¹, K_y = 6.4e-3 cm⁻² = 64 m⁻²,
-//! K_θ = 0.16 cm⁻¹ = 16 m⁻¹, as cited in research/tasks.md, also satisfy K_y = K_θ²/4; they are
+//! K_θ = 0.16 cm⁻¹ = 16 m⁻¹, as cited in docs/task-design.md, also satisfy K_y = K_θ²/4; they are
 //! not checked against the paper's text.)
 //!
 //! Units: metres, m/s, radians, rad/s; robot frame x forward, y left, angles CCW.

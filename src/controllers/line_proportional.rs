@@ -1,6 +1,6 @@
 //! A proportional line follower on the difference of the two front ground sensors, as Webots'
 //! e-puck line-following example (`e-puck_line.c`, "LFM": v_{L,R} = 200 ∓ 0.4·(g_R − g_L) in
-//! e-puck units; research/tasks.md §5.2), rescaled to the Khepera IV: the wheels at
+//! e-puck units; docs/task-design.md §5.2), rescaled to the Khepera IV: the wheels at
 //! v_{L,R} = `speed` ∓ `gain`·(g_R − g_L), g the raw counts. The e-puck's full differential is
 //! twice its base speed (0.4 × 1000 counts against 200); with white − black = 654 counts here
 //! (954 − 300), `gain` = 2·`speed`/654 per count keeps that ratio [D].

@@ -1,6 +1,6 @@
 //! K-Team's line follower: the logic of the line-following demo shipped with the Khepera IV
-//! (`khepera4_test.c`, research/tasks.md §5.2, spec §4), on the two front ground sensors read
-//! against a threshold (800: darker is black).
+//! (`khepera4_test.c`, docs/task-design.md §5.2, docs/robot.md §4), on the two front ground sensors
+//! read against a threshold (800: darker is black).
 //!
 //! - both front sensors over black: straight on at `speed` (90 units of 0.678 mm/s = 61 mm/s);
 //! - one over black: turn toward it, the wheels at `speed` ∓ `turn` (50 units);
@@ -15,7 +15,7 @@ use super::{positive, Controller, WheelMap};
 use crate::error::{Error, Result};
 use crate::obs::ObsLayout;
 
-/// One K-Team speed unit (m/s): 0.678 mm/s (spec §1).
+/// One K-Team speed unit (m/s): 0.678 mm/s (docs/robot.md §1).
 pub const SPEED_UNIT: f32 = 0.000678;
 
 crate::config_table! {

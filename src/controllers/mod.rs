@@ -16,6 +16,7 @@
 //! Units: metres, seconds, radians; robot frame x forward, y left, angles CCW.
 
 pub mod blob_servo;
+pub mod blob_vfh;
 pub mod braitenberg;
 pub mod consensus;
 pub mod drone_pursuit;
@@ -212,6 +213,7 @@ controller_registry! {
     LineThreshold: line_threshold::LineThresholdPolicy,
     LineProportional: line_proportional::LineProportionalPolicy,
     BlobServo: blob_servo::BlobServoPolicy,
+    BlobVfh: blob_vfh::BlobVfhPolicy,
     Consensus: consensus::ConsensusPolicy,
 }
 

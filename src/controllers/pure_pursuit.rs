@@ -11,7 +11,7 @@
 //! `cross_track_error` d and `path_heading_error` e: (d·sin e, −d·cos e) in the robot frame) and
 //! the `preview` points: the first point of the polyline at distance L_d from the robot,
 //! interpolated; the last preview point when the whole polyline is nearer (a look-ahead longer
-//! than the preview). L_d: 0.15 m at Khepera scale [research/tasks.md §4, E: PythonRobotics uses
+//! than the preview). L_d: 0.15 m at Khepera scale [docs/task-design.md §4, E: PythonRobotics uses
 //! 0.1·v + 2 m for a 2.9 m car]. Linearised on a straight path, the lateral error obeys
 //! ÿ = −(2v²/L_d²)·y − (2v/L_d)·ẏ... (ω_n = √2·v/L_d = 1.4 rad/s, ζ = 1/√2 at 0.15 m/s).
 //!

@@ -9,7 +9,7 @@
 //! The Frenet errors evolve as ḋ = v·sin θ̃ and θ̃̇ = ω − v·κ·cos θ̃ / (1 − κ·d), so the first
 //! term cancels the path's turning and θ̃̇ = −k_θ|v|θ̃ − k_d·v·d·sin θ̃/θ̃; V = d² + θ̃²/k_d
 //! decreases along solutions (Samson's Lyapunov function). Linearised: s² + k_θ·v·s + k_d·v² = 0,
-//! ω_n = v·√k_d. The defaults give ω_n = 1 rad/s and ζ = 0.7 at v = 0.15 m/s (research/tasks.md
+//! ω_n = v·√k_d. The defaults give ω_n = 1 rad/s and ζ = 0.7 at v = 0.15 m/s (docs/task-design.md
 //! §4): k_d = (1/0.15)² = 44.4 m⁻², k_θ = 2·0.7/0.15 = 9.33 m⁻¹. Where 1 − κ·d ≤ 0 (the robot
 //! beyond the centre of curvature) the feed-forward is undefined; it is taken at 1 − κ·d =
 //! [`MIN_DENOMINATOR`].

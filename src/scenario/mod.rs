@@ -493,7 +493,7 @@ mod tests {
                 ..Default::default()
             })
             .expect("nav v1");
-        // v1: the K-Team firmware's speed profile rate, 3 units per 10 ms (spec §3), as a ramp.
+        // v1: the K-Team firmware's speed profile rate, 3 units per 10 ms (docs/robot.md §3), as a ramp.
         assert_eq!(v1.motors.mode, crate::motors::MotorMode::Ramp);
         assert!((v1.motors.accel(&v1.robot).max() - 0.2034543).abs() < 1e-6);
         assert_eq!(v1.physics.drive, DriveModel::Traction);

@@ -1,8 +1,8 @@
 //! The front colour camera (Aptina MT9V034, 752 × 480, 131° horizontal field of view; K-Team
-//! manual §4.5, spec §6) as a scanline: `camera_pixels` pixels (32 [D]: research/tasks.md §6.2)
-//! across the horizontal field, each `camera_rays_per_pixel` rays (4 [E]) across its width from
-//! the camera 60 mm ahead of the robot's centre, the pixel showing the nearest surface they meet
-//! (so that a thin pillar between two pixel centres still shows)
+//! manual §4.5, docs/robot.md §6) as a scanline: `camera_pixels` pixels (32 [D]:
+//! docs/task-design.md §6.2) across the horizontal field, each `camera_rays_per_pixel` rays (4 [E])
+//! across its width from the camera 60 mm ahead of the robot's centre, the pixel showing the
+//! nearest surface they meet (so that a thin pillar between two pixel centres still shows)
 //! (Webots `Khepera4.proto`: (+60, 0, 27.5) mm, fieldOfView 2.287 rad): the colour
 //! (RGB in [0, 1]) and the depth of the first surface the ray meets: walls (`arena.wall_color`),
 //! obstacles (their `color`), other robots (their top LEDs' colour, `robot.led_color`). A ray
@@ -30,13 +30,14 @@ use crate::world::scene::Target;
 
 /// Most pixels of a scanline.
 pub const MAX_CAMERA_PIXELS: u32 = 256;
-/// The camera's position ahead of the robot's centre (m): Webots `Khepera4.proto` (spec §6).
+/// The camera's position ahead of the robot's centre (m): Webots `Khepera4.proto` (docs/robot.md
+/// §6).
 pub const CAMERA_AHEAD: f32 = 0.060;
 
 crate::config_table! {
     /// The camera's keys in `[sensors]`.
     pub struct CameraConfig {
-        /// pixels of the scanline across the field of view (1..256) [D: research/tasks.md §6.2]
+        /// pixels of the scanline across the field of view (1..256) [D: docs/task-design.md §6.2]
         camera_pixels: u32 = 32,
         /// rad, horizontal field of view [C: 131 deg, K-Team manual §4.5; Webots 2.287 rad]
         camera_fov: f32 = 2.287,

@@ -1,5 +1,5 @@
-//! The four ground (floor) infrared sensors under the front of the Khepera IV (spec §4): K-Team
-//! order left, front-left, front-right, right at (+20, +58.5), (+62, +10), (+62, −10),
+//! The four ground (floor) infrared sensors under the front of the Khepera IV (docs/robot.md §4):
+//! K-Team order left, front-left, front-right, right at (+20, +58.5), (+62, +10), (+62, −10),
 //! (+20, −58.5) mm in the robot frame (Webots `Khepera4.proto`; ARGoS agrees within 1 mm),
 //! 4.5 mm above the floor, the same TCRT5000 as the ring, read as 0..1023.
 //!
@@ -7,8 +7,8 @@
 //! paper) averaged over the sensor's spot (`ground_spot_radius`, 3 mm [E]: the centre and 8
 //! points at 0.7 of the radius), plus Gaussian noise, rounded and clamped. White reads
 //! `ground_white` = 954 (Webots' ground lookup table at 4.5 mm [S]), black `ground_black` = 300
-//! [E]; K-Team's line-following demo takes < 800 as black (spec §4). Noise `ground_noise_sigma`
-//! = 4 counts (Webots: 0.45 % of the value at 4.5 mm [S]).
+//! [E]; K-Team's line-following demo takes < 800 as black (docs/robot.md §4). Noise
+//! `ground_noise_sigma` = 4 counts (Webots: 0.45 % of the value at 4.5 mm [S]).
 //!
 //! Units: `sensor_readings()["ground_raw"]` counts 0..1023, (n_robots, 4); the observation block
 //! `ground` is raw / 1023. Not carried by default (`[sensors] carry`).
@@ -26,7 +26,7 @@ use crate::obs::Block;
 /// Number of ground sensors.
 pub const GROUND_COUNT: usize = 4;
 /// Their positions in the robot frame (m), K-Team order: left, front-left, front-right, right
-/// (spec §4, Webots `Khepera4.proto`).
+/// (docs/robot.md §4, Webots `Khepera4.proto`).
 pub const GROUND_POSITIONS: [[f32; 2]; GROUND_COUNT] = [
     [0.020, 0.0585],
     [0.062, 0.010],
@@ -35,7 +35,7 @@ pub const GROUND_POSITIONS: [[f32; 2]; GROUND_COUNT] = [
 ];
 /// Largest raw reading.
 pub const GROUND_MAX: f32 = 1023.0;
-/// K-Team's line-following demo's threshold: darker (lower) reads as black (spec §4).
+/// K-Team's line-following demo's threshold: darker (lower) reads as black (docs/robot.md §4).
 pub const KTEAM_BLACK_THRESHOLD: i32 = 800;
 
 crate::config_table! {

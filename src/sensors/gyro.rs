@@ -1,7 +1,7 @@
 //! Gyroscope: the z axis of the ST LSM330DLC at the robot's rotation centre (K-Team manual §4.10,
-//! spec §6): ±2000 °/s, read as raw counts of 0.066 °/s (`KH4_GYRO_DEG_S`). The reading is the
-//! body's yaw rate over the last control step plus Gaussian noise, quantised to whole counts and
-//! clamped to the full scale. Scenario keys: `sensors.gyro_noise_sigma`.
+//! docs/robot.md §6): ±2000 °/s, read as raw counts of 0.066 °/s (`KH4_GYRO_DEG_S`). The reading is
+//! the body's yaw rate over the last control step plus Gaussian noise, quantised to whole counts
+//! and clamped to the full scale. Scenario keys: `sensors.gyro_noise_sigma`.
 //!
 //! Units: raw counts in `sensor_readings()["gyro_raw"]`, rad/s in `["gyro_z"]`; the observation
 //! block `gyro` is the rate over the full scale, in [-1, 1]. Robot frame z up: counter-clockwise
@@ -16,7 +16,7 @@ use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::Block;
 
-/// One raw count (°/s): `KH4_GYRO_DEG_S` of libkhepera (spec §6, §10).
+/// One raw count (°/s): `KH4_GYRO_DEG_S` of libkhepera (docs/robot.md §6, §10).
 pub const DEG_S_PER_COUNT: f32 = 0.066;
 /// Full scale (°/s): the ±2000 °/s range K-Team configures (manual §4.10).
 pub const FULL_SCALE_DEG_S: f32 = 2000.0;

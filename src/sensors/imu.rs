@@ -1,14 +1,14 @@
 //! Inertial measurement unit: the ST LSM330DLC at the robot's rotation centre (K-Team manual
-//! §4.9–4.10, spec §6), an accelerometer and a gyroscope of three axes each.
+//! §4.9–4.10, docs/robot.md §6), an accelerometer and a gyroscope of three axes each.
 //!
 //! - **Accelerometer**: ±2 g, read in whole milli-g as libkhepera's `kh4_measure_acc` gives them
-//!   (raw >> 4, /1000 for g; spec §6). It measures the body's acceleration in the plane (the
-//!   world's contacts included, since it comes from how the body really moved) and gravity on z.
-//!   K-Team's axes are x forward, y left, and z negative with gravity (spec §6, manual §4.9):
-//!   a robot at rest on a level floor reads (0, 0, −1) g. The planar acceleration is the change
-//!   of the body's mean velocity between the last two control steps, rotated into the robot's
-//!   frame at the step boundary: the mean acceleration over the 50 ms around the start of the
-//!   last step. The real chip samples at 100 Hz and the library returns its last 100 ms of
+//!   (raw >> 4, /1000 for g; docs/robot.md §6). It measures the body's acceleration in the plane
+//!   (the world's contacts included, since it comes from how the body really moved) and gravity on
+//!   z. K-Team's axes are x forward, y left, and z negative with gravity (docs/robot.md §6, manual
+//!   §4.9): a robot at rest on a level floor reads (0, 0, −1) g. The planar acceleration is the
+//!   change of the body's mean velocity between the last two control steps, rotated into the
+//!   robot's frame at the step boundary: the mean acceleration over the 50 ms around the start of
+//!   the last step. The real chip samples at 100 Hz and the library returns its last 100 ms of
 //!   samples, so a real reading lags about as much. Constant speed on a straight line reads 0;
 //!   constant speed v on a circle of yaw rate ω reads the centripetal v·ω on y; a robot stopped
 //!   by a wall within a step reads a spike of at least v/(2·dt) over two readings.
@@ -37,11 +37,12 @@ use crate::obs::Block;
 
 /// Standard gravity (m/s²), the unit "g" of the accelerometer (ISO 80000-3).
 pub const STANDARD_GRAVITY: f32 = 9.80665;
-/// One accelerometer count (g): libkhepera returns (raw >> 4) / 1000 g (spec §6).
+/// One accelerometer count (g): libkhepera returns (raw >> 4) / 1000 g (docs/robot.md §6).
 pub const G_PER_COUNT: f32 = 0.001;
 /// Accelerometer full scale (g): the ±2 g range K-Team configures (manual §4.9).
 pub const ACCEL_FULL_SCALE_G: f32 = 2.0;
-/// Sign of gravity on the accelerometer's z axis: K-Team's z is negative with gravity (spec §6).
+/// Sign of gravity on the accelerometer's z axis: K-Team's z is negative with gravity
+/// (docs/robot.md §6).
 pub const GRAVITY_Z_G: f32 = -1.0;
 
 crate::config_table! {

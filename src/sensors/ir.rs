@@ -1,5 +1,5 @@
 //! Infrared proximity ring: 8 TCRT5000 sensors, 45° apart on the rim, raw value 0..1023
-//! (1023 = touching), from K-Team's measured response curve (spec §3, user manual fig. 10,
+//! (1023 = touching), from K-Team's measured response curve (docs/robot.md §3, user manual fig. 10,
 //! digitised ±10 counts) interpolated linearly in distance, plus Gaussian noise in raw counts.
 //!
 //! Distances are measured from the sensor (on the body rim) to the obstacle surface, in metres.
@@ -37,8 +37,8 @@ const DEG: f32 = std::f32::consts::PI / 180.0;
 /// Largest raw value.
 pub const IR_MAX_RAW: f32 = 1023.0;
 
-/// Response curve: distance (mm) → raw count, K-Team fig. 10 (spec §3). The value beyond the
-/// last point comes from the scenario's floor value (floor reflection), reached at `ir_range`.
+/// Response curve: distance (mm) → raw count, K-Team fig. 10 (docs/robot.md §3). The value beyond
+/// the last point comes from the scenario's floor value (floor reflection), reached at `ir_range`.
 const CURVE_MM: [f32; 16] = [
     0.0, 10.0, 20.0, 30.0, 35.0, 40.0, 45.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0, 120.0, 150.0,
     200.0,

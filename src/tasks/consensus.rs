@@ -1,4 +1,4 @@
-//! Consensus with real messages (PettingZoo `consensus_v1`; issue 16, research/tasks.md §8):
+//! Consensus with real messages (PettingZoo `consensus_v1`; issue 16, docs/task-design.md §8):
 //! N robots on a communication graph reach a rendezvous or a formation using only what their
 //! neighbours broadcast. The KH4VREP paper's future work (§6): multi-agent consensus with
 //! event-based communication.

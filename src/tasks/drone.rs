@@ -1,5 +1,5 @@
 //! KheperaIV-DroneFollow: the quadcopter of the KH4VREP paper's Fig. 8 follows a Khepera IV
-//! (research/tasks.md §7). Robot 0, the Khepera, drives a closed route of random waypoints
+//! (docs/task-design.md §7). Robot 0, the Khepera, drives a closed route of random waypoints
 //! (scripted: position control, eqs. 1–4, then Braitenberg avoidance, eqs. 5–7, as the
 //! Formation task's leader; the next waypoint once within `waypoint_radius`). The agent is the
 //! drone ([`model`]): its action is the normalised horizontal acceleration command (x, y in the
@@ -57,7 +57,7 @@ pub const DRONE_FOLLOW: TaskInfo = TaskInfo {
         since: 1,
         defaults: r#"
 [task]
-max_steps = 800              # 40 s (research/tasks.md §7)
+max_steps = 800              # 40 s (docs/task-design.md §7)
 "#,
         section: Some(Section {
             name: "drone",

@@ -1,7 +1,7 @@
 //! KheperaIV-LineFollow: follow a black line on a white floor with the four ground sensors
-//! (issue 15; research/tasks.md §5.2). One closed line per episode, `linefollow.width` wide
-//! (2.7 cm: K-Team's demo asks for a line at least 2.7 cm wide, spec §4), drawn on the floor
-//! (the world's [`FloorMarks`]) along a closed curve: a circle, a figure eight (Gerono's
+//! (issue 15; docs/task-design.md §5.2). One closed line per episode, `linefollow.width` wide
+//! (2.7 cm: K-Team's demo asks for a line at least 2.7 cm wide, docs/robot.md §4), drawn on the
+//! floor (the world's [`FloorMarks`]) along a closed curve: a circle, a figure eight (Gerono's
 //! lemniscate, which crosses itself), a square with sharp corners, a random smooth closed
 //! spline per seed (the curves of the tracking tasks, `reference.rs`), or the scenario's own
 //! line through its `points` (`track = "waypoints"`). The robot starts on the
@@ -84,11 +84,11 @@ crate::config_table! {
         direction: Direction = "random",
         /// spline: its harmonics' amplitudes, 0..0.5 [E]
         spline_irregularity: f32 = 0.3,
-        /// rad, largest start heading error from the line's (10 deg): a front ground sensor then starts over the line (62 mm x tan 10 deg = 11 mm < 10 + 13.5 mm) [D; research/tasks.md §5.2 proposed 30 deg]
+        /// rad, largest start heading error from the line's (10 deg): a front ground sensor then starts over the line (62 mm x tan 10 deg = 11 mm < 10 + 13.5 mm) [D; docs/task-design.md §5.2 proposed 30 deg]
         start_heading_offset: f32 = 0.1745,
         /// s without any ground sensor over black before the robot may be lost
         lost_time: f32 = 1.0,
-        /// m, the robot is lost only this far from the line [E: research/tasks.md §5.2]
+        /// m, the robot is lost only this far from the line [E: docs/task-design.md §5.2]
         lost_distance: f32 = 0.1,
         /// reward per metre of progress along the line
         progress_weight: f32 = 10.0,

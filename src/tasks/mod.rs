@@ -80,7 +80,7 @@ pub enum Driver {
 pub const WHEEL_ACTIONS: usize = 2;
 /// Action values per agent for its robot's top LEDs (red, green, blue) with `task.led_action`.
 pub const LED_ACTIONS: usize = 3;
-/// Highest level of each LED colour: 6 bits, `kh4_SetRGBLeds` takes 0..63 (spec §6).
+/// Highest level of each LED colour: 6 bits, `kh4_SetRGBLeds` takes 0..63 (docs/robot.md §6).
 pub const LED_LEVELS: f32 = 63.0;
 
 /// Action values per agent in a scenario: the wheels, and the LEDs with `task.led_action`.

@@ -1,5 +1,5 @@
 //! KheperaIV-PathFollow: path following, geometry with no clock (the KH4VREP paper's abstract
-//! names it; the definitions are research/tasks.md §4). The robot must drive along a closed
+//! names it; the definitions are docs/task-design.md §4). The robot must drive along a closed
 //! path (circle, lemniscate, square, random spline, or the scenario's points) at about the
 //! desired speed v_d and complete one lap; unlike tracking, being late costs nothing but time.
 //!

@@ -8,7 +8,7 @@
 //! * turn rate ω_r = (ẋ ÿ − ẏ ẍ)/|ṗ|² = (p' × p'')·ṡ / |p'|² (ṡ constant).
 //!
 //! Curves: `circle` (radius = size), `lemniscate` (Gerono's figure eight, x = A sin 2πs,
-//! y = A sin 2πs cos 2πs, A = size; research/tasks.md §3), `square` (half-side = size, corners
+//! y = A sin 2πs cos 2πs, A = size; docs/task-design.md §3), `square` (half-side = size, corners
 //! where the heading jumps by 90° and ω_r is an impulse the feed-forward does not carry: the
 //! limit of smooth controllers) and `spline` (a random smooth star-shaped closed curve,
 //! r(φ) = size·(1 + Σₖ aₖ cos(kφ + ψₖ)), k = 2..4, with Σ aₖ ≤ the irregularity < 1, so r > 0
@@ -443,7 +443,8 @@ mod tests {
 
     #[test]
     fn circle_feed_forward_is_speed_over_radius() {
-        // R = 0.6 m at 0.15 m/s: T = 2π·0.6/0.15 = 25.13 s, ω_r = 0.25 rad/s (tasks.md §3).
+        // R = 0.6 m at 0.15 m/s: T = 2π·0.6/0.15 = 25.13 s, ω_r = 0.25 rad/s (docs/task-design.md
+        // §3).
         for direction in [1.0, -1.0] {
             let r = Reference::new(Curve::new(Shape::Circle, 0.6), 0.15, 0.1, direction);
             assert!((r.period - 25.132741).abs() < 1e-4);

@@ -1,5 +1,5 @@
 //! KheperaIV-Seek: find and reach a coloured pillar seen only through the camera (issue 15;
-//! research/tasks.md §6.3). Avoid's arena and random grey obstacles, plus one goal pillar (a
+//! docs/task-design.md §6.3). Avoid's arena and random grey obstacles, plus one goal pillar (a
 //! red cylinder at the goal) and optional distractor pillars of other colours. The observation
 //! holds the IR ring, the camera's scanline and the wheel speeds: not the goal's distance or
 //! bearing.
@@ -7,7 +7,7 @@
 //! Reward per step as Nav's: `progress_weight`·(progress toward the pillar's centre, m)
 //! − `time_cost` + `success_bonus` on success − `collision_penalty` in contact (Avoid's 0.5).
 //! Success when the robot's centre is within `task.goal_radius` of the pillar's: 0.1704 m, its
-//! rim 5 cm from the pillar's surface (0.05 + 0.0704 + 0.05 m, research/tasks.md §6.3);
+//! rim 5 cm from the pillar's surface (0.05 + 0.0704 + 0.05 m, docs/task-design.md §6.3);
 //! truncated after 600 steps, as Avoid.
 //!
 //! Units: metres, seconds, radians; world frame.
@@ -74,7 +74,7 @@ collision_penalty = 0.5      # as Avoid
 crate::config_table! {
     /// `[seek]`: the pillar and the distractors.
     pub struct SeekConfig {
-        /// m, the goal pillar's radius [E: research/tasks.md §6.3]
+        /// m, the goal pillar's radius [E: docs/task-design.md §6.3]
         pillar_radius: f32 = 0.05,
         /// RGB in [0, 1] of the goal pillar (red)
         pillar_color: [f32; 3] = [1.0, 0.0, 0.0],

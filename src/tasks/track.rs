@@ -1,5 +1,5 @@
 //! KheperaIV-Track: trajectory tracking, the reference given in time (the KH4VREP paper's
-//! abstract names it; the definitions are research/tasks.md §3). The robot must be at p_r(t) at
+//! abstract names it; the definitions are docs/task-design.md §3). The robot must be at p_r(t) at
 //! time t, heading along the reference, on a closed curve ([`reference`]: circle, lemniscate,
 //! square or a random spline) travelled once per period T = length / `track.speed`.
 //!

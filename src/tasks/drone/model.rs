@@ -1,4 +1,4 @@
-//! The quadcopter of the KH4VREP paper's Fig. 8, as a 2.5-D vehicle (research/tasks.md §7): it
+//! The quadcopter of the KH4VREP paper's Fig. 8, as a 2.5-D vehicle (docs/task-design.md §7): it
 //! flies above the arena (no contacts), its horizontal motion a double integrator whose
 //! commanded acceleration is bounded by its largest tilt, with linear drag, and its altitude
 //! held by a first-order autopilot. A camera looks straight down.

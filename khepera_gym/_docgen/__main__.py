@@ -1,0 +1,34 @@
+"""``python -m khepera_gym._docgen [DOCS_DIR]`` writes the generated pages without Sphinx;
+``--readme`` rewrites the README's env table from the registries instead."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from khepera_gym._docgen import readme_env_table, write_all
+
+#: The markers around the README's env table.
+START, END = "<!-- env-table:start -->", "<!-- env-table:end -->"
+
+
+def main() -> int:
+    """Writes docs/generated/, or the README's env table with ``--readme``."""
+    parser = argparse.ArgumentParser(prog="python -m khepera_gym._docgen")
+    parser.add_argument("docs", nargs="?", type=Path, default=Path("docs"))
+    parser.add_argument("--readme", type=Path, nargs="?", const=Path("README.md"), default=None)
+    args = parser.parse_args()
+    if args.readme is None:
+        for path in write_all(args.docs):
+            print(f"wrote {path}")
+        return 0
+    text = args.readme.read_text(encoding="utf-8")
+    head, rest = text.split(START, 1)
+    _, tail = rest.split(END, 1)
+    args.readme.write_text(f"{head}{START}\n{readme_env_table()}\n{END}{tail}", encoding="utf-8")
+    print(f"wrote the env table of {args.readme}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,325 @@
+"""Results tables from data: the JSON files that ``khepera-gym compare``, ``train`` and
+``bench`` write (each with its ``meta``: date, commit, machine, command), kept in docs/results/,
+rendered into the results pages at docs build time.
+
+A file's kind is read from its content: a comparison (``summaries``), the consensus sweep
+(``rows`` of triggers), a training run (``algo`` and ``final``) or a benchmark (``rows`` of
+labels). The tables are the tools' own (a comparison's columns come from
+:func:`khepera_gym.compare.report.table_rows`), so a page shows what the tool printed. A
+comparison of fewer than :data:`FULL_EPISODES` episodes per policy is marked as a short run.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from khepera_gym import catalog
+from khepera_gym._docgen.markdown import code, escape_cell, table
+from khepera_gym.compare.report import table_notes, table_rows
+from khepera_gym.compare.run import Comparison
+from khepera_gym.compare.stats import Estimate
+
+#: Episodes per policy of a full comparison (the project's published tables).
+FULL_EPISODES = 200
+
+
+def load(results_dir: Path) -> list[tuple[Path, dict[str, Any]]]:
+    """Every results file of the folder, by name."""
+    if not results_dir.is_dir():
+        return []
+    return [
+        (path, json.loads(path.read_text(encoding="utf-8")))
+        for path in sorted(results_dir.glob("*.json"))
+    ]
+
+
+def kind(document: Any) -> str:
+    """``"compare"``, ``"consensus"``, ``"train"``, ``"bench"`` or ``"unknown"``."""
+    if not isinstance(document, dict):
+        return "unknown"
+    if "summaries" in document:
+        return "compare"
+    if "algo" in document and "final" in document:
+        return "train"
+    rows = document.get("rows")
+    if isinstance(rows, list) and rows and "trigger" in rows[0]:
+        return "consensus"
+    if isinstance(rows, list) and "swarm" in document:
+        return "bench"
+    return "unknown"
+
+
+def provenance_line(meta: dict[str, Any] | None) -> str:
+    """Where a table's figures come from, in one sentence."""
+    if not meta:
+        return "*Provenance not recorded.*"
+    commit = meta.get("commit")
+    if commit:
+        where = f"commit `{commit['id'][:10]}`" + (" with local changes" if commit["dirty"] else "")
+    else:
+        where = f"khepera_gym {meta.get('khepera_gym', '?')}"
+    machine = meta.get("machine") or {}
+    load_average = machine.get("load_average")
+    load_text = f", load average {load_average[0]}" if load_average else ""
+    return (
+        f"Measured {meta.get('date', '?')[:10]} at {where} on {machine.get('cpu', '?')} "
+        f"({machine.get('cpus', '?')} CPUs{load_text}): {code(meta.get('command', '?'))}."
+    )
+
+
+def _version(env_id: str) -> int:
+    return int(env_id.rsplit("-v", 1)[1])
+
+
+def _compare_section(document: dict[str, Any]) -> str:
+    comparison = Comparison.from_json(document)
+    rows = table_rows(comparison)
+    cells = [[escape_cell(cell) for cell in row] for row in rows]
+    title = f"`{comparison.env_id}`" + escape_cell(comparison.scenario)
+    note = ""
+    if comparison.episodes < FULL_EPISODES:
+        note = (
+            f"\n\n```{{note}}\nShort run: {comparison.episodes} episodes per policy (seeds "
+            f"{comparison.seed}–{comparison.seed + comparison.episodes - 1}). The full table "
+            f"({FULL_EPISODES} episodes) still needs a run.\n```"
+        )
+    notes = escape_cell(table_notes(comparison).replace("\n", "; "))
+    return (
+        f"#### {title}\n\n{provenance_line(document.get('meta'))}{note}\n\n"
+        + table(cells[0], cells[1:])
+        + f"\n\n{notes}."
+    )
+
+
+def compare_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
+    """Every comparison, by version (newest first), then task (the core's order)."""
+    documents = [d for _, d in files if kind(d) == "compare"]
+    if not documents:
+        return _missing("khepera-gym compare --task avoid --episodes 200 --out compare_out")
+    order = {task: index for index, task in enumerate(catalog.task_names())}
+
+    def key(document: dict[str, Any]) -> tuple[int, int, str]:
+        task = Comparison.from_json(document).task or ""
+        scene = f"{document.get('config') or ''}{sorted((document.get('overrides') or {}).items())}"
+        return (-_version(document["env_id"]), order.get(task, len(order)), scene)
+
+    parts = []
+    version = None
+    for document in sorted(documents, key=key):
+        if _version(document["env_id"]) != version:
+            version = _version(document["env_id"])
+            parts.append(f"### Version {version}")
+        parts.append(_compare_section(document))
+    return "\n\n".join(parts)
+
+
+def _estimate(record: dict[str, Any], scale: float, digits: int) -> str:
+    return Estimate.from_json(record).format(scale, digits)
+
+
+def consensus_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
+    """The consensus sweeps: error, convergence and messages per trigger setting."""
+    documents = [d for _, d in files if kind(d) == "consensus"]
+    if not documents:
+        return _missing("khepera-gym compare --task consensus --episodes 200")
+    parts = []
+    for document in documents:
+        rows = []
+        for row in document["rows"]:
+            unit = "s" if row["trigger"] == "periodic" else "m"
+            rows.append(
+                [
+                    f"{row['trigger']} {row['value']:g} {unit}",
+                    _estimate(row["error_final"], 1000, 1),
+                    _estimate(row["converged"], 100, 1),
+                    _estimate(row["converge_time"], 1, 2),
+                    _estimate(row["messages"], 1, 2),
+                ]
+            )
+        episodes = document["rows"][0]["error_final"]["n"] if document["rows"] else 0
+        note = ""
+        if episodes < FULL_EPISODES:
+            note = (
+                f"\n\n```{{note}}\nShort run: {episodes} episodes per setting. The full table "
+                f"({FULL_EPISODES} episodes) still needs a run.\n```"
+            )
+        header = ["trigger", "final error mm", "converged %", "converge time s", "messages/robot/s"]
+        parts.append(provenance_line(document.get("meta")) + note + "\n\n" + table(header, rows))
+    return "\n\n".join(parts)
+
+
+def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
+    """The training runs: env, algorithm, steps, final success, wall time, steps/s."""
+    documents = [d for _, d in files if kind(d) == "train"]
+    if not documents:
+        return _missing(
+            "khepera-gym train --env KheperaIV-Nav --algo ppo --seed 0 --out runs/ppo-nav",
+            "run.json",
+        )
+    rows = []
+    for document in sorted(documents, key=lambda d: (d["env_id"], d["algo"], d["seed"])):
+        final = document["final"]
+        rows.append(
+            [
+                code(document["env_id"]),
+                document.get("backend", "sb3") + " " + document["algo"].upper(),
+                f"{document['timesteps']:,}",
+                str(document["seed"]),
+                f"{100 * final['success_rate']:.0f} of {final['episodes']}",
+                f"{document['wall_time']:.0f} s",
+                f"{document['steps_per_second']:,.0f}",
+                provenance_line(document.get("meta")),
+            ]
+        )
+    header = ["env", "algorithm", "steps", "seed", "success %", "wall time", "steps/s", "run"]
+    return table(header, rows)
+
+
+def bench_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
+    """The benchmark runs: env-steps/s per configuration and thread count, memory per world."""
+    documents = [d for _, d in files if kind(d) == "bench"]
+    if not documents:
+        return _missing("khepera-gym bench --json bench.json")
+    parts = []
+    for document in documents:
+        rows = [
+            [
+                escape_cell(row["label"]),
+                str(row["num_threads"] or "–"),
+                f"{row['env_steps_per_second']:,.0f}",
+                f"{1e6 * row['seconds'] / row['steps']:.1f}",
+            ]
+            for row in document["rows"]
+        ]
+        memory = document.get("memory_per_world_bytes")
+        memory_text = (
+            f"\n\nMemory per Nav world: {memory / 1024:.1f} KiB." if memory is not None else ""
+        )
+        parts.append(
+            f"Version {document['version']}, {document['duration']:g} s per configuration. "
+            + provenance_line(document.get("meta"))
+            + "\n\n"
+            + table(["configuration", "threads", "env-steps/s", "µs per step"], rows)
+            + memory_text
+        )
+    return "\n\n".join(parts)
+
+
+def swarm_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
+    """The swarm rows of the benchmark runs: world- and robot-steps/s by robots per world."""
+    documents = [d for _, d in files if kind(d) == "bench" and d.get("swarm")]
+    if not documents:
+        return _missing("khepera-gym bench --json bench.json")
+    parts = []
+    for document in documents:
+        rows = [
+            [
+                f"{row['robots']:,}" + (" (`swarm` scene)" if row.get("scene") else ""),
+                str(row["worlds"]),
+                row["split"],
+                str(row["threads"]),
+                f"{row['world_steps_per_second']:,.0f}",
+                f"{row['robot_steps_per_second']:,.0f}",
+                f"{row['real_time_factor']:.1f}",
+            ]
+            for row in document["swarm"]
+        ]
+        header = ["robots per world", "worlds", "split", "threads", "world-steps/s"]
+        header += ["robot-steps/s", "× real time"]
+        parts.append(provenance_line(document.get("meta")) + "\n\n" + table(header, rows))
+    return "\n\n".join(parts)
+
+
+def _missing(command: str, what: str = "the JSON file it writes") -> str:
+    return f"```{{note}}\nNo data yet. Run {code(command)} and copy {what} into docs/results/.\n```"
+
+
+#: The fragments and what renders each.
+FRAGMENTS: dict[str, Callable[[list[tuple[Path, dict[str, Any]]]], str]] = {
+    "baselines": compare_fragment,
+    "consensus": consensus_fragment,
+    "training": train_fragment,
+    "bench": bench_fragment,
+    "swarm": swarm_fragment,
+}
+
+
+def fragments(results_dir: Path) -> dict[str, str]:
+    """Every results fragment (``results-<name>.md``) from the folder's files.
+
+    Raises:
+        ValueError: A file of no known kind (so a mistyped file fails the build).
+    """
+    files = load(results_dir)
+    for path, document in files:
+        if kind(document) == "unknown":
+            raise ValueError(f"{path}: not a results file of compare, train or bench")
+    return {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
+
+
+def target_name(document: dict[str, Any]) -> str:
+    """The file name a results file gets in docs/results/: its kind, what it measured and its
+    date, so that a later run of another version or day does not replace it
+    (``compare_KheperaIV-Avoid-v1_paper_fig6_2026-11-27.json``)."""
+    date = (document.get("meta") or {}).get("date", "undated")[:10]
+    what = {
+        "compare": lambda: f"{document['env_id']}_{document.get('label') or 'scene'}",
+        "train": lambda: f"{document['env_id']}_{document['algo']}_seed{document['seed']}",
+        "consensus": lambda: "sweep",
+        "bench": lambda: f"v{document['version']}",
+    }[kind(document)]()
+    return f"{kind(document)}_{what}_{date}.json"
+
+
+def import_results(paths: list[Path], results_dir: Path) -> list[Path]:
+    """Copies results files into the results folder (named by :func:`target_name`), without a
+    comparison's per-episode rows (the tables need only the summaries).
+
+    Raises:
+        ValueError: A file that is not a results file of compare, train or bench.
+    """
+    written = []
+    results_dir.mkdir(parents=True, exist_ok=True)
+    for path in paths:
+        document = json.loads(path.read_text(encoding="utf-8"))
+        if kind(document) == "unknown":
+            raise ValueError(f"{path}: not a results file of compare, train or bench")
+        document.pop("episodes", None)
+        target = results_dir / target_name(document)
+        target.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+        written.append(target)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m khepera_gym._docgen.results FILE... [--to docs/results]``."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="python -m khepera_gym._docgen.results",
+        description="copy results JSON files into the docs' results folder",
+    )
+    parser.add_argument("files", nargs="+", type=Path)
+    parser.add_argument("--to", type=Path, default=Path("docs/results"))
+    args = parser.parse_args(argv)
+    for path in import_results(args.files, args.to):
+        print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+__all__ = [
+    "FRAGMENTS",
+    "FULL_EPISODES",
+    "fragments",
+    "import_results",
+    "kind",
+    "load",
+    "provenance_line",
+]
