@@ -380,7 +380,7 @@ crate::config_table! {
         contact_prediction: f32 = 0.0,
         /// traction drive: a world where a robot slips (its body not yet rolling on its wheels, after a contact) but nothing can be touched: "tyres" moves each slipping robot by its tyres' impulses directly, as rapier moves a free body (v2); "rapier" hands the whole world to rapier's step as for a contact (v1; the same motion at rapier's cost)
         slip_solver: SlipSolver = "tyres",
-        /// traction drive: a substep in which robots can touch walls or obstacles but no robot can touch another: "disc" solves each robot's contacts with the scene directly, as a rigid disc with Coulomb friction (src/world/scene_contacts.rs; v2); "rapier" hands the whole world to rapier's step (v1). Contacts between robots always go to rapier
+        /// traction drive, split = "world": a substep in which robots can touch walls or obstacles but no robot can touch another: "disc" solves each robot's contacts with the scene directly, as a rigid disc with Coulomb friction and no restitution (src/world/scene_contacts.rs, docs/dynamics.md; v2); "rapier" hands the whole world to rapier's step (v1). Contacts between robots always go to rapier, and so do a split = "robot" world's robots that can touch anything
         scene_solver: SceneSolver = "disc",
     }
 }
