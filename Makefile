@@ -28,7 +28,7 @@ FLOORS_RLLIB       := constraints/floors-rllib.txt
 FLOORS_WHEEL_DIR   := $(FLOORS_VENV)/wheel
 FLOORS_WHEEL        = $$(ls $(FLOORS_WHEEL_DIR)/*.whl)
 # The extras of the first step: all but rllib, whose floors cannot be installed beside them.
-FLOORS_EXTRAS      := test,sb3,render,export,torchrl,benchmarl
+FLOORS_EXTRAS      := test,sb3,render,export,calibrate,torchrl,benchmarl
 # A Python 3.10 interpreter: FLOORS_PYTHON=... if given, else python3.10 on PATH, else one of
 # pyenv's 3.10 (each candidate is run to check it is 3.10: a pyenv shim may not be usable).
 PYENV_ROOT         ?= $(HOME)/.pyenv
@@ -58,14 +58,15 @@ $(BUILT): $(TOOLS) $(RUST_SRC)
 
 # `make test` also installs the `sb3` extra (stable-baselines3, torch, rich) for tests/test_sb3.py
 # and the `rllib` extra (ray[rllib]) for tests/test_rllib.py, the `export` extra (onnx,
-# onnxruntime) for tests/test_export.py and the `torchrl` and `benchmarl` extras for
+# onnxruntime) for tests/test_export.py, the `calibrate` extra (scipy) for tests/test_calibrate.py
+# and the `torchrl` and `benchmarl` extras for
 # tests/test_torchrl.py, with the same `maturin develop` (and stamps the build as fresh). PyPI's
 # torch wheel brings its CUDA libraries: about 5.4 GB and 75 s on a fresh machine; Ray RLlib adds
 # about 0.7 GB and 60 s, onnx and onnxruntime about 110 MB, torchrl and BenchMARL ~160 MB and
 # ~10 s. Ray pins its gymnasium version, so the tests then run with that one. `make demo` does
 # without them.
 $(SB3): $(TOOLS) pyproject.toml
-	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,rllib,export,torchrl,benchmarl
+	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,rllib,export,calibrate,torchrl,benchmarl
 	touch $@ $(BUILT)
 
 test: $(SB3) develop

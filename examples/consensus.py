@@ -44,7 +44,7 @@ def run(trigger: str, robots: int, seed: int, radius: float) -> dict:
         "poses": np.array(poses),
         "broadcasts": broadcasts,
         "errors": np.array(errors),
-        "stats": infos["robot_0"]["episode_stats"],
+        "stats": infos["robot_0"]["world_episode_stats"],
         "scene": scene,
     }
 

@@ -34,7 +34,7 @@ def main() -> int:
             observations, rewards, _, _, infos = env.step(dict(zip(agents, actions, strict=True)))
             for agent, reward in rewards.items():
                 returns[agent] += reward
-        stats = infos["follower_0"]["episode_stats"]
+        stats = infos["follower_0"]["world_episode_stats"]
         print(
             f"seed {seed}: {'leader reached the goal' if stats['success'] else 'timeout'} in "
             f"{stats['length']} steps, formation error mean {stats['formation_error_mean']:.3f} m "

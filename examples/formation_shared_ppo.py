@@ -88,7 +88,7 @@ def main() -> None:
     while env.agents:
         actions = {a: model.predict(observations[a], deterministic=True)[0] for a in env.agents}
         observations, _, _, _, infos = env.step(actions)
-    stats = next(iter(infos.values()))["episode_stats"]
+    stats = next(iter(infos.values()))["world_episode_stats"]
     print(f"formation_v1, seed {EVAL_SEED}: error {100 * stats['formation_error_mean']:.1f} cm")
 
 

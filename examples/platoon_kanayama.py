@@ -45,7 +45,7 @@ def run(episodes: int, robots: int, reference: str) -> None:
         after = np.array(errors)[skip:]
         rms[seed] = np.sqrt((after**2).mean(axis=0))
         peak[seed] = after.max(axis=0)
-        stats.append(next(iter(infos.values()))["episode_stats"])
+        stats.append(next(iter(infos.values()))["world_episode_stats"])
     print(
         f"platoon_v1, {robots} robots on the {reference}, Kanayama on every agent, "
         f"{episodes} episodes seeded 0..{episodes - 1}; {lost} agents lost"

@@ -17,8 +17,7 @@ class Batch:
     """N independent seeded Khepera IV worlds of one task, stepped in parallel by a rayon pool.
 
     Args:
-        task: "nav", "avoid", "formation", "multinav", "track", "pathfollow" or
-            "platoon".
+        task: a task of the core's registry: a name of ``tasks()`` ("nav", ...).
         num_worlds: number of worlds N (>= 1).
         config_text: TOML text of a scenario file overlaid on the task's built-in defaults, or None.
         config_name: where config_text came from (a file path or built-in name), used in messages.
@@ -28,6 +27,8 @@ class Batch:
         num_threads: size of the batch's own rayon pool; None = all cores.
         autoreset: True for NEXT_STEP autoreset (vector env); False for a single env, where
             stepping a finished episode raises KheperaError until reset() is called.
+        version: the behaviour version whose defaults apply (``task_versions(task)``); None:
+            ``LATEST_VERSION``.
     """
 
     num_worlds: int
@@ -50,6 +51,7 @@ class Batch:
         action_type: str = "wheels",
         num_threads: int | None = None,
         autoreset: bool = True,
+        version: int | None = None,
     ) -> None: ...
     def obs_layout(self) -> list[tuple[str, int, int]]:
         """Joint observation layout of this batch's scenario: (name, start, stop) in order; with
@@ -57,9 +59,10 @@ class Batch:
     def agents(self) -> list[tuple[str, int, int, int, list[tuple[str, int, int]]]]:
         """The agents in joint order: (name, robot index, obs start, obs stop, own layout as
         (name, start, stop) within its block). Agent i's action is joint columns w·i .. w·(i + 1),
-        w = ``agent_act_dim`` (2; 5 with ``task.led_action``).
-        nav/avoid: ["robot"]; formation: ["leader" if leader = "agent"] + "follower_0".."_K-1";
-        multinav, platoon: "robot_0".."robot_N-1"."""
+        w = ``agent_act_dim`` (2; 5 with ``task.led_action``). A robot index from
+        ``n_robots`` on is a vehicle of the task (a drone), not a Khepera. Single-robot tasks:
+        ["robot"]; formation: ["leader" if leader = "agent"] + "follower_0".."_K-1"; the others
+        name theirs in their manuals."""
     def agent_rewards(self) -> npt.NDArray[np.float32]:
         """Each agent's reward on the last step, shape (N, n_agents); the joint reward returned
         by step() is their mean."""
@@ -109,10 +112,18 @@ class Batch:
         its first observation, reward 0 and both flags False. Same shapes as step(); restored by
         set_state() with the rest of the state."""
     def episode_stats(self) -> dict[str, npt.NDArray[Any]]:
-        """Statistics of the episodes that ended on the last step() (valid where
-        terminated | truncated): "return" f32, "length" i64, "success" bool, "path_length" f32 (m),
-        "collisions" i64 (steps in contact), each of shape (N,); then the task's own
-        (``extra_stats()``; formation: "formation_error_mean", "formation_error_max" f32, m)."""
+        """The world's statistics of its last episode that ended (valid where one ended; all
+        agents together): "return" f32 (each step's mean reward, summed), "length" i64, "success"
+        bool, "path_length" f32 (m, every robot's), "collisions" i64 (steps some robot was in
+        contact), each of shape (N,); then the task's own (``extra_stats()``; formation:
+        "formation_error_mean", "formation_error_max" f32, m)."""
+    def agent_episode_stats(self, running: bool = False) -> dict[str, npt.NDArray[Any]]:
+        """Each agent's own statistics, shape (N, n_agents) each: "return" f32 (its rewards while
+        it took part), "length" i64 (its steps), "success" bool (as the task defines it for one
+        agent), "path_length" f32 (m, its robot's, or its vehicle's flight), "collisions" i64
+        (steps its robot was in contact). Of the last episode that ended (valid where one
+        ended), or with ``running`` of the running one (an agent that has left holds its final
+        figures until the world is reset)."""
     def poses(self) -> npt.NDArray[np.float64]:
         """Ground-truth robot poses, shape (N, n_robots, 3): x, y (m), theta (rad, (-pi, pi])."""
     def goals(self) -> npt.NDArray[np.float64]:
@@ -126,13 +137,23 @@ class Batch:
         "gyro_z" (N, n_robots) float32 rad/s."""
     def scene(self, index: int = 0) -> dict[str, Any]:
         """Geometry of world ``index`` for plots: {"arena": (w, h), "walls": bool,
-        "wall_thickness": t, "robot_radius": r, "goal_radius": r, "obstacles": [...]} with
-        obstacles {"kind": "circle", "center", "radius"}, {"kind": "box", "center",
-        "half_extents", "angle"} or {"kind": "segment", "a", "b"} (m, rad)."""
-    def render(self, index: int = 0, width: int = 480, height: int = 480) -> npt.NDArray[np.uint8]:
+        "wall_thickness": t, "robot_radius": r, "goal_radius": r, "obstacles": [...],
+        "paths": [...]} with obstacles {"kind": "circle", "center", "radius"}, {"kind": "box",
+        "center", "half_extents", "angle"} or {"kind": "segment", "a", "b"} (m, rad), and the
+        reference paths the task draws (Track's, PathFollow's), each a list of (x, y)."""
+    def render(
+        self,
+        index: int = 0,
+        width: int = 480,
+        height: int = 480,
+        zoom: float = 1.0,
+        center: tuple[float, float] | None = None,
+    ) -> npt.NDArray[np.uint8]:
         """RGB frame (height, width, 3) of world ``index``, drawn in software (no display, no
-        OpenGL): arena, obstacles, goals, formation targets, trails, IR and ultrasonic rays,
-        robots with heading. Sizes 16..4096 pixels a side."""
+        OpenGL): arena, obstacles, goals, formation targets, trails, IR rays and ultrasonic
+        beams (dashed when they report nothing), robots with heading; a robot drawn under 12
+        pixels across loses its rays. Sizes 16..4096 pixels a side; ``zoom`` in [1, 1000]
+        magnifies about ``center`` (m; None: the arena's centre)."""
     def set_trail_length(self, length: int) -> None:
         """Keeps the last ``length`` robot positions of every world for the trails drawn by
         ``render`` (0, the default, keeps none and costs nothing)."""
@@ -152,9 +173,7 @@ class Policy:
     """A baseline controller of ``src/controllers/`` acting on observations, batched.
 
     Args:
-        name: The controller ("position_control", "braitenberg", "vfh", "leader_follower",
-            "kanayama", "position_chase", "pure_pursuit", "samson", "waypoint_switching";
-            ``controllers()`` lists them).
+        name: The controller: a name of ``controllers()`` ("position_control", ...).
         params: Its parameters by name (``controller_params(name)`` lists them with defaults);
             missing ones take their defaults; unknown or impossible ones raise ConfigError.
         layout: (name, start, stop) blocks of the observations it reads (for leader_follower:
@@ -227,6 +246,8 @@ MIN_WHEEL_SPEED: float  # m/s
 AXLE_LENGTH: float  # m
 BODY_RADIUS: float  # m
 WHEEL_RADIUS: float  # m
+#: The latest behaviour version (the default of ``Batch(version=None)`` and ``default_config``).
+LATEST_VERSION: int
 
 def speed_to_units(speed: float) -> int:
     """A wheel speed (m/s) in the real robot's ``kh4_set_speed`` units (0.678181 mm/s each)."""

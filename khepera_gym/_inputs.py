@@ -10,12 +10,19 @@ left for the core, which names the world and element.
 Seeds: a seed is a non-negative int below 2**64 (the core's seeds are u64).
 
 Reset masks (``reset(options={"reset_mask": mask})`` of a vector env): a NumPy bool array of one
-value per world with at least one True, as Gymnasium's own vector envs require.
+value per world with at least one True, as Gymnasium's own vector envs require. Reset options:
+None or a mapping.
+
+Counts and indices (``num_envs``, ``num_threads``, ``render_worlds``, ``frame_size``,
+``scene(i)``): a Python or NumPy int (not a bool, not a float with an integral value) within
+the argument's range. Everything else raises :class:`~khepera_gym.errors.ConfigError` naming the
+argument, never a ``TypeError`` or ``OverflowError``.
 """
 
 from __future__ import annotations
 
 import numbers
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -111,6 +118,46 @@ def check_seed(seed: Any, what: str = "seed") -> int | None:
     raise ConfigError(f"{what} must be an int in [0, 2**64) or None, got {seed!r}")
 
 
+def check_int(value: Any, what: str, low: int, high: int | None = None) -> int:
+    """``value`` as an int in ``low..=high`` (no upper bound when ``high`` is None).
+
+    Raises:
+        ConfigError: Not a Python or NumPy int (a bool, a float, a string, ...), or out of range;
+            the message names ``what`` and the range.
+    """
+    span = f"{low}..={high}" if high is not None else f">= {low}"
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ConfigError(f"{what} must be an int ({span}), got {type(value).__name__}: {value!r}")
+    number = int(value)
+    if number < low or (high is not None and number > high):
+        raise ConfigError(f"{what} must be an int in {span}, got {number}")
+    return number
+
+
+def check_world_index(index: Any, n: int, what: str = "index") -> int:
+    """``index`` as a world index in ``0..n - 1``.
+
+    Raises:
+        ConfigError: Not an int, or no such world (the message says how many there are).
+    """
+    if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+        raise ConfigError(f"{what} must be an int, got {type(index).__name__}: {index!r}")
+    if not 0 <= int(index) < n:
+        raise ConfigError(f"{what} must be a world index in 0..{n - 1}, got {int(index)}")
+    return int(index)
+
+
+def check_options(options: Any, what: str = "reset(options=...)") -> Mapping[str, Any] | None:
+    """``options`` of a reset: None or a mapping (its keys are the env's to read).
+
+    Raises:
+        ConfigError: Anything else.
+    """
+    if options is None or isinstance(options, Mapping):
+        return options
+    raise ConfigError(f"{what} takes a dict or None, got {type(options).__name__}")
+
+
 def check_world_seeds(seeds: Any, n: int) -> list[int | None]:
     """A per-world seed sequence (list, tuple or 1-D array) of ``n`` ints or None.
 
@@ -159,4 +206,13 @@ def check_reset_mask(mask: Any, n: int) -> npt.NDArray[np.bool_]:
     return mask
 
 
-__all__ = ["SEED_LIMIT", "as_action_array", "check_reset_mask", "check_seed", "check_world_seeds"]
+__all__ = [
+    "SEED_LIMIT",
+    "as_action_array",
+    "check_int",
+    "check_options",
+    "check_reset_mask",
+    "check_seed",
+    "check_world_index",
+    "check_world_seeds",
+]

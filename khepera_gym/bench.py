@@ -2,9 +2,9 @@
 
 Measures env-steps per second of
 
-* the native vector env, ``gym.make_vec("KheperaIV-Nav-v1", num_envs=n, num_threads=t)``, for
-  n in 1, 64, 1024, 4096 and t in 1, 2; then Avoid, Formation, Track, PathFollow, LineFollow,
-  Seek, DroneFollow and Nav with the camera (4 rays a pixel, and 1) for n = 1024;
+* the native vector env, ``gym.make_vec("KheperaIV-Nav-v2", num_envs=n, num_threads=t)``, for
+  n in 1, 64, 1024, 4096 and t in 1, 2; then every other task with a Gymnasium env (from the
+  registry: :data:`OTHER_TASKS`) and Nav with the camera (4 rays a pixel, and 1) for n = 1024;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
 * (v1) world-steps/s of swarms of 4 to 1,000 robots per world (:mod:`khepera_gym.swarm_bench`);
 
@@ -32,26 +32,21 @@ import gymnasium as gym
 import numpy as np
 
 import khepera_gym
-from khepera_gym import _core
+from khepera_gym import _core, cli_checks
+from khepera_gym.errors import ConfigError
 from khepera_gym.provenance import provenance
+from khepera_gym.registration import registered_ids
 from khepera_gym.swarm_bench import swarm_rows
 
 NAV_ID = f"KheperaIV-Nav-v{_core.LATEST_VERSION}"
 #: Distinct pregenerated action arrays cycled through while timing.
 _ACTION_SETS = 8
-#: The other tasks' native vector envs timed after Nav (with ``task_envs`` worlds). Avoid has 10
-#: random obstacles, Formation 5 robots (a leader and 4 followers), Track a reference point
-#: moving on a circle (its observation adds the reference and its preview), PathFollow a lap of a
-#: circle (its closest point tracked along the path, a preview of three points). A task whose
-#: version does not exist (Track and PathFollow have only v1) is left out of ``--version 0``.
-OTHER_TASKS = (
-    "KheperaIV-Avoid",
-    "KheperaIV-Formation",
-    "KheperaIV-Track",
-    "KheperaIV-PathFollow",
-    "KheperaIV-LineFollow",
-    "KheperaIV-Seek",
-    "KheperaIV-DroneFollow",
+#: The other tasks' native vector envs timed after Nav (with ``task_envs`` worlds), by id
+#: without its version: every task with a Gymnasium env but Nav, in the registry's order (a new
+#: task is timed without an edit here). A task whose version does not exist (most begin at v1)
+#: is left out of ``--version 0``.
+OTHER_TASKS = tuple(
+    ids[-1].rsplit("-v", 1)[0] for task, ids in registered_ids().items() if task != "nav"
 )
 #: Nav with the camera observed (4 rays a pixel, then 1): what the sensor costs (issue 15).
 CAMERA_ROWS: tuple[tuple[str, dict[str, object]], ...] = (
@@ -313,7 +308,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_from_args(args: argparse.Namespace) -> int:
-    """Runs the benchmark as configured by :func:`add_arguments`'s options."""
+    """Runs the benchmark as configured by :func:`add_arguments`'s options, once they are
+    checked (counts, duration, the JSON file's folder, created if needed).
+
+    Raises:
+        ConfigError: A bad option, before anything is measured.
+    """
+    cli_checks.all_at_least(args.num_envs, 1, "--num-envs")
+    cli_checks.all_at_least(args.threads, 1, "--threads")
+    if args.duration is not None and not args.duration > 0:
+        raise ConfigError(f"--duration must be > 0 s, got {args.duration}")
+    if args.json is not None:
+        cli_checks.output_file(args.json, (".json",), "--json")
     quick = args.quick
     num_envs = args.num_envs or ([1, 64, 1024] if quick else [1, 64, 1024, 4096])
     duration = args.duration if args.duration is not None else (0.3 if quick else 1.5)

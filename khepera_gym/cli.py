@@ -1,5 +1,5 @@
 """The ``khepera-gym`` command: ``list``, ``demo``, ``compare``, ``train``, ``render``,
-``export`` and ``bench``.
+``export``, ``robot-program``, ``calibrate``, ``replay`` and ``bench``.
 
 ``list`` prints what the package has, read from the registries (:mod:`khepera_gym.catalog`):
 the Gymnasium ids, the PettingZoo modules, the built-in scenes, the sensors and the policies
@@ -7,13 +7,20 @@ the Gymnasium ids, the PettingZoo modules, the built-in scenes, the sensors and 
 
 ``train`` trains a stable-baselines3 agent on the Rust batch (:mod:`khepera_gym.train`; SB3 and
 torch are imported only then). ``export`` writes a trained policy as C for the real robot or as
-ONNX (:mod:`khepera_gym.export`).
+ONNX (:mod:`khepera_gym.export`). ``robot-program calibrate`` writes the calibration program for
+the robot, ``calibrate`` fits the simulator to its logs and ``replay`` compares a robot log with
+the simulator (:mod:`khepera_gym.calibrate`; a malformed log or scenario is a one-line error).
 
 ``compare`` runs policies (the paper's controllers of :mod:`khepera_gym.baselines`, random, or a
 stable-baselines3 model) on the same seeded episodes and prints a table with 95% intervals,
 writing CSV, JSON and trajectory plots (:mod:`khepera_gym.compare`). ``demo`` runs that
 comparison on the paper's Fig. 6 and Fig. 7 scenes and on every task, and says where the
 plots are (``--out-dir``, demo_out/).
+
+Every subcommand checks its arguments (ids, counts, seeds, output formats and folders, which it
+creates) before it simulates anything, shows a progress bar on work longer than a moment, and
+ends a user error with one line on stderr and a non-zero status
+(:func:`khepera_gym.cli_checks.run_command`), never a traceback.
 """
 
 from __future__ import annotations
@@ -23,7 +30,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, catalog, compare, export, provenance, record, train
+from khepera_gym import bench, catalog, cli_checks, compare, export, provenance, record, train
+from khepera_gym.calibrate import command as calibrate_command
 from khepera_gym.compare.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
 from khepera_gym.registration import registered_ids
 
@@ -138,18 +146,40 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.add_arguments(export_parser)
 
+    program_parser = commands.add_parser(
+        "robot-program", help="a program for the real robot: the calibration manoeuvre, as C"
+    )
+    calibrate_command.add_program_arguments(program_parser)
+
+    calibrate_parser = commands.add_parser(
+        "calibrate",
+        help="fit the simulator to the calibration program's logs; write a scenario and a report "
+        "(needs the calibrate extra)",
+    )
+    calibrate_command.add_calibrate_arguments(calibrate_parser)
+
+    replay_parser = commands.add_parser(
+        "replay", help="a robot log against the simulator driven by its commands"
+    )
+    calibrate_command.add_replay_arguments(replay_parser)
+
     bench_parser = commands.add_parser("bench", help="env-steps/s and memory per world")
     bench.add_arguments(bench_parser)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``khepera-gym`` console script."""
+    """Entry point of the ``khepera-gym`` console script.
+
+    Raises:
+        SystemExit: On a user error, with one line naming it (status 1); argparse's own errors
+            exit with status 2.
+    """
     args = build_parser().parse_args(argv)
     if argv is None:
-        return _run(args)
+        return cli_checks.run_command(args.command, lambda: _run(args))
     with provenance.running_command(["khepera-gym", *argv]):
-        return _run(args)
+        return cli_checks.run_command(args.command, lambda: _run(args))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -163,8 +193,8 @@ def _run(args: argparse.Namespace) -> int:
         print(list_catalog(args.topics or LIST_TOPICS))
         return 0
     if args.command == "demo":
-        if args.episodes < 1:
-            raise SystemExit("khepera-gym demo: --episodes must be >= 1")
+        cli_checks.at_least(args.episodes, 1, "--episodes")
+        cli_checks.output_folder(args.out_dir, "--out-dir")
         return demo(args.episodes, args.out_dir)
     if args.command == "compare":
         return compare.run_from_args(args)
@@ -174,6 +204,13 @@ def _run(args: argparse.Namespace) -> int:
         return record.run_from_args(args)
     if args.command == "export":
         return export.run_from_args(args)
+    loop_commands = {
+        "robot-program": calibrate_command.run_program_from_args,
+        "calibrate": calibrate_command.run_calibrate_from_args,
+        "replay": calibrate_command.run_replay_from_args,
+    }
+    if args.command in loop_commands:
+        return loop_commands[args.command](args)
     return bench.run_from_args(args)
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from khepera_gym import _core
+from khepera_gym._inputs import check_int
 from khepera_gym.errors import ConfigError, KheperaError
 
 if sys.version_info >= (3, 11):
@@ -31,19 +32,6 @@ else:  # pragma: no cover - Python 3.10: tomli, a dependency there
 
 #: Source name the Rust core uses in messages when no scenario file is given.
 BUILT_IN_SOURCE = "<built-in>"
-
-#: Names that may denote a built-in scenario, used only if the extension cannot list its own.
-_CANDIDATE_BUILTIN_NAMES = (
-    "nav",
-    "avoid",
-    "formation",
-    "multinav",
-    "track",
-    "pathfollow",
-    "platoon",
-    "paper_fig6",
-    "paper_fig7",
-)
 
 ConfigArg = str | os.PathLike[str] | None
 
@@ -57,11 +45,9 @@ def _builtin_config_text(name: str) -> str | None:
 
 
 def builtin_config_names() -> list[str]:
-    """Names of the built-in scenarios embedded in the extension, e.g. ``["nav"]``."""
-    list_builtins = getattr(_core, "builtin_configs", None)
-    if list_builtins is not None:
-        return list(list_builtins())
-    return [name for name in _CANDIDATE_BUILTIN_NAMES if _builtin_config_text(name) is not None]
+    """Names of the built-in scenarios embedded in the extension, e.g. ``["nav"]``: every
+    task's defaults and the scenes (the core lists them)."""
+    return list(_core.builtin_configs())
 
 
 def builtin_config_text(name: str) -> str:
@@ -157,6 +143,11 @@ __all__ = [
 
 #: Action types understood by the Rust core: normalised (left, right) wheel speeds, or (v, ω).
 ACTION_TYPES = ("wheels", "unicycle")
+#: Most worlds of one batch (the core's limit; it also refuses a batch whose worlds would need
+#: more than 16 GiB, naming the memory, and raises MemoryError when the system refuses it).
+MAX_WORLDS = 1 << 20
+#: Most threads of a batch's pool.
+MAX_THREADS = 1024
 #: Scenario key of the episode length (Gymnasium's ``max_episode_steps``, PettingZoo's
 #: ``max_cycles``).
 MAX_STEPS_KEY = "max_steps"
@@ -212,11 +203,16 @@ def make_batch(
             precedence.
 
     Raises:
-        ConfigError: Unknown action type, both the argument and ``max_steps`` given, or any
-            scenario error from the core.
+        ConfigError: Unknown action type, ``num_worlds`` or ``num_threads`` not an int in range
+            (1..2**20, 1..1024), both the argument and ``max_steps`` given, or any scenario
+            error from the core (which names the memory a batch too large for 16 GiB needs).
+        MemoryError: The system refuses the memory the batch needs.
     """
-    if action_type not in ACTION_TYPES:
+    if not isinstance(action_type, str) or action_type not in ACTION_TYPES:
         raise ConfigError(f"action_type must be one of {ACTION_TYPES}, got {action_type!r}")
+    num_worlds = check_int(num_worlds, "num_envs", 1, MAX_WORLDS)
+    if num_threads is not None:
+        num_threads = check_int(num_threads, "num_threads", 1, MAX_THREADS)
     overrides = dict(overrides)
     version = check_version(overrides.pop(VERSION_KEY, version))
     if episode_steps is not None and episode_steps[1] is not None:

@@ -10,6 +10,10 @@ pickling through the batch) and the same episode statistics, in one of two shape
 * a face of one world (``_WORLD = 0``: single env, PettingZoo) drops the world axis;
 * a face of every world (``_WORLD = None``: vector env, SB3 VecEnv) keeps it first.
 
+Episode statistics come in two kinds (:data:`WORLD_STATS_KEY`): each agent's own (its return,
+length, success, path and contacts, under ``"episode_stats"`` in a multi-agent env's infos) and
+the world's (all agents together, with the task's own statistics).
+
 It also builds the spaces of an observation row and an action row from the batch's bounds, and
 holds the seed rules shared by the faces (:data:`SEED_BOUND`, :func:`first_seed`).
 
@@ -26,8 +30,14 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import _core
-from khepera_gym.errors import ConfigError
+from khepera_gym._inputs import check_world_index
+from khepera_gym.errors import ConfigError, KheperaError, StateError
 from khepera_gym.layout import layout_dict
+
+#: The info key of the world's episode statistics in a multi-agent env (every agent together:
+#: the return sums each step's mean reward, success is the task's, path and contacts are every
+#: robot's, then the task's own statistics), beside each agent's own under ``"episode_stats"``.
+WORLD_STATS_KEY = "world_episode_stats"
 
 #: Largest seed drawn from an env's ``np_random`` on a first ``reset()`` without a seed
 #: (exclusive).
@@ -121,12 +131,20 @@ class BatchFace:
         Args:
             index: The world (a face of every world; default 0); a face of one world shows its
                 own and takes no index.
+
+        Raises:
+            ConfigError: ``index`` is not an int naming one of the worlds.
         """
         if self._WORLD is not None:
-            if index not in (None, self._WORLD):
-                raise ConfigError(f"this env has one world; scene() takes no index, got {index}")
+            if index is not None and not (
+                isinstance(index, (int, np.integer))
+                and not isinstance(index, bool)
+                and index == self._WORLD
+            ):
+                raise ConfigError(f"this env has one world; scene() takes no index, got {index!r}")
             return self._batch.scene(self._WORLD)
-        return self._batch.scene(0 if index is None else int(index))
+        world = 0 if index is None else check_world_index(index, self._batch.num_worlds, "scene()")
+        return self._batch.scene(world)
 
     def config_toml(self) -> str:
         """The fully resolved scenario (defaults + file + overrides) as TOML text."""
@@ -146,6 +164,20 @@ class BatchFace:
         the env's reward is their mean."""
         return self._pick(self._batch.agent_rewards())
 
+    def set_render_view(self, zoom: float = 1.0, center: Any = None) -> None:
+        """Which part of the world ``render()`` shows: ``zoom`` times magnified (1: the whole
+        arena; 4: a quarter of its width and height) about ``center`` (x, y in m; None: the
+        arena's centre), e.g. a few robots of a 1,000-robot swarm.
+
+        Raises:
+            ConfigError: A zoom below 1, or a center that is not two finite numbers.
+            KheperaError: This env draws no frames of its own.
+        """
+        renderer = getattr(self, "_renderer", None)
+        if renderer is None:
+            raise KheperaError(f"{type(self).__name__} has no renderer to set a view of")
+        renderer.set_view(zoom, center)
+
     # --- episode statistics --------------------------------------------------------------------
 
     def _world_episode_stats(self, world: int) -> dict[str, Any]:
@@ -159,6 +191,46 @@ class BatchFace:
         stable-baselines3 expects, ``is_success``."""
         stats = self._world_episode_stats(world)
         return {"episode_stats": stats, "is_success": stats["success"]}
+
+    def _agent_episode_stats(self, world: int, running: bool = True) -> list[dict[str, Any]]:
+        """Each agent's own statistics in world ``world``, in agent order, as Python scalars:
+        "return", "length" (steps it took part in), "success" (as its task defines it for one
+        agent), "path_length" (m), "collisions" (steps its robot was in contact). ``running``:
+        of the running episode (an agent that left holds its final figures until the world is
+        reset); else of the last episode that ended."""
+        stats = self._batch.agent_episode_stats(running)
+        n_agents = next(iter(stats.values())).shape[1]
+        return [
+            {name: values[world, agent].item() for name, values in stats.items()}
+            for agent in range(n_agents)
+        ]
+
+    def _vector_agent_episode_info(
+        self, ended: npt.NDArray[np.bool_], rows: bool = False
+    ) -> dict[str, Any]:
+        """Vector-env infos of each agent's own statistics for a step where the worlds of
+        ``ended`` finished, beside the world's (under :data:`WORLD_STATS_KEY`).
+
+        Args:
+            ended: Which worlds' episodes ended at this step, shape (N,).
+            rows: One row per (world, agent) pair: arrays (N · n_agents,) with masks of that
+                shape; else arrays (N, n_agents) with (N,) masks of the worlds.
+        """
+        world_info = self._vector_episode_info(ended)
+        stats = self._batch.agent_episode_stats(True)
+        n_agents = next(iter(stats.values())).shape[1]
+        mask = np.repeat(ended, n_agents) if rows else ended
+        agents: dict[str, Any] = {}
+        for name, values in stats.items():
+            values[~ended] = 0
+            agents[name] = values.reshape(-1) if rows else values
+            agents[f"_{name}"] = mask.copy()
+        return {
+            "episode_stats": agents,
+            "_episode_stats": mask,
+            WORLD_STATS_KEY: world_info["episode_stats"],
+            f"_{WORLD_STATS_KEY}": ended,
+        }
 
     def _vector_episode_info(self, ended: npt.NDArray[np.bool_]) -> dict[str, Any]:
         """Gymnasium vector-env infos for a step where the worlds of ``ended`` finished: arrays of
@@ -188,11 +260,16 @@ class BatchFace:
         number of worlds (in this process or another).
 
         Raises:
-            StateError: ``state`` is not a state, is corrupt, is of an older format, or was saved
-                from another env (the message says which); the env is then unchanged.
+            StateError: ``state`` is not bytes, not a state, is corrupt, is of an older format,
+                or was saved from another env (the message says which); the env is then
+                unchanged.
         """
-        self._batch.set_state(state)
+        if not isinstance(state, (bytes, bytearray, memoryview)):
+            raise StateError(
+                f"set_state() takes the bytes get_state() returned, got {type(state).__name__}"
+            )
+        self._batch.set_state(bytes(state))
         self._has_reset = True
 
 
-__all__ = ["SEED_BOUND", "BatchFace", "check_render_mode", "first_seed"]
+__all__ = ["SEED_BOUND", "WORLD_STATS_KEY", "BatchFace", "check_render_mode", "first_seed"]

@@ -7,7 +7,8 @@ the poses of every step, the goals, the scene and the episode statistics (a :cla
 rollouts side by side (e.g. the paper's Fig. 6, Braitenberg vs VFH); :func:`plot_trajectories`
 draws paths into one axes: one or several robots per episode (a formation: the leader and its
 followers, each with its trace), optionally the formation's target points and snapshots of the
-robots along the way.
+robots along the way. A task with a reference to follow (Track's trajectory, PathFollow's path:
+the scene's ``"paths"``) is drawn with its reference and the robot's lap instead of a goal.
 
 Works headless: figures are built with matplotlib's object-oriented API (``Figure``), never through
 ``pyplot``'s global state, so no display or GUI backend is needed and saving uses Agg. World frame:
@@ -39,6 +40,8 @@ _LEADER_COLOUR = "black"
 _SEGMENT_WIDTH = 3.0
 #: Characters per line of a panel title of :func:`plot_rollouts` (fits a 4.8-inch panel).
 _TITLE_WIDTH = 44
+#: Colour of a task's reference path (Track, PathFollow).
+_REFERENCE_COLOUR = "0.45"
 
 
 def _xy(value: Any) -> tuple[float, float]:
@@ -158,6 +161,7 @@ def plot_trajectories(
     robot_names: Sequence[str] | None = None,
     snapshots: int = 0,
     labels: Sequence[str] | None = None,
+    references: Sequence[npt.ArrayLike] | None = None,
 ) -> Figure:
     """Plots robot paths in the arena: one or several robots per episode.
 
@@ -184,6 +188,8 @@ def plot_trajectories(
         robot_names: Legend labels of the R robots (e.g. ``["leader", "follower_0", ...]``).
         snapshots: Number of intermediate times at which the robots are drawn.
         labels: Legend labels of the episodes (one robot per episode); default their index.
+        references: Reference paths to follow, each (P, 2) (m): drawn dashed in grey under the
+            robots' paths, labelled "reference" (a scene's ``"paths"``).
 
     Returns:
         The figure drawn into (save it with ``fig.savefig(path)``).
@@ -200,6 +206,15 @@ def plot_trajectories(
     else:
         figure = ax.get_figure()
     _draw_arena(ax, scene)
+    for index, reference in enumerate(references or []):
+        ax.plot(
+            *np.asarray(reference, dtype=float).reshape(-1, 2).T,
+            linestyle="--",
+            color=_REFERENCE_COLOUR,
+            linewidth=1.2,
+            zorder=1,
+            label="reference" if index == 0 else None,
+        )
     robot_radius = float(scene.get("robot_radius", 0.0704))
     goal_radius = float(scene.get("goal_radius", 0.05))
     goal_list = [None] * len(paths) if goals is None else list(goals)
@@ -273,6 +288,8 @@ def plot_trajectories(
         ax.legend(title="robot", loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
     elif not multi_robot and labels is not None:
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), fontsize="small")
+    elif references and len(paths) == 1:
+        ax.legend(loc="upper right", fontsize="small")
     elif not multi_robot and 1 < len(paths) <= 10:
         ax.legend(title="episode", loc="upper right", fontsize="small")
     return figure
@@ -336,8 +353,10 @@ def plot_rollouts(
 
     A single-robot rollout shows its path with the robot at the start, the end and every
     ``snapshot_period`` seconds (labelled with the time, so panels compare speeds), the goal
-    and the obstacles; a formation shows one trace per robot (the leader in black), the robots
-    and their targets at ``snapshots`` intermediate times, joined to the leader.
+    and the obstacles; on a task with a reference (the scene's ``"paths"``: Track, PathFollow)
+    the reference, dashed, instead of the goal, and the robot's lap; a formation shows one
+    trace per robot (the leader in black), the robots and their targets at ``snapshots``
+    intermediate times, joined to the leader.
 
     Args:
         rollouts: The rollouts (e.g. one per policy on the same seed).
@@ -391,8 +410,16 @@ def plot_rollouts(
                 snapshots=snapshots,
             )
         else:
+            references = rollout.scene.get("paths") or None
             plot_trajectories(
-                [rollout.poses[:, 0]], rollout.scene, goals=[rollout.goals[0]], ax=ax, title=title
+                [rollout.poses[:, 0]],
+                rollout.scene,
+                # A reference's moving point is no goal to reach: the reference is drawn instead.
+                goals=None if references else [rollout.goals[0]],
+                ax=ax,
+                title=title,
+                references=references,
+                labels=["robot"] if references else None,
             )
             if snapshot_period:
                 _draw_timed_snapshots(ax, rollout, snapshot_period)

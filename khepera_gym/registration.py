@@ -10,6 +10,8 @@ lists tasks by hand.
 
 from __future__ import annotations
 
+import difflib
+
 import gymnasium
 
 from khepera_gym import _core
@@ -56,18 +58,35 @@ def register_envs() -> None:
             )
 
 
+def nearest_id(env_id: str) -> str | None:
+    """The khepera_gym id (versioned, or a task's unversioned name) spelled most like
+    ``env_id``, or None when none is close: for a did-you-mean that names our envs, not
+    Gymnasium's whole registry."""
+    ours = [i for ids in registered_ids().values() for i in ids]
+    names = {i.rsplit("-v", 1)[0] for i in ours}
+    candidates = {name.lower(): name for name in [*sorted(names), *ours]}
+    match = difflib.get_close_matches(env_id.lower(), list(candidates), n=1, cutoff=0.5)
+    return candidates[match[0]] if match else None
+
+
 def resolve_env_id(env_id: str) -> str:
     """The registered id of a khepera_gym env: ``"KheperaIV-Nav"`` → its latest version.
 
     Raises:
-        ConfigError: ``env_id`` is not a registered khepera_gym environment.
+        ConfigError: ``env_id`` is not a registered khepera_gym environment (the message names
+            the nearest id, if one is close, and where the list is).
     """
     ours = [i for ids in registered_ids().values() for i in ids]
     if env_id in ours:
         return env_id
     versions = [i for i in ours if i.rsplit("-v", 1)[0] == env_id.rstrip("-")]
     if not versions:
-        raise ConfigError(f"unknown environment {env_id!r}; khepera_gym registers {sorted(ours)}")
+        nearest = nearest_id(env_id)
+        hint = f"did you mean {nearest!r}? " if nearest is not None else ""
+        raise ConfigError(
+            f"unknown environment {env_id!r}; {hint}khepera_gym registers "
+            f"{', '.join(sorted(ours))} (`khepera-gym list envs`)"
+        )
     return max(versions, key=lambda i: int(i.rsplit("-v", 1)[1]))
 
 
@@ -82,13 +101,15 @@ def version_of(env_id: str) -> int:
 
 
 def task_of(env_id: str) -> str:
-    """The Rust core's task name ("nav", "avoid", "formation") of a khepera_gym env id."""
+    """The Rust core's task name (a name of ``_core.tasks()``: "nav", ...) of a khepera_gym env
+    id."""
     resolved = resolve_env_id(env_id)
     return next(task for task, ids in registered_ids().items() if resolved in ids)
 
 
 __all__ = [
     "latest_ids",
+    "nearest_id",
     "register_envs",
     "registered_ids",
     "resolve_env_id",

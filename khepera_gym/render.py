@@ -18,10 +18,18 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from khepera_gym._inputs import check_int
 from khepera_gym.errors import ConfigError, KheperaError
 
-#: Default frame size (pixels, width and height).
+#: Default frame size (pixels, width and height) of an arena up to 4 m a side.
 DEFAULT_FRAME_SIZE = (480, 480)
+#: Smallest and largest frame side (pixels): a 4096 x 4096 frame is 48 MiB.
+FRAME_SIDES = (16, 4096)
+#: Pixels per metre of a larger arena's default frame (480 px for 4 m), so that its robots
+#: stay visible: a 20 m swarm arena gets 1280 px, a robot about 9 px across.
+PIXELS_PER_METRE = 120
+#: Largest side (pixels) of a default frame.
+MAX_DEFAULT_FRAME = 1280
 #: Robot positions kept for the fading trails drawn in frames.
 TRAIL_LENGTH = 100
 
@@ -32,15 +40,53 @@ def check_frame_size(frame_size: Sequence[int]) -> tuple[int, int]:
     """Validates a (width, height) pair in pixels.
 
     Raises:
-        ConfigError: Not two integers in 16..4096.
+        ConfigError: Not two ints in 16..4096.
+    """
+    if isinstance(frame_size, (str, bytes)) or not isinstance(frame_size, (Sequence, np.ndarray)):
+        raise ConfigError(f"frame_size must be (width, height), got {frame_size!r}")
+    if len(frame_size) != 2:
+        raise ConfigError(f"frame_size must be (width, height), got {len(frame_size)} values")
+    low, high = FRAME_SIDES
+    width, height = (
+        check_int(v, f"frame_size {side}", low, high)
+        for v, side in zip(frame_size, ("width", "height"), strict=True)
+    )
+    return width, height
+
+
+def default_frame_size(arena: Sequence[float]) -> tuple[int, int]:
+    """The default (width, height) of a frame of an arena of ``arena`` = (width, height) m:
+    :data:`DEFAULT_FRAME_SIZE`, or for an arena wider than 4 m, :data:`PIXELS_PER_METRE` of
+    its larger side, at most :data:`MAX_DEFAULT_FRAME` pixels (square)."""
+    side = math.ceil(PIXELS_PER_METRE * max(float(v) for v in arena))
+    side = min(max(side, DEFAULT_FRAME_SIZE[0]), MAX_DEFAULT_FRAME)
+    return side, side
+
+
+def check_view(
+    zoom: float, center: Sequence[float] | None
+) -> tuple[float, tuple[float, float] | None]:
+    """Validates a frame's view: ``zoom`` >= 1 (1: the whole arena) about ``center`` (x, y in
+    m; None: the arena's centre).
+
+    Raises:
+        ConfigError: A zoom below 1 or not finite, or a center that is not two finite numbers.
     """
     try:
-        width, height = (int(v) for v in frame_size)
+        zoom = float(zoom)
     except (TypeError, ValueError) as error:
-        raise ConfigError(f"frame_size must be (width, height), got {frame_size!r}") from error
-    if not (16 <= width <= 4096 and 16 <= height <= 4096):
-        raise ConfigError(f"frame_size must be 16..4096 pixels a side, got {width}x{height}")
-    return width, height
+        raise ConfigError(f"zoom must be a number >= 1, got {zoom!r}") from error
+    if not (math.isfinite(zoom) and 1.0 <= zoom <= 1000.0):
+        raise ConfigError(f"zoom must be in [1, 1000] (1: the whole arena), got {zoom}")
+    if center is None:
+        return zoom, None
+    try:
+        x, y = (float(v) for v in center)
+    except (TypeError, ValueError) as error:
+        raise ConfigError(f"center must be (x, y) in metres, got {center!r}") from error
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ConfigError(f"center must be finite, got {center!r}")
+    return zoom, (x, y)
 
 
 def mosaic(frames: Sequence[Frame], columns: int | None = None, gap: int = 4) -> Frame:
@@ -119,13 +165,43 @@ class HumanWindow:
         self.closed = True
 
 
+#: The video formats :func:`save_video` writes, by the file's suffix.
+VIDEO_SUFFIXES = (".gif", ".mp4")
+
+
+def check_video(path: str | Path, fps: int = 20) -> None:
+    """Checks, before any frame is drawn, that :func:`save_video` can write ``path``: a known
+    format, a frame rate >= 1, and for MP4 its writer installed.
+
+    Raises:
+        ConfigError: An unknown suffix or a frame rate below 1.
+        KheperaError: imageio-ffmpeg missing for MP4 (the message names the extra).
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix not in VIDEO_SUFFIXES:
+        raise ConfigError(f"unknown video format {suffix!r} of {path}: use .gif or .mp4")
+    if not (isinstance(fps, int) and fps >= 1):
+        raise ConfigError(f"fps must be an integer >= 1, got {fps!r}")
+    if suffix == ".mp4":
+        try:
+            import imageio.v2  # noqa: F401
+            import imageio_ffmpeg  # noqa: F401
+        except ImportError as error:
+            raise KheperaError(
+                'MP4 output needs imageio and imageio-ffmpeg: pip install "khepera-gym[render]" '
+                "(or write a .gif)"
+            ) from error
+
+
 def save_video(frames: Sequence[Frame], path: str | Path, fps: int = 20) -> Path:
     """Writes frames to ``path``: ``.gif`` with Pillow, ``.mp4`` with imageio-ffmpeg.
 
     Raises:
-        KheperaError: No frames, an unknown suffix, or imageio-ffmpeg missing for MP4.
+        ConfigError: An unknown suffix, or a frame rate below 1.
+        KheperaError: No frames, or imageio-ffmpeg missing for MP4.
     """
     path = Path(path)
+    check_video(path, fps)
     if not frames:
         raise KheperaError("save_video() got no frames")
     suffix = path.suffix.lower()
@@ -154,14 +230,21 @@ def save_video(frames: Sequence[Frame], path: str | Path, fps: int = 20) -> Path
             for frame in frames:
                 writer.append_data(np.asarray(frame, dtype=np.uint8))
         return path
-    raise KheperaError(f"unknown video format {suffix!r}: use .gif or .mp4")
+    raise AssertionError(f"check_video let {suffix!r} through")  # pragma: no cover
 
 
 __all__ = [
     "DEFAULT_FRAME_SIZE",
+    "FRAME_SIDES",
+    "MAX_DEFAULT_FRAME",
+    "PIXELS_PER_METRE",
     "TRAIL_LENGTH",
+    "VIDEO_SUFFIXES",
     "HumanWindow",
     "check_frame_size",
+    "check_video",
+    "check_view",
+    "default_frame_size",
     "mosaic",
     "save_video",
 ]
@@ -173,9 +256,12 @@ class Renderer:
     Args:
         batch: The env's batch.
         render_mode: None, "rgb_array" or "human".
-        frame_size: (width, height) of one world's frame in pixels.
+        frame_size: (width, height) of one world's frame in pixels; None: from the arena's size
+            (:func:`default_frame_size`).
         fps: Frames per second of the "human" window.
         title: The window's title.
+        zoom: Magnification (1: the whole arena); see :meth:`set_view`.
+        center: The world point (x, y in m) at the frame's centre; None: the arena's centre.
     """
 
     MODES = ("rgb_array", "human")
@@ -184,16 +270,21 @@ class Renderer:
         self,
         batch: Any,
         render_mode: str | None,
-        frame_size: Sequence[int] = DEFAULT_FRAME_SIZE,
+        frame_size: Sequence[int] | None = None,
         fps: int = 20,
         title: str = "khepera_gym",
+        zoom: float = 1.0,
+        center: Sequence[float] | None = None,
     ) -> None:
         if render_mode is not None and render_mode not in self.MODES:
             raise ConfigError(
                 f"render_mode must be None, 'rgb_array' or 'human', got {render_mode!r}"
             )
         self.render_mode = render_mode
+        if frame_size is None:
+            frame_size = default_frame_size(batch.scene(0)["arena"])
         self.width, self.height = check_frame_size(frame_size)
+        self.zoom, self.center = check_view(zoom, center)
         self._batch = batch
         self._fps = fps
         self._title = title
@@ -201,9 +292,20 @@ class Renderer:
         if render_mode is not None:
             batch.set_trail_length(TRAIL_LENGTH)
 
+    def set_view(self, zoom: float = 1.0, center: Sequence[float] | None = None) -> None:
+        """Which part of the world the frames show: ``zoom`` times magnified (1: the whole
+        arena, 4: a quarter of its width) about ``center`` (x, y in m; None: the arena's centre).
+
+        Raises:
+            ConfigError: A zoom below 1, or a center that is not two finite numbers.
+        """
+        self.zoom, self.center = check_view(zoom, center)
+
     def frame(self, index: int = 0) -> Frame:
         """World ``index``'s frame, (height, width, 3) uint8."""
-        return self._batch.render(index, self.width, self.height)
+        if self.zoom == 1.0 and self.center is None:
+            return self._batch.render(index, self.width, self.height)
+        return self._batch.render(index, self.width, self.height, self.zoom, self.center)
 
     def frames(self, count: int) -> Frame:
         """A mosaic of the first ``count`` worlds' frames."""

@@ -317,13 +317,30 @@ def record_rollout(
     )
 
 
+#: How a task with a reference reports its episode: its RMS error statistic → (the outcome of a
+#: success, of another end), of the episode's seconds. Track never succeeds: its episode ends
+#: lost, or at the end of its reference; PathFollow succeeds with a lap.
+_REFERENCE_OUTCOMES = {
+    "track_error_rms": ("tracked for {:.1f} s", "tracked for {:.1f} s"),
+    "path_error_rms": ("lap in {:.1f} s", "no lap in {:.1f} s"),
+}
+
+
 def rollout_summary(rollout: Rollout) -> str:
-    """One line on how a rollout ended, e.g. "reached in 11.2 s, path 1.74 m, no contact"."""
+    """One line on how a rollout ended, e.g. "reached in 11.2 s, path 1.74 m, no contact"; on a
+    task with a reference, e.g. "lap in 25.1 s, RMS error 4.2 mm, path 3.77 m, no contact"."""
     stats = rollout.stats
     if not stats:
         return f"{rollout.duration:.1f} s recorded"
-    outcome = "reached" if stats.get("success") else "not reached"
-    text = f"{outcome} in {stats['length'] * rollout.dt:.1f} s"
+    seconds = stats["length"] * rollout.dt
+    error = next((name for name in _REFERENCE_OUTCOMES if name in stats), None)
+    if error is not None:
+        success, failure = _REFERENCE_OUTCOMES[error]
+        text = (success if stats.get("success") else failure).format(seconds)
+        text += f", RMS error {stats[error] * 1000:.1f} mm"
+    else:
+        outcome = "reached" if stats.get("success") else "not reached"
+        text = f"{outcome} in {seconds:.1f} s"
     if rollout.n_robots == 1 and "path_length" in stats:
         text += f", path {stats['path_length']:.2f} m"
     if "formation_error_mean" in stats:

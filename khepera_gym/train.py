@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import khepera_gym
+from khepera_gym import cli_checks
 from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
 from khepera_gym.hyperparams import EVAL_SEED, HYPERPARAMS_DIR, load_hyperparams, parse_override
@@ -417,6 +418,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """Checks ``khepera-gym train``'s arguments before anything is built or trained: the env
+    id (the nearest khepera_gym id is suggested), counts, seeds, the hyperparameter file, and
+    the run directory (created if given, and writable).
+
+    Raises:
+        SystemExit: One line naming the first bad argument.
+    """
+    try:
+        cli_checks.env_id(args.env)
+        cli_checks.at_least(args.timesteps, 1, "--timesteps")
+        cli_checks.at_least(args.n_envs, 1, "--n-envs")
+        cli_checks.seed(args.seed)
+        cli_checks.seed(args.eval_seed, "--eval-seed")
+        cli_checks.at_least(args.eval_freq, 0, "--eval-freq")
+        cli_checks.at_least(args.eval_episodes, 1, "--eval-episodes")
+        cli_checks.at_least(args.num_threads, 1, "--num-threads")
+        cli_checks.at_least(args.torch_threads, 1, "--torch-threads")
+        cli_checks.at_least(getattr(args, "num_env_runners", None), 0, "--num-env-runners")
+        cli_checks.input_file(args.hyperparams, "--hyperparams")
+        if args.out is not None:
+            cli_checks.output_folder(args.out, "--out")
+    except ConfigError as error:
+        raise SystemExit(f"khepera-gym train: {cli_checks.one_line(error)}") from None
+
+
 def _run_rllib(args: argparse.Namespace) -> int:
     """``khepera-gym train --backend rllib``: :func:`khepera_gym.rllib.train`."""
     if importlib.util.find_spec("ray") is None or importlib.util.find_spec("torch") is None:
@@ -426,8 +453,7 @@ def _run_rllib(args: argparse.Namespace) -> int:
         )
     if args.algo != "ppo":
         raise SystemExit(f"khepera-gym train --backend rllib trains ppo only, not {args.algo}")
-    if args.eval_episodes < 1:
-        raise SystemExit("khepera-gym train: --eval-episodes must be >= 1")
+    check_arguments(args)
     from khepera_gym import rllib
 
     try:
@@ -460,8 +486,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         raise SystemExit(
             "khepera-gym train needs stable-baselines3: pip install 'khepera-gym[sb3]'"
         )
-    if args.eval_episodes < 1:
-        raise SystemExit("khepera-gym train: --eval-episodes must be >= 1")
+    check_arguments(args)
     try:
         train(
             args.env,

@@ -31,6 +31,8 @@ Semantics follow Gymnasium's ``VectorEnv``:
   arrays "return", "length", "success", "path_length", "collisions" (Formation adds
   "formation_error_mean", "formation_error_max") of shape (N,) with boolean masks ``"_return"``,
   ... (and ``info["_episode_stats"]``) true for the worlds that ended;
+* ``step`` before the first ``reset()`` raises :class:`~khepera_gym.errors.KheperaError` (in
+  either mode), as the single env does;
 * every returned array is freshly allocated (copy semantics).
 """
 
@@ -47,6 +49,8 @@ from gymnasium.vector.utils import batch_space
 from khepera_gym._inputs import (
     SEED_LIMIT,
     as_action_array,
+    check_int,
+    check_options,
     check_reset_mask,
     check_seed,
     check_world_seeds,
@@ -55,7 +59,7 @@ from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.envs import ENV_CLASSES, KheperaEnv
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
-from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.render import Renderer
 
 #: The autoreset modes of the native vector envs (the Rust batch resets a finished world on the
 #: next step, or not at all; SAME_STEP would need the final observation kept in ``info``).
@@ -93,13 +97,15 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
 
     Args:
         num_envs: Number of worlds N (>= 1).
-        task: Task name in the Rust core: "nav", "avoid", "formation" (or "multinav").
+        task: A task of the Rust core's registry (a name of ``_core.tasks()``: "nav", ...).
         render_mode: None, "rgb_array" (``render()`` returns a mosaic of the first
             ``render_worlds`` worlds) or "human" (that mosaic in a pygame window).
         config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
         num_threads: Threads of the batch's rayon pool; None uses all cores.
-        frame_size: (width, height) in pixels of one world's frame.
+        frame_size: (width, height) in pixels of one world's frame;
+            None: 480 x 480, more for an arena over 4 m
+            (:func:`khepera_gym.render.default_frame_size`).
         render_worlds: How many worlds ``render()`` tiles (default 4).
         max_episode_steps: If given, overrides the scenario's ``max_steps`` (truncation length).
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default: the step after a world ended
@@ -125,7 +131,7 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         action_type: str = "wheels",
         num_threads: int | None = None,
         max_episode_steps: int | None = None,
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        frame_size: tuple[int, int] | None = None,
         render_worlds: int = 4,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         **overrides: Any,
@@ -156,7 +162,7 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._action_shape = (self.num_envs, self._batch.act_dim)
         self._has_reset = False
-        self._render_worlds = max(1, int(render_worlds))
+        self._render_worlds = check_int(render_worlds, "render_worlds", 1)
         self._renderer = Renderer(
             self._batch,
             render_mode,
@@ -215,13 +221,8 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
 
     def _reset_mask(self, options: Mapping[str, Any] | None) -> npt.NDArray[np.bool_] | None:
         """The checked ``options["reset_mask"]``, or None (reset every world)."""
-        if options is None:
-            return None
-        if not isinstance(options, Mapping):
-            raise ConfigError(
-                f"reset(options=...) takes a dict or None, got {type(options).__name__}"
-            )
-        if "reset_mask" not in options:
+        options = check_options(options)
+        if options is None or "reset_mask" not in options:
             return None
         return check_reset_mask(options["reset_mask"], self.num_envs)
 
@@ -280,9 +281,14 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
 
         Raises:
             ActionError: Actions are not numeric, have the wrong shape, or contain NaN/inf.
-            KheperaError: DISABLED only: a world ended and was not reset since (or no reset yet);
-                the message names the first such world, and no world is stepped.
+            KheperaError: ``step`` before the first ``reset()`` (either mode); DISABLED: a world
+                ended and was not reset since (the message names the first such world). No world
+                is stepped.
         """
+        if not self._has_reset:
+            raise KheperaError(
+                "step() before reset(): the worlds were never started; call reset() first"
+            )
         action_array = as_action_array(actions, self._action_shape, "actions (num_envs, act_dim)")
         observations, rewards, terminations, truncations = self._batch.step(action_array)
         # count_nonzero is several times cheaper than ndarray.any() on small arrays (hot path).

@@ -16,6 +16,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
+use crate::memory;
 use crate::robot::ActionType;
 use crate::scenario::Scenario;
 use crate::tasks::{Env, EpisodeStats, StepOutcome, TaskKind};
@@ -26,7 +27,8 @@ pub const STATE_MAGIC: &[u8; 8] = b"KHEPGYM\0";
 /// 2: sensors behind the sensor contract (readings per sensor), tasks behind the task contract.
 /// 3: the robots' IMU state, the task's floor marks, colours of the scene's surfaces and robots,
 /// the new tasks' states. 4: the drive's profile minimum order, rapier's contact prediction.
-pub const STATE_VERSION: u32 = 4;
+/// 5: each agent's own episode statistics.
+pub const STATE_VERSION: u32 = 5;
 
 /// What a saved state says about the batch it came from.
 #[derive(serde::Serialize, serde::Deserialize)]
@@ -132,15 +134,49 @@ impl Batch {
         };
         let spawner = Arc::new(Env::spawner(kind, &cfg)?);
         let cfg = Arc::new(cfg);
-        let envs: Vec<Env> = (0..num_worlds)
-            .map(|i| {
-                let mut env = Env::new(kind, cfg.clone(), spawner.clone(), action_type)?;
-                env.seed(i as u64);
-                Ok(env)
-            })
-            .collect::<Result<_>>()?;
         let obs_dim = kind.obs_layout(&cfg)?.len();
         let act_dim = crate::tasks::action_width(&cfg) * kind.agents(&cfg)?.len();
+        // The first world, measured, and what a reset and a step add to a copy of it: what
+        // every world costs, checked before the others are built.
+        let (first, built) =
+            memory::measure(|| Env::new(kind, cfg.clone(), spawner.clone(), action_type));
+        let mut first = first?;
+        first.seed(0);
+        let mut twin = first.empty_twin()?;
+        let (mut scratch, actions) = (vec![0.0; obs_dim], vec![0.0; act_dim]);
+        let ((), grown) = memory::measure(|| {
+            twin.reset(&mut scratch);
+            twin.step(&actions, &mut scratch);
+        });
+        drop(twin);
+        let buffers =
+            (obs_dim * 4 + std::mem::size_of::<StepOutcome>() + std::mem::size_of::<Env>()) as u64;
+        let per_world = built + grown + buffers;
+        let total = per_world.saturating_mul(num_worlds as u64);
+        if total > memory::MAX_BATCH_BYTES {
+            return Err(Error::config(
+                "<batch>",
+                "num_envs",
+                format!(
+                    "{num_worlds} worlds of this scenario need about {} ({} each), more than \
+                     the limit of {} a batch: fewer worlds, or several batches",
+                    memory::human(total),
+                    memory::human(per_world),
+                    memory::human(memory::MAX_BATCH_BYTES)
+                ),
+            ));
+        }
+        memory::reserve(total, &format!("a batch of {num_worlds} worlds"))?;
+        let mut envs: Vec<Env> = Vec::new();
+        envs.try_reserve_exact(num_worlds).map_err(|_| {
+            Error::Memory(format!("cannot allocate the list of {num_worlds} worlds"))
+        })?;
+        envs.push(first);
+        for i in 1..num_worlds {
+            let mut env = Env::new(kind, cfg.clone(), spawner.clone(), action_type)?;
+            env.seed(i as u64);
+            envs.push(env);
+        }
         Ok(Self {
             envs,
             pool,

@@ -53,6 +53,22 @@ pub enum Mark {
         /// Line width (m).
         width: f32,
     },
+    /// A dashed line from `from` to `to`: a sensor beam that reports nothing (an ultrasonic
+    /// beam without echo).
+    Dashed {
+        /// Start (m).
+        from: Vector,
+        /// End (m).
+        to: Vector,
+        /// Colour.
+        colour: Rgb,
+        /// Opacity 0..255.
+        alpha: u8,
+        /// Line width (m).
+        width: f32,
+        /// Length of a dash, and of the gap after it (m).
+        dash: f32,
+    },
     /// A polyline (a reference path, a track).
     Path {
         /// Its points (m).

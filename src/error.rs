@@ -23,6 +23,10 @@ pub enum Error {
     /// the controller and the parameter (`vfh: sectors must be in 4..=360, got 2`).
     #[error("{0}")]
     Param(String),
+    /// The memory an input asks for cannot be had (the system refused it): Python's
+    /// `MemoryError`. Sizes beyond a documented limit are [`Error::Config`] instead.
+    #[error("{0}")]
+    Memory(String),
     /// A saved state cannot be restored: not a state, corrupt, or saved from another batch
     /// (task, scenario or number of worlds).
     #[error("{0}")]

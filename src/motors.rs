@@ -24,7 +24,7 @@
 use serde::{Deserialize, Serialize};
 use toml::{Table, Value};
 
-use crate::config::{self, Param};
+use crate::config::{self, limits, ConfigTable, Domain, Param};
 use crate::error::{Error, Result};
 use crate::robot::{RobotConfig, MM_S_PER_SPEED_UNIT};
 
@@ -67,15 +67,15 @@ crate::config_table! {
         /// a named setting of the keys below, as real programs set them (khepera_gym.motor_presets() lists them); "" = none; given with any of them it is an error
         preset: String = "",
         /// profile: speed units (0.678 mm/s) added to the order every acc_div + 1 periods of 10 ms: 40 = 2.71 m/s^2, 10 = 0.678 (K-Team's Braitenberg demo), 3 = 0.203 (K-Team's default) (firmware range 1..255, manual §4.14.2); may be a [low, high] range
-        acc_inc: Param = 40,
+        acc_inc: Param = 40 => Domain::range(1.0, BYTE_MAX as f64),
         /// profile: periods of 10 ms between two increments, minus one (0..255, manual §4.14.2)
-        acc_div: u32 = 0,
+        acc_div: u32 = 0 => Domain::range(0.0, BYTE_MAX as f64),
         /// profile: speed units; an order below it is raised to it, and the ramp starts from it and drops to 0 from it (1..255, manual §4.14.2 and its figure; default 20 = 13.6 mm/s)
-        min_speed_acc: u32 = 20,
+        min_speed_acc: u32 = 20 => Domain::range(1.0, BYTE_MAX as f64),
         /// profile: speed units; the final speed of position mode (manual §4.14.3): not simulated, set on the robot by export (0..255)
-        min_speed_dec: u32 = 1,
+        min_speed_dec: u32 = 1 => Domain::range(0.0, BYTE_MAX as f64),
         /// speed: the wheels' acceleration limit in speed mode (m/s^2) [E: no measurement found; Webots' Khepera IV motor allows 130.45 rad/s^2 x 0.021 m = 2.74]; may be a [low, high] range
-        speed_accel: Param = 2.74,
+        speed_accel: Param = 2.74 => Domain::POSITIVE.at_most(limits::ACCEL),
     }
 }
 
@@ -206,6 +206,7 @@ impl MotorsConfig {
             }
             drive_table.insert("preset".into(), Value::String(String::new()));
         }
+        config::check_keys(&drive_table, Self::KEYS, origin, "motors")?;
         let motors: MotorsConfig = config::read_table(&drive_table, origin, "motors")?;
         motors.validate(origin)?;
         for (key, mode) in MODE_KEYS {
@@ -250,39 +251,17 @@ impl MotorsConfig {
         Ok(motors)
     }
 
-    /// Checks every value against the firmware's ranges; the error names `origin` and the key.
+    /// Checks what the keys' domains (the firmware's ranges) cannot: a fixed `acc_inc` in whole
+    /// speed units, and no preset left after resolution. The error names `origin` and the key.
     pub fn validate(&self, origin: &str) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        let (lo, hi) = self.acc_inc.bounds();
-        if !(lo.is_finite() && hi.is_finite()) || lo < 1.0 || hi > BYTE_MAX as f32 || lo > hi {
-            return bad(
-                "motors.acc_inc",
-                format!(
-                    "must be in the firmware's range 1..=255 speed units (or a [low, high] range \
-                     within it), got {:?}",
-                    self.acc_inc
-                ),
-            );
-        }
+        let (lo, _) = self.acc_inc.bounds();
         if !self.acc_inc.is_random() && lo.fract() != 0.0 {
             return bad(
                 "motors.acc_inc",
                 format!("the firmware takes whole speed units, got {lo}"),
             );
         }
-        for (key, value, low) in [
-            ("motors.acc_div", self.acc_div, 0),
-            ("motors.min_speed_acc", self.min_speed_acc, 1),
-            ("motors.min_speed_dec", self.min_speed_dec, 0),
-        ] {
-            if !(low..=BYTE_MAX).contains(&value) {
-                return bad(
-                    key,
-                    format!("must be in the firmware's range {low}..=255, got {value}"),
-                );
-            }
-        }
-        self.speed_accel.check(origin, "motors.speed_accel", true)?;
         if !self.preset.is_empty() {
             return bad(
                 "motors.preset",

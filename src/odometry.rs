@@ -16,39 +16,22 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
-use crate::error::{Error, Result};
+use crate::config::Domain;
 use crate::robot::wrap_angle;
+
+/// The values of a relative error: in [0, 0.5).
+const RELATIVE_ERROR: Domain = Domain::NON_NEGATIVE.below(0.5);
 
 crate::config_table! {
     /// `[odometry]`: the errors of the robot's dead reckoning, used with
     /// `task.localization = "odometry"`.
     pub struct OdometryConfig {
         /// relative error (standard deviation) of each wheel's believed radius, drawn per episode [E]
-        radius_error: f32 = 0.01,
+        radius_error: f32 = 0.01 => RELATIVE_ERROR,
         /// relative error (standard deviation) of the believed axle length, drawn per episode [D: the EPFL toolbox's calibrated 104.7 mm against the nominal 105.4 mm, 0.7%, spec §1]
-        axle_error: f32 = 0.007,
+        axle_error: f32 = 0.007 => RELATIVE_ERROR,
         /// relative noise (standard deviation) of each wheel's travel per step: slip on the floor [E: Enki adds ±5% uniform wheel-speed noise, 2.9% in standard deviation]
-        slip_noise: f32 = 0.029,
-    }
-}
-
-impl OdometryConfig {
-    /// Checks every value; errors name `origin` and `odometry.key`.
-    pub fn validate(&self, origin: &str) -> Result<()> {
-        for (key, v) in [
-            ("odometry.radius_error", self.radius_error),
-            ("odometry.axle_error", self.axle_error),
-            ("odometry.slip_noise", self.slip_noise),
-        ] {
-            if !v.is_finite() || !(0.0..0.5).contains(&v) {
-                return Err(Error::config(
-                    origin,
-                    key,
-                    format!("must be a relative error in [0, 0.5), got {v}"),
-                ));
-            }
-        }
-        Ok(())
+        slip_noise: f32 = 0.029 => RELATIVE_ERROR,
     }
 }
 

@@ -3,12 +3,18 @@
 //! Drawn in world coordinates (metres, y up) through one transform to pixels (y down), so sizes
 //! below are in metres: floor, walls, obstacles, then what the task asks for (goals, targets),
 //! fading trails, what each robot's sensors ask for (the IR rays, green when nothing is seen and
-//! toward red as an obstacle nears; the ultrasonic rays, blue, to the echo), and the robots as
-//! discs with a heading mark. Tasks and sensors describe themselves as [`Mark`]s; this file is
-//! the only one that turns marks into pixels.
+//! toward red as an obstacle nears; the ultrasonic beams, blue, solid to an echo and dashed when
+//! they report nothing), and the robots as discs with a heading mark. Tasks and sensors describe
+//! themselves as [`Mark`]s; this file is the only one that turns marks into pixels.
+//!
+//! A frame shows the whole arena, or part of it ([`View`]: a zoom factor about a centre). Where
+//! a robot is drawn smaller than [`DETAIL_MIN_PIXELS`] across (a swarm's arena in a small frame),
+//! its sensors' rays and its LEDs are left out: they would only be noise at that size.
 
 use rapier2d::math::Vector;
-use tiny_skia::{Color, FillRule, LineCap, Paint, PathBuilder, Pixmap, Stroke, Transform};
+use tiny_skia::{
+    Color, FillRule, LineCap, Paint, PathBuilder, Pixmap, Stroke, StrokeDash, Transform,
+};
 
 use crate::draw::{Mark, PALETTE};
 use crate::sensors::DrawContext;
@@ -37,8 +43,37 @@ fn line(a: Vector, b: Vector) -> Option<tiny_skia::Path> {
     pb.finish()
 }
 
-/// Renders `env` into a `width` × `height` RGB frame (row-major, 3 bytes a pixel).
+/// Smallest diameter (pixels) at which a robot's sensor rays and LEDs are drawn.
+pub const DETAIL_MIN_PIXELS: f32 = 12.0;
+
+/// The part of the world a frame shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct View {
+    /// Magnification: 1 fits the whole arena (with its walls) in the frame; 4 shows a quarter
+    /// of its width and height.
+    pub zoom: f32,
+    /// The world point (m) at the frame's centre: the arena's centre (the origin) by default.
+    pub centre: Vector,
+}
+
+impl Default for View {
+    fn default() -> Self {
+        Self {
+            zoom: 1.0,
+            centre: Vector::ZERO,
+        }
+    }
+}
+
+/// Renders `env`'s whole arena into a `width` × `height` RGB frame (row-major, 3 bytes a
+/// pixel).
 pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
+    render_view(env, width, height, View::default())
+}
+
+/// Renders the part `view` of `env` into a `width` × `height` RGB frame (row-major, 3 bytes a
+/// pixel).
+pub fn render_view(env: &Env, width: u32, height: u32, view: View) -> Vec<u8> {
     let Some(mut pixmap) = Pixmap::new(width.max(1), height.max(1)) else {
         return vec![0; (width * height * 3) as usize];
     };
@@ -50,14 +85,15 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
     } else {
         0.02
     };
-    let scale = (width as f32 / (aw + 2.0 * t)).min(height as f32 / (ah + 2.0 * t));
+    let fit = (width as f32 / (aw + 2.0 * t)).min(height as f32 / (ah + 2.0 * t));
+    let scale = fit * view.zoom;
     let transform = Transform::from_row(
         scale,
         0.0,
         0.0,
         -scale,
-        0.5 * width as f32,
-        0.5 * height as f32,
+        0.5 * width as f32 - scale * view.centre.x,
+        0.5 * height as f32 + scale * view.centre.y,
     );
     // Walls (or the outline of an open floor).
     if scene.walled {
@@ -103,6 +139,7 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
     }
     // Sensor rays and robots.
     let radius = env.world.drive.radius;
+    let detailed = 2.0 * radius * scale >= DETAIL_MIN_PIXELS;
     for (k, robot) in env.world.robots.iter().enumerate() {
         let (s, c) = robot.heading.sin_cos();
         let dir = |bearing: f32| {
@@ -115,7 +152,9 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
             heading: robot.heading,
             radius,
         };
-        env.world.sensors.draw(&at, &robot.readings, &mut marks);
+        if detailed {
+            env.world.sensors.draw(&at, &robot.readings, &mut marks);
+        }
         // Rays under the body; markers (the ground sensors' spots, under the body's front) on
         // top of it.
         let on_top = |m: &Mark| matches!(m, Mark::Cross { .. });
@@ -147,7 +186,7 @@ pub fn render(env: &Env, width: u32, height: u32) -> Vec<u8> {
                 None,
             );
         }
-        if env.cfg.task.led_action {
+        if env.cfg.task.led_action && detailed {
             // The three top LEDs where the real robot has them: a front pair at (39, ±24) mm, one
             // at (−48, 0) mm (Webots' Khepera IV model; docs/robot.md §6), in the colour its agent
             // set.
@@ -215,6 +254,21 @@ fn draw_mark(pixmap: &mut Pixmap, mark: &Mark, transform: Transform) {
                     transform,
                     None,
                 );
+            }
+        }
+        Mark::Dashed {
+            from,
+            to,
+            colour,
+            alpha,
+            width,
+            dash,
+        } => {
+            if let Some(l) = line(*from, *to) {
+                let mut pen = stroke(*width);
+                pen.line_cap = LineCap::Butt;
+                pen.dash = StrokeDash::new(vec![*dash, *dash], 0.0);
+                pixmap.stroke_path(&l, &paint(*colour, *alpha), &pen, transform, None);
             }
         }
         Mark::Path {

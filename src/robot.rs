@@ -3,7 +3,7 @@
 //! Numbers come from docs/robot.md §1 (K-Team user manual 3.0). Units are SI: metres,
 //! seconds, radians. Robot frame: x forward, y left, angles counter-clockwise. World state is f32.
 
-use crate::config::Param;
+use crate::config::{limits, Domain, Param};
 use crate::error::{Error, Result};
 use crate::motors::MotorsConfig;
 
@@ -27,81 +27,43 @@ crate::config_table! {
     /// `[low, high]` ranges, drawn at every reset (domain randomisation).
     pub struct RobotConfig {
         /// body radius (m): 140.8 mm diameter (K-Team manual fig. 8.1)
-        radius: f32 = 0.0704,
+        radius: f32 = 0.0704 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m: 42 mm wheels (K-Team manual §4.14)
-        wheel_radius: f32 = 0.021,
+        wheel_radius: f32 = 0.021 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// wheel separation (m), KH4_WHEELS_DISTANCE; may be a [low, high] range
-        axle_length: Param = 0.1054,
+        axle_length: Param = 0.1054 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m/s, closed-loop limit (about 1200 speed units, manual §4.14.1); may be a range
-        max_wheel_speed: Param = 0.813,
+        max_wheel_speed: Param = 0.813 => Domain::POSITIVE.at_most(limits::SPEED),
         /// m/s; smaller commands give 0 (the real PID's floor, manual §4.14.1)
-        min_wheel_speed: f32 = 0.003,
+        min_wheel_speed: f32 = 0.003 => Domain::NON_NEGATIVE.at_most(limits::SPEED),
         /// m/s^2 per wheel, the acceleration of motors.mode = "ramp" only (v0: inf = none; v1: 0.2034543, K-Team's default profile rate, 3 speed units of 0.678 mm/s per 10 ms, manual §4.14.2); the other modes set theirs in [motors]; may be a finite range
-        wheel_accel_limit: Param = 0.2034543,
+        wheel_accel_limit: Param = 0.2034543 => Domain::POSITIVE.at_most(limits::ACCEL).or_inf(),
         /// s, first-order lag of each wheel behind its order (the PID's response), in every drive mode (0 = none) [E]
-        motor_time_constant: f32 = 0.0,
+        motor_time_constant: f32 = 0.0 => Domain::NON_NEGATIVE.at_most(limits::TIME),
         /// kg [E]: K-Team's usual figure; Webots uses 0.606; may be a range
-        mass: Param = 0.54,
+        mass: Param = 0.54 => Domain::POSITIVE.at_most(limits::MASS),
         /// tyre-floor friction coefficient, each wheel carrying half the weight (the ball casters little) [E: Webots' default contact friction 1]; may be a range
-        tyre_friction: Param = 1.0,
+        tyre_friction: Param = 1.0 => Domain::NON_NEGATIVE.at_most(limits::FRICTION),
         /// infrared reflectance of the shell relative to white paper (1 = K-Team's curve) [E]
-        shell_reflectance: f32 = 1.0,
+        shell_reflectance: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::REFLECTANCE),
         /// RGB in [0, 1] the camera sees of a robot: its top LEDs (3 RGB LEDs, 6 bits a colour, spec §6) [E: green]
-        led_color: [f32; 3] = [0.0, 0.8, 0.0],
+        led_color: [f32; 3] = [0.0, 0.8, 0.0] => Domain::UNIT,
     }
 }
 
 impl RobotConfig {
-    /// Checks every value; the error names `origin` and the first offending key.
+    /// Checks what the keys' domains cannot (each value alone is checked by its declaration):
+    /// the floor of commands below the speed limit. The error names `origin` and the key.
     pub fn validate(&self, origin: &str) -> Result<()> {
-        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        for (key, v) in [
-            ("robot.radius", self.radius),
-            ("robot.wheel_radius", self.wheel_radius),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return bad(key, format!("must be a finite number > 0, got {v}"));
-            }
-        }
-        self.axle_length.check(origin, "robot.axle_length", true)?;
-        self.max_wheel_speed
-            .check(origin, "robot.max_wheel_speed", true)?;
-        self.mass.check(origin, "robot.mass", true)?;
-        let (alo, ahi) = self.wheel_accel_limit.bounds();
-        let infinite_range = self.wheel_accel_limit.is_random() && !ahi.is_finite();
-        if alo.is_nan() || ahi.is_nan() || alo <= 0.0 || alo > ahi || infinite_range {
-            return bad(
-                "robot.wheel_accel_limit",
-                format!(
-                    "must be > 0 (inf for no limit) or a finite [low, high] range, got {:?}",
-                    self.wheel_accel_limit
-                ),
-            );
-        }
-        self.tyre_friction
-            .check(origin, "robot.tyre_friction", false)?;
-        for (key, v) in [
-            ("robot.motor_time_constant", self.motor_time_constant),
-            ("robot.shell_reflectance", self.shell_reflectance),
-        ] {
-            if !v.is_finite() || v < 0.0 {
-                return bad(key, format!("must be a finite number >= 0, got {v}"));
-            }
-        }
-        if !self.min_wheel_speed.is_finite() || self.min_wheel_speed < 0.0 {
-            return bad(
-                "robot.min_wheel_speed",
-                format!("must be a finite number >= 0, got {}", self.min_wheel_speed),
-            );
-        }
         if self.min_wheel_speed >= self.max_wheel_speed.bounds().0 {
-            return bad(
+            return Err(Error::config(
+                origin,
                 "robot.min_wheel_speed",
                 format!(
                     "must be below robot.max_wheel_speed ({:?}), got {}",
                     self.max_wheel_speed, self.min_wheel_speed
                 ),
-            );
+            ));
         }
         Ok(())
     }

@@ -207,16 +207,16 @@ fn test_led_actions_need_every_agent_to_drive_a_khepera() {
 #[test]
 fn test_bad_colours_and_camera_keys_are_config_errors_naming_them() {
     for (task, overrides, key) in [
-        ("nav", "wall_color = [0.5, 0.5, 2.0]", "arena.wall_color"),
-        ("nav", "led_color = [-0.1, 0.0, 0.0]", "robot.led_color"),
+        ("nav", "wall_color = [0.5, 0.5, 2.0]", "arena.wall_color[2]"),
+        ("nav", "led_color = [-0.1, 0.0, 0.0]", "robot.led_color[0]"),
         (
             "nav",
             "fixed = [{kind = \"circle\", center = [0.3, 0.3], radius = 0.1, color = [1.0, 0.0, 1.5]}]",
-            "obstacles.fixed[0]",
+            "obstacles.fixed[0].color[2]",
         ),
         ("nav", "camera_pixels = 0", "sensors.camera_pixels"),
         ("nav", "camera_fov = 7.0", "sensors.camera_fov"),
-        ("seek", "pillar_color = [1.0, 0.0, 9.0]", "seek.pillar_color"),
+        ("seek", "pillar_color = [1.0, 0.0, 9.0]", "seek.pillar_color[2]"),
         ("seek", "goal_radius = 0.1", "task.goal_radius"),
         ("seek", "carry = [\"ir\"]\nobserve = [\"ir\"]", "sensors.carry"),
     ] {

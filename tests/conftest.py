@@ -1,20 +1,41 @@
-"""Shared fixtures of the Python tests: environment ids and small helpers."""
+"""Shared fixtures of the Python tests: environment ids and PettingZoo modules from the
+registries, and small helpers."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Iterator
+from types import ModuleType
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
-import khepera_gym  # noqa: F401  (registers the environments)
-from khepera_gym.registration import latest_ids
+import khepera_gym
+import khepera_gym.pettingzoo
+from khepera_gym.registration import latest_ids, registered_ids
 
 # render_mode="human" opens a pygame window: on SDL's dummy driver where there is no display.
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+#: Every registered id of every task and version (``registered_ids()``, oldest version first
+#: within a task): what the cross-cutting tests (determinism, thread count, saved states,
+#: Gymnasium's env checker) run over, so that a new task or version is covered without touching
+#: them; ``tests/test_registry_coverage.py`` checks that none is left out.
+ALL_IDS = [env_id for ids in registered_ids().values() for env_id in ids]
+#: Every versioned PettingZoo module (``khepera_gym.pettingzoo.modules()``), name → module: what
+#: PettingZoo's API and seed tests run over.
+PETTINGZOO_MODULES = khepera_gym.pettingzoo.modules()
+
+
+def latest_module(task_module: str) -> ModuleType:
+    """The latest version of a PettingZoo module (``"formation"`` → ``formation_v2``)."""
+    versions = [
+        m for name, m in PETTINGZOO_MODULES.items() if name.rpartition("_v")[0] == task_module
+    ]
+    return versions[-1]
+
 
 #: The latest versioned id of every task, from the registry (v2: K-Team's speed profile at
 #: Acc_Inc 40 on the v1 contacts); tests of behaviour every version shares use these.

@@ -599,7 +599,7 @@ fn test_delays_beyond_the_limit_are_config_errors() {
     let source = common::source("observation_delay = 1000000");
     let e = load_scenario("nav", &source).unwrap_err().to_string();
     assert!(
-        e.contains("task.observation_delay: must be at most 100"),
+        e.contains("task.observation_delay: must be >= 0, <= 100, got 1000000"),
         "{e}"
     );
 }

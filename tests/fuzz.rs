@@ -1,7 +1,9 @@
 //! Property-based fuzzing (proptest) of the core's two untrusted inputs: scenario TOML and action
 //! buffers. Whatever they hold, the core returns a typed error or works: no panic (proptest
-//! reports a panic as a failure), no non-finite observation, and a rejected action buffer leaves
-//! every world of the batch exactly as it was (compared through the saved state).
+//! reports a panic as a failure), no non-finite observation or reward, no observation outside
+//! its layout's bounds, and a rejected action buffer leaves every world of the batch exactly as
+//! it was (compared through the saved state). Tasks and versions come from the registry
+//! (`TaskKind::ALL`, each from the version that added it to the latest).
 //!
 //! The number of cases per property is proptest's `PROPTEST_CASES` (default here: 64, the CI
 //! run). The long run of the closing note:
@@ -10,7 +12,7 @@
 use _core::batch::Batch;
 use _core::error::Error;
 use _core::robot::ActionType;
-use _core::scenario::Source;
+use _core::scenario::{Source, LATEST_VERSION};
 use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use proptest::prelude::*;
@@ -18,15 +20,19 @@ use proptest::test_runner::Config;
 use std::sync::atomic::{AtomicU64, Ordering};
 use toml::{Table, Value};
 
-const TASKS: [&str; 7] = [
-    "nav",
-    "avoid",
-    "formation",
-    "multinav",
-    "track",
-    "pathfollow",
-    "platoon",
-];
+/// Every task of the registry ([`TaskKind::ALL`]): a new task is fuzzed without touching this
+/// file.
+fn tasks() -> Vec<&'static str> {
+    TaskKind::ALL.iter().map(|kind| kind.name()).collect()
+}
+
+/// Every (task, behaviour version) the registry has.
+fn task_versions() -> Vec<(&'static str, u32)> {
+    TaskKind::ALL
+        .iter()
+        .flat_map(|kind| (kind.info().schema.since..=LATEST_VERSION).map(|v| (kind.name(), v)))
+        .collect()
+}
 
 /// Outcomes so far (scenarios loaded, refused; buffers stepped, refused), printed every 10^4 cases
 /// of a property when `FUZZ_STATS` is set: a fuzzer whose inputs are all refused tests little.
@@ -70,10 +76,10 @@ fn leaves(table: &Table, prefix: &str, out: &mut Vec<(String, Value)>) {
     }
 }
 
-fn default_leaves(task: &str) -> Vec<(String, Value)> {
+fn default_leaves(task: &str, version: u32) -> Vec<(String, Value)> {
     let table: Table = TaskKind::parse(task)
         .expect("task")
-        .default_config(None)
+        .default_config(Some(version))
         .expect("defaults")
         .parse()
         .expect("defaults parse");
@@ -138,8 +144,8 @@ fn scaled_pair(number: f64) -> impl Strategy<Value = (f64, f64)> {
 
 /// A scenario document: some of the task's keys set to fuzzed values, maybe an unknown key, maybe
 /// random obstacles, written as TOML text (or, sometimes, that text with bytes mangled).
-fn scenario_text(task: &'static str) -> impl Strategy<Value = String> {
-    let keys = default_leaves(task);
+fn scenario_text(task: &'static str, version: u32) -> impl Strategy<Value = String> {
+    let keys = default_leaves(task, version);
     let n = keys.len();
     let picks = prop::collection::vec(0..n, 0..5);
     picks
@@ -233,18 +239,20 @@ proptest! {
     /// worlds step with finite observations.
     #[test]
     fn scenario_toml_loads_or_is_a_config_error(
-        (task, text) in prop::sample::select(TASKS.to_vec())
-            .prop_flat_map(|task| (Just(task), scenario_text(task))),
+        (task, version, text) in prop::sample::select(task_versions())
+            .prop_flat_map(|(task, version)| {
+                (Just(task), Just(version), scenario_text(task, version))
+            }),
         seed in any::<u64>(),
     ) {
-        check_scenario(task, &text, seed)?;
+        check_scenario(task, version, &text, seed)?;
     }
 
     /// An action buffer of any length and any float bits is stepped or refused with an
     /// ActionError that changes no world.
     #[test]
     fn action_buffer_steps_or_is_refused_untouched(
-        task in prop::sample::select(TASKS.to_vec()),
+        task in prop::sample::select(tasks()),
         seed in 0u64..1000,
         prefix in forward_actions(4),
         values in prop::collection::vec(
@@ -261,11 +269,11 @@ proptest! {
     }
 }
 
-fn check_scenario(task: &str, text: &str, seed: u64) -> Result<(), TestCaseError> {
+fn check_scenario(task: &str, version: u32, text: &str, seed: u64) -> Result<(), TestCaseError> {
     let source = Source {
         file: Some((text, "fuzz.toml")),
         overrides: Table::new(),
-        ..Default::default()
+        version: Some(version),
     };
     let cfg = match load_scenario(task, &source) {
         Ok(cfg) => cfg,
@@ -276,9 +284,13 @@ fn check_scenario(task: &str, text: &str, seed: u64) -> Result<(), TestCaseError
         Err(other) => return Err(TestCaseError::fail(format!("{other:?} for\n{text}"))),
     };
     let kind = TaskKind::parse(task).expect("task");
+    let (low, high) = kind
+        .obs_layout(&cfg)
+        .map_err(|e| TestCaseError::fail(format!("{e:?}")))?
+        .bounds();
     let mut batch = match Batch::new(kind, cfg, 2, ActionType::Wheels, Some(1), true) {
         Ok(batch) => batch,
-        Err(Error::Config { .. }) => {
+        Err(Error::Config { .. } | Error::Memory(_)) => {
             count(&REFUSED, &LOADED, "scenarios refused");
             return Ok(());
         }
@@ -294,6 +306,21 @@ fn check_scenario(task: &str, text: &str, seed: u64) -> Result<(), TestCaseError
         prop_assert!(
             batch.obs().iter().all(|x| x.is_finite()),
             "non-finite observation for\n{}",
+            text
+        );
+        for (world, row) in batch.obs().chunks(low.len()).enumerate() {
+            let outside = (0..row.len()).find(|&i| !(low[i]..=high[i]).contains(&row[i]));
+            prop_assert!(
+                outside.is_none(),
+                "world {} observation {:?} outside its bounds for\n{}",
+                world,
+                outside,
+                text
+            );
+        }
+        prop_assert!(
+            batch.outcomes().iter().all(|o| o.reward.is_finite()),
+            "non-finite reward for\n{}",
             text
         );
     }

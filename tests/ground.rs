@@ -245,7 +245,7 @@ fn test_bad_floors_and_keys_are_config_errors_naming_them() {
         (
             "nav",
             "lines = [{a = [0.0, 0.0], b = [1.0, 0.0], width = 0.02, grey = 2.0}]".into(),
-            "floor.lines",
+            "floor.lines[0].grey",
         ),
         (
             "nav",

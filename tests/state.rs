@@ -1,7 +1,10 @@
 //! Saved states: restoring a batch's state and replaying the same actions reproduces the
-//! trajectory bit for bit (contacts included), in the same batch or a fresh one; a state that is
+//! trajectory bit for bit (contacts included), in the same batch or a fresh one, for every task
+//! and version of the registry ([`common::every_task_version`]); a state that is
 //! not one, is corrupt, or comes from another batch is refused with a message saying which, and
 //! leaves the batch as it was.
+
+mod common;
 
 use _core::batch::Batch;
 use _core::error::Error;
@@ -9,17 +12,23 @@ use _core::robot::ActionType;
 use _core::scenario::Source;
 use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
+use common::every_task_version;
 use rand::{Rng, SeedableRng};
 
-fn batch(task: &str, overrides: &str, n: usize) -> Batch {
+/// A batch of `n` worlds of `task` with `overrides`, behaviour `version` (None: the latest).
+fn batch_in(task: &str, overrides: &str, n: usize, version: Option<u32>) -> Batch {
     let source = Source {
         file: None,
         overrides: overrides.parse().expect("overrides"),
-        ..Default::default()
+        version,
     };
     let cfg = load_scenario(task, &source).expect("scenario");
     let kind = TaskKind::parse(task).expect("task");
     Batch::new(kind, cfg, n, ActionType::Wheels, Some(2), true).expect("batch")
+}
+
+fn batch(task: &str, overrides: &str, n: usize) -> Batch {
+    batch_in(task, overrides, n, None)
 }
 
 /// Actions biased forward, so that robots hit walls, obstacles and each other.
@@ -30,8 +39,8 @@ fn actions(seed: u64, n: usize, steps: usize) -> Vec<Vec<f32>> {
         .collect()
 }
 
-/// Observations, rewards and end flags of every step, as bits; and the number of steps in which
-/// some robot was in contact.
+/// Observations, rewards, end flags, poses and episode statistics of every step, as bits; and the
+/// number of steps in which some robot was in contact.
 fn replay(batch: &mut Batch, actions: &[Vec<f32>]) -> (Vec<Vec<u32>>, usize) {
     let mut trace = Vec::new();
     let mut contacts = 0;
@@ -49,6 +58,21 @@ fn replay(batch: &mut Batch, actions: &[Vec<f32>]) -> (Vec<Vec<u32>>, usize) {
                     robot.heading.to_bits(),
                 ]);
             }
+            // The episode statistics, the world's and each agent's.
+            let world = [&env.stats, &env.last_episode];
+            for stats in world {
+                bits.extend([stats.ret.to_bits(), stats.length, stats.success as u32]);
+            }
+            for agent in env.agent_stats.iter().chain(&env.last_agent_episodes) {
+                bits.extend([
+                    agent.ret.to_bits(),
+                    agent.length,
+                    agent.success as u32,
+                    agent.path_length.to_bits(),
+                    agent.collisions,
+                    agent.done as u32,
+                ]);
+            }
         }
         contacts += batch
             .envs()
@@ -60,82 +84,85 @@ fn replay(batch: &mut Batch, actions: &[Vec<f32>]) -> (Vec<Vec<u32>>, usize) {
     (trace, contacts)
 }
 
-fn check_replay(task: &str, overrides: &str) {
+fn check_replay(task: &str, overrides: &str, version: Option<u32>) {
+    let name = format!("{task} v{version:?}");
     let n = 6;
-    let mut original = batch(task, overrides, n);
+    let mut original = batch_in(task, overrides, n, version);
     let act_dim = original.act_dim() * n;
     original.reset(Some(7));
     replay(&mut original, &actions(1, act_dim, 150));
     let state = original.save_state().expect("save");
     let later = actions(2, act_dim, 400);
     let (expected, contacts) = replay(&mut original, &later);
-    assert!(contacts > 0, "{task}: the replay should include contacts");
+    assert!(contacts > 0, "{name}: the replay should include contacts");
 
     original
         .load_state(&state)
         .expect("load into the same batch");
     let (again, _) = replay(&mut original, &later);
-    assert!(again == expected, "{task}: restored batch diverged");
+    assert!(again == expected, "{name}: restored batch diverged");
 
-    let mut fresh = batch(task, overrides, n);
+    let mut fresh = batch_in(task, overrides, n, version);
     fresh.load_state(&state).expect("load into a fresh batch");
     assert_eq!(fresh.save_state().expect("save"), state);
     let (fresh_trace, _) = replay(&mut fresh, &later);
-    assert!(fresh_trace == expected, "{task}: fresh batch diverged");
+    assert!(fresh_trace == expected, "{name}: fresh batch diverged");
 }
 
-#[test]
-fn test_restored_nav_state_replays_bit_for_bit() {
-    check_replay("nav", "max_steps = 120");
-}
-
-#[test]
-fn test_restored_avoid_state_replays_bit_for_bit_through_contacts() {
+/// Overrides of a task's replay beyond `max_steps = 120` (every task not listed replays with that
+/// alone), so that it crosses episode ends and contacts and draws its random parts at each
+/// reset. Names are checked against the registry.
+const REPLAY_OVERRIDES: &[(&str, &str)] = &[
     // Random obstacles are re-drawn every episode: the restored scene must be the saved one.
-    check_replay("avoid", "max_steps = 90");
-}
-
-#[test]
-fn test_restored_formation_state_replays_bit_for_bit() {
-    check_replay("formation", "max_steps = 120");
-}
-
-#[test]
-fn test_restored_multinav_state_replays_bit_for_bit() {
-    check_replay("multinav", "max_steps = 120");
-}
-
-#[test]
-fn test_restored_track_state_replays_bit_for_bit() {
+    ("avoid", "max_steps = 90"),
     // A spline reference (drawn at each reset) and a wide lost bound, so robots reach the walls.
-    check_replay(
+    (
         "track",
         "max_steps = 120\nreference = \"spline\"\nlost_distance = 3.0",
-    );
-}
-
-#[test]
-fn test_restored_pathfollow_state_replays_bit_for_bit() {
+    ),
     // A spline path with obstacles on it (both drawn at each reset) and a wide lost bound.
-    check_replay(
+    (
         "pathfollow",
         "max_steps = 120\npath = \"spline\"\nobstacle_count = 3\nlost_distance = 0.5",
-    );
+    ),
+    // Three robots on a spline, lost robots parked: the per-robot tracking state is restored.
+    (
+        "platoon",
+        "max_steps = 120\nreference = \"spline\"\nlost_distance = 0.3",
+    ),
+    // The Khepera driven by an agent too (random actions reach the walls), the drone's lost
+    // time long enough for episodes to run on.
+    ("dronefollow", "max_steps = 120\ndriver = \"agent\""),
+    // A robot is lost 0.1 m off the line by default, long before it reaches a wall.
+    ("linefollow", "max_steps = 120\nlost_distance = 3.0"),
+];
+
+#[test]
+fn test_replay_overrides_name_registered_tasks() {
+    for (task, _) in REPLAY_OVERRIDES {
+        assert!(TaskKind::parse(task).is_some(), "{task} is not a task");
+    }
 }
 
 #[test]
-fn test_restored_platoon_state_replays_bit_for_bit() {
-    // Three robots on a spline, lost robots parked: the per-robot tracking state is restored.
-    check_replay(
-        "platoon",
-        "max_steps = 120\nreference = \"spline\"\nlost_distance = 0.3",
-    );
+fn test_every_task_and_version_restored_state_replays_bit_for_bit() {
+    for (kind, version) in every_task_version() {
+        let overrides = REPLAY_OVERRIDES
+            .iter()
+            .find(|(task, _)| *task == kind.name())
+            .map_or("max_steps = 120", |(_, o)| o);
+        check_replay(kind.name(), overrides, Some(version));
+    }
 }
 
 #[test]
 fn test_state_restores_randomised_robot_parameters() {
     // Domain randomisation draws the drive at every reset: a restored world keeps the saved draw.
-    check_replay("nav", "max_steps = 50\nrobot.axle_length = [0.09, 0.12]");
+    check_replay(
+        "nav",
+        "max_steps = 50\nrobot.axle_length = [0.09, 0.12]",
+        None,
+    );
 }
 
 fn load_error(target: &mut Batch, state: &[u8]) -> String {

@@ -1,17 +1,16 @@
-//! Task specification for Avoid, Formation and MultiNav: determinism (world i ≡ seed s + i,
-//! thread-count invariance), feasible random layouts, the cross formation at reset, and a
-//! scripted leader that reaches its goal while followers hold the formation.
+//! Task specification for Avoid and Formation: feasible random layouts, the cross formation at
+//! reset, and a scripted leader that reaches its goal while followers hold the formation. The
+//! determinism of every task and version (world i ≡ seed s + i, thread-count invariance) is
+//! specified in `determinism.rs`, from the registry.
 
 use std::sync::Arc;
 
-use _core::batch::Batch;
 use _core::controllers::position::twist_to_wheels;
 use _core::controllers::PositionControl;
 use _core::robot::ActionType;
 use _core::scenario::{Scenario, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
-use rand::{Rng, SeedableRng};
 use rapier2d::math::Vector;
 
 fn scenario(task: &str, scene: Option<&str>, overrides: &str) -> Scenario {
@@ -31,104 +30,6 @@ fn scenario_version(
         version,
     };
     load_scenario(task, &source).expect("scenario")
-}
-
-fn random_actions(len: usize, steps: usize, seed: u64) -> Vec<Vec<f32>> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    (0..steps)
-        .map(|_| (0..len).map(|_| rng.random_range(-1.0..1.0)).collect())
-        .collect()
-}
-
-#[test]
-fn test_every_task_world_equals_single_env_with_seed_plus_index() {
-    for task in [
-        TaskKind::Avoid,
-        TaskKind::Formation,
-        TaskKind::MultiNav,
-        TaskKind::Track,
-        TaskKind::PathFollow,
-        TaskKind::Platoon,
-    ] {
-        let cfg = scenario(task.name(), None, "max_steps = 40");
-        let (n, steps, seed) = (4, 120, 77u64);
-        let mut batch =
-            Batch::new(task, cfg.clone(), n, ActionType::Wheels, Some(2), true).expect("batch");
-        let (od, ad) = (batch.obs_dim(), batch.act_dim());
-        let acts = random_actions(n * ad, steps, 5);
-        batch.reset(Some(seed));
-        let mut trace = vec![batch.obs().to_vec()];
-        let mut rewards = Vec::new();
-        for a in &acts {
-            batch.step(a).expect("step");
-            trace.push(batch.obs().to_vec());
-            rewards.push(
-                batch
-                    .outcomes()
-                    .iter()
-                    .map(|o| o.reward.to_bits())
-                    .collect::<Vec<_>>(),
-            );
-        }
-        for i in 0..n {
-            let mut single = Batch::new(task, cfg.clone(), 1, ActionType::Wheels, Some(1), true)
-                .expect("single");
-            single.reset(Some(seed + i as u64));
-            assert_eq!(
-                single.obs(),
-                &trace[0][i * od..(i + 1) * od],
-                "{task:?} world {i} reset"
-            );
-            for (t, a) in acts.iter().enumerate() {
-                single.step(&a[i * ad..(i + 1) * ad]).expect("step");
-                let name = task.name();
-                assert_eq!(
-                    single.obs(),
-                    &trace[t + 1][i * od..(i + 1) * od],
-                    "{name} {i} {t}"
-                );
-                assert_eq!(single.outcomes()[0].reward.to_bits(), rewards[t][i]);
-            }
-        }
-    }
-}
-
-#[test]
-fn test_every_task_is_identical_at_one_and_two_threads() {
-    for task in [
-        TaskKind::Avoid,
-        TaskKind::Formation,
-        TaskKind::MultiNav,
-        TaskKind::Track,
-        TaskKind::PathFollow,
-        TaskKind::Platoon,
-    ] {
-        let cfg = scenario(task.name(), None, "max_steps = 50");
-        let mut runs = Vec::new();
-        for threads in [1, 2] {
-            let mut batch = Batch::new(
-                task,
-                cfg.clone(),
-                32,
-                ActionType::Wheels,
-                Some(threads),
-                true,
-            )
-            .expect("batch");
-            let acts = random_actions(32 * batch.act_dim(), 100, 9);
-            batch.reset(Some(3));
-            let mut trace = Vec::new();
-            for a in &acts {
-                batch.step(a).expect("step");
-                trace.push((batch.obs().to_vec(), batch.outcomes().to_vec()));
-            }
-            runs.push(trace);
-        }
-        assert!(
-            runs[0] == runs[1],
-            "{task:?} differs between 1 and 2 threads"
-        );
-    }
 }
 
 /// Whether the robot can drive from `a` to `b` among `env`'s obstacles: a flood fill over a

@@ -8,7 +8,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID, random_actions
+from conftest import ALL_IDS, NAV_ID, random_actions
 from gymnasium.utils.env_checker import check_env
 
 import khepera_gym
@@ -141,9 +141,13 @@ def test_step_returns_python_scalars_and_fresh_observations(nav_env: gym.Env) ->
     np.testing.assert_array_equal(observation, kept)
 
 
-def test_gymnasium_env_checker_passes_without_warnings() -> None:
-    with pytest.warns(UserWarning, match="latest versioned"):
-        env = gym.make("KheperaIV-Nav")
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_gymnasium_env_checker_passes_without_warnings(env_id: str) -> None:
+    if env_id == NAV_ID:  # the unversioned id warns that it takes the latest version
+        with pytest.warns(UserWarning, match="latest versioned"):
+            env = gym.make(env_id.rpartition("-v")[0])
+    else:
+        env = gym.make(env_id)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped)
@@ -327,3 +331,35 @@ def test_real_robot_speed_units_round_trip() -> None:
     assert round(_core.AXLE_LENGTH, 4) == 0.1054
     with pytest.raises(ValueError, match="finite"):
         khepera_gym.speed_to_units(float("nan"))
+
+
+@pytest.mark.parametrize(
+    ("keywords", "suggestion"),
+    [
+        ({"goal_radios": 0.1}, "did you mean `goal_radius`?"),
+        ({"max_stesp": 3}, "did you mean `max_steps`?"),
+        ({"task": {"goal_radios": 0.1}}, "did you mean `goal_radius`?"),
+        ({"sensors": {"ir_rnage": 0.3}}, "did you mean `ir_range`?"),
+    ],
+)
+def test_a_mistyped_keyword_is_a_config_error_naming_the_nearest_key(
+    keywords: dict, suggestion: str
+) -> None:
+    with pytest.raises(ConfigError, match="unknown key") as caught:
+        gym.make(NAV_ID, **keywords)
+    assert suggestion in str(caught.value)
+
+
+def test_a_keyword_far_from_every_key_gets_no_suggestion() -> None:
+    with pytest.raises(ConfigError, match="unknown key") as caught:
+        gym.make(NAV_ID, zzzzzzzz=1)
+    assert "did you mean" not in str(caught.value)
+
+
+@pytest.mark.parametrize("seed", [-1, 2**64, 1.5, np.int64(3), "7"])
+def test_a_bad_seed_raises_our_config_error_in_the_single_and_vector_env(seed: object) -> None:
+    with pytest.raises(ConfigError, match="seed"):
+        gym.make(NAV_ID).reset(seed=seed)
+    if not isinstance(seed, np.integer):  # a vector env takes NumPy ints, as Gymnasium's does
+        with pytest.raises(ConfigError, match="seed"):
+            gym.make_vec(NAV_ID, num_envs=2).reset(seed=seed)

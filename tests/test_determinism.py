@@ -1,41 +1,26 @@
-"""Seeding and determinism: world i of a batch equals a single env seeded s + i, bit for bit."""
+"""Seeding and determinism: world i of a batch equals a single env seeded s + i, bit for bit, and a
+batch's results do not depend on its thread count, for every registered id of every version
+(``conftest.ALL_IDS``, from the registry)."""
 
 from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID, random_actions
+from conftest import ALL_IDS, NAV_ID, random_actions
 
-from khepera_gym.envs import (
-    AvoidEnv,
-    FormationEnv,
-    KheperaEnv,
-    NavEnv,
-    PathFollowEnv,
-    TrackEnv,
-)
+from khepera_gym.envs import NavEnv
 from khepera_gym.vector import KheperaVectorEnv
 
 #: Short episodes so that several end (and autoreset) within the compared steps.
 SHORT_EPISODE = 60
-#: (registered id, single-env class) of every task.
-TASK_ENVS = [
-    (NAV_ID, NavEnv),
-    (AVOID_ID, AvoidEnv),
-    (FORMATION_ID, FormationEnv),
-    (TRACK_ID, TrackEnv),
-    (PATHFOLLOW_ID, PathFollowEnv),
-]
 
 
-@pytest.mark.parametrize(("env_id", "env_class"), TASK_ENVS)
-def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset(
-    env_id: str, env_class: type[KheperaEnv]
-) -> None:
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset(env_id: str) -> None:
     num_envs, seed, steps = 4, 1234, 200
     envs = gym.make_vec(env_id, num_envs=num_envs, num_threads=2, max_steps=SHORT_EPISODE)
-    singles = [env_class(max_steps=SHORT_EPISODE) for _ in range(num_envs)]
+    singles = [gym.make(env_id, max_steps=SHORT_EPISODE).unwrapped for _ in range(num_envs)]
     actions = random_actions(seed, steps, (num_envs, *envs.single_action_space.shape))
 
     batch_observations, _ = envs.reset(seed=seed)
@@ -70,18 +55,20 @@ def test_batch_world_equals_single_env_with_seed_plus_index_across_autoreset(
             assert truncations[index] == expected_truncated, context
     assert episodes_ended >= 2 * num_envs  # every world went through autoresets
     envs.close()
+    for env in singles:
+        env.close()
 
 
-@pytest.mark.parametrize("task", ["nav", "avoid", "formation", "track", "pathfollow"])
-def test_batch_results_do_not_depend_on_thread_count(task: str) -> None:
+@pytest.mark.parametrize("env_id", ALL_IDS)
+def test_batch_results_do_not_depend_on_thread_count(env_id: str) -> None:
     num_envs, seed, steps = 64, 99, 150
     runs = []
     for num_threads in (1, 2):
-        envs = KheperaVectorEnv(
-            num_envs, task=task, num_threads=num_threads, max_steps=SHORT_EPISODE
+        envs = gym.make_vec(
+            env_id, num_envs=num_envs, num_threads=num_threads, max_steps=SHORT_EPISODE
         )
         actions = random_actions(seed, steps, (num_envs, *envs.single_action_space.shape))
-        assert envs.num_threads == num_threads
+        assert envs.unwrapped.num_threads == num_threads
         trajectory = [envs.reset(seed=seed)[0]]
         episode_returns = []
         for step_actions in actions:
@@ -92,7 +79,7 @@ def test_batch_results_do_not_depend_on_thread_count(task: str) -> None:
                 episode_returns += [
                     infos["episode_stats"][key] for key in sorted(infos["episode_stats"])
                 ]
-        runs.append((trajectory, episode_returns, envs.poses()))
+        runs.append((trajectory, episode_returns, envs.unwrapped.poses()))
         envs.close()
     (trajectory_1, returns_1, poses_1), (trajectory_2, returns_2, poses_2) = runs
     assert len(trajectory_1) == len(trajectory_2)

@@ -106,7 +106,7 @@ def _waypoints_reached(env, seed: int, policies: dict) -> tuple[int, dict, dict]
         if len(env.goals()) and not np.array_equal(env.goals()[0], goal):
             switches += 1
             goal = env.goals()[0].copy()
-        stats = next(iter(infos.values())).get("episode_stats", stats)
+        stats = next(iter(infos.values())).get("world_episode_stats", stats)  # the world's
     return switches, stats, returns
 
 

@@ -77,6 +77,9 @@ int kh4_measure_us(char *buffer, knet_dev_t *device);
 int kh4_activate_us(char mask, knet_dev_t *device);
 int kh4_SetRGBLeds(char left_r, char left_g, char left_b, char right_r, char right_g, char right_b,
                    char back_r, char back_g, char back_b, knet_dev_t *device);
+int kh4_measure_acc(char *buffer, knet_dev_t *device);
+int kh4_measure_gyro(char *buffer, knet_dev_t *device);
+int kh4_revision(char *buffer, knet_dev_t *device);
 #endif
 """
 
@@ -168,6 +171,32 @@ int kh4_SetRGBLeds(char lr, char lg, char lb, char rr, char rg, char rb, char br
 {
     (void)d;
     fprintf(stderr, "set_leds %d %d %d %d %d %d %d %d %d\\n", lr, lg, lb, rr, rg, rb, br, bg, bb);
+    return 0;
+}
+/* The IMU: 10 samples an axis, newest first; x, y at rest, z gravity (-1000 mg, raw << 4), and
+ * the gyroscope still but for 5 counts on z. */
+int kh4_measure_acc(char *buffer, knet_dev_t *d)
+{
+    int i;
+    (void)d;
+    for (i = 0; i < 30; ++i) {
+        put_u16(buffer, i, i < 20 ? 0 : (-1000 * 16) & 0xffff);
+    }
+    return 60;
+}
+int kh4_measure_gyro(char *buffer, knet_dev_t *d)
+{
+    int i;
+    (void)d;
+    for (i = 0; i < 30; ++i) {
+        put_u16(buffer, i, i < 20 ? 0 : 5);
+    }
+    return 60;
+}
+int kh4_revision(char *buffer, knet_dev_t *d)
+{
+    (void)d;
+    buffer[0] = (char)0x23; /* version C, revision 3 */
     return 0;
 }
 """
@@ -518,7 +547,7 @@ def robot_program_on_fake_robot(out_dir: Path) -> Path:
     stub.mkdir(parents=True)
     (stub / "khepera.h").write_text(LIBKHEPERA_STUB)
     (out_dir / "fake_robot.c").write_text(FAKE_ROBOT)
-    sources = ["khepera_policy_main.c", *export.C_SOURCES, "fake_robot.c"]
+    sources = ["khepera_policy_main.c", *export.C_SOURCES, *export.ROBOT_SOURCES, "fake_robot.c"]
     program = out_dir / "khepera_policy"
     subprocess.run(
         ["cc", *C_FLAGS, f"-I{out_dir / 'stub'}", "-o", str(program)]
@@ -662,7 +691,7 @@ def test_robot_program_template_compiles_without_goal_inputs(tmp_path: Path) -> 
     stub.mkdir(parents=True)
     (stub / "khepera.h").write_text(LIBKHEPERA_STUB)
     compile_only = ["cc", *C_FLAGS, "-c", f"-I{tmp_path / 'stub'}", "-o", str(tmp_path / "o.o")]
-    for name in ("khepera_policy_main.c", *export.C_SOURCES):
+    for name in ("khepera_policy_main.c", *export.C_SOURCES, *export.ROBOT_SOURCES):
         subprocess.run(
             [*compile_only, str(tmp_path / name)],
             check=True,

@@ -647,11 +647,10 @@ class _SeedExpect:
     may_reject: bool = False
 
 
-# Gymnasium's own check: ``Env.reset(seed=...)`` and ``VectorEnv.reset(seed=...)`` call
-# ``gymnasium.utils.seeding.np_random(seed)`` first, which raises ``gymnasium.error.Error``
-# ("Seed must be a python integer" / "must be greater or equal to zero") for anything but a
-# non-negative Python int. That is Gymnasium's documented behaviour, not a leak: accepted too.
-_GYM_SEED_ERRORS = (KheperaError, gym.error.Error)
+# A seed that is not a non-negative Python int (below 2**64) is refused with our ConfigError,
+# before Gymnasium's own check (``gymnasium.utils.seeding.np_random``, whose ``gymnasium.error``
+# would not be a KheperaError), in the single env and the vector env alike (issue 33).
+_SEED_ERRORS = (ConfigError,)
 
 
 def _single_seed_expectation(seed: Any) -> _SeedExpect:
@@ -659,11 +658,11 @@ def _single_seed_expectation(seed: Any) -> _SeedExpect:
         return _SeedExpect(True, [None])
     if isinstance(seed, int):  # bool included, as in Gymnasium
         if seed < 0:
-            return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
+            return _SeedExpect(False, errors=_SEED_ERRORS)
         if seed >= U64:  # Gymnasium takes it; working or a KheperaError are both fine
             return _SeedExpect(True, [seed], may_reject=True)
         return _SeedExpect(True, [int(seed)])
-    return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
+    return _SeedExpect(False, errors=_SEED_ERRORS)
 
 
 def _vector_seed_expectation(seed: Any, n: int) -> _SeedExpect:
@@ -672,7 +671,7 @@ def _vector_seed_expectation(seed: Any, n: int) -> _SeedExpect:
     if _is_int(seed):
         value = int(seed)
         if value < 0:
-            return _SeedExpect(False, errors=_GYM_SEED_ERRORS, words=("seed", "Seed"))
+            return _SeedExpect(False, errors=_SEED_ERRORS)
         if value >= U64:
             return _SeedExpect(True, [None] * n, may_reject=True)
         # World i is seeded s + i; where that passes 2**64 it is unspecified, so not compared.

@@ -73,7 +73,7 @@ def test_kanayama_on_every_agent_converges_on_the_circle_within_its_linear_envel
         assert all(truncations.values()) and set(truncations) == set(AGENTS)
         worst = np.array(errors)[skip:].max(axis=0)
         assert (worst <= bound).all(), f"seed {seed}: {worst} m beyond {bound:.4f} m"
-        stats = infos["robot_0"]["episode_stats"]
+        stats = infos["robot_0"]["world_episode_stats"]  # the world's, with the tracking errors
         assert stats["track_error_max"] == pytest.approx(worst.max(), abs=1e-6)
         assert stats["track_converge_time"] <= TRANSIENT + DT
 

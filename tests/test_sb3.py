@@ -250,9 +250,11 @@ def test_formation_rows_are_world_follower_pairs_with_their_own_rewards() -> Non
     joint = np.stack([s.reset(seed=seed + w)[0] for w, s in enumerate(singles)])
     np.testing.assert_array_equal(rows, joint.reshape(n_worlds * followers, 23))
     ends = 0
+    own_returns = np.zeros(env.num_envs)  # each row's summed rewards in its episode
     for step in range(max_steps + 5):
         actions = formation_heuristic(joint)  # (worlds, 2K): follower k's pair at 2k, 2k + 1
         rows, rewards, dones, infos = env.step(actions.reshape(-1, 2))
+        own_returns += rewards
         for w, single in enumerate(singles):
             block = slice(w * followers, (w + 1) * followers)
             observation, _, terminated, truncated, info = single.step(actions[w])
@@ -264,8 +266,13 @@ def test_formation_rows_are_world_follower_pairs_with_their_own_rewards() -> Non
                     np.testing.assert_array_equal(
                         infos[row]["terminal_observation"], observation[23 * k : 23 * (k + 1)]
                     )
-                    assert infos[row]["episode_stats"] == info["episode_stats"]
-                    assert "formation_error_mean" in infos[row]["episode_stats"]
+                    # The world's statistics are the Gymnasium env's; the row's are its follower's.
+                    assert infos[row]["world_episode_stats"] == info["episode_stats"]
+                    assert "formation_error_mean" in infos[row]["world_episode_stats"]
+                    own = infos[row]["episode_stats"]
+                    assert own["length"] == info["episode_stats"]["length"]
+                    assert own["return"] == pytest.approx(own_returns[block][k], rel=1e-5, abs=1e-4)
+                own_returns[block] = 0.0
                 observation, _ = single.reset()
             joint[w] = observation
             np.testing.assert_array_equal(rows[block].reshape(-1), observation)
@@ -300,7 +307,7 @@ def test_shared_agents_rows_are_a_consensus_worlds_robots() -> None:
         )
         if dones[4]:
             assert all(truncations.values())
-            assert "consensus_error_final" in infos[4]["episode_stats"]
+            assert "consensus_error_final" in infos[4]["world_episode_stats"]
             observations, _ = single.reset()
     # A drone and a robot observe blocks of different lengths: no policy reads both.
     with pytest.raises(ConfigError, match="one length"):

@@ -1,7 +1,7 @@
 """Saved states and pickling: get_state/set_state on single and vector envs reproduce a trajectory
 bit for bit (across episode ends, contacts and random obstacles), in the same env, a fresh one, or
-another process; envs pickle and unpickle to the same state; bad states raise StateError and leave
-the env unchanged."""
+another process, for every registered id of every version (``conftest.ALL_IDS``); envs pickle and
+unpickle to the same state; bad states raise StateError and leave the env unchanged."""
 
 from __future__ import annotations
 
@@ -11,12 +11,9 @@ import pickle
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
+from conftest import ALL_IDS, AVOID_ID, FORMATION_ID, NAV_ID, PETTINGZOO_MODULES
 
 from khepera_gym.errors import StateError
-from khepera_gym.pettingzoo import formation_v1
-
-IDS = [NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID]
 
 
 def _forward_actions(seed: int, steps: int, shape: tuple[int, ...]) -> np.ndarray:
@@ -45,7 +42,7 @@ def _vector_trace(envs: gym.vector.VectorEnv, actions: np.ndarray) -> list[tuple
     return trace
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", ALL_IDS)
 def test_single_env_restored_state_replays_bit_for_bit(env_id: str) -> None:
     env = gym.make(env_id, max_steps=80)
     env.reset(seed=12)
@@ -65,7 +62,7 @@ def test_single_env_restored_state_replays_bit_for_bit(env_id: str) -> None:
     assert _single_trace(fresh, actions) == expected
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", ALL_IDS)
 def test_vector_env_restored_state_replays_bit_for_bit(env_id: str) -> None:
     envs = gym.make_vec(env_id, num_envs=6, num_threads=2, max_steps=60)
     envs.reset(seed=4)
@@ -83,7 +80,7 @@ def test_vector_env_restored_state_replays_bit_for_bit(env_id: str) -> None:
     assert _vector_trace(one_thread, actions) == expected
 
 
-@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("env_id", ALL_IDS)
 def test_pickled_env_continues_like_the_original(env_id: str) -> None:
     env = gym.make(env_id, render_mode="rgb_array")
     env.reset(seed=8)
@@ -112,19 +109,31 @@ def test_pickled_vector_env_keeps_its_config_and_state(tmp_path) -> None:
     assert _vector_trace(clone, actions) == _vector_trace(envs, actions)
 
 
-def test_pettingzoo_env_pickles_mid_episode() -> None:
-    env = formation_v1.parallel_env()
+@pytest.mark.parametrize("name", list(PETTINGZOO_MODULES))
+def test_pettingzoo_env_pickles_mid_episode(name: str) -> None:
+    env = PETTINGZOO_MODULES[name].parallel_env()
     env.reset(seed=2)
     rng = np.random.default_rng(0)
+
+    def random_actions() -> dict[str, np.ndarray]:
+        return {
+            agent: rng.uniform(-1, 1, env.action_space(agent).shape).astype(np.float32)
+            for agent in env.agents
+        }
+
     for _ in range(10):
-        env.step({agent: rng.uniform(-1, 1, 2).astype(np.float32) for agent in env.agents})
+        env.step(random_actions())
     clone = pickle.loads(pickle.dumps(env))
     assert clone.agents == env.agents
-    for _ in range(40):
-        actions = {agent: rng.uniform(-1, 1, 2).astype(np.float32) for agent in env.agents}
+    steps = 0
+    while env.agents and steps < 40:
+        actions = random_actions()
         expected, got = env.step(actions)[0], clone.step(actions)[0]
+        assert list(got) == list(expected)
         for agent in expected:
             np.testing.assert_array_equal(got[agent], expected[agent])
+        steps += 1
+    assert clone.agents == env.agents
 
 
 def test_state_restores_in_a_spawned_process() -> None:

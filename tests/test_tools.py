@@ -14,8 +14,10 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
 from khepera_gym import bench, cli
+from khepera_gym.compare.command import DEMO_RUNS
 from khepera_gym.envs import formation_heuristic
 from khepera_gym.plot import plot_trajectories
+from khepera_gym.registration import registered_ids
 
 
 def test_plot_trajectories_draws_paths_and_saves_png(tmp_path: Path) -> None:
@@ -114,9 +116,8 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
 ) -> None:
     assert cli.main(["demo", "--episodes", "2", "--out-dir", str(tmp_path)]) == 0
     output = capsys.readouterr().out
-    # The paper's Fig. 6 and Fig. 7 scenes, then Nav, Avoid, Formation, Track, PathFollow,
-    # LineFollow, Seek and DroneFollow.
-    assert output.count("2 episodes per policy") == 10
+    # The paper's Fig. 6 and Fig. 7 scenes, then every task of the demo's list.
+    assert output.count("2 episodes per policy") == len(DEMO_RUNS)
     for task in (NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID):
         assert task in output
     for policy in ("position_control", "braitenberg", "vfh", "leader_follower", "random"):
@@ -144,26 +145,16 @@ def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixtu
     measurements = bench.run(
         num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False, task_envs=3
     )
-    assert [m.num_envs for m in measurements] == [2, 2] + [3] * 18 + [1]
-    assert [m.label for m in measurements][2:20] == [
-        "Avoid make_vec n=3",
-        "Avoid make_vec n=3",
-        "Formation make_vec n=3",
-        "Formation make_vec n=3",
-        "Track make_vec n=3",
-        "Track make_vec n=3",
-        "PathFollow make_vec n=3",
-        "PathFollow make_vec n=3",
-        "LineFollow make_vec n=3",
-        "LineFollow make_vec n=3",
-        "Seek make_vec n=3",
-        "Seek make_vec n=3",
-        "DroneFollow make_vec n=3",
-        "DroneFollow make_vec n=3",
-        "Nav+camera make_vec n=3",
-        "Nav+camera make_vec n=3",
-        "Nav+camera 1 ray make_vec n=3",
-        "Nav+camera 1 ray make_vec n=3",
+    # Nav at n = 2 on 1 and 2 threads, then every other task of the registry and the camera
+    # rows at n = 3 on 1 and 2 threads, then the single env.
+    labels = [env_id.removeprefix("KheperaIV-") for env_id in bench.OTHER_TASKS]
+    labels += [label for label, _ in bench.CAMERA_ROWS]
+    assert {"Avoid", "Formation", "Track", "PathFollow", "LineFollow", "Seek"} <= set(labels)
+    every_task = {ids[-1].rsplit("-v", 1)[0] for ids in registered_ids().values()}
+    assert {NAV_ID.rsplit("-v", 1)[0], *bench.OTHER_TASKS} == every_task
+    assert [m.num_envs for m in measurements] == [2, 2] + [3] * (2 * len(labels)) + [1]
+    assert [m.label for m in measurements][2:-1] == [
+        f"{label} make_vec n=3" for label in labels for _ in range(2)
     ]
     assert all(m.steps > 0 and m.env_steps_per_second > 0 for m in measurements)
     assert "env-steps/s" in capsys.readouterr().out

@@ -104,7 +104,7 @@ def test_odometry_localization_exposes_the_estimate_next_to_the_truth() -> None:
 
 @pytest.mark.parametrize("key", ["action_delay", "observation_delay"])
 def test_delays_are_checked(key: str) -> None:
-    with pytest.raises(ConfigError, match=f"task.{key}: must be at most 100"):
+    with pytest.raises(ConfigError, match=f"task.{key}: must be >= 0, <= 100, got 101"):
         gym.make("KheperaIV-Nav-v2", **{key: 101})
     with pytest.raises(ConfigError, match=f"task.{key}"):
         gym.make("KheperaIV-Nav-v2", **{key: -1})

@@ -336,7 +336,7 @@ fn test_bad_references_are_config_errors_naming_the_key() {
     assert_eq!(waypoints(fast), "track.waypoints"); // too fast for the wheels
     assert_eq!(
         waypoints("[[0, 0.3, 0], [5, 0, 0.3], [10, -0.3, 0], [15, 0, -0.3], [20, 0.3, nan]]"),
-        "track.waypoints"
+        "track.waypoints[4][2]"
     );
     // Waypoints with another reference would be silently ignored: refused.
     assert_eq!(

@@ -237,7 +237,10 @@ def scenario_table(task: str) -> str:
     parts = [
         f"Every key of the default scenario of `{task}` "
         f"(`khepera_gym.default_config({task!r})` prints it as TOML). The default is the latest "
-        f"version's (v{versions[-1]}); an older version's follows where it differs. Source tags: "
+        f"version's (v{versions[-1]}); an older version's follows where it differs. Allowed: "
+        "the values the core accepts, whether the scenario uses the key or not (anything else "
+        "is a `ConfigError` naming the key); `[low, high]` ranges take two such values, the "
+        "low one first, and a fixed-size array exactly its entries. Source tags: "
         + "; ".join(f"[{tag}] {meaning}" for tag, meaning in SOURCE_TAGS.items())
         + "."
     ]
@@ -247,7 +250,8 @@ def scenario_table(task: str) -> str:
         section = history.latest.section if history else None
         if section != current and rows:
             parts.append(
-                f"### `[{current}]`\n\n" + table(["Key", "Default", "Meaning", "Source"], rows)
+                f"### `[{current}]`\n\n"
+                + table(["Key", "Default", "Allowed", "Meaning", "Source"], rows)
             )
             rows = []
         if history is None:
@@ -258,6 +262,7 @@ def scenario_table(task: str) -> str:
             [
                 code(key.dotted),
                 _default_cell(history),
+                escape_cell(key.allowed) or "–",
                 escape_cell(key.comment) or "–",
                 ", ".join(key.tags) or "–",
             ]

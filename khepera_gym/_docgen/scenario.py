@@ -26,6 +26,8 @@ SOURCE_TAGS = {
     "S": "the value of another simulator's model (Webots, ARGoS, V-REP), not a measurement",
     "E": "an estimate or a design choice, to be tuned",
 }
+#: What the core writes after a key's comment: the values the key may take (its domain).
+ALLOWED = re.compile(r"; allowed: (?P<allowed>.*)$")
 _SECTION = re.compile(r"^\[(?P<name>[a-z_]+)\]\s*$")
 _KEY = re.compile(r"^(?P<key>[a-z_][a-z0-9_]*)\s*=\s*(?P<rest>.*)$")
 
@@ -40,6 +42,8 @@ class Key:
         value: Its default, as TOML gives it.
         text: The default as the file writes it (``0.2034543``, ``["ir", "us"]``).
         comment: The comment beside it: units, meaning, source.
+        allowed: The values it may take, as the core declares them (``finite, > 0, <= 1000``);
+            empty for a key without numbers or lengths (a string, a flag).
     """
 
     section: str
@@ -47,6 +51,7 @@ class Key:
     value: Any
     text: str
     comment: str
+    allowed: str = ""
 
     @property
     def dotted(self) -> str:
@@ -95,11 +100,16 @@ def parse_keys(text: str) -> list[Key]:
         if match is None or not section:
             continue
         value_text, comment = _split_value(match.group("rest"))
+        allowed = ""
+        found = ALLOWED.search(comment)
+        if found:
+            allowed = found.group("allowed")
+            comment = comment[: found.start()]
         try:
             value = values[section][match.group("key")]
         except KeyError:
             raise ValueError(f"cannot read [{section}] {match.group('key')} back") from None
-        keys.append(Key(section, match.group("key"), value, value_text, comment))
+        keys.append(Key(section, match.group("key"), value, value_text, comment, allowed))
     read = {(k.section, k.name) for k in keys}
     declared = {(s, k) for s, table in values.items() for k in table}
     if read != declared:
@@ -158,6 +168,7 @@ def key_histories(task: str) -> list[KeyHistory]:
 
 
 __all__ = [
+    "ALLOWED",
     "SOURCE_TAG",
     "SOURCE_TAGS",
     "Key",

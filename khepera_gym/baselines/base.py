@@ -31,9 +31,8 @@ def parameters(controller: str) -> list[tuple[str, Any, str]]:
     """The parameters of a controller of the Rust core, as declared there.
 
     Args:
-        controller: Its name: ``"position_control"``, ``"braitenberg"``, ``"vfh"``,
-            ``"leader_follower"``, ``"kanayama"``, ``"position_chase"``, ``"pure_pursuit"``,
-            ``"samson"`` or ``"waypoint_switching"`` (``_core.controllers()`` lists them).
+        controller: Its name, one of the core's registry (``_core.controllers()`` lists them:
+            ``"position_control"``, ...).
 
     Returns:
         ``(name, default, comment)`` per parameter, in order; the comment gives units and source.

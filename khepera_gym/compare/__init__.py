@@ -34,6 +34,14 @@ first worlds overlaid, one panel per policy, and each policy's error over time
   formation (Formation task);
 * ``kanayama``, ``position_chase``: :class:`khepera_gym.baselines.Kanayama` and
   :class:`khepera_gym.baselines.PositionChase` (Track task);
+* ``samson``, ``pure_pursuit``, ``waypoint_switching``: :class:`khepera_gym.baselines.Samson`,
+  :class:`~khepera_gym.baselines.PurePursuit` and :class:`~khepera_gym.baselines.WaypointSwitching`
+  (PathFollow task);
+* ``line_threshold``, ``line_proportional``: :class:`khepera_gym.baselines.LineThreshold` and
+  :class:`~khepera_gym.baselines.LineProportional` on the ground sensors (LineFollow task);
+* ``drone_pursuit``: :class:`khepera_gym.baselines.DronePursuit` (DroneFollow task);
+* ``blob_servo``, ``blob_vfh``: :class:`khepera_gym.baselines.BlobServo` and
+  :class:`~khepera_gym.baselines.BlobVFH` on the camera (Seek task);
 * ``random``: uniform actions in [-1, 1] from a generator seeded with the comparison's seed;
 * ``sb3:path/to/model.zip``: a stable-baselines3 model, loaded with ``--algo``'s class or by
   trying PPO, SAC, TD3, A2C and DQN in turn, acting deterministically (needs the ``sb3`` extra).

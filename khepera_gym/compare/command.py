@@ -9,6 +9,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from khepera_gym import cli_checks
 from khepera_gym.compare.consensus import report as consensus_report
 from khepera_gym.compare.consensus import sweep as consensus_sweep
 from khepera_gym.compare.metrics import task_metrics
@@ -94,6 +95,7 @@ def run_from_args(args: argparse.Namespace) -> int:
     if args.task == "consensus":
         return _run_consensus(args)
     try:
+        _check_counts(args)
         env_id = resolve_env_id(args.task, args.env)
         task = task_of(env_id)  # any version's id: v0 and v1 compare their task's baselines too
         policies = args.policy or list(DEFAULT_POLICIES.get(task or "", ("random",)))
@@ -112,31 +114,47 @@ def run_from_args(args: argparse.Namespace) -> int:
             progress=args.progress,
             algo=args.algo,
             overrides=overrides,
+            before_running=lambda: cli_checks.output_folder(args.out, "--out"),
         )
     except (ValueError, ImportError, OSError, KheperaError) as error:
-        raise SystemExit(f"khepera-gym compare: {error}") from error
+        raise SystemExit(f"khepera-gym compare: {cli_checks.one_line(error)}") from error
     report(comparison, args.out, plot=args.plot)
     return 0
+
+
+def _check_counts(args: argparse.Namespace) -> None:
+    """The numeric options of ``compare``, before anything is built.
+
+    Raises:
+        ConfigError: A count below its least value or a seed out of range.
+    """
+    cli_checks.at_least(args.episodes, 1, "--episodes")
+    cli_checks.seed(args.seed)
+    cli_checks.at_least(args.num_threads, 1, "--num-threads")
+    cli_checks.at_least(args.plot_worlds, 0, "--plot-worlds")
 
 
 def _run_consensus(args: argparse.Namespace) -> int:
     """``compare --task consensus``: the trigger sweep of :mod:`khepera_gym.compare.consensus`."""
     try:
+        _check_counts(args)
         if args.policy:
             raise ConfigError(
                 "--task consensus runs the consensus law (ConsensusLaw) under every trigger "
                 "setting; --policy does not apply"
             )
+        overrides = parse_overrides(getattr(args, "overrides", None) or [])
+        cli_checks.output_folder(args.out, "--out")
         rows = consensus_sweep(
             episodes=args.episodes,
             seed=args.seed,
             config=args.config,
-            overrides=parse_overrides(getattr(args, "overrides", None) or []),
+            overrides=overrides,
             num_threads=args.num_threads,
             progress=args.progress,
         )
     except (ValueError, OSError, KheperaError) as error:
-        raise SystemExit(f"khepera-gym compare: {error}") from error
+        raise SystemExit(f"khepera-gym compare: {cli_checks.one_line(error)}") from error
     consensus_report(rows, args.out, plot=args.plot)
     return 0
 

@@ -35,6 +35,7 @@ from khepera_gym.compare.stats import (
 )
 from khepera_gym.config import ConfigArg
 from khepera_gym.errors import ConfigError
+from khepera_gym.face import WORLD_STATS_KEY
 from khepera_gym.pettingzoo.arrays import MultiAgentArrayEnv
 from khepera_gym.provenance import provenance
 
@@ -112,7 +113,7 @@ def run_setting(
     stats: dict[str, Any] = {}
     while not stats:
         observations, _, _, _, info = env.step(policy(observations))
-        stats = info.get("episode_stats", {})
+        stats = info.get(WORLD_STATS_KEY, {})  # each world's, with the consensus errors
     times = np.asarray(stats["consensus_converge_time"], dtype=float)
     return SweepRow(
         trigger=trigger,

@@ -15,9 +15,8 @@ import numpy.typing as npt
 from khepera_gym import baselines
 from khepera_gym.errors import ConfigError, KheperaError
 
-#: The baselines by their controller's name (``position_control``, ``braitenberg``, ``vfh``,
-#: ``leader_follower``, ``kanayama``, ``position_chase``, and any controller added to the core
-#: with its class in baselines).
+#: The baselines by their controller's name (``position_control``, ...: every controller of the
+#: core with a comparable class in baselines, found by listing the subclasses).
 BASELINES: dict[str, type[baselines.BaselinePolicy]] = {
     cls.CONTROLLER: cls
     for cls in baselines.BaselinePolicy.__subclasses__()

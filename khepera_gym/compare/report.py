@@ -206,7 +206,10 @@ def plot_comparison(comparison: Comparison, out_dir: Path) -> Path | None:
     titles = [panel_title(f"{r.label} (seed {r.seed})", r) for r in rollouts]
     figure = plot_rollouts(rollouts, titles, ncols=len(names), suptitle=suptitle)
     if comparison.metrics.path_trace:
+        # The path's points closest to the robot, for rollouts whose scene has no path drawn.
         for ax, rollout in zip(figure.axes, rollouts, strict=False):
+            if rollout.scene.get("paths"):
+                continue
             if rollout.targets is not None and len(rollout.targets):
                 closest = np.asarray(rollout.targets)[:, 0]
                 ax.plot(*closest.T, "--", color="0.45", linewidth=1.0, zorder=1, label="path")

@@ -8,7 +8,7 @@ world, ‖robot − reference‖, is also kept after every step for the error-vs
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
+from khepera_gym import registration
 from khepera_gym.compare.metrics import TaskMetrics, summarize_errors, task_metrics
 from khepera_gym.compare.policies import Policy, make_policy
 from khepera_gym.compare.stats import Estimate, bootstrap_interval, wilson_interval
@@ -376,24 +377,22 @@ def resolve_env_id(task: str | None = None, env_id: str | None = None) -> str:
         ValueError: Neither or both given, an unknown task, or an id that is not registered.
     """
     if (task is None) == (env_id is None):
-        raise ValueError("give either a task (nav, avoid, formation) or an env id, not both")
+        raise ValueError("give either a task (--task) or an env id (--env), not both")
     if task is not None:
         task_ids = latest_ids()
         if task not in task_ids:
             raise ValueError(f"unknown task {task!r}; known: {', '.join(task_ids)}")
         return task_ids[task]
     assert env_id is not None
-    if env_id in gym.registry:
-        return env_id
-    versions = sorted(
-        (spec.version, spec.id)
-        for spec in gym.registry.values()
-        if spec.name == env_id and spec.namespace is None and spec.version is not None
-    )
-    if not versions:
-        known = ", ".join(sorted(i for i in gym.registry if i.startswith("KheperaIV-")))
-        raise ValueError(f"environment {env_id!r} is not registered; known: {known}")
-    return versions[-1][1]
+    try:
+        return registration.resolve_env_id(env_id)
+    except ConfigError:
+        nearest = registration.nearest_id(env_id)
+        hint = f"did you mean {nearest!r}? " if nearest is not None else ""
+        raise ConfigError(
+            f"environment {env_id!r} is not registered; {hint}`khepera-gym list envs` lists "
+            "them all"
+        ) from None
 
 
 def _label(env_id: str, config: str | None, overrides: dict[str, Any] | None = None) -> str:
@@ -421,6 +420,7 @@ def compare(
     progress: bool = True,
     algo: str | None = None,
     overrides: dict[str, Any] | None = None,
+    before_running: Callable[[], Any] | None = None,
 ) -> Comparison:
     """Runs every policy on the same N seeded episodes and summarises them.
 
@@ -436,6 +436,8 @@ def compare(
         algo: stable-baselines3 algorithm of ``sb3:`` policies.
         overrides: Scenario keys overriding the config, as for ``gym.make`` (e.g.
             ``{"wheel_accel_limit": 0.678}``).
+        before_running: Called once everything is checked (the env made, every policy built)
+            and before the first step: the command line's output folder is made there.
 
     Returns:
         The :class:`Comparison`.
@@ -462,6 +464,8 @@ def compare(
     try:
         # Every policy is built (sb3 models loaded) before anything runs: errors come first.
         built = {name: make_policy(name, env, seed, algo) for name in policies}
+        if before_running is not None:
+            before_running()
         results, rollouts, traces = {}, {}, {}
         for name, policy in built.items():
             trace: list[np.ndarray] | None = [] if metrics.moving_reference else None

@@ -22,10 +22,11 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym import _core
-from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed
+from khepera_gym._inputs import as_action_array, check_options, check_seed
 from khepera_gym.config import VERSION_KEY, ConfigArg, make_batch
+from khepera_gym.errors import ConfigError
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
-from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.render import Renderer
 
 #: The single-world env class of each task, by the Rust core's task name (filled by subclasses).
 ENV_CLASSES: dict[str, type[KheperaEnv]] = {}
@@ -39,7 +40,9 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
             window refreshed after every step; ``pip install khepera-gym[render]``).
         config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.
         action_type: "wheels" (normalised left/right wheel speeds) or "unicycle" (normalised v, ω).
-        frame_size: (width, height) of rendered frames in pixels.
+        frame_size: (width, height) of rendered frames in pixels;
+            None: 480 x 480, more for an arena over 4 m
+            (:func:`khepera_gym.render.default_frame_size`).
         **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1`` or
             ``task={"max_steps": 100}`` (see the task's docstring, section Scenario file), and
             ``version``: the behaviour version whose defaults apply (registered ids pass it;
@@ -67,7 +70,7 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
         render_mode: str | None = None,
         config: ConfigArg = None,
         action_type: str = "wheels",
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        frame_size: tuple[int, int] | None = None,
         **overrides: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
@@ -113,15 +116,26 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
         """Start a new episode.
 
         Args:
-            seed: Seeds the world's random stream; None continues it (the very first reset without
-                a seed draws one from ``self.np_random``).
-            options: Unused; accepted for API compatibility.
+            seed: Seeds the world's random stream (a Python int in [0, 2**64)); None continues
+                it (the very first reset without a seed draws one
+                from ``self.np_random``).
+            options: None or a dict; unused, accepted for API compatibility.
 
         Returns:
             The first observation and an empty info dict.
+
+        Raises:
+            ConfigError: A seed that is not a Python int in [0, 2**64) or None, or options that
+                are not a dict (before Gymnasium sees them).
         """
-        if isinstance(seed, int) and seed >= SEED_LIMIT:  # Gymnasium checks the rest
-            check_seed(seed)
+        if seed is not None and not isinstance(seed, int):
+            # Gymnasium seeds with Python ints only (not NumPy's): say so with our error.
+            raise ConfigError(
+                f"seed must be a Python int in [0, 2**64) or None, got {type(seed).__name__}: "
+                f"{seed!r}"
+            )
+        check_seed(seed)
+        check_options(options)
         super().reset(seed=seed)
         if seed is None and not self._has_reset:
             seed = first_seed(self.np_random)

@@ -27,7 +27,7 @@ Units: the observation is the simulator's (SI units, normalised sensors); wheel 
 K-Team speed units of 0.678181 mm/s. Threading: everything runs in the calling thread.
 """
 
-from khepera_gym.export.c_writer import C_SOURCES, write_c
+from khepera_gym.export.c_writer import C_SOURCES, ROBOT_HEADERS, ROBOT_SOURCES, write_c
 from khepera_gym.export.checks import (
     C_FLAGS,
     OBSERVATION_TOLERANCE,
@@ -74,6 +74,8 @@ __all__ = [
     "ONNX_FILE",
     "ONNX_OPSET",
     "PARITY_TOLERANCE",
+    "ROBOT_HEADERS",
+    "ROBOT_SOURCES",
     "SCENARIO_FILE",
     "SUPPORTED_MODELS",
     "ActionTransform",

@@ -13,9 +13,11 @@
 * ``wheel_command.c``/``.h``: the action to ``kh4_set_speed`` units, as the simulator turns
   actions into wheel speeds;
 * the template program ``khepera_policy_main.c`` (libkhepera: sensors, dead reckoning, policy,
-  wheel speeds every control period) with ``khepera_policy_config.h``, ``export_check.c`` (runs
-  the exported code on rows of numbers, for parity checks on a PC or on the robot), a Makefile
-  and a README.
+  wheel speeds every control period, and with ``--log FILE`` a robot log) with
+  ``khepera_policy_config.h`` and the files it shares with the calibration program
+  (:data:`ROBOT_SOURCES`: the readings, the log, the clock), ``export_check.c`` (runs the
+  exported code on rows of numbers, for parity checks on a PC or on the robot), a Makefile and a
+  README.
 
 The fixed parts are files of ``khepera_gym/export/templates/`` with ``$``-placeholders
 (``string.Template``). Float constants are written so that they read back as the same float32
@@ -47,6 +49,33 @@ from khepera_gym.export.robot import (
 
 #: The C files of the exported code that ``export_check`` and the robot program link.
 C_SOURCES = ("policy.c", "observation.c", "wheel_command.c")
+#: The C files every robot program links besides (libkhepera readings, the robot log, the
+#: clock), with their headers: the same files in the export and in the calibration program.
+ROBOT_SOURCES = ("khepera_sensors.c", "khepera_log.c", "khepera_clock.c")
+ROBOT_HEADERS = ("khepera_sensors.h", "khepera_log.h", "khepera_clock.h")
+#: The accelerometer and gyroscope sample at about 100 Hz (docs/robot.md §6).
+IMU_RATE_HZ = 100.0
+#: The nominal wheel radius (m) K-Team's speed unit refers to (docs/robot.md §1).
+NOMINAL_WHEEL_RADIUS = 0.021
+
+
+def imu_samples(control_period: float) -> int:
+    """The newest IMU samples (of the 10 an axis libkhepera returns) a log row averages: those
+    of one control period."""
+    return min(10, max(1, round(control_period * IMU_RATE_HZ)))
+
+
+def mm_s_per_unit(wheel_radius: float) -> float:
+    """One ``kh4_set_speed`` unit (a pulse per 10 ms) in mm/s of ground speed for wheels of
+    ``wheel_radius`` m: K-Team's 0.678181 at 21 mm, in proportion otherwise (a calibrated robot)."""
+    if wheel_radius == NOMINAL_WHEEL_RADIUS:
+        return MM_S_PER_SPEED_UNIT
+    return MM_S_PER_SPEED_UNIT * wheel_radius / NOMINAL_WHEEL_RADIUS
+
+
+def shared_robot_sources() -> dict[str, str]:
+    """The files every robot program links (:data:`ROBOT_SOURCES`, :data:`ROBOT_HEADERS`)."""
+    return {name: load_template(name).template for name in (*ROBOT_SOURCES, *ROBOT_HEADERS)}
 
 
 def _c_float(value: float) -> str:
@@ -60,7 +89,7 @@ def _c_float(value: float) -> str:
     return text + "f"
 
 
-def _c_double(value: float) -> str:
+def c_double(value: float) -> str:
     """A double literal that reads back as exactly ``value``."""
     if not math.isfinite(value):
         raise ConfigError(f"cannot write the non-finite value {value} as a C constant")
@@ -84,7 +113,7 @@ def _c_name(name: str) -> str:
     return re.sub(r"\W", "_", name)
 
 
-def _template(name: str) -> string.Template:
+def load_template(name: str) -> string.Template:
     """A file of khepera_gym/export/templates/ ($-placeholders, see string.Template)."""
     text = importlib.resources.files("khepera_gym.export").joinpath("templates", name)
     return string.Template(text.read_text("utf-8"))
@@ -108,11 +137,11 @@ def _policy_constants(network: PolicyNetwork) -> str:
         parts.append(
             "/* VecNormalize statistics: clip((obs - mean) / sqrt(var + epsilon)), in double as\n"
             f" * stable-baselines3 computes it (epsilon {norm.epsilon:g} is in OBS_STD). */\n"
-            f"#define OBS_CLIP {_c_double(norm.clip)}\n"
+            f"#define OBS_CLIP {c_double(norm.clip)}\n"
             "static const double OBS_MEAN[POLICY_OBS_DIM] = {\n    "
-            f"{_c_array(_c_double(v) for v in norm.mean)}\n}};\n"
+            f"{_c_array(c_double(v) for v in norm.mean)}\n}};\n"
             "static const double OBS_STD[POLICY_OBS_DIM] = {\n    "
-            f"{_c_array(_c_double(v) for v in norm.std)}\n}};\n"
+            f"{_c_array(c_double(v) for v in norm.std)}\n}};\n"
         )
     for index, layer in enumerate(network.layers):
         rows = ",\n".join(
@@ -206,7 +235,7 @@ def policy_c_sources(network: PolicyNetwork, provenance: str) -> dict[str, str]:
         "constants": _policy_constants(network),
         "forward": _policy_forward(network),
     }
-    return {name: _template(name).substitute(fields) for name in ("policy.h", "policy.c")}
+    return {name: load_template(name).substitute(fields) for name in ("policy.h", "policy.c")}
 
 
 def _input_fields(robot: RobotInterface) -> list[tuple[str, str, int, str]]:
@@ -267,7 +296,7 @@ def _input_fields(robot: RobotInterface) -> list[tuple[str, str, int, str]]:
     return fields
 
 
-def _wrap_comment(text: str, indent: str) -> str:
+def wrap_comment(text: str, indent: str) -> str:
     """A ``/* ... */`` comment of ``text`` wrapped to 100 columns."""
     lines = textwrap.wrap(text, 100 - len(indent) - 3)
     return "\n".join(
@@ -333,7 +362,7 @@ def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
         "max_wheel_speed": _c_float(robot.max_wheel_speed),
         "arena_diagonal": _c_float(robot.arena_diagonal),
         "fields": "\n".join(
-            f"{_wrap_comment(comment + '.', '    ')}\n    {c_type} {name}[{count}];"
+            f"{wrap_comment(comment + '.', '    ')}\n    {c_type} {name}[{count}];"
             for name, c_type, count, comment in fields
         ),
     }
@@ -351,8 +380,8 @@ def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
         ),
     }
     return {
-        "observation.h": _template("observation.h").substitute(header),
-        "observation.c": _template("observation.c").substitute(source),
+        "observation.h": load_template("observation.h").substitute(header),
+        "observation.c": load_template("observation.c").substitute(source),
     }
 
 
@@ -385,14 +414,18 @@ def robot_c_sources(
         "max_wheel_speed": _c_float(robot.max_wheel_speed),
         "min_wheel_speed": _c_float(robot.min_wheel_speed),
         "axle_length": _c_float(robot.axle_length),
-        "mm_s_per_unit": _c_float(MM_S_PER_SPEED_UNIT),
+        "mm_s_per_unit": _c_float(mm_s_per_unit(robot.wheel_radius)),
         "max_units": MAX_SPEED_UNITS,
     }
     config_fields = {
-        "control_period": _c_double(robot.control_period),
-        "goal_radius": _c_double(robot.goal_radius),
-        "axle_length": _c_double(robot.axle_length),
-        "metres_per_pulse": _c_double(2.0 * math.pi * robot.wheel_radius / PULSES_PER_WHEEL_TURN),
+        "version": khepera_gym.__version__,
+        "env_id": robot.env_id,
+        "control_period": c_double(robot.control_period),
+        "goal_radius": c_double(robot.goal_radius),
+        "axle_length": c_double(robot.axle_length),
+        "wheel_radius": c_double(robot.wheel_radius),
+        "metres_per_pulse": c_double(2.0 * math.pi * robot.wheel_radius / PULSES_PER_WHEEL_TURN),
+        "imu_samples": imu_samples(robot.control_period),
         # The real robot pings only when the policy sees the ultrasonic sensors.
         "us_mask": sum(1 << i for i, on in enumerate(robot.us_enabled) if on)
         if robot.observes("us")
@@ -404,23 +437,26 @@ def robot_c_sources(
         "min_speed_acc": motors.min_speed_acc,
         "min_speed_dec": motors.min_speed_dec,
         "profile_max_speed": PROFILE_MAX_SPEED,
-        "motor_note": _wrap_comment(
+        "motor_note": wrap_comment(
             "The motor controller, as the policy was trained: " + motors.note + ".", ""
         ),
     }
     return {
-        "wheel_command.h": _template("wheel_command.h").substitute(wheel_fields),
-        "wheel_command.c": _template("wheel_command.c").template,
-        "khepera_policy_config.h": _template("khepera_policy_config.h").substitute(config_fields),
-        "khepera_policy_main.c": _template("khepera_policy_main.c").template,
-        "export_check.c": _template("export_check.c").template,
-        "Makefile": _template("Makefile").template,
+        "wheel_command.h": load_template("wheel_command.h").substitute(wheel_fields),
+        "wheel_command.c": load_template("wheel_command.c").template,
+        "khepera_policy_config.h": load_template("khepera_policy_config.h").substitute(
+            config_fields
+        ),
+        "khepera_policy_main.c": load_template("khepera_policy_main.c").template,
+        **shared_robot_sources(),
+        "export_check.c": load_template("export_check.c").template,
+        "Makefile": load_template("Makefile").template,
     }
 
 
 def readme(network: PolicyNetwork, robot: RobotInterface) -> str:
     """The README of an export: its files, the observation layout, building and checking."""
-    return _template("README.md").safe_substitute(
+    return load_template("README.md").safe_substitute(
         env_id=robot.env_id,
         source=network.source,
         version=khepera_gym.__version__,
@@ -462,9 +498,17 @@ def write_c(
 
 __all__ = [
     "C_SOURCES",
+    "ROBOT_HEADERS",
+    "ROBOT_SOURCES",
+    "c_double",
+    "imu_samples",
+    "load_template",
+    "mm_s_per_unit",
     "observation_c_sources",
     "policy_c_sources",
     "readme",
     "robot_c_sources",
+    "shared_robot_sources",
+    "wrap_comment",
     "write_c",
 ]

@@ -1,21 +1,23 @@
 """PettingZoo environments: one agent per controlled Khepera IV robot, over the same Rust core.
 
-* :mod:`khepera_gym.pettingzoo.formation_v1`: followers holding a formation around a leader
-  (agents ``follower_0``.., plus ``leader`` with ``leader="agent"``; the manual:
-  :mod:`khepera_gym.pettingzoo.formation`);
-* :mod:`khepera_gym.pettingzoo.multinav_v1`: robots driving to their own goals
-  (agents ``robot_0``..; the manual: :mod:`khepera_gym.pettingzoo.multinav`);
-* :mod:`khepera_gym.pettingzoo.consensus_v1`: robots reaching a rendezvous or a formation from
-  their neighbours' messages (agents ``robot_0``..; the manual: its ``ConsensusParallelEnv``;
-  no v0);
-* :mod:`khepera_gym.pettingzoo.drone_follow_v1`: a quadcopter following a Khepera IV (agent
-  ``drone``; the manual: :class:`khepera_gym.envs.DroneFollowEnv`);
-* :mod:`khepera_gym.pettingzoo.platoon_v1`: robots tracking time-shifted copies of one reference
-  trajectory (agents ``robot_0``..; the manual: its ``PlatoonParallelEnv``; no v0).
+One module per task and behaviour version, ``<task>_v<n>`` (:func:`modules` finds them by
+listing this package; ``khepera-gym list pettingzoo`` prints them); the latest version of each:
+
+* ``formation_vN``: followers holding a formation around a leader (agents ``follower_0``..,
+  plus ``leader`` with ``leader="agent"``; the manual: :mod:`khepera_gym.pettingzoo.formation`);
+* ``multinav_vN``: robots driving to their own goals (agents ``robot_0``..; the manual:
+  :mod:`khepera_gym.pettingzoo.multinav`);
+* ``consensus_vN``: robots reaching a rendezvous or a formation from their neighbours' messages
+  (agents ``robot_0``..; the manual: its ``ConsensusParallelEnv``);
+* ``drone_follow_vN``: a quadcopter following a Khepera IV (agent ``drone``, plus ``robot``
+  with ``driver="agent"``; the manual: :class:`khepera_gym.envs.DroneFollowEnv`);
+* ``platoon_vN``: robots tracking time-shifted copies of one reference trajectory (agents
+  ``robot_0``..; the manual: its ``PlatoonParallelEnv``).
 
 The ``_v0`` modules keep the v0 dynamics (kinematic drive, frictionless contacts, instant wheel
 speeds) so that published v0 numbers reproduce; see the Version History of
-:class:`khepera_gym.envs.NavEnv`.
+:class:`khepera_gym.envs.NavEnv`. ``tests/test_lists_from_registries.py`` checks that this list
+names every task of :func:`modules` and that ``__all__`` holds every module.
 
 Each module has ``parallel_env(**kwargs)`` (a ``pettingzoo.ParallelEnv``) and ``env(**kwargs)``
 (its AEC version). Requires ``pettingzoo`` (a dependency of khepera_gym).

@@ -21,12 +21,12 @@ import numpy as np
 import numpy.typing as npt
 from pettingzoo import ParallelEnv
 
-from khepera_gym._inputs import as_action_array, check_seed
+from khepera_gym._inputs import as_action_array, check_options, check_seed
 from khepera_gym.config import ConfigArg, make_batch
-from khepera_gym.errors import ActionError, KheperaError
-from khepera_gym.face import BatchFace, check_render_mode, first_seed
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
+from khepera_gym.face import WORLD_STATS_KEY, BatchFace, check_render_mode, first_seed
 from khepera_gym.layout import layout_dict
-from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.render import Renderer
 
 #: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
 #: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
@@ -34,6 +34,26 @@ ACTION_DIM = 2
 
 AgentObs = npt.NDArray[np.float32]
 AgentAction = npt.NDArray[np.float32]
+
+
+def merge_table_keywords(kwargs: dict[str, Any], table: str, values: Mapping[str, Any]) -> None:
+    """Puts the keyword arguments ``values`` that are not None (``n_followers=4``) into the
+    scenario table ``table`` of ``kwargs`` (``formation={...}``, which may already hold some of
+    its keys; the arguments win), in place: how a wrapper's own keywords set its task's keys.
+
+    Raises:
+        ConfigError: ``kwargs[table]`` is given and is not a dict of keys (``formation=5``,
+            ``formation="cross"``): the table keyword takes a table.
+    """
+    given = kwargs.pop(table, None)
+    if given is not None and not isinstance(given, Mapping):
+        raise ConfigError(
+            f"{table}= takes a dict of [{table}] keys, got {type(given).__name__}: {given!r}"
+        )
+    merged = dict(given or {})
+    merged.update({key: value for key, value in values.items() if value is not None})
+    if given is not None or merged:
+        kwargs[table] = merged
 
 
 class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
@@ -46,7 +66,9 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             None keeps the scenario's. ``max_steps`` is accepted as a synonym.
         render_mode: None, "rgb_array" (``render()`` returns the frame) or "human" (a pygame
             window, refreshed after every step).
-        frame_size: (width, height) of the frame in pixels.
+        frame_size: (width, height) of the frame in pixels;
+            None: 480 x 480, more for an arena over 4 m
+            (:func:`khepera_gym.render.default_frame_size`).
         **overrides: Scenario keys overriding the file, as for the Gymnasium envs.
 
     Raises:
@@ -72,7 +94,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         action_type: str = "wheels",
         max_cycles: int | None = None,
         render_mode: str | None = None,
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        frame_size: tuple[int, int] | None = None,
         **overrides: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
@@ -121,7 +143,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         self.state_space = joint_space
         #: Steps after which every remaining agent is truncated. PettingZoo's tests assign it: a
         #: value above the scenario's ``max_steps`` changes nothing (the core truncates first); a
-        #: lower one truncates earlier, but then the infos carry no "episode_stats" (the core's
+        #: lower one truncates earlier, but then the infos carry no statistics (the core's
         #: episode has not ended; prefer ``max_cycles=`` at construction).
         self.max_cycles: int = self._batch.max_episode_steps
         self.agents: list[str] = []
@@ -153,14 +175,19 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         """Start a new episode with every possible agent.
 
         Args:
-            seed: Seeds the world's random stream; None continues it (the very first reset
-                without a seed draws one from the operating system's entropy).
-            options: Unused; accepted for API compatibility.
+            seed: Seeds the world's random stream (an int in [0, 2**64)); None continues it (the
+                very first reset without a seed draws one from the operating system's entropy).
+            options: None or a dict; unused, accepted for API compatibility.
 
         Returns:
             Observations and (empty) infos, keyed by agent.
+
+        Raises:
+            ConfigError: A seed that is not an int in [0, 2**64), or options that are not a
+                dict.
         """
         seed = check_seed(seed)
+        check_options(options)
         if seed is None and not self._has_reset:
             seed = first_seed()
         self._observation = self._batch.reset(seed)[0]
@@ -190,8 +217,13 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         Returns:
             ``(observations, rewards, terminations, truncations, infos)``, each keyed by the agents
             that were live before the step. An agent that terminated or was truncated leaves
-            ``self.agents``; at the episode's end every remaining agent does, and each one's info
-            holds ``"episode_stats"`` (the Gymnasium env's statistics, Python scalars).
+            ``self.agents``; at the episode's end every remaining agent does. The info of an
+            agent that leaves holds ``"episode_stats"``, its own statistics (Python scalars: the
+            sum of its rewards, the steps it took part in, its success as the task defines it
+            for one agent, its robot's path length and steps in contact); at the episode's end
+            every remaining agent's info also holds ``"world_episode_stats"``, the world's (all
+            agents together, as the Gymnasium env's ``"episode_stats"``, with the task's own
+            statistics). An agent truncated early by a lowered ``max_cycles`` gets neither.
 
         Raises:
             ActionError: ``actions`` is not a mapping, misses a live agent, names one that is not
@@ -215,7 +247,14 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         terminated: dict[str, bool] = {}
         truncated: dict[str, bool] = {}
         infos: dict[str, dict[str, Any]] = {}
-        stats = self._world_episode_stats(0) if episode_over else None
+        world_stats = self._world_episode_stats(0) if episode_over else None
+        # Each agent's own statistics, for the agents that leave now (the core's figures are
+        # final for an agent it terminated, and for every agent when the episode ended).
+        own_stats = (
+            self._agent_episode_stats(0)
+            if episode_over or agent_terminated[[self._agent_index[a] for a in live]].any()
+            else None
+        )
         for agent in live:
             index = self._agent_index[agent]
             observation_dict[agent] = self._observation[self._obs_slices[agent]]
@@ -224,7 +263,12 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             # When the episode ends every remaining agent leaves: terminated if the core says so
             # (it terminates them all when the episode terminates), else truncated.
             truncated[agent] = not terminated[agent] and (episode_over or cut_short)
-            infos[agent] = {} if stats is None else {"episode_stats": dict(stats)}
+            info: dict[str, Any] = {}
+            if own_stats is not None and (terminated[agent] or episode_over):
+                info["episode_stats"] = own_stats[index]
+            if world_stats is not None:
+                info[WORLD_STATS_KEY] = dict(world_stats)
+            infos[agent] = info
         self.agents = [agent for agent in live if not (terminated[agent] or truncated[agent])]
         if self.render_mode == "human":
             self.render()
@@ -281,4 +325,4 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             renderer.close()
 
 
-__all__ = ["ACTION_DIM", "KheperaParallelEnv"]
+__all__ = ["ACTION_DIM", "KheperaParallelEnv", "merge_table_keywords"]

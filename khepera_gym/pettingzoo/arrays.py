@@ -7,9 +7,14 @@ task and steps them all with one array of actions ``(num_envs, n_agents, 2)``; i
 observations ``(num_envs, n_agents, obs_dim)``, rewards and terminations ``(num_envs, n_agents)``
 and truncations ``(num_envs,)``, in the order of ``agents``. A world whose episode ended is reset
 by the next ``step``, which returns its first observation with zero rewards and false flags
-(Gymnasium's NEXT_STEP autoreset); ``info["episode_stats"]`` then holds its statistics, with
-``_name`` masks as a Gymnasium vector env's infos. The agents' rewards and terminations are the
-PettingZoo env's (a multinav robot that arrived is terminated as an agent and parks).
+(Gymnasium's NEXT_STEP autoreset). At the step a world's episode ends, ``info["episode_stats"]``
+holds each agent's own statistics, arrays ``(num_envs, n_agents)`` ("return": the sum of its
+rewards while it took part, "length", "success" as the task defines it for one agent,
+"path_length", "collisions"), and ``info["world_episode_stats"]`` the world's, arrays
+``(num_envs,)`` (all agents together, with the task's own statistics); each has ``_name`` masks
+``(num_envs,)`` of the worlds that ended, as a Gymnasium vector env's infos. The agents' rewards
+and terminations are the PettingZoo env's (a multinav robot that arrived is terminated as an
+agent and parks; its statistics stop there).
 
 Units are SI (m, s, rad); robot frame x forward, y left. Threading: the worlds (and a swarm's
 robots) are stepped on ``num_threads`` threads with the GIL released; results do not depend on
@@ -26,9 +31,9 @@ import numpy.typing as npt
 
 from khepera_gym._inputs import check_seed
 from khepera_gym.config import ConfigArg, make_batch
-from khepera_gym.errors import ActionError, ConfigError
+from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.face import BatchFace, first_seed
-from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.render import Renderer
 
 #: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
 #: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
@@ -46,7 +51,9 @@ class MultiAgentArrayEnv(BatchFace):
         action_type: "wheels" or "unicycle".
         num_threads: Threads stepping the worlds and a swarm's robots; None uses every core.
         render_mode: None or "rgb_array" (``render()`` returns world 0's frame).
-        frame_size: (width, height) of the frame in pixels.
+        frame_size: (width, height) of the frame in pixels;
+            None: 480 x 480, more for an arena over 4 m
+            (:func:`khepera_gym.render.default_frame_size`).
         **overrides: Scenario keys overriding the file, as for the Gymnasium envs.
 
     Raises:
@@ -64,7 +71,7 @@ class MultiAgentArrayEnv(BatchFace):
         action_type: str = "wheels",
         num_threads: int | None = None,
         render_mode: str | None = None,
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        frame_size: tuple[int, int] | None = None,
         **overrides: Any,
     ) -> None:
         if render_mode not in (None, "rgb_array"):
@@ -146,11 +153,16 @@ class MultiAgentArrayEnv(BatchFace):
             ``(observations, rewards, terminated, truncated, info)``: observations
             ``(num_envs, n_agents, obs_dim)``, each agent's reward and termination
             ``(num_envs, n_agents)``, each world's truncation ``(num_envs,)``, and on an episode's
-            end ``info["episode_stats"]`` (arrays over worlds with ``_name`` masks).
+            end ``info["episode_stats"]`` (each agent's own, ``(num_envs, n_agents)``) and
+            ``info["world_episode_stats"]`` (the world's, ``(num_envs,)``), with ``_name`` masks
+            of the worlds that ended.
 
         Raises:
             ActionError: ``actions`` of another shape, not numbers, or not finite.
+            KheperaError: ``step`` before the first ``reset()``.
         """
+        if not self._has_reset:
+            raise KheperaError("step() before reset(): the worlds were never started; call reset()")
         shape = (*self._shape, self._batch.agent_act_dim)
         try:
             array = np.asarray(actions, dtype=np.float32)
@@ -165,7 +177,7 @@ class MultiAgentArrayEnv(BatchFace):
         rewards = self._batch.agent_rewards()
         terminated = self._batch.agent_terminated()
         ended = terminations | truncations
-        info = self._vector_episode_info(ended) if ended.any() else {}
+        info = self._vector_agent_episode_info(ended) if ended.any() else {}
         return self._observations(observations), rewards, terminated, truncations, info
 
     def render(self) -> npt.NDArray[np.uint8] | None:

@@ -16,7 +16,12 @@ from pettingzoo import AECEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from khepera_gym.config import ConfigArg
-from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs, KheperaParallelEnv
+from khepera_gym.pettingzoo._parallel import (
+    AgentAction,
+    AgentObs,
+    KheperaParallelEnv,
+    merge_table_keywords,
+)
 
 
 class ConsensusParallelEnv(KheperaParallelEnv):
@@ -97,8 +102,9 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     ## Episode End
 
     No termination (`consensus.tolerance` only defines convergence); truncation after
-    `task.max_steps` = 600 steps (30 s), or `max_cycles`. At the end each agent's info holds
-    `"episode_stats"`: the common statistics and `"consensus_error_final"` (m),
+    `task.max_steps` = 600 steps (30 s), or `max_cycles`. At the end each agent's info holds its
+    own `"episode_stats"` (its return, length, success, path length, contacts) and
+    `"world_episode_stats"`: the world's common statistics and `"consensus_error_final"` (m),
     `"consensus_error_rms"` (m, over the episode's steps), `"consensus_converge_time"` (s: when
     e fell below `consensus.tolerance` = 3 cm for good, plus for a rendezvous the floor
     r·sqrt(N / (2 · 0.9069)) of N packed discs, 0.10 m for 4; inf if above it at the end) and
@@ -180,11 +186,8 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     def __init__(
         self, config: ConfigArg = None, max_cycles: int | None = None, **kwargs: Any
     ) -> None:
-        given = {key: kwargs.pop(key) for key in self.KEYS if kwargs.get(key) is not None}
-        if given:
-            table = dict(kwargs.pop("consensus", None) or {})
-            table.update(given)
-            kwargs["consensus"] = table
+        given = {key: kwargs.pop(key) for key in self.KEYS if key in kwargs}
+        merge_table_keywords(kwargs, "consensus", given)
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
 

@@ -25,8 +25,10 @@ Agents: ``follower_0`` .. ``follower_{K-1}``, with ``leader`` first when ``leade
   - team_weight · mean error`` (e_k its distance to its target, m); the agent leader's is Nav's.
 * The episode ends for all agents together: terminated when the leader reaches its goal (or on
   contact with ``terminate_on_collision``), truncated after ``max_cycles`` steps (the scenario's
-  ``task.max_steps``, 800). Each agent's last info holds ``"episode_stats"`` with
-  ``"formation_error_mean"`` and ``"formation_error_max"``.
+  ``task.max_steps``, 800). Each agent's last info holds its own ``"episode_stats"`` (a
+  follower's success: the leader arrived and the follower stands within ``task.goal_radius`` of
+  its target) and the world's ``"world_episode_stats"``, with ``"formation_error_mean"`` and
+  ``"formation_error_max"``.
 
 ``env(**kwargs)`` is the AEC version (``parallel_to_aec``, which adds PettingZoo's order-enforcing
 wrapper). No clipping wrapper is added: out-of-range actions are clipped by the core, as in the
@@ -41,7 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym.config import ConfigArg
-from khepera_gym.pettingzoo._parallel import KheperaParallelEnv
+from khepera_gym.pettingzoo._parallel import KheperaParallelEnv, merge_table_keywords
 
 
 class FormationParallelEnv(KheperaParallelEnv):
@@ -54,7 +56,12 @@ class FormationParallelEnv(KheperaParallelEnv):
             scenario's ("scripted" by default).
         config: None, a built-in scenario name (e.g. "paper_fig7") or a path to a TOML file.
         max_cycles: Steps before truncation; None keeps the scenario's ``task.max_steps``.
-        **kwargs: Further scenario overrides (e.g. ``spacing=0.4``), ``action_type``.
+        **kwargs: Further scenario overrides (e.g. ``spacing=0.4``, or ``formation={...}``, a
+            dict of ``[formation]`` keys), ``action_type``.
+
+    Raises:
+        ConfigError: A keyword of the wrong type (``formation=5``) or value, as the scenario's
+            keys say.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -74,12 +81,8 @@ class FormationParallelEnv(KheperaParallelEnv):
         max_cycles: int | None = None,
         **kwargs: Any,
     ) -> None:
-        formation = dict(kwargs.pop("formation", None) or {})
-        for key, value in (("n_followers", n_followers), ("shape", shape), ("leader", leader)):
-            if value is not None:
-                formation[key] = value
-        if formation:
-            kwargs["formation"] = formation
+        values = {"n_followers": n_followers, "shape": shape, "leader": leader}
+        merge_table_keywords(kwargs, "formation", values)
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
     def formation_targets(self) -> npt.NDArray[np.float64]:

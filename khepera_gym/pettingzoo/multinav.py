@@ -18,11 +18,13 @@ each other's sensor rays and rapier resolves their contacts::
 A robot that reaches its goal (within ``task.goal_radius``) is terminated as an agent and leaves
 ``env.agents``; it parks on its goal (zero wheel commands), still an obstacle for the others.
 The episode terminates when every robot has arrived and is truncated after ``max_cycles`` steps
-(the scenario's ``task.max_steps``, 600): the remaining agents are then truncated, and each
-one's info holds ``"episode_stats"`` ("success" means every robot arrived). ``state()`` is the
-joint observation. The scenario is configs/multinav.toml: Nav's keys with Avoid's defaults for
+(the scenario's ``task.max_steps``, 600): the remaining agents are then truncated. An agent
+leaves with its own ``"episode_stats"`` ("success": its robot arrived); at the episode's end the
+remaining ones' infos also hold the world's ``"world_episode_stats"`` ("success": every robot
+arrived). ``state()`` is the joint observation. The scenario is configs/multinav.toml: Nav's
+keys with Avoid's defaults for
 ``spawn.min_goal_distance`` (1 m), ``task.max_steps`` (600) and ``task.collision_penalty`` (0.5),
-plus ``[multinav] n_robots`` (4, up to 32); ``spawn.start`` then lists N poses
+plus ``[multinav] n_robots`` (4, 1 to 1024 as the arena fits); ``spawn.start`` then lists N poses
 ``[x, y, heading, ...]`` and ``spawn.goal`` N points ``[x, y, ...]``.
 
 ``env(**kwargs)`` is the AEC version (``parallel_to_aec`` with its order-enforcing wrapper).
@@ -33,14 +35,15 @@ from __future__ import annotations
 from typing import Any, ClassVar
 
 from khepera_gym.config import ConfigArg
-from khepera_gym.pettingzoo._parallel import KheperaParallelEnv
+from khepera_gym.pettingzoo._parallel import KheperaParallelEnv, merge_table_keywords
 
 
 class MultiNavParallelEnv(KheperaParallelEnv):
     """N robots with their own goals as PettingZoo parallel agents.
 
     Args:
-        n_robots: N, 1..32; None keeps the scenario's (4 by default).
+        n_robots: N, 1..1024 (as many as the arena fits; a swarm needs a larger arena, see
+            the scene "swarm"); None keeps the scenario's (4 by default).
         config: None, a built-in scenario name or a path to a TOML file.
         max_cycles: Steps before truncation; None keeps the scenario's ``task.max_steps``.
         **kwargs: Further scenario overrides (e.g. ``count=5`` random obstacles), ``action_type``.
@@ -61,10 +64,7 @@ class MultiNavParallelEnv(KheperaParallelEnv):
         max_cycles: int | None = None,
         **kwargs: Any,
     ) -> None:
-        if n_robots is not None:
-            multinav = dict(kwargs.pop("multinav", None) or {})
-            multinav["n_robots"] = n_robots
-            kwargs["multinav"] = multinav
+        merge_table_keywords(kwargs, "multinav", {"n_robots": n_robots})
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
 

@@ -15,7 +15,12 @@ from pettingzoo import AECEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from khepera_gym.config import ConfigArg
-from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs, KheperaParallelEnv
+from khepera_gym.pettingzoo._parallel import (
+    AgentAction,
+    AgentObs,
+    KheperaParallelEnv,
+    merge_table_keywords,
+)
 
 
 class PlatoonParallelEnv(KheperaParallelEnv):
@@ -97,7 +102,8 @@ class PlatoonParallelEnv(KheperaParallelEnv):
     3. Truncation of the remaining agents: one period plus `platoon.truncation_margin` (2 s) has
        passed (the circle: 543 steps), or `max_cycles` steps if sooner.
 
-    At the episode's end each remaining agent's info holds `"episode_stats"`: the common
+    At the episode's end each remaining agent's info holds its own `"episode_stats"` (its
+    return, length, success, path length and contacts) and `"world_episode_stats"`: the common
     statistics (`"return"`: the sum of the agents' mean reward, `"length"`, `"success"`, always
     False, `"path_length"` summed over robots, `"collisions"`: steps with any robot in contact)
     and Track's four over the platoon, each robot counted until it is lost:
@@ -181,11 +187,7 @@ class PlatoonParallelEnv(KheperaParallelEnv):
         max_cycles: int | None = None,
         **kwargs: Any,
     ) -> None:
-        given = {"robots": robots, "time_gap": time_gap}
-        if any(value is not None for value in given.values()):
-            platoon = dict(kwargs.pop("platoon", None) or {})
-            platoon.update({key: value for key, value in given.items() if value is not None})
-            kwargs["platoon"] = platoon
+        merge_table_keywords(kwargs, "platoon", {"robots": robots, "time_gap": time_gap})
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
 

@@ -23,9 +23,9 @@ import numpy.typing as npt
 from khepera_gym._inputs import as_action_array, check_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.face import BatchFace, check_render_mode, first_seed
+from khepera_gym.face import WORLD_STATS_KEY, BatchFace, check_render_mode, first_seed
 from khepera_gym.layout import layout_dict
-from khepera_gym.render import DEFAULT_FRAME_SIZE, Renderer
+from khepera_gym.render import Renderer
 
 #: The Rust core's task whose followers are the rows.
 TASK = "formation"
@@ -43,8 +43,10 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
     Semantics as :class:`khepera_gym.vector.KheperaVectorEnv`: NEXT_STEP autoreset (the step
     after a world ended resets it: first observations, reward 0, flags False, its actions
     ignored), ``reset(seed=s)`` seeds world w with ``s + w`` (``None`` continues the streams),
-    and at a step where a world ended ``info["episode_stats"]`` holds that world's statistics on
-    each of its rows (arrays of shape (N · K,) with boolean masks ``"_return"``, ...). Ground
+    and at a step where a world ended ``info["episode_stats"]`` holds each of its rows' own
+    statistics (its follower's return, length, success, path length and contacts) and
+    ``info["world_episode_stats"]`` the world's on each of its rows (with the formation
+    errors), arrays of shape (N · K,) with boolean masks ``"_return"``, .... Ground
     truth keeps the world axis first (``poses()`` is (N, K + 1, 3), the leader first;
     ``targets()`` (N, K, 2)); ``get_state``/``set_state`` save and restore every world.
 
@@ -55,7 +57,9 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
         num_threads: Threads of the batch's pool; None uses every core.
         max_episode_steps: If given, overrides the scenario's ``max_steps``.
         render_mode: None, "rgb_array" or "human" (a mosaic of the first ``render_worlds``).
-        frame_size: (width, height) in pixels of one world's frame.
+        frame_size: (width, height) in pixels of one world's frame;
+            None: 480 x 480, more for an arena over 4 m
+            (:func:`khepera_gym.render.default_frame_size`).
         render_worlds: Worlds tiled by ``render()``.
         **overrides: Scenario keys (``n_followers=3``, ``shape="wedge"``, ...).
 
@@ -79,7 +83,7 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
         num_threads: int | None = None,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        frame_size: tuple[int, int] | None = None,
         render_worlds: int = 4,
         **overrides: Any,
     ) -> None:
@@ -197,7 +201,12 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
 
         Raises:
             ActionError: Wrong shape, non-numeric or NaN/inf actions.
+            KheperaError: ``step`` before the first ``reset()``.
         """
+        if not self._has_reset:
+            raise KheperaError(
+                "step() before reset(): the worlds were never started; call reset() first"
+            )
         action_array = as_action_array(
             actions, self._action_shape, "actions (num_envs, agent_act_dim)"
         )
@@ -209,14 +218,15 @@ class FormationFollowersVectorEnv(BatchFace, gym.vector.VectorEnv):
         ended = terminated | truncated
         infos: dict[str, Any] = {}
         if np.count_nonzero(ended):
-            world_infos = self._vector_episode_info(ended)
-            infos = {
-                "episode_stats": {
-                    name: np.repeat(values, rows)
-                    for name, values in world_infos["episode_stats"].items()
-                },
-                "_episode_stats": np.repeat(ended, rows),
-            }
+            infos = self._vector_agent_episode_info(ended, rows=True)
+            # The world's statistics on each of its rows.
+            for key in (WORLD_STATS_KEY, f"_{WORLD_STATS_KEY}"):
+                value = infos[key]
+                infos[key] = (
+                    np.repeat(value, rows)
+                    if isinstance(value, np.ndarray)
+                    else {name: np.repeat(v, rows) for name, v in value.items()}
+                )
         return (
             self._rows(joint),
             rewards,

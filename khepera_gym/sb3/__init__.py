@@ -1,7 +1,7 @@
 """stable-baselines3 vector environments over the Rust batch: no DummyVecEnv, no subprocesses.
 
 :func:`make_vec_env` gives an SB3 ``VecEnv`` whose rows are the N worlds of one ``_core.Batch``
-(``KheperaIV-Nav``, ``-Avoid`` or ``-Formation``); :func:`make_formation_vec_env` one whose rows
+(of any registered id); :func:`make_formation_vec_env` one whose rows
 are the (world, follower) pairs of a Formation batch, so one policy drives every follower
 (parameter sharing); :class:`SharedAgentsVecEnv` does the same for the agents of any multi-agent
 task whose agents' observations have one length (``SharedAgentsVecEnv("consensus", 16)``).
@@ -14,8 +14,9 @@ SB3 semantics, and how they are met on a batch that autoresets on the *next* ste
   returns the first observation of the new episode, with ``dones[i] = True`` and in
   ``infos[i]``: ``"terminal_observation"`` (the episode's true last observation),
   ``"TimeLimit.truncated"`` (truncated and not terminated), ``"is_success"`` and
-  ``"episode_stats"`` (the Gymnasium env's statistics as Python scalars). Rows that did not end
-  get an empty dict;
+  ``"episode_stats"`` (the Gymnasium env's statistics as Python scalars; on the rows of a
+  :class:`SharedAgentsVecEnv`, each agent's own, the world's then under
+  ``"world_episode_stats"``). Rows that did not end get an empty dict;
 * ``reset_world(i)`` without a seed continues world i's own random stream, exactly as a single
   env's ``reset()`` after an episode does: with the same actions, row i of
   ``make_vec_env(id, n, seed=s)`` replays ``gym.make(id)`` reset with seed ``s + i`` and then

@@ -1,7 +1,7 @@
 """stable-baselines3 vector environments over the Rust batch: no DummyVecEnv, no subprocesses.
 
 :func:`make_vec_env` gives an SB3 ``VecEnv`` whose rows are the N worlds of one ``_core.Batch``
-(``KheperaIV-Nav``, ``-Avoid`` or ``-Formation``); :func:`make_formation_vec_env` one whose rows
+(of any registered id); :func:`make_formation_vec_env` one whose rows
 are the (world, follower) pairs of a Formation batch, so one policy drives every follower
 (parameter sharing). Ground truth and saved state come from :class:`khepera_gym.face.BatchFace`;
 the SB3 semantics are in the package docstring (:mod:`khepera_gym.sb3`).
@@ -21,20 +21,20 @@ import numpy.typing as npt
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices
 
-from khepera_gym._inputs import as_action_array, check_seed
+from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed, check_world_index
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.face import BatchFace, first_seed
+from khepera_gym.face import WORLD_STATS_KEY, BatchFace, first_seed
 from khepera_gym.layout import layout_dict
 from khepera_gym.registration import resolve_env_id, task_of
-from khepera_gym.render import DEFAULT_FRAME_SIZE, TRAIL_LENGTH, check_frame_size, mosaic
+from khepera_gym.render import TRAIL_LENGTH, check_frame_size, default_frame_size, mosaic
 
 
 class KheperaSB3VecEnv(BatchFace, VecEnv):
     """An SB3 ``VecEnv`` over N worlds of one task in a ``_core.Batch``; row i is world i.
 
     Args:
-        task: Task name in the Rust core: "nav", "avoid" or "formation".
+        task: A task of the Rust core's registry (a name of ``_core.tasks()``: "nav", ...).
         num_worlds: Number of worlds N (>= 1).
         seed: If given, world i is seeded with ``seed + i`` at the first ``reset()``.
         num_threads: Threads of the batch's rayon pool; None uses all cores.
@@ -44,7 +44,9 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
         render_mode: None, or "rgb_array": ``get_images()`` then gives one frame per world
             (drawn in software by the Rust core, no display needed) and ``render()`` tiles
             them, so SB3's ``VecVideoRecorder`` works.
-        frame_size: (width, height) in pixels of one world's frame.
+        frame_size: (width, height) in pixels of one world's frame;
+            None: 480 x 480, more for an arena over 4 m
+            (:func:`khepera_gym.render.default_frame_size`).
         **overrides: Scenario keys overriding the file, e.g. ``goal_radius=0.1``.
 
     Attributes that SB3 reads: ``num_envs`` (rows), ``observation_space`` and ``action_space``
@@ -55,6 +57,9 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
     """
 
     _WORLD: ClassVar[int | None] = None
+    #: Whether a row is one agent of a world (its infos then hold the agent's own statistics),
+    #: rather than the world.
+    _AGENT_ROWS: ClassVar[bool] = False
     #: Attributes of a single env that are the same for every world, for ``get_attr``.
     SHARED_ATTRIBUTES: ClassVar[tuple[str, ...]] = (
         "render_mode",
@@ -89,7 +94,7 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
         action_type: str = "wheels",
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
-        frame_size: tuple[int, int] = DEFAULT_FRAME_SIZE,
+        frame_size: tuple[int, int] | None = None,
         **overrides: Any,
     ) -> None:
         if render_mode not in (None, "rgb_array"):
@@ -97,7 +102,8 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
                 f"render_mode must be None or 'rgb_array' for an SB3 VecEnv, got {render_mode!r} "
                 "(for a window use gym.make(env_id, render_mode='human'))"
             )
-        self._frame_size = check_frame_size(frame_size)
+        if frame_size is not None:
+            check_frame_size(frame_size)
         self._batch = make_batch(
             task,
             num_worlds,
@@ -108,6 +114,9 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
             autoreset=False,
             episode_steps=("max_episode_steps", max_episode_steps),
         )
+        if frame_size is None:
+            frame_size = default_frame_size(self._batch.scene(0)["arena"])
+        self._frame_size = check_frame_size(frame_size)
         self.task = task
         self.action_type = action_type
         self.render_mode: str | None = render_mode
@@ -158,7 +167,10 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
         seed = check_seed(seed)
         if seed is None:
             seed = first_seed()
-        self._seeds = [seed + row // self.rows_per_world for row in range(self.num_envs)]
+        # As the core's reset does: world w gets seed + w, wrapping at 2**64.
+        self._seeds = [
+            (seed + row // self.rows_per_world) % SEED_LIMIT for row in range(self.num_envs)
+        ]
         return list(self._seeds)
 
     def reset(self) -> npt.NDArray[np.float32]:
@@ -237,16 +249,21 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
         if np.count_nonzero(ended):
             for world in np.flatnonzero(ended):
                 world_stats = self._world_episode_stats(int(world))
+                # Rows of agents: each its own statistics (read before the world's reset).
+                agent_stats = self._agent_episode_stats(int(world)) if self._AGENT_ROWS else None
                 time_limit = bool(truncated[world] and not terminated[world])
                 first_rows = self.row_observations(self._batch.reset_world(int(world))[None])
                 for offset in range(rows):
                     row = world * rows + offset
+                    stats = world_stats if agent_stats is None else agent_stats[offset]
                     infos[row] = {
                         "terminal_observation": observations[row].copy(),
                         "TimeLimit.truncated": time_limit,
-                        "is_success": world_stats["success"],
-                        "episode_stats": dict(world_stats),
+                        "is_success": stats["success"],
+                        "episode_stats": dict(stats),
                     }
+                    if agent_stats is not None:
+                        infos[row][WORLD_STATS_KEY] = dict(world_stats)
                 observations[world * rows : (world + 1) * rows] = first_rows
         return observations, row_rewards, dones, infos
 
@@ -353,8 +370,10 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
         if indices is None:
             return list(range(self.num_envs))
         if isinstance(indices, (int, np.integer)):
-            return [int(indices)]
-        return [int(index) for index in indices]
+            return [check_world_index(indices, self.num_envs, "indices")]
+        if isinstance(indices, (str, bytes)) or not hasattr(indices, "__iter__"):
+            raise ConfigError(f"indices must be None, an int or ints, got {indices!r}")
+        return [check_world_index(index, self.num_envs, "indices") for index in indices]
 
     def _check_open(self) -> None:
         if self._closed:
@@ -368,8 +387,11 @@ class SharedAgentsVecEnv(KheperaSB3VecEnv):
     acts with its own two numbers and earns its own reward (``batch.agent_rewards()``), so one
     policy trained on these rows drives every agent (parameter sharing, as in MAPPO/IPPO with a
     shared network). A world's episode ends for all its agents together: their rows are done at
-    the same step and share its ``"episode_stats"``. ``seed(s)`` seeds world w with ``s + w``,
-    so world w's rows are the agents of the PettingZoo env reset with seed ``s + w``.
+    the same step; each row's info then holds its agent's own ``"episode_stats"`` (the sum of its
+    rewards while it took part, its steps, its success as the task defines it for one agent, its
+    path length and steps in contact; ``"is_success"`` is that success) and the world's under
+    ``"world_episode_stats"`` (with the task's own statistics). ``seed(s)`` seeds world w with
+    ``s + w``, so world w's rows are the agents of the PettingZoo env reset with seed ``s + w``.
 
     Args:
         task: A task whose agents' observation blocks have the same length ("consensus",
@@ -382,6 +404,8 @@ class SharedAgentsVecEnv(KheperaSB3VecEnv):
         ConfigError: The task's agents observe blocks of different lengths (a drone and a
             robot), so no one policy reads them all.
     """
+
+    _AGENT_ROWS: ClassVar[bool] = True
 
     def _configure_rows(self) -> None:
         agents = self._batch.agents()
@@ -436,9 +460,11 @@ class FormationFollowersVecEnv(SharedAgentsVecEnv):
     ``wheel_speeds``; see :class:`khepera_gym.envs.FormationEnv`), acts with its (left, right)
     wheel pair and earns its own reward (``batch.agent_rewards()``), so one policy trained on
     these rows drives every follower (parameter sharing). The leader is scripted. A world's
-    episode ends for all its followers together: their rows are done at the same step and share
-    its ``"episode_stats"`` (with ``"formation_error_mean"``, ``"formation_error_max"``);
-    ``"is_success"`` is the leader's arrival. ``seed(s)`` seeds world w with ``s + w``.
+    episode ends for all its followers together: their rows are done at the same step; each
+    row's info holds its follower's own ``"episode_stats"`` (``"is_success"``: the leader
+    arrived and the follower stands within ``task.goal_radius`` of its target) and the world's
+    ``"world_episode_stats"`` (with ``"formation_error_mean"``, ``"formation_error_max"``).
+    ``seed(s)`` seeds world w with ``s + w``.
 
     Args:
         num_worlds: Number of worlds N; the env has N · K rows.

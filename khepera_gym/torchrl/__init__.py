@@ -3,14 +3,14 @@
 :class:`KheperaTorchEnv` is a ``torchrl.envs.EnvBase`` with ``batch_size=[N]`` whose row i is
 world i of one ``_core.Batch`` (built without autoreset). TorchRL drives it as any batched env:
 ``env.rollout(...)``, ``SyncDataCollector``, BenchMARL (see :mod:`khepera_gym.benchmarl`). Its
-task is one of the Rust core's ("nav", "avoid", "formation", "multinav", "track", "platoon",
-"consensus", ...) or a khepera_gym Gymnasium id ("KheperaIV-Nav-v0").
+task is one of the Rust core's (``khepera_gym.torchrl.tasks()``: "nav", "multinav", ...) or a
+khepera_gym Gymnasium id ("KheperaIV-Nav-v0").
 
 TensorDict layout (N worlds; K agents in a group; D values of an agent's observation):
 
 * tasks with one agent ("nav", "avoid"): flat keys, as TorchRL's Gym wrappers give:
   ``"observation"`` [N, 18] float32, ``"action"`` [N, 2] in [-1, 1], ``"reward"`` [N, 1];
-* multi-agent tasks ("formation", "multinav", "platoon", "consensus"): one sub-TensorDict per
+* multi-agent tasks (``multi_agent_tasks()``: "formation", "multinav", ...): one sub-TensorDict per
   agent group, of batch size [N, K]: ``(group, "observation")`` [N, K, D], ``(group, "action")``
   [N, K, 2] in [-1, 1], ``(group, "reward")`` [N, K, 1] (each agent's own reward), and ``"state"``
   [N, S] at the root, the joint observation of every agent, for centralised critics. Default
@@ -46,7 +46,8 @@ with the world axis first: ``poses()``, ``goals()``, ``targets()``, ``sensor_rea
 ``scene(i)``, ``config_toml()``, ``obs_layout()``, ``agent_layouts()``, ``max_episode_steps``,
 ``get_state()``/``set_state()`` (restore, then step on bit for bit; the env pickles too), and
 ``episode_stats()``: each world's last finished episode, in the form of the native vector env's
-``info["episode_stats"]`` (arrays of N values with masks of the worlds that have finished one).
+``info["episode_stats"]`` (arrays of N values with masks of the worlds that have finished one);
+with agent groups, ``agent_episode_stats()`` gives each agent's own (group → arrays (N, K)).
 
 Units are those of the Gymnasium envs (SI, robot frame x forward, y left); observations and
 rewards are float32, bit for bit those of the native batch. Threading and copies: ``step`` and

@@ -74,8 +74,8 @@ class KheperaTorchEnv(BatchFace, EnvBase):
     """N Khepera IV worlds of one task as a batched TorchRL env (see :mod:`khepera_gym.torchrl`).
 
     Args:
-        task: A task of the Rust core ("nav", "avoid": flat keys; "formation", "multinav": agent
-            groups; the latest behaviour version, or ``version=0`` among the overrides) or a
+        task: A task of the Rust core (one agent, as "nav": flat keys; several, as "multinav":
+            agent groups; the latest behaviour version, or ``version=0`` among the overrides) or a
             khepera_gym Gymnasium id ("KheperaIV-Nav-v1"; "KheperaIV-Nav-v0" runs the v0
             dynamics).
         num_worlds: Number of worlds N (>= 1), the env's ``batch_size``.
@@ -303,6 +303,35 @@ class KheperaTorchEnv(BatchFace, EnvBase):
         """
         finished = self._batch.episode_stats()["length"] > 0
         return self._vector_episode_info(finished)["episode_stats"]
+
+    def agent_episode_stats(self) -> dict[str, dict[str, npt.NDArray[Any]]]:
+        """Each agent's own statistics of each world's last finished episode, by group: group
+        name → "return" (the sum of its rewards while it took part), "length" (its steps),
+        "success" (as the task defines it for one agent), "path_length" (m), "collisions"
+        (steps its robot was in contact), arrays of shape (N, group size) in the group's agent
+        order, each with a mask ``"_return"``, ... of shape (N,) True for the worlds that have
+        finished an episode (values are 0 elsewhere). :meth:`episode_stats` is the world's.
+
+        Raises:
+            KheperaError: The env has no agent groups (a single-agent task: its
+                :meth:`episode_stats` is the agent's).
+        """
+        if not self._groups:
+            raise KheperaError(
+                "agent_episode_stats() needs agent groups; this env's one agent has episode_stats()"
+            )
+        finished = self._batch.episode_stats()["length"] > 0
+        stats = self._batch.agent_episode_stats()
+        result: dict[str, dict[str, npt.NDArray[Any]]] = {}
+        for group in self._groups:
+            entries: dict[str, npt.NDArray[Any]] = {}
+            for name, values in stats.items():
+                group_values = values[:, group.agent_columns]
+                group_values[~finished] = 0
+                entries[name] = group_values
+                entries[f"_{name}"] = finished.copy()
+            result[group.name] = entries
+        return result
 
 
 __all__ = ["KheperaTorchEnv"]

@@ -69,7 +69,7 @@ use std::f32::consts::PI;
 use super::{goal_of, non_negative, positive, Controller, GoalBlocks, WheelMap};
 use crate::error::{Error, Result};
 use crate::obs::ObsLayout;
-use crate::sensors::ir::{IrModel, IR_MAX_RAW};
+use crate::sensors::ir::{IrModel, CURVE_RAW, IR_MAX_RAW};
 use crate::sensors::{IR_BEARINGS, IR_COUNT, US_BEARINGS, US_COUNT};
 
 crate::config_table! {
@@ -318,6 +318,8 @@ impl Vfh {
             range: self.ir_range,
             floor_value: self.ir_floor_value,
             noise_sigma: 0.0,
+            // K-Team's curve: the controller knows no robot's own (sensors.ir_curve).
+            curve: CURVE_RAW,
         };
         let raw = ir.floor_value + p.min(1.0) * (IR_MAX_RAW - ir.floor_value);
         let (mut near, mut far) = (0.0f32, ir.range);
@@ -598,6 +600,7 @@ mod tests {
             range: 0.25,
             floor_value: 100.0,
             noise_sigma: 0.0,
+            curve: CURVE_RAW,
         };
         for d in [0.005f32, 0.02, 0.05, 0.1, 0.15, 0.2] {
             let raw = ir.mean_raw(Some(d));

@@ -12,7 +12,6 @@
 //! crosses into the released section.
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 
@@ -336,9 +335,22 @@ impl Batch {
         self.outputs(py)
     }
 
-    /// Statistics of the episodes that ended on the last step (valid where they ended).
+    /// The world's statistics of the last episode that ended (valid where one ended): all its
+    /// agents together (the return sums each step's mean reward).
     fn episode_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         views::episode_stats(py, &self.inner)
+    }
+
+    /// Each agent's own statistics, arrays of shape (N, n_agents): of the last episode that
+    /// ended, or with `running` of the running one (an agent that has left holds its final
+    /// figures until the world is reset).
+    #[pyo3(signature = (running=false))]
+    fn agent_episode_stats<'py>(
+        &self,
+        py: Python<'py>,
+        running: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        views::agent_episode_stats(py, &self.inner, running)
     }
 
     /// Robot poses (N, n_robots, 3): x, y, theta.
@@ -393,14 +405,18 @@ impl Batch {
         views::scene(py, env)
     }
 
-    /// An RGB frame (height, width, 3) uint8 of world `index`, drawn without a display.
-    #[pyo3(signature = (index=0, width=480, height=480))]
+    /// An RGB frame (height, width, 3) uint8 of world `index`, drawn without a display: the
+    /// whole arena, or with `zoom` > 1 a part of it about `center` (x, y in m; the arena's
+    /// centre by default).
+    #[pyo3(signature = (index=0, width=480, height=480, zoom=1.0, center=None))]
     fn render<'py>(
         &self,
         py: Python<'py>,
         index: usize,
         width: u32,
         height: u32,
+        zoom: f32,
+        center: Option<(f32, f32)>,
     ) -> PyResult<Bound<'py, PyAny>> {
         guard(py, || {
             let env = self.inner.envs().get(index).ok_or_else(|| {
@@ -412,15 +428,7 @@ impl Batch {
                     )),
                 )
             })?;
-            if !(16..=4096).contains(&width) || !(16..=4096).contains(&height) {
-                return Err(PyValueError::new_err(format!(
-                    "frame size must be 16..=4096 pixels a side, got {width}x{height}"
-                )));
-            }
-            let rgb = py.detach(|| crate::render::render(env, width, height));
-            Ok(PyArray1::from_vec(py, rgb)
-                .reshape([height as usize, width as usize, 3])?
-                .into_any())
+            views::frame(py, env, (width, height), zoom, center)
         })
     }
 

@@ -1,5 +1,6 @@
 //! Errors across the boundary: core errors become `khepera_gym.errors` classes (ConfigError,
-//! ActionError, StateError, KheperaError), and a Rust panic is caught here and raised as
+//! ActionError, StateError, KheperaError) or Python's own `MemoryError` (memory the system
+//! refused), and a Rust panic is caught here and raised as
 //! KheperaError, never as pyo3's PanicException (which escapes `except Exception`).
 //!
 //! Threading: called with the GIL held. [`guard`] wraps a whole method body, including the parts
@@ -9,14 +10,17 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+use pyo3::exceptions::PyMemoryError;
 use pyo3::prelude::*;
 use pyo3::types::PyType;
 
 use crate::error::Error;
 
-/// Raises `err` as the matching class of `khepera_gym.errors`.
+/// Raises `err` as the matching class of `khepera_gym.errors` (`MemoryError` for memory the
+/// system refused).
 pub fn to_py(py: Python<'_>, err: Error) -> PyErr {
     let class = match err {
+        Error::Memory(message) => return PyMemoryError::new_err(message),
         Error::Config { .. } | Error::Param(_) => "ConfigError",
         Error::Action(_) => "ActionError",
         Error::State(_) => "KheperaError",

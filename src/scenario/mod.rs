@@ -32,7 +32,8 @@ pub use crate::config::Param;
 pub use scenes::{scene, SCENES};
 pub use sections::{
     ArenaConfig, DriveModel, Localization, MotionSplit, ObstacleConfig, ObstacleKind, ObstacleSpec,
-    PhysicsConfig, Placement, SceneSolver, SlipSolver, SpawnConfig, TaskConfig,
+    PhysicsConfig, Placement, SceneSolver, SlipSolver, SpawnConfig, TaskConfig, MAX_DELAY_STEPS,
+    MAX_RANDOM_OBSTACLES,
 };
 pub use versions::VERSION_DEFAULTS;
 
@@ -101,13 +102,9 @@ pub struct Source<'a> {
 /// The behaviour version of the current defaults (the `-v2` environments).
 pub const LATEST_VERSION: u32 = 2;
 
-/// Largest action or observation delay (control steps): 5 s at the default 50 ms, far beyond
-/// the real robot's latencies; each pending step keeps an observation per world.
-pub const MAX_DELAY_STEPS: u32 = 100;
-
 /// Largest arena side (m): positions are float32 metres, which keep millimetre precision well
 /// beyond this; far larger arenas overflow distances to infinity.
-pub const MAX_ARENA_SIDE: f32 = 1000.0;
+pub const MAX_ARENA_SIDE: f32 = crate::config::limits::LENGTH as f32;
 
 /// The shared sections in file order: name and keys.
 fn shared_sections() -> Vec<(&'static str, Vec<KeyDoc>)> {
@@ -230,6 +227,10 @@ impl Scenario {
                 _ => Table::new(),
             }
         };
+        // Every key's declared domain, used by this scenario or not, before anything is read.
+        for (name, keys) in schema.sections() {
+            config::check_keys(&section(name), &keys, origin, name)?;
+        }
         // Entries of `obstacles.fixed` are checked one by one first, so that a message says
         // which entry.
         if let Some(Value::Array(fixed)) = table.get("obstacles").and_then(|o| o.get("fixed")) {
@@ -311,102 +312,14 @@ impl Scenario {
         out
     }
 
-    /// Checks every value of the shared sections; the error names the first offending key.
-    /// Whether layouts fit (start, goal, obstacles) is checked by `world::layout::Spawner::new`.
+    /// Checks what the keys' domains cannot (each value alone is checked by its declaration,
+    /// [`config::check_keys`]): values that relate keys within a section or across sections.
+    /// The error names the first offending key. Whether layouts fit (start, goal, obstacles)
+    /// is checked by `world::layout::Spawner::new`.
     pub fn validate(&self, origin: &str) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
         self.robot.validate(origin)?;
-        let positive = [
-            ("arena.width", self.arena.width),
-            ("arena.height", self.arena.height),
-            ("arena.wall_thickness", self.arena.wall_thickness),
-            ("task.goal_radius", self.task.goal_radius),
-            ("physics.dt", self.physics.dt),
-        ];
-        for (key, v) in positive {
-            if !v.is_finite() || v <= 0.0 {
-                return bad(key, format!("must be a finite number > 0, got {v}"));
-            }
-        }
-        for (key, v) in [
-            ("arena.width", self.arena.width),
-            ("arena.height", self.arena.height),
-        ] {
-            if v > MAX_ARENA_SIDE {
-                return bad(
-                    key,
-                    format!(
-                        "must be at most {MAX_ARENA_SIDE} m (positions are float32 metres), \
-                         got {v}"
-                    ),
-                );
-            }
-        }
         self.sensors.validate(origin)?;
-        let non_negative = [
-            ("spawn.wall_margin", self.spawn.wall_margin),
-            ("spawn.min_goal_distance", self.spawn.min_goal_distance),
-            ("obstacles.corridor_width", self.obstacles.corridor_width),
-            ("obstacles.min_gap", self.obstacles.min_gap),
-            ("obstacles.spawn_clearance", self.obstacles.spawn_clearance),
-            ("task.time_cost", self.task.time_cost),
-            ("task.success_bonus", self.task.success_bonus),
-            ("task.collision_penalty", self.task.collision_penalty),
-            ("task.progress_weight", self.task.progress_weight),
-        ];
-        for (key, v) in non_negative {
-            if !v.is_finite() || v < 0.0 {
-                return bad(key, format!("must be a finite number >= 0, got {v}"));
-            }
-        }
-        self.physics
-            .friction
-            .check(origin, "physics.friction", false)?;
-        self.physics
-            .robot_friction
-            .check(origin, "physics.robot_friction", false)?;
-        sections::check_color(self.arena.wall_color, origin, "arena.wall_color")?;
-        sections::check_color(self.robot.led_color, origin, "robot.led_color")?;
-        self.odometry.validate(origin)?;
-        if self.task.max_steps == 0 {
-            return bad("task.max_steps", "must be >= 1, got 0".into());
-        }
-        for (key, delay) in [
-            ("task.action_delay", self.task.action_delay),
-            ("task.observation_delay", self.task.observation_delay),
-        ] {
-            if delay > MAX_DELAY_STEPS {
-                return bad(
-                    key,
-                    format!("must be at most {MAX_DELAY_STEPS} control steps, got {delay}"),
-                );
-            }
-        }
-        if self.physics.substeps == 0 || self.physics.substeps > 64 {
-            return bad(
-                "physics.substeps",
-                format!("must be in 1..=64, got {}", self.physics.substeps),
-            );
-        }
-        if self.physics.solver_iterations == 0 || self.physics.solver_iterations > 64 {
-            return bad(
-                "physics.solver_iterations",
-                format!("must be in 1..=64, got {}", self.physics.solver_iterations),
-            );
-        }
-        let prediction = self.physics.contact_prediction;
-        if !prediction.is_finite() || !(0.0..=1.0).contains(&prediction) {
-            return bad(
-                "physics.contact_prediction",
-                format!("must be a finite number in [0, 1] m, got {prediction}"),
-            );
-        }
-        if self.physics.dt > 1.0 {
-            return bad(
-                "physics.dt",
-                format!("must be <= 1 s, got {}", self.physics.dt),
-            );
-        }
         if self.physics.split == MotionSplit::Robot && self.physics.drive != DriveModel::Traction {
             return bad(
                 "physics.split",
@@ -462,172 +375,4 @@ fn as_table<T: Serialize>(section: &T) -> Table {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const NAV: TaskSchema = TaskSchema {
-        name: "nav",
-        since: 0,
-        defaults: "",
-        section: None,
-    };
-
-    fn overrides(text: &str) -> Table {
-        text.parse().expect("test override")
-    }
-
-    #[test]
-    fn defaults_load_render_and_round_trip() {
-        let v0 = NAV
-            .load(&Source {
-                version: Some(0),
-                ..Default::default()
-            })
-            .expect("nav v0");
-        assert_eq!(v0.task.max_steps, 400);
-        assert!(v0.robot.wheel_accel_limit.max().is_infinite());
-        assert_eq!(v0.physics.drive, DriveModel::Kinematic);
-        let v1 = NAV
-            .load(&Source {
-                version: Some(1),
-                ..Default::default()
-            })
-            .expect("nav v1");
-        // v1: the K-Team firmware's speed profile rate, 3 units per 10 ms (docs/robot.md §3), as a ramp.
-        assert_eq!(v1.motors.mode, crate::motors::MotorMode::Ramp);
-        assert!((v1.motors.accel(&v1.robot).max() - 0.2034543).abs() < 1e-6);
-        assert_eq!(v1.physics.drive, DriveModel::Traction);
-        let s = NAV.load(&Source::default()).expect("nav");
-        assert_eq!(s.task.max_steps, 400);
-        // v2: K-Team's profile at Acc_Inc 40, 2.71 m/s^2.
-        assert_eq!(s.motors.mode, crate::motors::MotorMode::Profile);
-        assert!((s.motors.accel(&s.robot).max() - 2.712724).abs() < 1e-5);
-        assert_eq!(s.physics.drive, DriveModel::Traction);
-        let e = NAV
-            .load(&Source {
-                version: Some(LATEST_VERSION + 1),
-                ..Default::default()
-            })
-            .unwrap_err()
-            .to_string();
-        let expected = format!("version {} does not exist", LATEST_VERSION + 1);
-        assert!(e.contains(&expected), "{e}");
-        let text = s.to_toml();
-        assert!(text.contains("radius = 0.0704\n"), "{text}");
-        let back = NAV
-            .load(&Source {
-                file: Some((&text, "resolved.toml")),
-                overrides: Table::new(),
-                ..Default::default()
-            })
-            .expect("round trip");
-        assert_eq!(back.to_toml(), text);
-        let file = NAV.render_defaults("KheperaIV-Nav", None).expect("render");
-        assert!(file.contains("# body radius (m)"), "{file}");
-        assert!(file.parse::<Table>().is_ok(), "{file}");
-    }
-
-    #[test]
-    fn leaf_dotted_and_section_overrides() {
-        let src = Source {
-            file: None,
-            overrides: overrides(
-                "goal_radius = 0.1\n\"robot.mass\" = 0.6\nphysics = { substeps = 2 }",
-            ),
-            ..Default::default()
-        };
-        let s = NAV.load(&src).expect("overrides");
-        assert_eq!(s.task.goal_radius, 0.1);
-        assert_eq!(s.robot.mass, Param::Value(0.6));
-        assert_eq!(s.physics.substeps, 2);
-        assert_eq!(s.physics.dt, 0.05);
-    }
-
-    #[test]
-    fn unknown_keys_are_named() {
-        let src = Source {
-            file: Some(("[task]\ngoal_radios = 0.1\n", "my.toml")),
-            overrides: Table::new(),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(
-            e.starts_with("my.toml: task.goal_radios: unknown key"),
-            "{e}"
-        );
-        let src = Source {
-            file: None,
-            overrides: overrides("goal_radios = 0.1"),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.contains("<override>: goal_radios"), "{e}");
-        let src = Source {
-            file: Some(("[sensors]\nir_rnage = 0.3\n", "s.toml")),
-            overrides: Table::new(),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(
-            e.starts_with("s.toml: sensors.ir_rnage: unknown key"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn wrong_types_and_impossible_values_are_named() {
-        let src = Source {
-            file: Some(("[robot]\nradius = \"big\"\n", "f.toml")),
-            overrides: Table::new(),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.starts_with("f.toml: robot.radius"), "{e}");
-        let src = Source {
-            file: None,
-            overrides: overrides("radius = -1.0"),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.contains("robot.radius: must be"), "{e}");
-        let src = Source {
-            file: None,
-            overrides: overrides("min_goal_distance = 5.0"),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.contains("spawn.min_goal_distance"), "{e}");
-        let src = Source {
-            file: Some(("[task\n", "broken.toml")),
-            overrides: Table::new(),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.starts_with("broken.toml: "), "{e}");
-        let src = Source {
-            file: None,
-            overrides: overrides("ir_noise_sigma = \"loud\""),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.starts_with("<override>: sensors.ir_noise_sigma"), "{e}");
-    }
-
-    #[test]
-    fn ranges_are_parameters_and_checked() {
-        let src = Source {
-            file: None,
-            overrides: overrides("mass = [0.5, 0.6]\nir_noise_sigma = [0.0, 20.0]"),
-            ..Default::default()
-        };
-        let s = NAV.load(&src).expect("ranges");
-        assert_eq!(s.robot.mass, Param::Range([0.5, 0.6]));
-        let src = Source {
-            file: None,
-            overrides: overrides("mass = [0.6, 0.5]"),
-            ..Default::default()
-        };
-        let e = NAV.load(&src).unwrap_err().to_string();
-        assert!(e.contains("robot.mass"), "{e}");
-    }
-}
+mod tests;

@@ -10,7 +10,7 @@
 use serde::{Deserialize, Serialize};
 use toml::Value;
 
-use crate::config::Param;
+use crate::config::{limits, Domain, Field, Param};
 use crate::error::{Error, Result};
 use crate::world::scene::{Scene, SceneShape};
 
@@ -18,17 +18,17 @@ crate::config_table! {
     /// `[arena]`: the rectangle, centred at the origin, walled or open.
     pub struct ArenaConfig {
         /// m, inner size along x (arena centred at the origin)
-        width: f32 = 2.0,
+        width: f32 = 2.0 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, inner size along y
-        height: f32 = 2.0,
+        height: f32 = 2.0 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, walls lie outside the inner rectangle
-        wall_thickness: f32 = 0.05,
+        wall_thickness: f32 = 0.05 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// false: an open floor (the size then only bounds spawning)
         walls: bool = true,
         /// infrared reflectance of the walls relative to white paper (1 = K-Team's curve) [E]
-        wall_reflectance: f32 = 1.0,
+        wall_reflectance: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::REFLECTANCE),
         /// RGB in [0, 1] of the walls for the camera (a light grey)
-        wall_color: [f32; 3] = [0.8, 0.8, 0.8],
+        wall_color: [f32; 3] = [0.8, 0.8, 0.8] => Domain::UNIT,
     }
 }
 
@@ -43,6 +43,36 @@ impl ArenaConfig {
         }
     }
 }
+
+/// Most random obstacles (`obstacles.count`).
+pub const MAX_RANDOM_OBSTACLES: u32 = 64;
+
+/// Largest action or observation delay (control steps): 5 s at the default 50 ms, far beyond
+/// the real robot's latencies; each pending step keeps an observation per world.
+pub const MAX_DELAY_STEPS: u32 = 100;
+
+/// A coordinate (m): finite and within [`limits::LENGTH`] of the origin.
+const COORDINATE: Domain = Domain::range(-limits::LENGTH, limits::LENGTH);
+
+/// The fields of an `obstacles.fixed` entry and their domains.
+const OBSTACLE_FIELDS: &[Field] = &[
+    Field::new("center", "[f32; 2]", COORDINATE),
+    Field::new("radius", "f32", Domain::POSITIVE.at_most(limits::LENGTH)),
+    Field::new(
+        "half_extents",
+        "[f32; 2]",
+        Domain::POSITIVE.at_most(limits::LENGTH),
+    ),
+    Field::new("angle", "f32", Domain::FINITE),
+    Field::new("a", "[f32; 2]", COORDINATE),
+    Field::new("b", "[f32; 2]", COORDINATE),
+    Field::new(
+        "reflectance",
+        "f32",
+        Domain::NON_NEGATIVE.at_most(limits::REFLECTANCE),
+    ),
+    Field::new("color", "[f32; 3]", Domain::UNIT),
+];
 
 /// A fixed obstacle of a scenario file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -137,19 +167,6 @@ impl ObstacleSpec {
     }
 }
 
-/// Checks an RGB colour: three numbers in [0, 1].
-pub fn check_color(color: [f32; 3], origin: &str, key: &str) -> Result<()> {
-    if color.iter().all(|c| (0.0..=1.0).contains(c)) {
-        Ok(())
-    } else {
-        Err(Error::config(
-            origin,
-            key,
-            format!("a colour is [r, g, b] with each in [0, 1], got {color:?}"),
-        ))
-    }
-}
-
 /// Shapes the random obstacle generator draws from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -176,25 +193,25 @@ crate::config_table! {
     /// `{kind = "segment", a = [x0, y0], b = [x1, y1]}`.
     pub struct ObstacleConfig {
         /// fixed obstacles: circle {center, radius}, box {center, half_extents, angle}, segment {a, b}
-        fixed: Vec<ObstacleSpec> = [],
+        fixed: Vec<ObstacleSpec> = [] => Domain::tables(OBSTACLE_FIELDS),
         /// random obstacles drawn at every reset
-        count: u32 = 0,
+        count: u32 = 0 => Domain::range(0.0, MAX_RANDOM_OBSTACLES as f64),
         /// shapes the random ones are drawn from
         kinds: Vec<ObstacleKind> = ["circle", "box", "segment"],
         /// m, range of random circle radii
-        circle_radius: [f32; 2] = [0.04, 0.10],
+        circle_radius: [f32; 2] = [0.04, 0.10] => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, range of random box half sides
-        box_half_extent: [f32; 2] = [0.03, 0.10],
+        box_half_extent: [f32; 2] = [0.03, 0.10] => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, range of random wall-segment lengths
-        segment_length: [f32; 2] = [0.20, 0.45],
+        segment_length: [f32; 2] = [0.20, 0.45] => Domain::POSITIVE.at_most(limits::LENGTH),
         /// "between" start and goal, or "anywhere"
         placement: Placement = "between",
         /// m, width of the band around start->goal used by "between"
-        corridor_width: f32 = 0.8,
+        corridor_width: f32 = 0.8 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// m, free gap between random obstacles, walls and fixed obstacles (>= robot diameter + 1 cm keeps every goal reachable)
-        min_gap: f32 = 0.16,
+        min_gap: f32 = 0.16 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// m, free gap between obstacles and robots at their start and goals
-        spawn_clearance: f32 = 0.05,
+        spawn_clearance: f32 = 0.05 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
     }
 }
 
@@ -211,74 +228,33 @@ impl ObstacleConfig {
         Ok(())
     }
 
-    /// Checks the values of `[obstacles]` (the fixed obstacles' numbers and sizes, the
-    /// generator's count, size ranges, shapes and gap); the error names the first offending key.
-    /// `robot_radius` (m) bounds `min_gap` from below, so that random obstacles never wall off a
-    /// goal. Whether layouts fit is checked by `world::layout::Spawner::new`.
+    /// Checks what the keys' domains cannot (each number alone is checked by its declaration):
+    /// a fixed segment's length, the order of the size ranges, the shapes and the gap of the
+    /// generator; the error names the first offending key. `robot_radius` (m) bounds `min_gap`
+    /// from below, so that random obstacles never wall off a goal. Whether layouts fit is
+    /// checked by `world::layout::Spawner::new`.
     pub fn validate(&self, origin: &str, robot_radius: f32) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
         let o = self;
         for (i, spec) in o.fixed.iter().enumerate() {
-            let key = format!("obstacles.fixed[{i}]");
-            let sizes: Vec<f32> = match spec {
-                ObstacleSpec::Circle { center, radius, .. } => vec![center[0], center[1], *radius],
-                ObstacleSpec::Box {
-                    center,
-                    half_extents,
-                    angle,
-                    ..
-                } => {
-                    vec![
-                        center[0],
-                        center[1],
-                        half_extents[0],
-                        half_extents[1],
-                        angle + 1.0,
-                    ]
+            if let ObstacleSpec::Segment { a, b, .. } = spec {
+                if ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt() <= 0.0 {
+                    return bad(
+                        &format!("obstacles.fixed[{i}]"),
+                        format!("a segment needs two different ends: {spec:?}"),
+                    );
                 }
-                ObstacleSpec::Segment { a, b, .. } => {
-                    let length = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
-                    vec![a[0], a[1], b[0], b[1], length]
-                }
-            };
-            if sizes.iter().any(|v| !v.is_finite()) {
-                return bad(&key, format!("has a non-finite number: {spec:?}"));
             }
-            let size_ok = match spec {
-                ObstacleSpec::Circle { radius, .. } => *radius > 0.0,
-                ObstacleSpec::Box { half_extents, .. } => half_extents.iter().all(|h| *h > 0.0),
-                ObstacleSpec::Segment { .. } => sizes[4] > 0.0,
-            };
-            if !size_ok {
-                return bad(&key, format!("sizes must be > 0: {spec:?}"));
-            }
-            let reflectance = match spec {
-                ObstacleSpec::Circle { reflectance, .. }
-                | ObstacleSpec::Box { reflectance, .. }
-                | ObstacleSpec::Segment { reflectance, .. } => *reflectance,
-            };
-            if !reflectance.is_finite() || reflectance < 0.0 {
-                return bad(
-                    &key,
-                    format!("reflectance must be a finite number >= 0, got {reflectance}"),
-                );
-            }
-            if let Some(color) = spec.color() {
-                check_color(color, origin, &key)?;
-            }
-        }
-        if o.count > 64 {
-            return bad("obstacles.count", format!("must be <= 64, got {}", o.count));
         }
         for (key, [lo, hi]) in [
             ("obstacles.circle_radius", o.circle_radius),
             ("obstacles.box_half_extent", o.box_half_extent),
             ("obstacles.segment_length", o.segment_length),
         ] {
-            if !(lo.is_finite() && hi.is_finite()) || lo <= 0.0 || lo > hi {
+            if lo > hi {
                 return bad(
                     key,
-                    format!("must be a range [low, high] with 0 < low <= high, got [{lo}, {hi}]"),
+                    format!("must be a range [low, high] with low <= high, got [{lo}, {hi}]"),
                 );
             }
         }
@@ -309,13 +285,13 @@ crate::config_table! {
     /// `[spawn]`: where robots start and goals lie.
     pub struct SpawnConfig {
         /// m, gap between a spawned robot (or goal) and the walls
-        wall_margin: f32 = 0.05,
+        wall_margin: f32 = 0.05 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// m, start-goal distance at reset is at least this
-        min_goal_distance: f32 = 0.5,
+        min_goal_distance: f32 = 0.5 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// [] random, or [x, y, heading] (m, m, rad) to fix it
-        start: Vec<f32> = [],
+        start: Vec<f32> = [] => Domain::range(-limits::LENGTH, limits::LENGTH),
         /// [] random, or [x, y] (m) to fix it
-        goal: Vec<f32> = [],
+        goal: Vec<f32> = [] => Domain::range(-limits::LENGTH, limits::LENGTH),
     }
 }
 
@@ -323,25 +299,25 @@ crate::config_table! {
     /// `[task]`: goal, reward weights, episode length.
     pub struct TaskConfig {
         /// m, success when the robot centre is this close to the goal
-        goal_radius: f32 = 0.05,
+        goal_radius: f32 = 0.05 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// control steps before truncation (20 s at dt = 0.05)
-        max_steps: u32 = 400,
+        max_steps: u32 = 400 => Domain::at_least(1.0),
         /// reward per metre of progress toward the goal
-        progress_weight: f32 = 10.0,
+        progress_weight: f32 = 10.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward subtracted every step
-        time_cost: f32 = 0.01,
+        time_cost: f32 = 0.01 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward on reaching the goal
-        success_bonus: f32 = 10.0,
+        success_bonus: f32 = 10.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward subtracted per step in contact with a wall or obstacle
-        collision_penalty: f32 = 0.1,
+        collision_penalty: f32 = 0.1 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// end the episode at the first contact
         terminate_on_collision: bool = false,
         /// where the goal's distance and bearing come from: "ground_truth" (an external tracker) or "odometry" (the robot's dead reckoning from its encoders and gyroscope, what it can compute on board)
         localization: Localization = "ground_truth",
         /// control steps between an action and the wheels receiving it (0 = none)
-        action_delay: u32 = 0,
+        action_delay: u32 = 0 => Domain::range(0.0, MAX_DELAY_STEPS as f64),
         /// control steps between the world and the observation showing it (0 = none)
-        observation_delay: u32 = 0,
+        observation_delay: u32 = 0 => Domain::range(0.0, MAX_DELAY_STEPS as f64),
         /// whether each agent also sets its robot's top LEDs: three more action values (red, green, blue in [-1, 1], to 0..63 per colour, the real LEDs' 6 bits, spec §6) after its two wheel values; the camera sees the colour from the next observation on
         led_action: bool = false,
     }
@@ -361,23 +337,23 @@ crate::config_table! {
     /// `[physics]`: control step and rapier settings.
     pub struct PhysicsConfig {
         /// s per control step (V-REP's default)
-        dt: f32 = 0.05,
+        dt: f32 = 0.05 => Domain::POSITIVE.at_most(1.0),
         /// physics substeps per control step: 2 (25 ms) keeps poses within millimetres of 16 substeps over a second of wall contact (tests/dynamics.rs); v0: 4
-        substeps: u32 = 2,
+        substeps: u32 = 2 => Domain::range(1.0, 64.0),
         /// rapier solver iterations for contact steps
-        solver_iterations: u32 = 4,
+        solver_iterations: u32 = 4 => Domain::range(1.0, 64.0),
         /// "traction": the body is driven by its tyres' grip (bounded force) and resisted by friction in contacts; "kinematic": its velocity is imposed (v0)
         drive: DriveModel = "traction",
         /// shell-wall and shell-obstacle friction coefficient [S: ARGoS's Khepera IV model, 0.7]; 0 lets a robot slide along walls; may be a range
-        friction: Param = 0.7,
+        friction: Param = 0.7 => Domain::NON_NEGATIVE.at_most(limits::FRICTION),
         /// shell-shell friction coefficient between robots [S: ARGoS, 0.7]; may be a range
-        robot_friction: Param = 0.7,
+        robot_friction: Param = 0.7 => Domain::NON_NEGATIVE.at_most(limits::FRICTION),
         /// which robots rapier steps while something can be touched or a tyre slips (traction drive): "world" steps them all (v1); "robot" only those that can touch something or slip, the others rolling on exact arcs (faster in swarms, and exact for them)
         split: MotionSplit = "world",
         /// split = "robot" only: true lets a world whose robots all keep their wheel speeds, grip and can touch nothing roll each one arc over the whole step (v1; a free robot's path then depends in its last bits on whether other robots were in contact); false rolls them substep by substep, each robot's path its own
         whole_step_arc: bool = false,
         /// m: rapier makes a contact when two shapes come this close, before they touch; 0 = 1.25 x what two robots at full speed close in one substep (2 x 0.813 m/s x 25 ms: 5.1 cm at the defaults), at least rapier's default 0.02, so that such an impact meets its contact before the robots overlap (v1: 0.02, and head-on impacts at full speed overlapped by up to 1 cm)
-        contact_prediction: f32 = 0.0,
+        contact_prediction: f32 = 0.0 => Domain::range(0.0, 1.0),
         /// traction drive: a world where a robot slips (its body not yet rolling on its wheels, after a contact) but nothing can be touched: "tyres" moves each slipping robot by its tyres' impulses directly, as rapier moves a free body (v2); "rapier" hands the whole world to rapier's step as for a contact (v1; the same motion at rapier's cost)
         slip_solver: SlipSolver = "tyres",
         /// traction drive, split = "world": a substep in which robots can touch walls or obstacles but no robot can touch another: "disc" solves each robot's contacts with the scene directly, as a rigid disc with Coulomb friction and no restitution (src/world/scene_contacts.rs, docs/dynamics.md; v2); "rapier" hands the whole world to rapier's step (v1). Contacts between robots always go to rapier, and so do a split = "robot" world's robots that can touch anything

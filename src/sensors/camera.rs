@@ -23,8 +23,8 @@ use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
 use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
+use crate::config::Domain;
 use crate::draw::Mark;
-use crate::error::{Error, Result};
 use crate::obs::Block;
 use crate::world::scene::Target;
 
@@ -38,17 +38,17 @@ crate::config_table! {
     /// The camera's keys in `[sensors]`.
     pub struct CameraConfig {
         /// pixels of the scanline across the field of view (1..256) [D: docs/task-design.md §6.2]
-        camera_pixels: u32 = 32,
+        camera_pixels: u32 = 32 => Domain::range(1.0, MAX_CAMERA_PIXELS as f64),
         /// rad, horizontal field of view [C: 131 deg, K-Team manual §4.5; Webots 2.287 rad]
-        camera_fov: f32 = 2.287,
+        camera_fov: f32 = 2.287 => Domain::POSITIVE.below(std::f64::consts::TAU),
         /// m, farthest surface a pixel sees [E]
-        camera_range: f32 = 2.0,
+        camera_range: f32 = 2.0 => Domain::POSITIVE.at_most(100.0),
         /// per colour channel, Gaussian (0: none) [E]
-        camera_noise_sigma: f32 = 0.0,
+        camera_noise_sigma: f32 = 0.0 => Domain::range(0.0, 10.0),
         /// whether the observation holds each pixel's depth after its colour
         camera_depth: bool = true,
         /// rays across each pixel's width; the pixel shows the nearest surface they meet (1..16) [E]
-        camera_rays_per_pixel: u32 = 4,
+        camera_rays_per_pixel: u32 = 4 => Domain::range(1.0, 16.0),
     }
 }
 
@@ -131,47 +131,6 @@ impl Sensor for Camera {
                     .collect()
             },
         }
-    }
-
-    fn validate(cfg: &CameraConfig, origin: &str) -> Result<()> {
-        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        if cfg.camera_pixels == 0 || cfg.camera_pixels > MAX_CAMERA_PIXELS {
-            return bad(
-                "sensors.camera_pixels",
-                format!(
-                    "must be in 1..={MAX_CAMERA_PIXELS}, got {}",
-                    cfg.camera_pixels
-                ),
-            );
-        }
-        if !(cfg.camera_fov > 0.0 && cfg.camera_fov < std::f32::consts::TAU) {
-            return bad(
-                "sensors.camera_fov",
-                format!("must be in (0, 2 pi) rad, got {}", cfg.camera_fov),
-            );
-        }
-        if !(cfg.camera_range > 0.0 && cfg.camera_range <= 100.0) {
-            return bad(
-                "sensors.camera_range",
-                format!("must be in (0, 100] m, got {}", cfg.camera_range),
-            );
-        }
-        if cfg.camera_rays_per_pixel == 0 || cfg.camera_rays_per_pixel > 16 {
-            return bad(
-                "sensors.camera_rays_per_pixel",
-                format!("must be in 1..=16, got {}", cfg.camera_rays_per_pixel),
-            );
-        }
-        if !(cfg.camera_noise_sigma >= 0.0 && cfg.camera_noise_sigma.is_finite()) {
-            return bad(
-                "sensors.camera_noise_sigma",
-                format!(
-                    "must be a finite number >= 0, got {}",
-                    cfg.camera_noise_sigma
-                ),
-            );
-        }
-        Ok(())
     }
 
     fn randomise(&mut self, _cfg: &CameraConfig, _rng: &mut ChaCha8Rng) {}

@@ -19,6 +19,7 @@ use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
 use super::{rotate, DrawContext, Readout, SenseContext, Sensor};
+use crate::config::Domain;
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::Block;
@@ -42,13 +43,13 @@ crate::config_table! {
     /// The ground sensors' keys in `[sensors]`.
     pub struct GroundConfig {
         /// raw count over white paper [S: Webots ground lookup table at 4.5 mm, spec §4]
-        ground_white: f32 = 954.0,
+        ground_white: f32 = 954.0 => Domain::range(0.0, GROUND_MAX as f64),
         /// raw count over black tape [E]
-        ground_black: f32 = 300.0,
+        ground_black: f32 = 300.0 => Domain::range(0.0, GROUND_MAX as f64),
         /// raw counts, Gaussian, per reading [S: Webots, 0.45 % of the value at 4.5 mm]
-        ground_noise_sigma: f32 = 4.0,
+        ground_noise_sigma: f32 = 4.0 => Domain::range(0.0, GROUND_MAX as f64),
         /// m, radius of the floor spot a sensor averages [E]
-        ground_spot_radius: f32 = 0.003,
+        ground_spot_radius: f32 = 0.003 => Domain::range(0.0, 0.02),
     }
 }
 
@@ -94,38 +95,15 @@ impl Sensor for GroundSensors {
     }
 
     fn validate(cfg: &GroundConfig, origin: &str) -> Result<()> {
-        let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        for (key, v) in [
-            ("sensors.ground_white", cfg.ground_white),
-            ("sensors.ground_black", cfg.ground_black),
-        ] {
-            if !(0.0..=GROUND_MAX).contains(&v) {
-                return bad(key, format!("must be a raw count in [0, 1023], got {v}"));
-            }
-        }
         if cfg.ground_black >= cfg.ground_white {
-            return bad(
+            return Err(Error::config(
+                origin,
                 "sensors.ground_black",
                 format!(
                     "must be below sensors.ground_white ({}): black tape reflects less, got {}",
                     cfg.ground_white, cfg.ground_black
                 ),
-            );
-        }
-        if !(cfg.ground_noise_sigma.is_finite() && cfg.ground_noise_sigma >= 0.0) {
-            return bad(
-                "sensors.ground_noise_sigma",
-                format!(
-                    "must be a finite number >= 0, got {}",
-                    cfg.ground_noise_sigma
-                ),
-            );
-        }
-        if !(cfg.ground_spot_radius >= 0.0 && cfg.ground_spot_radius <= 0.02) {
-            return bad(
-                "sensors.ground_spot_radius",
-                format!("must be in [0, 0.02] m, got {}", cfg.ground_spot_radius),
-            );
+            ));
         }
         Ok(())
     }

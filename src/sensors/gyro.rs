@@ -1,7 +1,8 @@
 //! Gyroscope: the z axis of the ST LSM330DLC at the robot's rotation centre (K-Team manual §4.10,
 //! docs/robot.md §6): ±2000 °/s, read as raw counts of 0.066 °/s (`KH4_GYRO_DEG_S`). The reading is
-//! the body's yaw rate over the last control step plus Gaussian noise, quantised to whole counts
-//! and clamped to the full scale. Scenario keys: `sensors.gyro_noise_sigma`.
+//! the body's yaw rate over the last control step plus a constant bias (the zero-rate offset) and
+//! Gaussian noise, quantised to whole counts and clamped to the full scale. Scenario keys:
+//! `sensors.gyro_noise_sigma`, `gyro_bias`.
 //!
 //! Units: raw counts in `sensor_readings()["gyro_raw"]`, rad/s in `["gyro_z"]`; the observation
 //! block `gyro` is the rate over the full scale, in [-1, 1]. Robot frame z up: counter-clockwise
@@ -12,8 +13,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 use super::{DrawContext, Readout, SenseContext, Sensor};
+use crate::config::{Domain, Param};
 use crate::draw::Mark;
-use crate::error::{Error, Result};
 use crate::obs::Block;
 
 /// One raw count (°/s): `KH4_GYRO_DEG_S` of libkhepera (docs/robot.md §6, §10).
@@ -25,7 +26,9 @@ crate::config_table! {
     /// The gyroscope's keys in `[sensors]`.
     pub struct GyroConfig {
         /// °/s, Gaussian, per reading [E: the LSM330DLC's rate noise density 0.03 °/s/√Hz over its 95 Hz output, averaged over a reading]
-        gyro_noise_sigma: f32 = 0.2,
+        gyro_noise_sigma: f32 = 0.2 => Domain::range(0.0, FULL_SCALE_DEG_S as f64),
+        /// °/s added to every reading: the gyroscope's zero-rate offset (0 = none; khepera-gym calibrate measures a robot's own) [E]; may be a [low, high] range, drawn per episode
+        gyro_bias: Param = 0.0 => Domain::range(-(FULL_SCALE_DEG_S as f64), FULL_SCALE_DEG_S as f64),
     }
 }
 
@@ -43,6 +46,8 @@ pub struct GyroReading {
 pub struct Gyro {
     /// Standard deviation of the noise (°/s).
     pub noise_sigma: f32,
+    /// Zero-rate offset added to every reading (°/s).
+    pub bias: f32,
 }
 
 impl Sensor for Gyro {
@@ -53,25 +58,17 @@ impl Sensor for Gyro {
     fn new(cfg: &GyroConfig) -> Self {
         Self {
             noise_sigma: cfg.gyro_noise_sigma,
+            bias: cfg.gyro_bias.bounds().0,
         }
     }
 
-    fn validate(cfg: &GyroConfig, origin: &str) -> Result<()> {
-        if !cfg.gyro_noise_sigma.is_finite() || cfg.gyro_noise_sigma < 0.0 {
-            return Err(Error::config(
-                origin,
-                "sensors.gyro_noise_sigma",
-                format!("must be a finite number >= 0, got {}", cfg.gyro_noise_sigma),
-            ));
-        }
-        Ok(())
+    fn randomise(&mut self, cfg: &GyroConfig, rng: &mut ChaCha8Rng) {
+        self.bias = cfg.gyro_bias.sample(rng);
     }
-
-    fn randomise(&mut self, _cfg: &GyroConfig, _rng: &mut ChaCha8Rng) {}
 
     fn read(&mut self, ctx: &SenseContext, rng: &mut ChaCha8Rng, reading: &mut GyroReading) {
         let noise: f32 = rng.sample(StandardNormal);
-        let deg_s = ctx.yaw_rate.to_degrees() + self.noise_sigma * noise;
+        let deg_s = ctx.yaw_rate.to_degrees() + self.bias + self.noise_sigma * noise;
         let counts = (deg_s / DEG_S_PER_COUNT).round();
         let limit = (FULL_SCALE_DEG_S / DEG_S_PER_COUNT).round();
         reading.raw = counts.clamp(-limit, limit) as i32;
@@ -112,7 +109,10 @@ mod tests {
     #[test]
     fn reads_the_yaw_rate_in_whole_counts() {
         let scene = Scene::arena(2.0, 2.0, 0.05);
-        let mut gyro = Gyro { noise_sigma: 0.0 };
+        let mut gyro = Gyro {
+            noise_sigma: 0.0,
+            bias: 0.0,
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(0);
         let mut reading = GyroReading::default();
         let ctx = SenseContext {
@@ -135,5 +135,32 @@ mod tests {
         // 1 rad/s = 57.2958 °/s = 868.1 counts → 868.
         assert_eq!(reading.raw, 868);
         assert!((reading.rate - 1.0).abs() < DEG_S_PER_COUNT.to_radians());
+        // A bias of 1.32 °/s adds 20 counts to every reading, at rest too.
+        gyro.bias = 1.32;
+        gyro.read(&ctx, &mut rng, &mut reading);
+        assert_eq!(reading.raw, 888);
+        let at_rest = SenseContext {
+            yaw_rate: 0.0,
+            ..ctx
+        };
+        gyro.read(&at_rest, &mut rng, &mut reading);
+        assert_eq!(reading.raw, 20);
+    }
+
+    #[test]
+    fn a_bias_beyond_the_full_scale_is_an_error_naming_the_key() {
+        let mut cfg = GyroConfig::default();
+        Gyro::validate(&cfg, "f.toml").expect("the default");
+        cfg.gyro_bias = Param::Range([-2.0, 2.0]);
+        Gyro::validate(&cfg, "f.toml").expect("a range");
+        for bad in [
+            Param::Value(2500.0),
+            Param::Value(f32::NAN),
+            Param::Range([1.0, -1.0]),
+        ] {
+            cfg.gyro_bias = bad;
+            let e = Gyro::validate(&cfg, "f.toml").unwrap_err().to_string();
+            assert!(e.contains("sensors.gyro_bias"), "{e}");
+        }
     }
 }

@@ -31,8 +31,8 @@ use rand_distr::StandardNormal;
 
 use super::gyro::{DEG_S_PER_COUNT, FULL_SCALE_DEG_S};
 use super::{DrawContext, Readout, SenseContext, Sensor};
+use crate::config::Domain;
 use crate::draw::Mark;
-use crate::error::{Error, Result};
 use crate::obs::Block;
 
 /// Standard gravity (m/s²), the unit "g" of the accelerometer (ISO 80000-3).
@@ -49,9 +49,9 @@ crate::config_table! {
     /// The IMU's keys in `[sensors]`.
     pub struct ImuConfig {
         /// g, Gaussian, per reading and axis [E: the LSM330DLC's accelerometer noise density, about 0.2 mg/√Hz, over its 50 Hz bandwidth]
-        imu_accel_noise_sigma: f32 = 0.002,
+        imu_accel_noise_sigma: f32 = 0.002 => Domain::range(0.0, ACCEL_FULL_SCALE_G as f64),
         /// °/s, Gaussian, per reading and axis [E: as sensors.gyro_noise_sigma]
-        imu_gyro_noise_sigma: f32 = 0.2,
+        imu_gyro_noise_sigma: f32 = 0.2 => Domain::range(0.0, FULL_SCALE_DEG_S as f64),
     }
 }
 
@@ -96,22 +96,6 @@ impl Sensor for Imu {
             accel_noise_sigma: cfg.imu_accel_noise_sigma,
             gyro_noise_sigma: cfg.imu_gyro_noise_sigma,
         }
-    }
-
-    fn validate(cfg: &ImuConfig, origin: &str) -> Result<()> {
-        for (key, value) in [
-            ("sensors.imu_accel_noise_sigma", cfg.imu_accel_noise_sigma),
-            ("sensors.imu_gyro_noise_sigma", cfg.imu_gyro_noise_sigma),
-        ] {
-            if !value.is_finite() || value < 0.0 {
-                return Err(Error::config(
-                    origin,
-                    key,
-                    format!("must be a finite number >= 0, got {value}"),
-                ));
-            }
-        }
-        Ok(())
     }
 
     fn randomise(&mut self, _cfg: &ImuConfig, _rng: &mut ChaCha8Rng) {}

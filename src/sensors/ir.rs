@@ -1,10 +1,11 @@
 //! Infrared proximity ring: 8 TCRT5000 sensors, 45° apart on the rim, raw value 0..1023
-//! (1023 = touching), from K-Team's measured response curve (docs/robot.md §3, user manual fig. 10,
-//! digitised ±10 counts) interpolated linearly in distance, plus Gaussian noise in raw counts.
+//! (1023 = touching), from a response curve interpolated linearly in distance (by default
+//! K-Team's measured curve, docs/robot.md §3, user manual fig. 10, digitised ±10 counts; a
+//! calibrated robot's own with `sensors.ir_curve`), plus Gaussian noise in raw counts.
 //!
 //! Distances are measured from the sensor (on the body rim) to the obstacle surface, in metres.
 //! One ray per sensor along its axis, cast against the obstacles and robots within reach only.
-//! Scenario keys: `sensors.ir_range`, `ir_floor_value`, `ir_noise_sigma`.
+//! Scenario keys: `sensors.ir_range`, `ir_floor_value`, `ir_noise_sigma`, `ir_curve`.
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -12,7 +13,7 @@ use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
 use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
-use crate::config::Param;
+use crate::config::{Domain, Param};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::Block;
@@ -37,13 +38,15 @@ const DEG: f32 = std::f32::consts::PI / 180.0;
 /// Largest raw value.
 pub const IR_MAX_RAW: f32 = 1023.0;
 
-/// Response curve: distance (mm) → raw count, K-Team fig. 10 (docs/robot.md §3). The value beyond
-/// the last point comes from the scenario's floor value (floor reflection), reached at `ir_range`.
-const CURVE_MM: [f32; 16] = [
+/// Distances (mm) of the response curve's points (K-Team fig. 10, docs/robot.md §3); the raw
+/// counts at them are `sensors.ir_curve`. The value beyond the last point comes from the
+/// scenario's floor value (floor reflection), reached at `ir_range`.
+pub const CURVE_MM: [f32; 16] = [
     0.0, 10.0, 20.0, 30.0, 35.0, 40.0, 45.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0, 120.0, 150.0,
     200.0,
 ];
-const CURVE_RAW: [f32; 16] = [
+/// K-Team's raw counts at [`CURVE_MM`] on white paper: the default of `sensors.ir_curve`.
+pub const CURVE_RAW: [f32; 16] = [
     1018.0, 1012.0, 1002.0, 979.0, 889.0, 764.0, 597.0, 492.0, 380.0, 319.0, 254.0, 228.0, 199.0,
     163.0, 133.0, 111.0,
 ];
@@ -52,11 +55,13 @@ crate::config_table! {
     /// The IR ring's keys in `[sensors]` (spec §2–3).
     pub struct IrConfig {
         /// m, beyond this the IR reads the floor value
-        ir_range: f32 = 0.25,
+        ir_range: f32 = 0.25 => Domain::above(0.2).at_most(1.0),
         /// raw count with nothing in range (floor reflection) [E]; may be a [low, high] range
-        ir_floor_value: Param = 100.0,
+        ir_floor_value: Param = 100.0 => Domain::range(0.0, IR_MAX_RAW as f64),
         /// raw counts, Gaussian, per reading [E]; may be a range
-        ir_noise_sigma: Param = 10.0,
+        ir_noise_sigma: Param = 10.0 => Domain::range(0.0, IR_MAX_RAW as f64),
+        /// raw counts on white paper at 0, 10, 20, 30, 35, 40, 45, 50, 60, 70, 80, 90, 100, 120, 150 and 200 mm from the sensor, interpolated linearly; non-increasing (K-Team manual fig. 10, spec §3; khepera-gym calibrate measures a robot's own)
+        ir_curve: [f32; 16] = [1018.0, 1012.0, 1002.0, 979.0, 889.0, 764.0, 597.0, 492.0, 380.0, 319.0, 254.0, 228.0, 199.0, 163.0, 133.0, 111.0] => Domain::range(0.0, IR_MAX_RAW as f64),
     }
 }
 
@@ -69,6 +74,8 @@ pub struct IrModel {
     pub floor_value: f32,
     /// Standard deviation of the additive Gaussian noise (raw counts).
     pub noise_sigma: f32,
+    /// Raw counts on white paper at the distances [`CURVE_MM`].
+    pub curve: [f32; 16],
 }
 
 impl IrModel {
@@ -78,16 +85,17 @@ impl IrModel {
             Some(d) if d < self.range => d.max(0.0) * 1000.0,
             _ => return self.floor_value,
         };
+        let curve = &self.curve;
         let last = CURVE_MM.len() - 1;
         if d >= CURVE_MM[last] {
             // From the last measured point down to the floor value at the range limit.
             let span = self.range * 1000.0 - CURVE_MM[last];
             let t = (d - CURVE_MM[last]) / span;
-            return CURVE_RAW[last] + t * (self.floor_value - CURVE_RAW[last]);
+            return curve[last] + t * (self.floor_value - curve[last]);
         }
         let i = CURVE_MM.partition_point(|&x| x <= d).clamp(1, last);
         let (x0, x1) = (CURVE_MM[i - 1], CURVE_MM[i]);
-        let (y0, y1) = (CURVE_RAW[i - 1], CURVE_RAW[i]);
+        let (y0, y1) = (curve[i - 1], curve[i]);
         y0 + (d - x0) / (x1 - x0) * (y1 - y0)
     }
 
@@ -163,6 +171,7 @@ impl Sensor for IrRing {
                 range: cfg.ir_range,
                 floor_value: cfg.ir_floor_value.bounds().0,
                 noise_sigma: cfg.ir_noise_sigma.bounds().0,
+                curve: cfg.ir_curve,
             },
             dirs: ir_dirs(),
             near_shapes: Vec::new(),
@@ -171,32 +180,24 @@ impl Sensor for IrRing {
     }
 
     fn validate(cfg: &IrConfig, origin: &str) -> Result<()> {
-        if !cfg.ir_range.is_finite() || cfg.ir_range <= 0.0 {
+        // The domains check each key; what is left relates keys to each other.
+        let curve = &cfg.ir_curve;
+        if !curve.windows(2).all(|pair| pair[1] <= pair[0]) {
             return Err(Error::config(
                 origin,
-                "sensors.ir_range",
-                format!("must be a finite number > 0, got {}", cfg.ir_range),
+                "sensors.ir_curve",
+                format!("must not increase with distance, got {curve:?}"),
             ));
         }
-        cfg.ir_floor_value
-            .check(origin, "sensors.ir_floor_value", false)?;
-        cfg.ir_noise_sigma
-            .check(origin, "sensors.ir_noise_sigma", false)?;
-        if cfg.ir_floor_value.max() > CURVE_RAW[CURVE_RAW.len() - 1] {
+        let last = curve[curve.len() - 1];
+        if cfg.ir_floor_value.max() > last {
             return Err(Error::config(
                 origin,
                 "sensors.ir_floor_value",
                 format!(
-                    "must be in [0, 111] (the response curve reads 111 at 0.2 m), got {:?}",
+                    "must be in [0, {last}] (sensors.ir_curve reads {last} at 0.2 m), got {:?}",
                     cfg.ir_floor_value
                 ),
-            ));
-        }
-        if cfg.ir_range <= 0.2 || cfg.ir_range > 1.0 {
-            return Err(Error::config(
-                origin,
-                "sensors.ir_range",
-                format!("must be in (0.2, 1.0] m, got {}", cfg.ir_range),
             ));
         }
         Ok(())
@@ -300,6 +301,7 @@ mod tests {
         range: 0.25,
         floor_value: 100.0,
         noise_sigma: 0.0,
+        curve: CURVE_RAW,
     };
 
     #[test]
@@ -318,6 +320,26 @@ mod tests {
         assert_eq!(MODEL.mean_raw(None), 100.0);
         assert_eq!(MODEL.normalise(100), 0.0);
         assert_eq!(MODEL.normalise(1023), 1.0);
+    }
+
+    #[test]
+    fn a_robots_own_curve_replaces_kteams() {
+        let mut own = MODEL;
+        own.curve = CURVE_RAW.map(|raw| 0.9 * raw);
+        assert!((own.mean_raw(Some(0.04)) - 0.9 * 764.0).abs() < 1e-3);
+        assert!((own.mean_raw(Some(0.055)) - 0.9 * 436.0).abs() < 1e-3);
+        let mut cfg = IrConfig::default();
+        IrRing::validate(&cfg, "f.toml").expect("the default");
+        cfg.ir_curve[4] = 990.0; // rises from 979 at 30 mm
+        let e = IrRing::validate(&cfg, "f.toml").unwrap_err().to_string();
+        assert!(e.contains("sensors.ir_curve"), "{e}");
+        let mut cfg = IrConfig::default();
+        cfg.ir_curve[15] = 90.0; // below the floor value of 100
+        let e = IrRing::validate(&cfg, "f.toml").unwrap_err().to_string();
+        assert!(
+            e.contains("sensors.ir_floor_value") && e.contains("[0, 90]"),
+            "{e}"
+        );
     }
 
     #[test]

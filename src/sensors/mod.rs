@@ -172,8 +172,11 @@ pub trait Sensor: Clone + Serialize + DeserializeOwned {
     /// The sensor of a scenario (parameters given as ranges start at their low end).
     fn new(cfg: &Self::Config) -> Self;
 
-    /// Checks the keys; the error names `origin` and `sensors.<key>`.
-    fn validate(cfg: &Self::Config, origin: &str) -> Result<()>;
+    /// Checks what its keys' domains cannot (each key alone is checked by its declaration):
+    /// keys that relate to one another. The error names `origin` and `sensors.<key>`.
+    fn validate(_cfg: &Self::Config, _origin: &str) -> Result<()> {
+        Ok(())
+    }
 
     /// Draws this episode's parameters given as `[low, high]` ranges (domain randomisation).
     fn randomise(&mut self, cfg: &Self::Config, rng: &mut ChaCha8Rng);
@@ -223,16 +226,20 @@ pub struct Carried<S> {
 
 /// The `[sensors]` keys that are not any one sensor's.
 const SUITE_KEYS: &[KeyDoc] = &[
-    KeyDoc {
-        name: "carry",
-        default: "[\"ir\", \"us\", \"gyro\"]",
-        comment: "sensors each robot has (ir, us, gyro, imu, ground, camera); others cost nothing",
-    },
-    KeyDoc {
-        name: "observe",
-        default: "[\"ir\", \"us\"]",
-        comment: "carried sensors whose blocks the observation holds, in registry order",
-    },
+    KeyDoc::new(
+        "carry",
+        "[\"ir\", \"us\", \"gyro\"]",
+        "sensors each robot has (ir, us, gyro, imu, ground, camera); others cost nothing",
+        "Vec<String>",
+        None,
+    ),
+    KeyDoc::new(
+        "observe",
+        "[\"ir\", \"us\"]",
+        "carried sensors whose blocks the observation holds, in registry order",
+        "Vec<String>",
+        None,
+    ),
 ];
 
 /// Declares the sensors a robot may carry. Each line is `field: Type`; the order is the order of
@@ -274,10 +281,11 @@ macro_rules! sensor_registry {
                 for key in table.keys() {
                     if !Self::keys().iter().any(|k| k.name == key) {
                         let known: Vec<&str> = Self::keys().iter().map(|k| k.name).collect();
+                        let hint = config::did_you_mean(key, known.iter().copied());
                         return Err(Error::config(
                             origin,
                             &format!("sensors.{key}"),
-                            format!("unknown key; known keys here: {known:?}"),
+                            format!("unknown key{hint}; known keys here: {known:?}"),
                         ));
                     }
                 }

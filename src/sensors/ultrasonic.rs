@@ -3,8 +3,10 @@
 //! "too close" (0), "nothing in range" (1000) and "disabled" (2000). Spec §5.
 //!
 //! One ray per sensor along its axis (the beam width is not documented; Webots uses one ray too),
-//! cast against every obstacle and robot (the range is long). Scenario keys:
-//! `sensors.us_min_range`, `us_max_range`, `us_noise_sigma`, `us_enabled`.
+//! cast against every obstacle and robot (the range is long). A sensor measures the distance plus
+//! a constant offset (`us_offset`, a robot's own from calibration) plus noise; the codes follow
+//! from the measured distance. Scenario keys: `sensors.us_min_range`, `us_max_range`,
+//! `us_noise_sigma`, `us_enabled`, `us_period`, `us_acceptance`, `us_offset`.
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -12,7 +14,7 @@ use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
 use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
-use crate::config::Param;
+use crate::config::{limits, Domain, Param};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::Block;
@@ -38,17 +40,19 @@ crate::config_table! {
     /// The ultrasonic sensors' keys in `[sensors]` (spec §5).
     pub struct UsConfig {
         /// m, closer objects read code 0 ("too close")
-        us_min_range: f32 = 0.25,
+        us_min_range: f32 = 0.25 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, farther than this reads code 1000 ("nothing")
-        us_max_range: f32 = 2.0,
+        us_max_range: f32 = 2.0 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, Gaussian [E] (K-Team states +-2 cm tolerance); may be a range
-        us_noise_sigma: Param = 0.01,
+        us_noise_sigma: Param = 0.01 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// left, front-left, front, front-right, right; off reads 2000
         us_enabled: [bool; 5] = [true, true, true, true, true],
         /// s between two readings of the five sensors: 20 ms each, 100 ms for all five (K-Team manual §4.2); a reading holds until the next (0 = every step)
-        us_period: f32 = 0.1,
+        us_period: f32 = 0.1 => Domain::range(0.0, 10.0),
         /// rad, largest angle between the beam and a surface's normal that still echoes [S: Webots' sonar model, 22.5°]; pi/2 = any
-        us_acceptance: f32 = 0.39269908169872414,
+        us_acceptance: f32 = 0.39269908169872414 => Domain::POSITIVE.at_most(std::f64::consts::FRAC_PI_2),
+        /// m added to every measured distance (0 = none; khepera-gym calibrate measures a robot's own) [E]; may be a [low, high] range, drawn per episode
+        us_offset: Param = 0.0 => Domain::above(-0.5).below(0.5),
     }
 }
 
@@ -63,6 +67,8 @@ pub struct UsModel {
     pub noise_sigma: f32,
     /// Which sensors are on.
     pub enabled: [bool; US_COUNT],
+    /// Offset added to every measured distance (m).
+    pub offset: f32,
 }
 
 impl UsModel {
@@ -73,7 +79,7 @@ impl UsModel {
         if !self.enabled[index] {
             return US_DISABLED;
         }
-        match distance {
+        match distance.map(|d| d + self.offset) {
             None => US_NOTHING,
             Some(d) if d > self.max_range => US_NOTHING,
             Some(d) if d < self.min_range => US_TOO_CLOSE,
@@ -102,7 +108,8 @@ impl UsModel {
 pub struct UsReading {
     /// Readings in cm, or the codes [`US_TOO_CLOSE`], [`US_NOTHING`], [`US_DISABLED`].
     pub code: [i32; US_COUNT],
-    /// True distance (m) each ray travelled before a hit, for drawing.
+    /// True distance (m) each beam travelled to the first surface it met (echo or not; the cast
+    /// range when none), for drawing.
     pub hit: [f32; US_COUNT],
     /// Time (s) since these readings were taken.
     pub age: f32,
@@ -153,6 +160,7 @@ impl Sensor for Ultrasonic {
                 max_range: cfg.us_max_range,
                 noise_sigma: cfg.us_noise_sigma.bounds().0,
                 enabled: cfg.us_enabled,
+                offset: cfg.us_offset.bounds().0,
             },
             period: cfg.us_period,
             acceptance_cos: if cfg.us_acceptance >= std::f32::consts::FRAC_PI_2 {
@@ -167,34 +175,6 @@ impl Sensor for Ultrasonic {
     }
 
     fn validate(cfg: &UsConfig, origin: &str) -> Result<()> {
-        for (key, v) in [
-            ("sensors.us_min_range", cfg.us_min_range),
-            ("sensors.us_max_range", cfg.us_max_range),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return Err(Error::config(
-                    origin,
-                    key,
-                    format!("must be a finite number > 0, got {v}"),
-                ));
-            }
-        }
-        cfg.us_noise_sigma
-            .check(origin, "sensors.us_noise_sigma", false)?;
-        if !cfg.us_period.is_finite() || !(0.0..=10.0).contains(&cfg.us_period) {
-            return Err(Error::config(
-                origin,
-                "sensors.us_period",
-                format!("must be in [0, 10] s, got {}", cfg.us_period),
-            ));
-        }
-        if !(cfg.us_acceptance > 0.0 && cfg.us_acceptance <= std::f32::consts::FRAC_PI_2) {
-            return Err(Error::config(
-                origin,
-                "sensors.us_acceptance",
-                format!("must be in (0, pi/2] rad, got {}", cfg.us_acceptance),
-            ));
-        }
         if cfg.us_min_range >= cfg.us_max_range {
             return Err(Error::config(
                 origin,
@@ -210,6 +190,7 @@ impl Sensor for Ultrasonic {
 
     fn randomise(&mut self, cfg: &UsConfig, rng: &mut ChaCha8Rng) {
         self.model.noise_sigma = cfg.us_noise_sigma.sample(rng);
+        self.model.offset = cfg.us_offset.sample(rng);
     }
 
     fn reach(&self, radius: f32) -> f32 {
@@ -265,7 +246,7 @@ impl Sensor for Ultrasonic {
         for k in 0..US_COUNT {
             let dir = rotate(self.dirs[k], c, s);
             let origin = ctx.position + ctx.radius * dir;
-            let hit = ctx.scene.cast_hit(
+            let surface = ctx.scene.cast_hit(
                 origin,
                 dir,
                 cast_range,
@@ -275,13 +256,13 @@ impl Sensor for Ultrasonic {
                 ctx.radius,
             );
             // A surface hit at a grazing angle reflects the ping away: no echo from it.
-            let hit = hit.filter(|h| {
+            let echo = surface.filter(|h| {
                 self.acceptance_cos <= 0.0
                     || h.incidence_cos(ctx.scene, ctx.radius) >= self.acceptance_cos
             });
-            let distance = hit.map(|h| h.distance);
-            reading.code[k] = self.model.read(k, distance, rng);
-            reading.hit[k] = distance.unwrap_or(cast_range);
+            reading.code[k] = self.model.read(k, echo.map(|h| h.distance), rng);
+            // The beam stops at the surface it met, whether or not it echoed.
+            reading.hit[k] = surface.map_or(cast_range, |h| h.distance);
         }
     }
 
@@ -304,17 +285,37 @@ impl Sensor for Ultrasonic {
         out.ints("us_cm", US_COUNT, &reading.code.map(i64::from));
     }
 
+    /// Each enabled beam, blue, to the surface it met or to its range: solid when the reading
+    /// is an echo (a distance, or too close), dashed when it reports nothing (no surface in
+    /// range, or one met at too grazing an angle to echo). A disabled sensor draws nothing.
     fn draw(&self, at: &DrawContext, reading: &UsReading, marks: &mut Vec<Mark>) {
         let (s, c) = at.heading.sin_cos();
-        for (dir, hit) in self.dirs.iter().zip(reading.hit) {
+        let beams = self.dirs.iter().zip(reading.hit).zip(reading.code);
+        for ((dir, hit), code) in beams {
+            if code == US_DISABLED {
+                continue;
+            }
             let d = rotate(*dir, c, s);
-            let start = at.position + at.radius * d;
-            marks.push(Mark::Ray {
-                from: start,
-                to: start + hit.min(self.model.max_range) * d,
-                colour: [60, 110, 220],
-                alpha: 60,
-                width: 0.004,
+            let from = at.position + at.radius * d;
+            let to = from + hit.min(self.model.max_range) * d;
+            let colour = [60, 110, 220];
+            marks.push(if code == US_NOTHING {
+                Mark::Dashed {
+                    from,
+                    to,
+                    colour,
+                    alpha: 110,
+                    width: 0.004,
+                    dash: 0.03,
+                }
+            } else {
+                Mark::Ray {
+                    from,
+                    to,
+                    colour,
+                    alpha: 60,
+                    width: 0.004,
+                }
             });
         }
     }
@@ -333,6 +334,7 @@ mod tests {
             max_range: 2.0,
             noise_sigma: 0.0,
             enabled: [true; 5],
+            offset: 0.0,
         };
         assert_eq!(us.read(0, Some(0.1), &mut rng), US_TOO_CLOSE);
         assert_eq!(us.read(0, Some(2.5), &mut rng), US_NOTHING);
@@ -342,5 +344,10 @@ mod tests {
         assert_eq!(us.read(3, Some(1.0), &mut rng), US_DISABLED);
         assert_eq!(us.normalise(100), 0.5);
         assert_eq!(us.normalise(US_NOTHING), 1.0);
+        // An offset moves every measured distance, and the codes follow the measured one.
+        us.offset = 0.03;
+        assert_eq!(us.read(0, Some(1.234), &mut rng), 126);
+        assert_eq!(us.read(0, Some(0.23), &mut rng), 26);
+        assert_eq!(us.read(0, Some(1.98), &mut rng), US_NOTHING);
     }
 }

@@ -100,6 +100,10 @@ pub struct DroneFollow {
     /// The agent-driven robot's distance to its waypoint at the last step (m).
     #[serde(default)]
     prev_distance: f32,
+    /// How far the drone flew (horizontally) on the last step (m): its agent's path; read in the
+    /// step that sets it, so not saved.
+    #[serde(skip)]
+    step_travel: f32,
 }
 
 fn scripted() -> Driver {
@@ -183,6 +187,7 @@ impl Task for DroneFollow {
             frames: 0,
             driver: d.driver,
             prev_distance: 0.0,
+            step_travel: 0.0,
         })
     }
 
@@ -282,9 +287,11 @@ impl Task for DroneFollow {
     ) -> bool {
         let dt = world.dt();
         let h = dt / DRONE_SUBSTEPS as f32;
+        let before = self.drone.position;
         for _ in 0..DRONE_SUBSTEPS {
             self.drone.advance(self.command, h, &self.params);
         }
+        self.step_travel = (self.drone.position - before).length();
         let robot = world.robots[0].position;
         let distance = (self.route[self.next] - robot).length();
         let reached = distance < self.waypoint_radius;
@@ -307,6 +314,10 @@ impl Task for DroneFollow {
         self.in_view += u32::from(seen);
         self.frames += 1;
         false
+    }
+
+    fn vehicle_travel(&self, _vehicle: usize) -> f32 {
+        self.step_travel
     }
 
     fn extra_stats(&self, out: &mut [f32]) {

@@ -1,6 +1,7 @@
 //! One environment: a world joined to its task ([`Env`]), with the episode's bookkeeping in one
 //! place: the layout drawn at reset, agents' commands, the step counter, termination and
-//! truncation, episode statistics ([`EpisodeStats`]), trails for rendering, and the saved state
+//! truncation, episode statistics (the world's [`EpisodeStats`] and each agent's own
+//! [`AgentStats`]), trails for rendering, and the saved state
 //! (`save_state` / `load_state`, postcard bytes). The task itself is reached only through the
 //! registry's private `TaskState` enum (`tasks/mod.rs`), so nothing here names a task.
 //!
@@ -26,10 +27,10 @@ use crate::world::floor::FloorMarks;
 use crate::world::layout::Spawner;
 use crate::world::World;
 
-/// Statistics of one episode.
+/// Statistics of one episode of the world (all its agents together).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EpisodeStats {
-    /// Sum of (joint) rewards.
+    /// Sum of (joint) rewards: each step's mean over the agents.
     pub ret: f32,
     /// Steps taken.
     pub length: u32,
@@ -41,6 +42,25 @@ pub struct EpisodeStats {
     pub collisions: u32,
     /// The task's extra statistics, in the order of its `EXTRA_STATS`.
     pub extra: [f32; MAX_EXTRA_STATS],
+}
+
+/// One agent's statistics of an episode: its own figures, counted from the reset while it takes
+/// part (until it terminates, or the episode ends).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AgentStats {
+    /// Sum of its own rewards.
+    pub ret: f32,
+    /// Steps it took part in.
+    pub length: u32,
+    /// Whether it succeeded, as its task defines it for one agent
+    /// ([`super::Task::agent_success`]); decided when it leaves.
+    pub success: bool,
+    /// Distance its robot travelled (m); a vehicle's (a drone's) flight, as its task reports it.
+    pub path_length: f32,
+    /// Steps in which its robot was in contact with something (a vehicle has no contacts).
+    pub collisions: u32,
+    /// It has left the episode: these figures are final.
+    pub done: bool,
 }
 
 /// What a step returns besides the observation.
@@ -63,6 +83,8 @@ struct EnvStateRef<'a> {
     agent_terminated: &'a [bool],
     stats: &'a EpisodeStats,
     last_episode: &'a EpisodeStats,
+    agent_stats: &'a [AgentStats],
+    last_agent_episodes: &'a [AgentStats],
     done: bool,
     trails: &'a [Vec<Vector>],
     pending_actions: &'a VecDeque<Vec<f32>>,
@@ -78,6 +100,8 @@ struct EnvState {
     agent_terminated: Vec<bool>,
     stats: EpisodeStats,
     last_episode: EpisodeStats,
+    agent_stats: Vec<AgentStats>,
+    last_agent_episodes: Vec<AgentStats>,
     done: bool,
     trails: Vec<Vec<Vector>>,
     pending_actions: VecDeque<Vec<f32>>,
@@ -103,8 +127,13 @@ pub struct Env {
     pub agent_terminated: Vec<bool>,
     /// Statistics of the running episode.
     pub stats: EpisodeStats,
-    /// Statistics of the episode that ended on the last step.
+    /// Statistics of the last episode that ended.
     pub last_episode: EpisodeStats,
+    /// Each agent's statistics of the running episode (an agent that has left holds its final
+    /// ones), in agent order.
+    pub agent_stats: Vec<AgentStats>,
+    /// Each agent's statistics of the last episode that ended, in agent order.
+    pub last_agent_episodes: Vec<AgentStats>,
     /// The episode has ended; the next step must be a reset.
     pub done: bool,
     /// Positions of each robot over the last `trail_length` steps (for rendering; empty and
@@ -161,6 +190,8 @@ impl Env {
             agent_terminated: vec![false; n_agents],
             stats: EpisodeStats::default(),
             last_episode: EpisodeStats::default(),
+            agent_stats: vec![AgentStats::default(); n_agents],
+            last_agent_episodes: vec![AgentStats::default(); n_agents],
             done: true,
             trails: Vec::new(),
             trail_length: 0,
@@ -193,6 +224,7 @@ impl Env {
     /// Starts a new episode (continuing the random stream) and writes its first observation.
     pub fn reset(&mut self, obs: &mut [f32]) {
         self.stats = EpisodeStats::default();
+        self.agent_stats.fill(AgentStats::default());
         self.done = false;
         self.agent_rewards.fill(0.0);
         self.agent_terminated.fill(false);
@@ -291,12 +323,14 @@ impl Env {
         let all_out = self.agent_terminated.iter().all(|&t| t);
         let terminated = success || all_out || (collided && self.cfg.task.terminate_on_collision);
         let truncated = !terminated && stats.length >= self.task.max_steps(&self.cfg);
+        self.record_agents(terminated || truncated);
         if terminated {
             self.agent_terminated.fill(true);
         }
         if terminated || truncated {
             self.done = true;
-            self.last_episode = *stats;
+            self.last_episode = self.stats;
+            self.last_agent_episodes.clone_from(&self.agent_stats);
         }
         self.observe(obs);
         // Deliver the observation made `observation_delay` steps ago and keep this one.
@@ -309,6 +343,33 @@ impl Env {
             reward,
             terminated,
             truncated,
+        }
+    }
+
+    /// Adds the last step to the statistics of each agent still in the episode; an agent that
+    /// terminated on it, or every agent when the episode ended, leaves with the task's verdict
+    /// on its success.
+    fn record_agents(&mut self, episode_over: bool) {
+        let robots = &self.world.robots;
+        let agents = self.agent_robots.iter().zip(&mut self.agent_stats);
+        for (k, (&robot, stats)) in agents.enumerate() {
+            if stats.done {
+                continue;
+            }
+            stats.ret += self.agent_rewards[k];
+            stats.length += 1;
+            match robots.get(robot) {
+                Some(body) => {
+                    stats.path_length += body.step_travel;
+                    stats.collisions += body.in_contact as u32;
+                }
+                None => stats.path_length += self.task.vehicle_travel(robot - robots.len()),
+            }
+            if self.agent_terminated[k] || episode_over {
+                let success = self.stats.success;
+                stats.success = self.task.agent_success(&self.world, &self.cfg, k, success);
+                stats.done = true;
+            }
         }
     }
 
@@ -367,6 +428,8 @@ impl Env {
             agent_terminated: &self.agent_terminated,
             stats: &self.stats,
             last_episode: &self.last_episode,
+            agent_stats: &self.agent_stats,
+            last_agent_episodes: &self.last_agent_episodes,
             done: self.done,
             trails: &self.trails,
             pending_actions: &self.pending_actions,
@@ -388,6 +451,8 @@ impl Env {
         if state.world.robots.len() != n_robots
             || state.agent_rewards.len() != n_agents
             || state.agent_terminated.len() != n_agents
+            || state.agent_stats.len() != n_agents
+            || state.last_agent_episodes.len() != n_agents
             || !state.task.fits(&self.task)
             || state.pending_actions.len() != self.cfg.task.action_delay as usize
             || state
@@ -409,6 +474,8 @@ impl Env {
         self.agent_terminated = state.agent_terminated;
         self.stats = state.stats;
         self.last_episode = state.last_episode;
+        self.agent_stats = state.agent_stats;
+        self.last_agent_episodes = state.last_agent_episodes;
         self.done = state.done;
         self.trails = state.trails;
         self.pending_actions = state.pending_actions;

@@ -16,13 +16,19 @@
 //! episode terminates when the leader reaches its goal (success) or, with
 //! `terminate_on_collision`, on any contact; `Env` truncates at `max_steps`. Extra episode
 //! statistics: `formation_error_mean`, `formation_error_max` (m).
+//!
+//! An agent's success: the leader's is the task's (it reached its goal); a follower succeeds
+//! when the leader reached its goal and the follower then stands within `task.goal_radius` of its
+//! target, the task's own tolerance for being at a point (the leader's, 0.05 m by default). A
+//! follower that drifted away, or an episode that ended without the leader's arrival, is not a
+//! success.
 
 use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
 use super::{Agent, Driver, Task, TaskInfo};
-use crate::config::ConfigTable;
+use crate::config::{limits, ConfigTable, Domain};
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
 use crate::draw::{Mark, PALETTE};
@@ -76,29 +82,32 @@ pub enum FormationShape {
     Custom,
 }
 
+/// Most followers (`formation.n_followers`, custom `formation.offsets`).
+pub const MAX_FOLLOWERS: u32 = 16;
+
 crate::config_table! {
     /// `[formation]`: leader–follower formation (paper §3.5).
     pub struct FormationConfig {
         /// cross (Fig. 7), line (abreast), wedge (V behind), circle, custom
         shape: FormationShape = "cross",
         /// K followers (cross: 4 fills the arms)
-        n_followers: u32 = 4,
+        n_followers: u32 = 4 => Domain::range(1.0, MAX_FOLLOWERS as f64),
         /// r (m): nearest followers' distance to the leader (the paper's example; > 2 x radius + IR range, so robots in formation do not see each other)
-        spacing: f32 = 0.5,
+        spacing: f32 = 0.5 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// custom shape: [[r, beta], ...] (m, rad CCW from the leader's heading)
-        offsets: Vec<[f32; 2]> = [],
+        offsets: Vec<[f32; 2]> = [] => Domain::range(-limits::LENGTH, limits::LENGTH).at_most_entries(MAX_FOLLOWERS as usize),
         /// "scripted": position control + Braitenberg in Rust; "agent": learnt
         leader: Driver = "scripted",
         /// m/s, scripted leader's speed (slow enough for followers to keep up)
-        leader_vmax: f32 = 0.15,
+        leader_vmax: f32 = 0.15 => Domain::POSITIVE.at_most(limits::SPEED),
         /// rad/s, scripted leader's turn rate limit (eq. 4)
-        leader_wmax: f32 = 1.0,
+        leader_wmax: f32 = 1.0 => Domain::POSITIVE.at_most(limits::TURN_RATE),
         /// m, scripted leader's docking radius (eq. 3)
-        leader_kr: f32 = 0.15,
+        leader_kr: f32 = 0.15 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// reward per metre of a follower's distance to its target
-        error_weight: f32 = 1.0,
+        error_weight: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward per metre of the followers' mean error, shared by all
-        team_weight: f32 = 0.0,
+        team_weight: f32 = 0.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
     }
 }
 
@@ -144,39 +153,20 @@ impl FormationConfig {
 
     fn validate(&self, origin: &str, radius: f32) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        if self.shape == FormationShape::Custom {
-            if self.offsets.is_empty() || self.offsets.len() > 16 {
-                return bad(
-                    "formation.offsets",
-                    format!(
-                        "a custom shape needs 1 to 16 [r, beta] offsets, got {}",
-                        self.offsets.len()
-                    ),
-                );
-            }
-        } else if self.n_followers == 0 || self.n_followers > 16 {
+        if self.shape == FormationShape::Custom && self.offsets.is_empty() {
             return bad(
-                "formation.n_followers",
-                format!("must be in 1..=16, got {}", self.n_followers),
+                "formation.offsets",
+                format!("a custom shape needs 1 to {MAX_FOLLOWERS} [r, beta] offsets, got none"),
             );
         }
-        for (key, v) in [
-            ("formation.spacing", self.spacing),
-            ("formation.leader_vmax", self.leader_vmax),
-            ("formation.leader_wmax", self.leader_wmax),
-            ("formation.leader_kr", self.leader_kr),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return bad(key, format!("must be a finite number > 0, got {v}"));
-            }
-        }
-        for (key, v) in [
-            ("formation.error_weight", self.error_weight),
-            ("formation.team_weight", self.team_weight),
-        ] {
-            if !v.is_finite() || v < 0.0 {
-                return bad(key, format!("must be a finite number >= 0, got {v}"));
-            }
+        if self.shape != FormationShape::Custom && !self.offsets.is_empty() {
+            return bad(
+                "formation.offsets",
+                format!(
+                    "are only read with formation.shape = \"custom\" (the shape is {:?})",
+                    self.shape
+                ),
+            );
         }
         // Robots in formation must not overlap one another (the leader sits at the origin).
         let points: Vec<(f32, f32)> = std::iter::once((0.0, 0.0))
@@ -394,6 +384,21 @@ impl Task for Formation {
 
     fn extra_stats(&self, out: &mut [f32]) {
         (out[0], out[1]) = self.error_stats();
+    }
+
+    /// The leader: the task's success; a follower: the leader arrived and the follower is
+    /// within `task.goal_radius` of its target.
+    fn agent_success(
+        &self,
+        _: &World,
+        cfg: &Scenario,
+        agent: usize,
+        episode_success: bool,
+    ) -> bool {
+        match agent.checked_sub(usize::from(self.leader_agent)) {
+            None => episode_success,
+            Some(k) => episode_success && self.errors[k] <= cfg.task.goal_radius,
+        }
     }
 
     /// Writes the joint observation: the leader's Nav block when it is an agent, then one block

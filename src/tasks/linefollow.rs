@@ -31,7 +31,7 @@ use super::pathfollow::geometry::Path;
 use super::reference::{random_spline, Curve, Shape};
 use super::track::Direction;
 use super::{Agent, Task, TaskInfo};
-use crate::config::ConfigTable;
+use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::{Block, ObsLayout, ObsWriter};
@@ -69,37 +69,40 @@ max_steps = 4000             # cap; truncation is truncation_factor laps at refe
     },
 };
 
+/// Most points of a scenario's own line (`linefollow.points`).
+pub const MAX_LINE_POINTS: usize = 1024;
+
 crate::config_table! {
     /// `[linefollow]`: the line and the episode.
     pub struct LineFollowConfig {
         /// circle, lemniscate (a figure eight), square (sharp corners), spline (random per seed) or waypoints (the points below)
         track: Shape = "circle",
         /// m: radius, half-width, half-side, or the spline's largest radius
-        size: f32 = 0.6,
+        size: f32 = 0.6 => Domain::at_least(0.1).at_most(limits::LENGTH),
         /// m, the line's width [C: K-Team's demo needs at least 2.7 cm, spec §4]
-        width: f32 = 0.027,
+        width: f32 = 0.027 => Domain::range(0.005, 0.2),
         /// grey level of the line, 0 black .. 1 white (black tape)
-        grey: f32 = 0.0,
+        grey: f32 = 0.0 => Domain::UNIT,
         /// random, ccw (the curve's own) or cw
         direction: Direction = "random",
         /// spline: its harmonics' amplitudes, 0..0.5 [E]
-        spline_irregularity: f32 = 0.3,
+        spline_irregularity: f32 = 0.3 => Domain::range(0.0, 0.5),
         /// rad, largest start heading error from the line's (10 deg): a front ground sensor then starts over the line (62 mm x tan 10 deg = 11 mm < 10 + 13.5 mm) [D; docs/task-design.md §5.2 proposed 30 deg]
-        start_heading_offset: f32 = 0.1745,
+        start_heading_offset: f32 = 0.1745 => Domain::range(0.0, std::f64::consts::PI),
         /// s without any ground sensor over black before the robot may be lost
-        lost_time: f32 = 1.0,
+        lost_time: f32 = 1.0 => Domain::POSITIVE.at_most(limits::TIME),
         /// m, the robot is lost only this far from the line [E: docs/task-design.md §5.2]
-        lost_distance: f32 = 0.1,
+        lost_distance: f32 = 0.1 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// reward per metre of progress along the line
-        progress_weight: f32 = 10.0,
+        progress_weight: f32 = 10.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward per metre of distance from the line
-        error_weight: f32 = 1.0,
+        error_weight: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// m/s, the speed of K-Team's demo (90 units of 0.678 mm/s) that sets the truncation
-        reference_speed: f32 = 0.061,
+        reference_speed: f32 = 0.061 => Domain::POSITIVE.at_most(limits::SPEED),
         /// laps at reference_speed before truncation
-        truncation_factor: f32 = 2.0,
+        truncation_factor: f32 = 2.0 => Domain::POSITIVE.at_most(1.0e6),
         /// track = "waypoints": the scenario's own line, a smooth closed curve through [[x, y], ...] (m), the last point repeating the first
-        points: Vec<[f32; 2]> = [],
+        points: Vec<[f32; 2]> = [] => Domain::range(-limits::LENGTH, limits::LENGTH).at_most_entries(MAX_LINE_POINTS),
     }
 }
 
@@ -134,7 +137,7 @@ fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()>
     } else if !lf.points.is_empty() {
         return bad("points", "are only for track = \"waypoints\"".into());
     }
-    if !(lf.size >= 0.1 && lf.size <= limit) {
+    if lf.size > limit {
         return bad(
             "size",
             format!(
@@ -142,40 +145,6 @@ fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()>
                 lf.size
             ),
         );
-    }
-    if !(lf.width >= 0.005 && lf.width <= 0.2) {
-        return bad(
-            "width",
-            format!("must be in [0.005, 0.2] m, got {}", lf.width),
-        );
-    }
-    if !(0.0..=1.0).contains(&lf.grey) {
-        return bad("grey", format!("must be in [0, 1], got {}", lf.grey));
-    }
-    if !(0.0..=0.5).contains(&lf.spline_irregularity) {
-        return bad(
-            "spline_irregularity",
-            format!("must be in [0, 0.5], got {}", lf.spline_irregularity),
-        );
-    }
-    for (key, v) in [
-        ("lost_time", lf.lost_time),
-        ("lost_distance", lf.lost_distance),
-        ("reference_speed", lf.reference_speed),
-        ("truncation_factor", lf.truncation_factor),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            return bad(key, format!("must be a finite number > 0, got {v}"));
-        }
-    }
-    for (key, v) in [
-        ("start_heading_offset", lf.start_heading_offset),
-        ("progress_weight", lf.progress_weight),
-        ("error_weight", lf.error_weight),
-    ] {
-        if !(v.is_finite() && v >= 0.0) {
-            return bad(key, format!("must be a finite number >= 0, got {v}"));
-        }
     }
     if !scenario.sensors.carry.iter().any(|s| s == "ground") {
         return Err(Error::config(

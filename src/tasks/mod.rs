@@ -1,6 +1,7 @@
 //! Tasks: what a world is for. Each task is one file here implementing the [`Task`] contract
 //! (its scenario defaults and table, spawn rule, agents and their observation blocks, reset,
-//! per-step hook, rewards and termination, extra episode statistics, what it draws) and one line
+//! per-step hook, rewards and termination, extra episode statistics, what success means for one
+//! agent, what it draws) and one line
 //! in `task_registry!` below. [`Env`] (`env.rs`) joins a task to a world and keeps the episode's
 //! bookkeeping (layout at reset, step counter, termination, statistics, trails) in one place;
 //! the batch, the world, the renderer and the binding never look at which task they hold.
@@ -40,7 +41,7 @@ use crate::scenario::{Scenario, Source, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 
-pub use env::{Env, EpisodeStats, StepOutcome};
+pub use env::{AgentStats, Env, EpisodeStats, StepOutcome};
 
 /// What a task is, beyond its code: its Gymnasium id, a summary, and its scenario schema.
 #[derive(Debug, Clone, Copy)]
@@ -147,6 +148,27 @@ pub trait Task: Clone + Serialize + DeserializeOwned + Send + Sync {
 
     /// Its extra statistics of the running episode, in the order of `EXTRA_STATS`.
     fn extra_stats(&self, _out: &mut [f32]) {}
+
+    /// Whether agent `agent` (its index in [`Task::agents`]' order) succeeded: asked once, after
+    /// `judge` on the step in which the agent leaves the episode (it terminated, or the episode
+    /// ended); `episode_success` is whether the task has succeeded so far. By default an agent
+    /// succeeds with its task.
+    fn agent_success(
+        &self,
+        _world: &World,
+        _cfg: &Scenario,
+        _agent: usize,
+        episode_success: bool,
+    ) -> bool {
+        episode_success
+    }
+
+    /// The distance (m) vehicle `vehicle` (an agent whose [`Agent::robot`] is `n_robots +
+    /// vehicle`: a drone) travelled on the last step, for its agent's path length; asked after
+    /// `judge`. None by default.
+    fn vehicle_travel(&self, _vehicle: usize) -> f32 {
+        0.0
+    }
 
     /// Writes the joint observation (every agent's blocks, in agent order).
     fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter);
@@ -283,6 +305,26 @@ macro_rules! task_registry {
                 }
             }
 
+            fn agent_success(
+                &self,
+                world: &World,
+                cfg: &Scenario,
+                agent: usize,
+                episode_success: bool,
+            ) -> bool {
+                match self {
+                    $(TaskState::$variant(t) => {
+                        t.agent_success(world, cfg, agent, episode_success)
+                    })*
+                }
+            }
+
+            fn vehicle_travel(&self, vehicle: usize) -> f32 {
+                match self {
+                    $(TaskState::$variant(t) => t.vehicle_travel(vehicle),)*
+                }
+            }
+
             #[inline]
             fn observe(&self, world: &World, cfg: &Scenario, out: &mut ObsWriter) {
                 match self {
@@ -334,7 +376,7 @@ task_registry! {
 }
 
 impl TaskKind {
-    /// Parses a task name ("nav", "avoid", "formation", "multinav", "track", "pathfollow").
+    /// Parses a task name: the [`TaskKind::name`] of one of [`TaskKind::ALL`] ("nav", ...).
     pub fn parse(name: &str) -> Option<Self> {
         Self::ALL.iter().copied().find(|k| k.name() == name)
     }

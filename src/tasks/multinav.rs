@@ -2,7 +2,8 @@
 //! robots are obstacles to one another (their discs block each other's rays and rapier resolves
 //! their contacts). Each robot is an agent with the Nav observation and reward; a robot that
 //! reaches its goal is terminated as an agent and parks there (its actions are ignored), still
-//! an obstacle for the others. The episode terminates when every robot has arrived.
+//! an obstacle for the others. The episode terminates when every robot has arrived (the task's
+//! success); an agent succeeds when its own robot arrived.
 //!
 //! Units: metres, seconds, radians; observations in the robot frame (x forward, y left), as
 //! Nav's.
@@ -12,7 +13,7 @@ use toml::Table;
 
 use super::nav;
 use super::{Agent, Task, TaskInfo};
-use crate::config::ConfigTable;
+use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::{Block, ObsWriter};
@@ -58,19 +59,12 @@ crate::config_table! {
     /// `[multinav]`: several robots, each with its own goal.
     pub struct MultiNavConfig {
         /// robots, each with its own goal; they are obstacles to each other (1..1024; a swarm needs an arena to match, see `configs/swarm.toml`)
-        n_robots: u32 = 4,
+        n_robots: u32 = 4 => Domain::range(1.0, MAX_ROBOTS as f64),
     }
 }
 
 fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()> {
     let m = MultiNavConfig::from_table(table, origin, "multinav")?;
-    if m.n_robots == 0 || m.n_robots > MAX_ROBOTS {
-        return Err(Error::config(
-            origin,
-            "multinav.n_robots",
-            format!("must be in 1..={MAX_ROBOTS}, got {}", m.n_robots),
-        ));
-    }
     let fit = robots_that_fit(scenario);
     if m.n_robots as usize > fit {
         let a = &scenario.arena;
@@ -177,6 +171,11 @@ impl Task for MultiNav {
             terminated[i] = j.success;
         }
         self.arrived.iter().all(|a| *a)
+    }
+
+    /// Robot `agent` reached its goal.
+    fn agent_success(&self, _: &World, _: &Scenario, agent: usize, _: bool) -> bool {
+        self.arrived[agent]
     }
 
     /// Writes every robot's Nav observation, one block after another.

@@ -19,11 +19,10 @@ use toml::Table;
 
 use super::nav;
 use super::{Agent, Task, TaskInfo};
-use crate::config::ConfigTable;
+use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
 use crate::obs::{Block, ObsLayout, ObsWriter};
-use crate::scenario::sections::check_color;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::scene::SceneShape;
@@ -75,31 +74,16 @@ crate::config_table! {
     /// `[seek]`: the pillar and the distractors.
     pub struct SeekConfig {
         /// m, the goal pillar's radius [E: docs/task-design.md §6.3]
-        pillar_radius: f32 = 0.05,
+        pillar_radius: f32 = 0.05 => Domain::range(0.01, 0.2),
         /// RGB in [0, 1] of the goal pillar (red)
-        pillar_color: [f32; 3] = [1.0, 0.0, 0.0],
+        pillar_color: [f32; 3] = [1.0, 0.0, 0.0] => Domain::UNIT,
         /// pillars of other colours (blue, yellow, magenta, cyan in turn), 0..8
-        distractors: u32 = 0,
+        distractors: u32 = 0 => Domain::range(0.0, 8.0),
     }
 }
 
 fn check_section(table: &Table, scenario: &Scenario, origin: &str) -> Result<()> {
     let s = SeekConfig::from_table(table, origin, "seek")?;
-    if !(s.pillar_radius >= 0.01 && s.pillar_radius <= 0.2) {
-        return Err(Error::config(
-            origin,
-            "seek.pillar_radius",
-            format!("must be in [0.01, 0.2] m, got {}", s.pillar_radius),
-        ));
-    }
-    check_color(s.pillar_color, origin, "seek.pillar_color")?;
-    if s.distractors > 8 {
-        return Err(Error::config(
-            origin,
-            "seek.distractors",
-            format!("must be in 0..=8, got {}", s.distractors),
-        ));
-    }
     if scenario.task.goal_radius <= s.pillar_radius + scenario.robot.radius {
         return Err(Error::config(
             origin,

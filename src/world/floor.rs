@@ -21,10 +21,54 @@ use std::sync::Arc;
 use rapier2d::math::Vector;
 use serde::{Deserialize, Serialize};
 
+use crate::config::{limits, Domain, Field};
 use crate::error::{Error, Result};
 
-/// Largest image side (pixels).
+/// Largest image side (pixels): a 4096 x 4096 image costs 64 MiB while it is decoded (RGBA,
+/// 8 bits a channel) and 64 MiB of grey levels (f32) once built, shared by every world.
 pub const MAX_IMAGE_SIDE: u32 = 4096;
+/// Most points of a `floor.tracks` polyline, and most chords of a `floor.arcs` arc.
+pub const MAX_MARK_POINTS: usize = 100_000;
+/// Most segments of a scenario's floor marks (lines, arcs' chords and polylines' sides
+/// together): 24 bytes each, 24 MB at most, shared by every world.
+pub const MAX_FLOOR_SEGMENTS: usize = 1_000_000;
+/// Most entries of the grid that finds marks near a point (a segment is listed in every cell
+/// its bounding box touches): 4 bytes each, 16 MiB at most; above it the cells grow (the
+/// grid only finds candidates, so the floor reads the same).
+const MAX_GRID_MEMBERS: usize = 1 << 22;
+/// Widest mark (m).
+const MAX_MARK_WIDTH: f64 = 10.0;
+/// A floor coordinate or angle: finite and within [`limits::LENGTH`].
+const COORDINATE: Domain = Domain::range(-limits::LENGTH, limits::LENGTH);
+/// A mark's width (m).
+const WIDTH: Domain = Domain::POSITIVE.at_most(MAX_MARK_WIDTH);
+
+/// The fields of a `floor.lines` entry.
+const LINE_FIELDS: &[Field] = &[
+    Field::new("a", "[f32; 2]", COORDINATE),
+    Field::new("b", "[f32; 2]", COORDINATE),
+    Field::new("width", "f32", WIDTH),
+    Field::new("grey", "f32", Domain::UNIT),
+];
+/// The fields of a `floor.arcs` entry.
+const ARC_FIELDS: &[Field] = &[
+    Field::new("center", "[f32; 2]", COORDINATE),
+    Field::new("radius", "f32", Domain::POSITIVE.at_most(limits::LENGTH)),
+    Field::new("start", "f32", COORDINATE),
+    Field::new("end", "f32", COORDINATE),
+    Field::new("width", "f32", WIDTH),
+    Field::new("grey", "f32", Domain::UNIT),
+];
+/// The fields of a `floor.tracks` entry.
+const TRACK_FIELDS: &[Field] = &[
+    Field::new(
+        "points",
+        "Vec<[f32; 2]>",
+        COORDINATE.between_entries(2, MAX_MARK_POINTS),
+    ),
+    Field::new("width", "f32", WIDTH),
+    Field::new("grey", "f32", Domain::UNIT),
+];
 /// Largest sagitta (m) between an arc and the chords that stand for it.
 const ARC_SAGITTA: f32 = 0.001;
 /// Side (m) of the cells of the grid that finds marks near a point.
@@ -86,19 +130,19 @@ crate::config_table! {
     /// `[floor]`: what the ground sensors see.
     pub struct FloorConfig {
         /// grey level of the bare floor, 0 black .. 1 white paper
-        background: f32 = 1.0,
+        background: f32 = 1.0 => Domain::UNIT,
         /// straight marks {a = [x, y], b = [x, y], width (m), grey (0 black, the default)}
-        lines: Vec<LineMark> = [],
+        lines: Vec<LineMark> = [] => Domain::tables(LINE_FIELDS),
         /// arcs {center = [x, y], radius, start, end (rad, counter-clockwise), width, grey}
-        arcs: Vec<ArcMark> = [],
+        arcs: Vec<ArcMark> = [] => Domain::tables(ARC_FIELDS),
         /// polylines {points = [[x, y], ...], closed (a track), width, grey}
-        tracks: Vec<TrackMark> = [],
+        tracks: Vec<TrackMark> = [] => Domain::tables(TRACK_FIELDS),
         /// grey-scale PNG under the marks ("" = none), a path relative to the scenario file
         image: String = "",
         /// m per pixel of the image
-        image_scale: f32 = 0.01,
+        image_scale: f32 = 0.01 => Domain::POSITIVE.at_most(1.0),
         /// m, world position of the image's lower-left corner
-        image_origin: [f32; 2] = [-1.0, -1.0],
+        image_origin: [f32; 2] = [-1.0, -1.0] => COORDINATE,
     }
 }
 
@@ -162,10 +206,20 @@ impl FloorMarks {
         marks.origin = lo;
         marks.columns = cells(hi.x - lo.x);
         marks.rows = cells(hi.y - lo.y);
-        let cell = Vector::new(
-            (hi.x - lo.x).max(CELL) / marks.columns as f32,
-            (hi.y - lo.y).max(CELL) / marks.rows as f32,
-        );
+        let cell_of = |marks: &Self| {
+            Vector::new(
+                (hi.x - lo.x).max(CELL) / marks.columns as f32,
+                (hi.y - lo.y).max(CELL) / marks.rows as f32,
+            )
+        };
+        // Long marks over a fine grid would be listed in very many cells: coarser cells then.
+        while marks.columns * marks.rows > 1
+            && marks.members_needed(cell_of(&marks)) > MAX_GRID_MEMBERS
+        {
+            marks.columns = marks.columns.div_ceil(2);
+            marks.rows = marks.rows.div_ceil(2);
+        }
+        let cell = cell_of(&marks);
         marks.cell = cell;
         let mut lists: Vec<Vec<u32>> = vec![Vec::new(); marks.columns * marks.rows];
         for (k, s) in marks.segments.iter().enumerate() {
@@ -184,6 +238,20 @@ impl FloorMarks {
             marks.starts.push(marks.members.len() as u32);
         }
         marks
+    }
+
+    /// Entries of the grid with cells of `cell`: each segment once per cell its bounding box
+    /// touches.
+    fn members_needed(&self, cell: Vector) -> usize {
+        self.segments
+            .iter()
+            .map(|s| {
+                let r = Vector::splat(s.half_width);
+                let (x0, y0) = self.coords_in(s.a.min(s.b) - r, cell);
+                let (x1, y1) = self.coords_in(s.a.max(s.b) + r, cell);
+                (x1 - x0 + 1) * (y1 - y0 + 1)
+            })
+            .fold(0usize, usize::saturating_add)
     }
 
     fn coords_in(&self, p: Vector, cell: Vector) -> (usize, usize) {
@@ -385,71 +453,64 @@ pub fn polyline(points: &[Vector], closed: bool, width: f32, grey: f32) -> Vec<S
     out
 }
 
+/// Chords (at least 2, at most [`MAX_MARK_POINTS`]) that stand for an arc within
+/// [`ARC_SAGITTA`].
+fn arc_chords(arc: &ArcMark) -> usize {
+    let sweep = (arc.end - arc.start).min(std::f32::consts::TAU);
+    // A chord of angle φ lies r(1 − cos(φ/2)) ≈ rφ²/8 from its arc.
+    let step = (8.0 * ARC_SAGITTA / arc.radius).sqrt().min(0.5);
+    ((sweep / step).ceil() as usize).clamp(2, MAX_MARK_POINTS)
+}
+
 impl FloorConfig {
-    /// Checks the table and builds the floor; `dir` is the scenario file's folder (relative
+    /// Checks what the keys' domains cannot (an arc's direction, the number of segments all
+    /// marks make together) and builds the floor; `dir` is the scenario file's folder (relative
     /// image paths start there). Errors name `origin` and the key.
     pub fn build(&self, dir: Option<&Path>, origin: &str) -> Result<Floor> {
         let bad = |key: &str, message: String| -> Result<Floor> {
             Err(Error::config(origin, key, message))
         };
-        let fail =
-            |key: &str, message: String| -> Result<()> { Err(Error::config(origin, key, message)) };
-        let grey_ok = |g: f32| (0.0..=1.0).contains(&g);
-        if !grey_ok(self.background) {
+        if let Some(i) = self.arcs.iter().position(|arc| arc.end <= arc.start) {
             return bad(
-                "floor.background",
+                "floor.arcs",
+                format!("entry {i}: needs end > start (counter-clockwise)"),
+            );
+        }
+        let counts = [
+            ("floor.lines", self.lines.len()),
+            ("floor.arcs", self.arcs.iter().map(arc_chords).sum()),
+            (
+                "floor.tracks",
+                self.tracks.iter().map(|t| t.points.len()).sum(),
+            ),
+        ];
+        let total: usize = counts.iter().map(|(_, n)| n).sum();
+        if total > MAX_FLOOR_SEGMENTS {
+            let (key, _) = counts
+                .iter()
+                .max_by_key(|(_, n)| *n)
+                .copied()
+                .unwrap_or(counts[0]);
+            let bytes = total * std::mem::size_of::<Segment>();
+            return bad(
+                key,
                 format!(
-                    "grey levels run from 0 (black) to 1 (white), got {}",
-                    self.background
+                    "the floor's marks make {total} segments ({:.0} MB), more than the limit of \
+                     {MAX_FLOOR_SEGMENTS} ({:.0} MB): fewer or shorter marks, or arcs of a \
+                     smaller radius",
+                    bytes as f64 / 1e6,
+                    (MAX_FLOOR_SEGMENTS * std::mem::size_of::<Segment>()) as f64 / 1e6
                 ),
             );
         }
         let mut segments = Vec::new();
-        let check = |key: &str, i: usize, width: f32, grey: f32, points: &[f32]| {
-            if !(width > 0.0 && width.is_finite() && width <= 10.0) {
-                return fail(
-                    key,
-                    format!("entry {i}: width must be in (0, 10] m, got {width}"),
-                );
-            }
-            if !grey_ok(grey) {
-                return fail(
-                    key,
-                    format!("entry {i}: grey must be in [0, 1], got {grey}"),
-                );
-            }
-            if points.iter().any(|v| !v.is_finite() || v.abs() > 1000.0) {
-                return fail(
-                    key,
-                    format!("entry {i}: coordinates must be finite, within 1 km"),
-                );
-            }
-            Ok(())
-        };
-        for (i, l) in self.lines.iter().enumerate() {
-            check(
-                "floor.lines",
-                i,
-                l.width,
-                l.grey,
-                &[l.a[0], l.a[1], l.b[0], l.b[1]],
-            )?;
+        for l in &self.lines {
             let (a, b) = (Vector::from(l.a), Vector::from(l.b));
             segments.extend(polyline(&[a, b], false, l.width, l.grey));
         }
-        for (i, arc) in self.arcs.iter().enumerate() {
-            let coords = [arc.center[0], arc.center[1], arc.radius, arc.start, arc.end];
-            check("floor.arcs", i, arc.width, arc.grey, &coords)?;
-            if arc.radius <= 0.0 || arc.end <= arc.start {
-                return bad(
-                    "floor.arcs",
-                    format!("entry {i}: needs radius > 0 and end > start (counter-clockwise)"),
-                );
-            }
+        for arc in &self.arcs {
             let sweep = (arc.end - arc.start).min(std::f32::consts::TAU);
-            // A chord of angle φ lies r(1 − cos(φ/2)) ≈ rφ²/8 from its arc.
-            let step = (8.0 * ARC_SAGITTA / arc.radius).sqrt().min(0.5);
-            let n = ((sweep / step).ceil() as usize).clamp(2, 100_000);
+            let n = arc_chords(arc);
             let c = Vector::from(arc.center);
             let points: Vec<Vector> = (0..=n)
                 .map(|k| {
@@ -459,41 +520,20 @@ impl FloorConfig {
                 .collect();
             segments.extend(polyline(&points, false, arc.width, arc.grey));
         }
-        for (i, t) in self.tracks.iter().enumerate() {
-            let flat: Vec<f32> = t.points.iter().flatten().copied().collect();
-            check("floor.tracks", i, t.width, t.grey, &flat)?;
-            if t.points.len() < 2 || t.points.len() > 100_000 {
-                return bad(
-                    "floor.tracks",
-                    format!(
-                        "entry {i}: needs 2 to 100000 points, got {}",
-                        t.points.len()
-                    ),
-                );
-            }
+        for t in &self.tracks {
             let points: Vec<Vector> = t.points.iter().map(|p| Vector::from(*p)).collect();
             segments.extend(polyline(&points, t.closed, t.width, t.grey));
         }
         let image = if self.image.is_empty() {
             None
         } else {
-            let scale = self.image_scale;
-            if !(scale > 0.0 && scale.is_finite() && scale <= 1.0) {
-                return bad(
-                    "floor.image_scale",
-                    format!("must be in (0, 1] m per pixel, got {scale}"),
-                );
-            }
-            let o = self.image_origin;
-            if !(o[0].is_finite() && o[1].is_finite()) {
-                return bad("floor.image_origin", "must be finite".into());
-            }
             let path = Path::new(&self.image);
             let path = match dir {
                 Some(dir) if path.is_relative() => dir.join(path),
                 _ => path.to_path_buf(),
             };
-            Some(FloorImage::load(&path, scale, Vector::from(o), origin)?)
+            let origin_m = Vector::from(self.image_origin);
+            Some(FloorImage::load(&path, self.image_scale, origin_m, origin)?)
         };
         Ok(Floor {
             background: self.background,

@@ -20,6 +20,14 @@ use crate::scenario::{ObstacleKind, Placement, Scenario};
 
 /// Grid cell size for the reachability map (m).
 const CELL: f32 = 0.02;
+/// Most cells of the reachability map (an arena of about 41 m x 41 m with fixed obstacles):
+/// each costs at most 13 bytes while it is built (free flag, component label, search stack),
+/// 54.5 MB at most, shared by every world of a batch.
+pub const MAX_GRID_CELLS: usize = 1 << 22;
+/// Bytes a cell of the reachability map may cost while it is built.
+const GRID_CELL_BYTES: usize = 13;
+/// Most clearance evaluations (cells x fixed obstacles) when the map is built: about a second.
+pub const MAX_GRID_WORK: usize = 1 << 28;
 /// Whole-layout attempts before keeping the best one.
 const LAYOUT_TRIES: usize = 16;
 /// Attempts at drawing one point (start, goal) before giving up on a layout attempt.
@@ -81,9 +89,51 @@ struct Grid {
 }
 
 impl Grid {
+    /// Cells of the map of an arena `w` x `h` (m).
+    fn cells(w: f32, h: f32) -> (usize, usize) {
+        ((w / CELL).ceil() as usize, (h / CELL).ceil() as usize)
+    }
+
+    /// Checks that the map of `scene` stays within [`MAX_GRID_CELLS`] and [`MAX_GRID_WORK`]
+    /// before anything is allocated; errors name `origin` and the key to change.
+    fn check_size(scene: &Scene, origin: &str) -> Result<()> {
+        let (nx, ny) = Self::cells(scene.arena.0, scene.arena.1);
+        let cells = nx.saturating_mul(ny);
+        if cells > MAX_GRID_CELLS {
+            return Err(Error::config(
+                origin,
+                "arena.width",
+                format!(
+                    "with fixed obstacles, a {} m x {} m arena needs a reachability map of \
+                     {cells} cells of {CELL} m ({:.0} MB); the limit is {MAX_GRID_CELLS} cells \
+                     ({:.1} MB, about a 41 m x 41 m arena): a smaller arena, or no \
+                     obstacles.fixed",
+                    scene.arena.0,
+                    scene.arena.1,
+                    (cells as f64) * GRID_CELL_BYTES as f64 / 1e6,
+                    (MAX_GRID_CELLS * GRID_CELL_BYTES) as f64 / 1e6
+                ),
+            ));
+        }
+        let work = cells.saturating_mul(scene.shapes.len());
+        if work > MAX_GRID_WORK {
+            return Err(Error::config(
+                origin,
+                "obstacles.fixed",
+                format!(
+                    "{} fixed obstacles over a map of {cells} cells need {work} clearance \
+                     evaluations; the limit is {MAX_GRID_WORK}: fewer fixed obstacles or a \
+                     smaller arena",
+                    scene.shapes.len()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     fn new(scene: &Scene, radius: f32) -> Self {
         let (w, h) = scene.arena;
-        let (nx, ny) = ((w / CELL).ceil() as usize, (h / CELL).ceil() as usize);
+        let (nx, ny) = Self::cells(w, h);
         let origin = Vector::new(-0.5 * w, -0.5 * h);
         let centre = |i: usize, j: usize| {
             origin + Vector::new((i as f32 + 0.5) * CELL, (j as f32 + 0.5) * CELL)
@@ -181,7 +231,12 @@ impl Spawner {
             0.5 * cfg.arena.width - margin,
             0.5 * cfg.arena.height - margin,
         );
-        let grid = (!base.shapes.is_empty()).then(|| Grid::new(&base, radius));
+        let grid = if base.shapes.is_empty() {
+            None
+        } else {
+            Grid::check_size(&base, origin)?;
+            Some(Grid::new(&base, radius))
+        };
         let spawner = Self {
             spawn,
             base,

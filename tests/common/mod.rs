@@ -1,15 +1,26 @@
-//! Helpers the integration tests share: a task's scenario from TOML overrides (the latest
-//! defaults), an env built from it, seeded and reset, driving it with a constant action, and
-//! what a bad override's config error names. Each test file uses some of them.
+//! Helpers the integration tests share: every task and behaviour version of the registry, a
+//! task's scenario from TOML overrides (the latest defaults, or a version's), an env built from
+//! it, seeded and reset, driving it with a constant action, and what a bad override's config
+//! error names. Each test file uses some of them.
 #![allow(dead_code)]
 
 use std::sync::Arc;
 
 use _core::error::Error;
 use _core::robot::ActionType;
-use _core::scenario::{Scenario, Source};
+use _core::scenario::{Scenario, Source, LATEST_VERSION};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
+
+/// Every task of the registry ([`TaskKind::ALL`]) with each of its behaviour versions (its
+/// schema's `since` to [`LATEST_VERSION`]): what the cross-cutting tests run over, so that a new
+/// task or version is covered without touching them.
+pub fn every_task_version() -> Vec<(TaskKind, u32)> {
+    TaskKind::ALL
+        .iter()
+        .flat_map(|&kind| (kind.info().schema.since..=LATEST_VERSION).map(move |v| (kind, v)))
+        .collect()
+}
 
 /// No scenario file, these TOML overrides, the latest version.
 pub fn source(overrides: &str) -> Source<'_> {

@@ -4,10 +4,14 @@
 #ifndef KHEPERA_POLICY_CONFIG_H
 #define KHEPERA_POLICY_CONFIG_H
 
+#define KHEPERA_GYM_VERSION "$version" /* the khepera_gym that exported the policy */
+#define KHEPERA_ENV_ID "$env_id" /* the env it was trained on */
 #define KHEPERA_CONTROL_PERIOD_S $control_period /* physics.dt, s */
 #define KHEPERA_GOAL_RADIUS $goal_radius /* task.goal_radius, m */
 #define KHEPERA_AXLE_LENGTH $axle_length /* robot.axle_length, m */
+#define KHEPERA_WHEEL_RADIUS $wheel_radius /* robot.wheel_radius, m */
 #define KHEPERA_METRES_PER_PULSE $metres_per_pulse /* 2 pi robot.wheel_radius / 19456 */
+#define KHEPERA_IMU_SAMPLES $imu_samples /* newest IMU samples (100 Hz) a log row averages: a control period's */
 #define KHEPERA_US_MASK $us_mask /* kh4_activate_us bits: sensors.us_enabled, 0 if not observed */
 #define KHEPERA_LED_ACTION $led_action /* task.led_action: the action's last 3 values set the LEDs */
 

@@ -20,22 +20,26 @@
  * It stops the motors on Ctrl-C, at the goal (estimated by odometry, which drifts), after
  * MAX_STEPS steps, or when the policy gives a non-finite action.
  *
- * Usage on the robot:  ./khepera_policy GOAL_X GOAL_Y [MAX_STEPS]
+ * Usage on the robot:  ./khepera_policy GOAL_X GOAL_Y [MAX_STEPS] [--log FILE]
  *   GOAL_X, GOAL_Y  goal in metres in the robot's frame at start (ignored if the observation has
- *                   no goal inputs); MAX_STEPS  0 or absent: no limit.
+ *                   no goal inputs); MAX_STEPS  0 or absent: no limit;
+ *   --log FILE      also read every sensor each step and write them, the command, the
+ *                   observation and the action to FILE, a robot log (khepera_log.h) that
+ *                   `khepera-gym replay` and `khepera-gym calibrate` read.
  * It prints one line per step: step, pose (m, m, rad), action, wheel units (then LED levels).
  */
-#define _POSIX_C_SOURCE 200809L
-
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <time.h>
+#include <string.h>
 
 #include <khepera/khepera.h>
 
+#include "khepera_clock.h"
+#include "khepera_log.h"
 #include "khepera_policy_config.h"
+#include "khepera_sensors.h"
 #include "observation.h"
 #include "policy.h"
 #include "wheel_command.h"
@@ -81,22 +85,6 @@ static void odometry_update(odometry *pose, int left_pulses, int right_pulses)
     pose->last_right = right_pulses;
 }
 
-#if OBSERVATION_HAS_IR || OBSERVATION_HAS_US
-/* Little-endian 16-bit values as libkhepera's byte buffers hold them. */
-static unsigned int read_u16(const char *buffer, int index)
-{
-    return (unsigned int)(unsigned char)buffer[2 * index]
-        | ((unsigned int)(unsigned char)buffer[2 * index + 1] << 8);
-}
-#endif
-
-static void add_seconds(struct timespec *time, double seconds)
-{
-    long nanoseconds = time->tv_nsec + (long)(seconds * 1e9);
-    time->tv_sec += nanoseconds / 1000000000L;
-    time->tv_nsec = nanoseconds % 1000000000L;
-}
-
 static void stop_motors(knet_dev_t *ds_pic)
 {
     kh4_set_speed(0, 0, ds_pic);
@@ -108,25 +96,32 @@ static void stop_motors(knet_dev_t *ds_pic)
 
 int main(int argc, char *argv[])
 {
-#if OBSERVATION_HAS_IR || OBSERVATION_HAS_US
-    char buffer[128];
-#endif
     float goal[2] = {0.0f, 0.0f};
     long max_steps = 0;
     long step;
     odometry pose = {0.0, 0.0, 0.0, 0, 0};
     observation_inputs inputs;
+    khepera_readings readings;
     float observation[OBSERVATION_DIM];
     float action[POLICY_ACTION_DIM];
     int units[2];
 #if KHEPERA_LED_ACTION
     int leds[3];
 #endif
-    struct timespec next_tick;
+    const char *log_path = NULL;
+    khepera_log log;
+    double start_time;
+    double next_tick;
     knet_dev_t *ds_pic;
 
+    /* --log FILE may come last; the other arguments are positional. */
+    if (argc >= 5 && strcmp(argv[argc - 2], "--log") == 0) {
+        log_path = argv[argc - 1];
+        argc -= 2;
+    }
     if (argc < 3 || argc > 4) {
-        fprintf(stderr, "usage: %s GOAL_X GOAL_Y [MAX_STEPS]   (metres, start frame)\n", argv[0]);
+        fprintf(stderr, "usage: %s GOAL_X GOAL_Y [MAX_STEPS] [--log FILE]   (metres, start frame)\n",
+                argv[0]);
         return 2;
     }
     goal[0] = strtof(argv[1], NULL);
@@ -134,6 +129,7 @@ int main(int argc, char *argv[])
     if (argc == 4) {
         max_steps = strtol(argv[3], NULL, 10);
     }
+    memset(&readings, 0, sizeof readings);
 
     /* Open the link to the dsPIC that runs the motors and sensors (libkhepera). */
     if (kh4_init(0, NULL) != 0) {
@@ -163,36 +159,66 @@ int main(int argc, char *argv[])
     fprintf(stderr, "motors: speed mode\n");
 #endif
     kh4_get_position(&pose.last_left, &pose.last_right, ds_pic);
+    if (log_path != NULL) {
+        char firmware[32];
+        khepera_log_header header;
+        khepera_firmware(ds_pic, firmware, sizeof firmware);
+        header.program = "policy";
+        header.khepera_gym = KHEPERA_GYM_VERSION;
+        header.env_id = KHEPERA_ENV_ID;
+        header.firmware = firmware;
+        header.control_period = KHEPERA_CONTROL_PERIOD_S;
+        header.wheel_radius = KHEPERA_WHEEL_RADIUS;
+        header.axle_length = KHEPERA_AXLE_LENGTH;
+        header.motors = KHEPERA_MOTOR_PROFILE ? "profile" : "speed";
+        header.acc_inc = KHEPERA_ACC_INC;
+        header.acc_div = KHEPERA_ACC_DIV;
+        header.min_speed_acc = KHEPERA_MIN_SPEED_ACC;
+        header.min_speed_dec = KHEPERA_MIN_SPEED_DEC;
+        header.gyro_samples = KHEPERA_IMU_SAMPLES;
+        header.wall_distance = -1.0;
+        if (khepera_log_open(&log, log_path, &header, OBSERVATION_DIM, POLICY_ACTION_DIM) != 0) {
+            fprintf(stderr, "cannot write the log %s\n", log_path);
+            stop_motors(ds_pic);
+            return 1;
+        }
+    }
 
-    clock_gettime(CLOCK_MONOTONIC, &next_tick);
+    start_time = khepera_clock_now();
+    next_tick = start_time;
     for (step = 0; !stop_requested && (max_steps <= 0 || step < max_steps); ++step) {
-        int left_units;
-        int right_units;
-        int left_pulses;
-        int right_pulses;
+        const double elapsed = khepera_clock_now() - start_time;
 
-        /* 1. Sensors, in K-Team's units. */
+        /* 1. Sensors, in K-Team's units: those the observation needs, or all of them for the
+         * log. */
+        if (log_path != NULL) {
+            khepera_read_all(ds_pic, &readings, KHEPERA_IMU_SAMPLES);
+        } else {
 #if OBSERVATION_HAS_IR
-        kh4_proximity_ir(buffer, ds_pic); /* 12 x uint16: the ring (8, K-Team order), then ground */
+            khepera_read_ir(ds_pic, &readings);
+#endif
+#if OBSERVATION_HAS_US
+            khepera_read_us(ds_pic, &readings);
+#endif
+            khepera_read_motion(ds_pic, &readings);
+        }
+#if OBSERVATION_HAS_IR
         for (int i = 0; i < 8; ++i) {
-            inputs.ir_raw[i] = (uint16_t)read_u16(buffer, i);
+            inputs.ir_raw[i] = (uint16_t)readings.ir[i];
         }
 #endif
 #if OBSERVATION_HAS_US
-        kh4_measure_us(buffer, ds_pic); /* 5 x int16 cm: L, FL, F, FR, R; codes 0, 1000, 2000 */
         for (int i = 0; i < 5; ++i) {
-            inputs.us_cm[i] = (int16_t)read_u16(buffer, i);
+            inputs.us_cm[i] = (int16_t)readings.us[i];
         }
 #endif
-        kh4_get_speed(&left_units, &right_units, ds_pic);
 #if OBSERVATION_HAS_WHEEL_SPEEDS
-        inputs.wheel_speeds[0] = wheel_units_to_speed(left_units);
-        inputs.wheel_speeds[1] = wheel_units_to_speed(right_units);
+        inputs.wheel_speeds[0] = wheel_units_to_speed(readings.speed[0]);
+        inputs.wheel_speeds[1] = wheel_units_to_speed(readings.speed[1]);
 #endif
 
         /* 2. Dead reckoning; the goal stays where it was given, in the start frame. */
-        kh4_get_position(&left_pulses, &right_pulses, ds_pic);
-        odometry_update(&pose, left_pulses, right_pulses);
+        odometry_update(&pose, readings.encoder[0], readings.encoder[1]);
 #if OBSERVATION_HAS_GOAL
         inputs.robot_pose[0] = (float)pose.x;
         inputs.robot_pose[1] = (float)pose.y;
@@ -221,6 +247,9 @@ int main(int argc, char *argv[])
         }
         wheel_command_units(action, units);
         kh4_set_speed(units[0], units[1], ds_pic);
+        if (log_path != NULL) {
+            khepera_log_row(&log, elapsed, "policy", units, &readings, observation, action);
+        }
         printf("%ld %.4f %.4f %.4f %.4f %.4f %d %d", step, pose.x, pose.y, pose.heading,
                (double)action[0], (double)action[1], units[0], units[1]);
 #if KHEPERA_LED_ACTION
@@ -233,9 +262,12 @@ int main(int argc, char *argv[])
 #endif
         printf("\n");
 
-        add_seconds(&next_tick, KHEPERA_CONTROL_PERIOD_S);
-        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next_tick, NULL);
+        next_tick += KHEPERA_CONTROL_PERIOD_S;
+        khepera_clock_sleep_until(next_tick);
     }
     stop_motors(ds_pic);
+    if (log_path != NULL) {
+        khepera_log_close(&log);
+    }
     return 0;
 }

@@ -13,7 +13,7 @@
 #endif
 #define WHEEL_MIN_SPEED $min_wheel_speed /* robot.min_wheel_speed, m/s */
 #define WHEEL_AXLE_LENGTH $axle_length /* robot.axle_length, m */
-#define WHEEL_MM_S_PER_UNIT $mm_s_per_unit /* one kh4_set_speed unit, mm/s */
+#define WHEEL_MM_S_PER_UNIT $mm_s_per_unit /* one kh4_set_speed unit, mm/s at robot.wheel_radius */
 #define WHEEL_MAX_UNITS $max_units /* closed-loop limit, about 813 mm/s */
 
 /* Wheel speeds (m/s) the simulator would command for `action`. */

@@ -5,7 +5,7 @@
 use toml::Table;
 
 use super::MAX_DELAY_STEPS;
-use crate::config::ConfigTable;
+use crate::config::{limits, ConfigTable, Domain};
 use crate::error::{Error, Result};
 use crate::scenario::Scenario;
 
@@ -52,31 +52,31 @@ crate::config_table! {
     /// `[consensus]`: the robots, their graph, their messages.
     pub struct ConsensusConfig {
         /// robots (2..32)
-        n_robots: u32 = 4,
+        n_robots: u32 = 4 => Domain::range(2.0, MAX_ROBOTS as f64),
         /// ring, line, complete, geometric (within range) or edges (the pairs below)
         graph: Graph = "ring",
         /// m, radio range of the geometric graph [E]
-        range: f32 = 1.0,
+        range: f32 = 1.0 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// undirected pairs [i, j] of robot indices, for graph = "edges"
-        edges: Vec<[u32; 2]> = [],
+        edges: Vec<[u32; 2]> = [] => Domain::range(0.0, (MAX_ROBOTS - 1) as f64),
         /// rendezvous (one point) or formation (a regular polygon)
         objective: Objective = "formation",
         /// m, the formation polygon's radius
-        formation_radius: f32 = 0.3,
+        formation_radius: f32 = 0.3 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// periodic (every period) or event (the estimate moved by threshold)
         trigger: Trigger = "periodic",
         /// s between a robot's periodic broadcasts (rounded to whole control steps, at least one)
-        period: f32 = 0.05,
+        period: f32 = 0.05 => Domain::POSITIVE.at_most(limits::TIME),
         /// m the estimate moves before an event-triggered broadcast [E]
-        threshold: f32 = 0.01,
+        threshold: f32 = 0.01 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// probability that a message is lost, per receiver [0, 1)
-        drop: f32 = 0.0,
+        drop: f32 = 0.0 => Domain::NON_NEGATIVE.below(1.0),
         /// control steps a message takes to arrive (0..100)
-        delay_steps: u32 = 0,
+        delay_steps: u32 = 0 => Domain::range(0.0, MAX_DELAY_STEPS as f64),
         /// m, the robots have converged when the error is below this (plus the rendezvous floor)
-        tolerance: f32 = 0.03,
+        tolerance: f32 = 0.03 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// reward per metre of error per step
-        error_weight: f32 = 1.0,
+        error_weight: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
     }
 }
 
@@ -84,9 +84,6 @@ pub(super) fn check_section(table: &Table, scenario: &Scenario, origin: &str) ->
     let c = ConsensusConfig::from_table(table, origin, "consensus")?;
     let bad = |key: &str, msg: String| Err(Error::config(origin, &format!("consensus.{key}"), msg));
     let n = c.n_robots;
-    if !(2..=MAX_ROBOTS).contains(&n) {
-        return bad("n_robots", format!("must be in 2..={MAX_ROBOTS}, got {n}"));
-    }
     let fit = crate::tasks::multinav::robots_that_fit(scenario);
     if n as usize > fit {
         return bad(
@@ -95,12 +92,6 @@ pub(super) fn check_section(table: &Table, scenario: &Scenario, origin: &str) ->
                 "{n} robots do not fit in a {} m x {} m arena: random placement fits about {fit}",
                 scenario.arena.width, scenario.arena.height
             ),
-        );
-    }
-    if !(c.range.is_finite() && c.range > 0.0) {
-        return bad(
-            "range",
-            format!("must be a finite number > 0, got {}", c.range),
         );
     }
     if c.graph == Graph::Edges && c.edges.is_empty() {
@@ -122,39 +113,6 @@ pub(super) fn check_section(table: &Table, scenario: &Scenario, origin: &str) ->
                 format!("[{i}, {j}] is not a pair of two robots among 0..{}", n - 1),
             );
         }
-    }
-    if !(c.period.is_finite() && c.period > 0.0) {
-        return bad(
-            "period",
-            format!("must be a finite number > 0, got {}", c.period),
-        );
-    }
-    if !(c.threshold.is_finite() && c.threshold >= 0.0) {
-        return bad(
-            "threshold",
-            format!("must be finite and >= 0, got {}", c.threshold),
-        );
-    }
-    if !(0.0..1.0).contains(&c.drop) {
-        return bad("drop", format!("must be in [0, 1), got {}", c.drop));
-    }
-    if c.delay_steps > MAX_DELAY_STEPS {
-        return bad(
-            "delay_steps",
-            format!("must be in 0..={MAX_DELAY_STEPS}, got {}", c.delay_steps),
-        );
-    }
-    if !(c.tolerance.is_finite() && c.tolerance > 0.0) {
-        return bad(
-            "tolerance",
-            format!("must be a finite number > 0, got {}", c.tolerance),
-        );
-    }
-    if !(c.error_weight.is_finite() && c.error_weight >= 0.0) {
-        return bad(
-            "error_weight",
-            format!("must be finite and >= 0, got {}", c.error_weight),
-        );
     }
     if c.objective == Objective::Formation {
         let r = c.formation_radius;

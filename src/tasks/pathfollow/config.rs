@@ -5,7 +5,7 @@
 use toml::Table;
 
 use super::geometry::Path;
-use crate::config::ConfigTable;
+use crate::config::{limits, ConfigTable, Domain};
 use crate::error::{Error, Result};
 use crate::scenario::Scenario;
 use crate::tasks::reference::{Curve, Shape};
@@ -32,53 +32,53 @@ crate::config_table! {
         /// circle, lemniscate (Gerono's figure eight), square (corners: the limit of smooth controllers), spline (a random smooth closed curve from the world's stream) or waypoints (the scenario's own, pathfollow.points)
         path: Shape = "circle",
         /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [tasks.md §3-4: R = 0.6 m]
-        size: f32 = 0.6,
+        size: f32 = 0.6 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m/s, desired speed v_d along the path, observed as desired_speed [tasks.md §4: 0.15 m/s]
-        speed: f32 = 0.15,
+        speed: f32 = 0.15 => Domain::POSITIVE.at_most(limits::SPEED),
         /// "random" (drawn each reset), "ccw" (the curve's own direction) or "cw" [tasks.md §3]
         direction: Direction = "random",
         /// start at a uniformly drawn point of the path; false: at phase 0 [tasks.md §3]
         random_start: bool = true,
         /// m, largest start cross-track offset from the path, drawn uniformly on either side [E]
-        start_offset: f32 = 0.1,
+        start_offset: f32 = 0.1 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// rad, largest start heading error from the path tangent (45 degrees), drawn uniformly [tasks.md §3]
-        start_heading_offset: f32 = 0.7853982,
+        start_heading_offset: f32 = 0.7853982 => Domain::range(0.0, std::f64::consts::PI),
         /// spline: sum of the harmonics' relative amplitudes (k = 2, 3, 4), in [0, 0.5] [E]
-        spline_irregularity: f32 = 0.3,
+        spline_irregularity: f32 = 0.3 => Domain::range(0.0, 0.5),
         /// at the desired speed the path's curvature asks the wheels for at most this fraction of robot.max_wheel_speed, speed * (1 + max|kappa| * axle / 2) [E]
-        max_wheel_fraction: f32 = 0.5,
+        max_wheel_fraction: f32 = 0.5 => Domain::POSITIVE.at_most(1.0),
         /// m, terminated as lost beyond this cross-track error [tasks.md §4]
-        lost_distance: f32 = 0.3,
+        lost_distance: f32 = 0.3 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// truncated after this many times the lap time at the desired speed, length / speed [tasks.md §4: 2]
-        truncation_factor: f32 = 2.0,
+        truncation_factor: f32 = 2.0 => Domain::POSITIVE.at_most(1.0e6),
         /// path points previewed ahead of the closest point (0..16), with their curvature [tasks.md §4: 3]
-        preview_points: u32 = 3,
+        preview_points: u32 = 3 => Domain::range(0.0, MAX_PREVIEW_POINTS as f64),
         /// m of arc between previewed points [tasks.md §4: 0.1 m]
-        preview_spacing: f32 = 0.1,
+        preview_spacing: f32 = 0.1 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// reward per metre of progress along the path [tasks.md §4]
-        progress_weight: f32 = 10.0,
+        progress_weight: f32 = 10.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward per metre of cross-track error, every step [tasks.md §4]
-        error_weight: f32 = 1.0,
+        error_weight: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward lost every step [tasks.md §4]
-        time_penalty: f32 = 0.01,
+        time_penalty: f32 = 0.01 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward lost per unit of relative speed above the desired one along the path, max(0, ds/dt - speed) / speed, every step: over a lap the progress reward is fixed, so any weight above time_penalty makes the desired speed the fastest worth driving (without it PPO laps at twice the speed; at 0.1 it did not learn to lap in 500k steps) [E]
-        speed_weight: f32 = 0.02,
+        speed_weight: f32 = 0.02 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// s, start-up excluded from the RMS and maximum error statistics [tasks.md §3]
-        transient: f32 = 5.0,
+        transient: f32 = 5.0 => Domain::NON_NEGATIVE.at_most(limits::TIME),
         /// m, converged once the cross-track error stays below this [issue 14]
-        converge_radius: f32 = 0.02,
+        converge_radius: f32 = 0.02 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m of arc between the waypoints of the waypoint block [E, as IR-SIM's sequential goals]
-        waypoint_spacing: f32 = 0.2,
+        waypoint_spacing: f32 = 0.2 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, the waypoint block moves to the next waypoint once the robot is this close [IR-SIM goal_threshold 0.1 m]
-        waypoint_radius: f32 = 0.1,
+        waypoint_radius: f32 = 0.1 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// cylinders placed on or near the path at every reset, spread over the lap ahead of the start (0..16)
-        obstacle_count: u32 = 0,
+        obstacle_count: u32 = 0 => Domain::range(0.0, MAX_PATH_OBSTACLES as f64),
         /// m, their radius [E: obstacles.circle_radius's lower bound]
-        obstacle_radius: f32 = 0.04,
+        obstacle_radius: f32 = 0.04 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m, largest distance of their centres from the path, drawn uniformly on either side [E]
-        obstacle_offset: f32 = 0.05,
+        obstacle_offset: f32 = 0.05 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// path = "waypoints": [[x, y], ...] (m), a closed loop (the last point repeats the first) joined by a smooth periodic curve through the points
-        points: Vec<[f32; 2]> = [],
+        points: Vec<[f32; 2]> = [] => Domain::range(-limits::LENGTH, limits::LENGTH).at_most_entries(MAX_POINTS),
     }
 }
 
@@ -170,75 +170,17 @@ impl PathFollowConfig {
         Ok(())
     }
 
+    /// Checks the table against the scenario (each key alone is checked by its declaration):
+    /// the points, the start within the lost distance, the path inside the arena and within
+    /// the robot's limits, the obstacles along it; errors name `pathfollow.<key>`.
     fn validate(&self, origin: &str, cfg: &Scenario) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        for (key, v) in [
-            ("pathfollow.size", self.size),
-            ("pathfollow.speed", self.speed),
-            ("pathfollow.lost_distance", self.lost_distance),
-            ("pathfollow.truncation_factor", self.truncation_factor),
-            ("pathfollow.preview_spacing", self.preview_spacing),
-            ("pathfollow.converge_radius", self.converge_radius),
-            ("pathfollow.max_wheel_fraction", self.max_wheel_fraction),
-            ("pathfollow.waypoint_spacing", self.waypoint_spacing),
-            ("pathfollow.waypoint_radius", self.waypoint_radius),
-            ("pathfollow.obstacle_radius", self.obstacle_radius),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return bad(key, format!("must be a finite number > 0, got {v}"));
-            }
-        }
-        for (key, v) in [
-            ("pathfollow.start_offset", self.start_offset),
-            ("pathfollow.start_heading_offset", self.start_heading_offset),
-            ("pathfollow.progress_weight", self.progress_weight),
-            ("pathfollow.error_weight", self.error_weight),
-            ("pathfollow.time_penalty", self.time_penalty),
-            ("pathfollow.speed_weight", self.speed_weight),
-            ("pathfollow.transient", self.transient),
-            ("pathfollow.spline_irregularity", self.spline_irregularity),
-            ("pathfollow.obstacle_offset", self.obstacle_offset),
-        ] {
-            if !v.is_finite() || v < 0.0 {
-                return bad(key, format!("must be a finite number >= 0, got {v}"));
-            }
-        }
-        if self.start_heading_offset > std::f32::consts::PI {
-            return bad(
-                "pathfollow.start_heading_offset",
-                format!("must be at most pi, got {}", self.start_heading_offset),
-            );
-        }
         if self.start_offset >= self.lost_distance {
             return bad(
                 "pathfollow.start_offset",
                 format!(
                     "must be less than pathfollow.lost_distance ({}), got {}",
                     self.lost_distance, self.start_offset
-                ),
-            );
-        }
-        if self.spline_irregularity > 0.5 {
-            return bad(
-                "pathfollow.spline_irregularity",
-                format!(
-                    "must be at most 0.5 (the curve must stay star-shaped and smooth), got {}",
-                    self.spline_irregularity
-                ),
-            );
-        }
-        if self.max_wheel_fraction > 1.0 {
-            return bad(
-                "pathfollow.max_wheel_fraction",
-                format!("must be at most 1, got {}", self.max_wheel_fraction),
-            );
-        }
-        if self.preview_points > MAX_PREVIEW_POINTS {
-            return bad(
-                "pathfollow.preview_points",
-                format!(
-                    "must be in 0..={MAX_PREVIEW_POINTS}, got {}",
-                    self.preview_points
                 ),
             );
         }
@@ -310,15 +252,6 @@ impl PathFollowConfig {
                     ),
                 );
             }
-        }
-        if self.obstacle_count > MAX_PATH_OBSTACLES {
-            return bad(
-                "pathfollow.obstacle_count",
-                format!(
-                    "must be in 0..={MAX_PATH_OBSTACLES}, got {}",
-                    self.obstacle_count
-                ),
-            );
         }
         // Obstacles are spread over the lap, clear of the start by START_CLEARANCE each side,
         // and must not touch one another (2 r apart along the path at least).

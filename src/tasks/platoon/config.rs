@@ -9,7 +9,7 @@
 
 use toml::Table;
 
-use crate::config::{ConfigTable, KeyDoc};
+use crate::config::{limits, ConfigTable, Domain, KeyDoc};
 use crate::error::{Error, Result};
 use crate::scenario::Scenario;
 use crate::tasks::reference::{Reference, Shape};
@@ -31,9 +31,9 @@ crate::config_table! {
     /// The platoon's own keys of `[platoon]` (Track's keys follow them in the same table).
     pub struct PlatoonKeys {
         /// robots in the platoon, one agent each (1..16; at most as many as one lap holds)
-        robots: u32 = 3,
+        robots: u32 = 3 => Domain::range(1.0, MAX_ROBOTS as f64),
         /// s: robot k tracks the reference delayed by k x time_gap, so neighbours are time_gap x speed apart along the curve: 2 s gives 0.30 m at 0.15 m/s, about one body (0.14 m) of free space between shells, the road's two-second headway rule [E]
-        time_gap: f32 = 2.0,
+        time_gap: f32 = 2.0 => Domain::POSITIVE.at_most(limits::TIME),
     }
 }
 
@@ -44,11 +44,7 @@ const N_KEYS: usize = PlatoonKeys::KEYS.len() + TrackConfig::KEYS.len();
 pub const KEYS: [KeyDoc; N_KEYS] = join(PlatoonKeys::KEYS, TrackConfig::KEYS);
 
 const fn join<const N: usize>(first: &[KeyDoc], second: &[KeyDoc]) -> [KeyDoc; N] {
-    let mut out = [KeyDoc {
-        name: "",
-        default: "",
-        comment: "",
-    }; N];
+    let mut out = [KeyDoc::new("", "", "", "", None); N];
     let mut i = 0;
     while i < first.len() {
         out[i] = first[i];
@@ -103,18 +99,6 @@ impl PlatoonConfig {
         self.track.validate(origin, cfg).map_err(as_platoon_error)?;
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
         let PlatoonKeys { robots, time_gap } = self.own;
-        if robots == 0 || robots > MAX_ROBOTS {
-            return bad(
-                "platoon.robots",
-                format!("must be in 1..={MAX_ROBOTS}, got {robots}"),
-            );
-        }
-        if !time_gap.is_finite() || time_gap <= 0.0 {
-            return bad(
-                "platoon.time_gap",
-                format!("must be a finite number > 0, got {time_gap}"),
-            );
-        }
         for (key, start) in [
             ("spawn.start", &cfg.spawn.start),
             ("spawn.goal", &cfg.spawn.goal),

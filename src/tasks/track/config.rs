@@ -4,7 +4,7 @@
 
 use toml::Table;
 
-use crate::config::ConfigTable;
+use crate::config::{limits, ConfigTable, Domain};
 use crate::error::{Error, Result};
 use crate::scenario::Scenario;
 use crate::tasks::reference::{Curve, Reference, Shape};
@@ -53,41 +53,41 @@ crate::config_table! {
         /// circle, lemniscate (Gerono's figure eight), square (corners: the limit of smooth controllers), spline (a random smooth closed curve from the world's stream) or waypoints (the waypoints key)
         reference: Shape = "circle",
         /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [tasks.md §3: R = 0.6 m]
-        size: f32 = 0.6,
+        size: f32 = 0.6 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// m/s, mean speed along the reference; period = length / speed [tasks.md §3: 0.15 m/s, so omega_r = 0.25 rad/s on the circle]
-        speed: f32 = 0.15,
+        speed: f32 = 0.15 => Domain::POSITIVE.at_most(limits::SPEED),
         /// "random" (drawn each reset), "ccw" (the curve's own direction) or "cw" [tasks.md §3]
         direction: Direction = "random",
         /// draw the starting phase uniformly at each reset; false: start at phase 0 [tasks.md §3]
         random_phase: bool = true,
         /// m, largest start distance from the reference point, drawn uniformly [tasks.md §3]
-        start_offset: f32 = 0.2,
+        start_offset: f32 = 0.2 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
         /// rad, largest start heading error (45 degrees), drawn uniformly [tasks.md §3]
-        start_heading_offset: f32 = 0.7853982,
+        start_heading_offset: f32 = 0.7853982 => Domain::range(0.0, std::f64::consts::PI),
         /// spline: sum of the harmonics' relative amplitudes (k = 2, 3, 4), in [0, 0.5] [E]
-        spline_irregularity: f32 = 0.3,
+        spline_irregularity: f32 = 0.3 => Domain::range(0.0, 0.5),
         /// the reference's wheel speeds stay within this fraction of robot.max_wheel_speed, leaving the feedback room to correct [E]
-        max_wheel_fraction: f32 = 0.5,
+        max_wheel_fraction: f32 = 0.5 => Domain::POSITIVE.at_most(1.0),
         /// the reference's wheel accelerations stay within this fraction of the drive's acceleration (square corners excepted) [E]
-        max_accel_fraction: f32 = 0.5,
+        max_accel_fraction: f32 = 0.5 => Domain::POSITIVE.at_most(1.0),
         /// m, terminated as lost beyond this position error [tasks.md §3]
-        lost_distance: f32 = 0.5,
+        lost_distance: f32 = 0.5 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// s, truncated after one period plus this [tasks.md §3]
-        truncation_margin: f32 = 2.0,
+        truncation_margin: f32 = 2.0 => Domain::NON_NEGATIVE.at_most(limits::TIME),
         /// reference points previewed (0..16) [tasks.md §3]
-        preview_points: u32 = 4,
+        preview_points: u32 = 4 => Domain::range(0.0, MAX_PREVIEW_POINTS as f64),
         /// s between previewed points [tasks.md §3]
-        preview_step: f32 = 0.25,
+        preview_step: f32 = 0.25 => Domain::POSITIVE.at_most(limits::TIME),
         /// reward per metre of position error [tasks.md §3]
-        error_weight: f32 = 1.0,
+        error_weight: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward per unit of 1 - cos(heading error) [tasks.md §3]
-        heading_weight: f32 = 0.1,
+        heading_weight: f32 = 0.1 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// s, start-up excluded from the RMS and maximum error statistics [tasks.md §3]
-        transient: f32 = 5.0,
+        transient: f32 = 5.0 => Domain::NON_NEGATIVE.at_most(limits::TIME),
         /// m, converged once the error stays below this [issue 14]
-        converge_radius: f32 = 0.02,
+        converge_radius: f32 = 0.02 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// reference = "waypoints": [[t, x, y], ...] (s, m, m), times strictly rising from 0; the last point repeats the first and its time is the period (speed is then unused)
-        waypoints: Vec<[f32; 3]> = [],
+        waypoints: Vec<[f32; 3]> = [] => Domain::range(-limits::TIME, limits::TIME).at_most_entries(MAX_WAYPOINTS),
     }
 }
 
@@ -205,67 +205,11 @@ impl TrackConfig {
         Ok(())
     }
 
-    /// Checks the table against the scenario; errors name `track.<key>` and `origin`.
+    /// Checks the table against the scenario (each key alone is checked by its declaration):
+    /// the waypoints, the reference inside the arena and within the robot's limits; errors
+    /// name `track.<key>` and `origin`.
     pub(crate) fn validate(&self, origin: &str, cfg: &Scenario) -> Result<()> {
         let bad = |key: &str, msg: String| Err(Error::config(origin, key, msg));
-        for (key, v) in [
-            ("track.size", self.size),
-            ("track.speed", self.speed),
-            ("track.lost_distance", self.lost_distance),
-            ("track.preview_step", self.preview_step),
-            ("track.converge_radius", self.converge_radius),
-            ("track.max_wheel_fraction", self.max_wheel_fraction),
-            ("track.max_accel_fraction", self.max_accel_fraction),
-        ] {
-            if !v.is_finite() || v <= 0.0 {
-                return bad(key, format!("must be a finite number > 0, got {v}"));
-            }
-        }
-        for (key, v) in [
-            ("track.start_offset", self.start_offset),
-            ("track.start_heading_offset", self.start_heading_offset),
-            ("track.truncation_margin", self.truncation_margin),
-            ("track.error_weight", self.error_weight),
-            ("track.heading_weight", self.heading_weight),
-            ("track.transient", self.transient),
-            ("track.spline_irregularity", self.spline_irregularity),
-        ] {
-            if !v.is_finite() || v < 0.0 {
-                return bad(key, format!("must be a finite number >= 0, got {v}"));
-            }
-        }
-        if self.start_heading_offset > std::f32::consts::PI {
-            return bad(
-                "track.start_heading_offset",
-                format!("must be at most pi, got {}", self.start_heading_offset),
-            );
-        }
-        if self.spline_irregularity > 0.5 {
-            return bad(
-                "track.spline_irregularity",
-                format!(
-                    "must be at most 0.5 (the curve must stay star-shaped and smooth), got {}",
-                    self.spline_irregularity
-                ),
-            );
-        }
-        for (key, v) in [
-            ("track.max_wheel_fraction", self.max_wheel_fraction),
-            ("track.max_accel_fraction", self.max_accel_fraction),
-        ] {
-            if v > 1.0 {
-                return bad(key, format!("must be at most 1, got {v}"));
-            }
-        }
-        if self.preview_points > MAX_PREVIEW_POINTS {
-            return bad(
-                "track.preview_points",
-                format!(
-                    "must be in 0..={MAX_PREVIEW_POINTS}, got {}",
-                    self.preview_points
-                ),
-            );
-        }
         if let Err(msg) = self.check_waypoints() {
             return bad("track.waypoints", msg);
         }

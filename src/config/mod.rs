@@ -8,7 +8,16 @@
 //! `Default::default()` returns. Overlays are strict: a key that the defaults do not have is an
 //! error naming the file and the key, never a silently ignored setting.
 //!
+//! Each key may declare its domain after its default (`=> Domain::POSITIVE`, see
+//! [`domain`]): [`check_keys`] enforces every declaration on a table, whether the key is used
+//! or not, and the default file writes it after the key's comment (`allowed: finite, > 0`).
+//!
 //! Units: whatever each key's comment says (SI throughout: m, s, rad, m/s, kg).
+
+mod domain;
+pub mod limits;
+
+pub use domain::{Domain, Field};
 
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 use toml::{Table, Value};
@@ -82,8 +91,8 @@ impl Param {
     }
 }
 
-/// One key of a declared table: its name, its default as TOML text and its comment (units,
-/// meaning, source).
+/// One key of a declared table: its name, its default as TOML text, its comment (units,
+/// meaning, source), its Rust type and the values it may take.
 #[derive(Debug, Clone, Copy)]
 pub struct KeyDoc {
     /// The key.
@@ -92,6 +101,67 @@ pub struct KeyDoc {
     pub default: &'static str,
     /// What it is, with units and source.
     pub comment: &'static str,
+    /// Its Rust type as declared (`"f32"`, `"Param"`, `"[f32; 3]"`): the shape of its value.
+    pub ty: &'static str,
+    /// The values it may take; None: any value of its type (numbers must still be finite).
+    pub domain: Option<Domain>,
+}
+
+impl KeyDoc {
+    /// A key without a Rust declaration (a table assembled by hand): name, default, comment,
+    /// type and domain.
+    pub const fn new(
+        name: &'static str,
+        default: &'static str,
+        comment: &'static str,
+        ty: &'static str,
+        domain: Option<Domain>,
+    ) -> Self {
+        Self {
+            name,
+            default,
+            comment,
+            ty,
+            domain,
+        }
+    }
+
+    /// Its domain, or any finite number of its type when it declares none.
+    pub fn domain_or_finite(&self) -> Domain {
+        self.domain.unwrap_or(Domain::FINITE)
+    }
+
+    /// The values it may take, as the default file writes them after its comment (empty for a
+    /// key without numbers or lengths to check).
+    pub fn allowed(&self) -> String {
+        self.domain_or_finite().describe(self.ty)
+    }
+
+    /// Checks `value` of this key against its type's shape and its domain; the error names
+    /// `origin` and `section.key` (with the entry below it where one is wrong).
+    pub fn check(&self, value: &Value, origin: &str, section: &str) -> Result<()> {
+        self.domain_or_finite()
+            .check(self.ty, value)
+            .map_err(|(message, at)| {
+                let key = match section {
+                    "" => format!("{}{at}", self.name),
+                    _ => format!("{section}.{}{at}", self.name),
+                };
+                Error::config(origin, &key, message)
+            })
+    }
+}
+
+/// Checks every key of `table` that `keys` declares against its declaration (see
+/// [`domain`]); keys `keys` does not list are left to the table's reader. Errors name `origin`
+/// and `section.key`.
+pub fn check_keys(table: &Table, keys: &[KeyDoc], origin: &str, section: &str) -> Result<()> {
+    for key in keys {
+        if let Some(value) = table.get(key.name) {
+            key.check(value, origin, section)?;
+        }
+    }
+    Ok(())
 }
 
 /// A table of settings declared with [`crate::config_table!`].
@@ -104,8 +174,10 @@ pub trait ConfigTable: Clone + Serialize + DeserializeOwned {
         keys_table(Self::KEYS)
     }
 
-    /// Reads a table whose keys are all known (an overlay of the defaults).
+    /// Reads a table whose keys are all known (an overlay of the defaults), checking every
+    /// key's domain first ([`check_keys`]).
     fn from_table(table: &Table, origin: &str, section: &str) -> Result<Self> {
+        check_keys(table, Self::KEYS, origin, section)?;
         read_table(table, origin, section)
     }
 }
@@ -147,13 +219,13 @@ pub fn read_table<T: DeserializeOwned>(table: &Table, origin: &str, section: &st
 /// text, and its keys' comments, all written once.
 ///
 /// ```
-/// use _core::config::{ConfigTable, Param};
+/// use _core::config::{ConfigTable, Domain, Param};
 ///
 /// _core::config_table! {
 ///     /// `[wheels]`: an example table.
 ///     pub struct WheelsConfig {
 ///         /// wheel radius (m): 42 mm diameter
-///         radius: f32 = 0.021,
+///         radius: f32 = 0.021 => Domain::POSITIVE.at_most(1.0),
 ///         /// wheel mass (kg), a number or a [low, high] range drawn at every reset
 ///         mass: Param = [0.010, 0.012],
 ///         /// upper speed limit (m/s); inf = none
@@ -176,18 +248,33 @@ pub fn read_table<T: DeserializeOwned>(table: &Table, origin: &str, section: &st
 /// assert_eq!(names, ["radius", "mass", "max_speed", "names"]);
 /// assert_eq!(keys[0].default, "0.021");
 /// assert_eq!(keys[0].comment.trim(), "wheel radius (m): 42 mm diameter");
+/// assert_eq!(keys[0].allowed(), "finite, > 0, <= 1");
+///
+/// // `from_table` checks every key's domain (and a `[T; N]` array's length) before reading.
+/// let mut table = WheelsConfig::defaults_table();
+/// table.insert("radius".into(), toml::Value::Float(f64::NAN));
+/// let error = WheelsConfig::from_table(&table, "f.toml", "wheels").unwrap_err();
+/// assert_eq!(error.to_string(), "f.toml: wheels.radius: must be finite, > 0, <= 1, got NaN");
 /// ```
 /// Each default is TOML text (`inf`, `[0.04, 0.10]`, `"between"`, `[]` are all fine) and must
-/// deserialise into the field's type; `Default::default()` is that deserialisation. The
-/// expansion names `serde`, which the declaring crate must depend on (with `derive`).
+/// deserialise into the field's type; `Default::default()` is that deserialisation. The optional
+/// `=> domain` after a default is a `const` [`Domain`]: the values the key may take (a key
+/// without one takes any finite number of its type). The expansion names `serde`, which the
+/// declaring crate must depend on (with `derive`).
 #[macro_export]
 macro_rules! config_table {
+    (@domain) => {
+        None
+    };
+    (@domain $domain:expr) => {
+        Some($domain)
+    };
     (
         $(#[$meta:meta])*
         pub struct $name:ident {
             $(
                 $(#[doc = $doc:literal])*
-                $field:ident : $ty:ty = $default:expr
+                $field:ident : $ty:ty = $default:expr $(=> $domain:expr)?
             ),* $(,)?
         }
     ) => {
@@ -208,6 +295,8 @@ macro_rules! config_table {
                         name: stringify!($field),
                         default: stringify!($default),
                         comment: concat!($($doc, " "),*),
+                        ty: stringify!($ty),
+                        domain: $crate::config_table!(@domain $($domain)?),
                     },
                 )*
             ];
@@ -299,6 +388,45 @@ fn section_at(text: &str, offset: usize) -> Option<String> {
     }
 }
 
+/// The candidate spelled most like `key` (at most a third of its letters edited, at least one
+/// edit allowed), for a "did you mean" in an unknown key's message; None when none is close.
+pub fn nearest_key<'a>(
+    key: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<&'a str> {
+    let limit = (key.chars().count() / 3).max(1);
+    candidates
+        .into_iter()
+        .map(|c| (edit_distance(key, c), c))
+        .filter(|&(d, _)| d <= limit)
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, c)| c)
+}
+
+/// Levenshtein distance between `a` and `b`, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1)
+                .min(row[j] + 1)
+                .min(diagonal + usize::from(ca != cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
+}
+
+/// What an unknown key's message suggests: "; did you mean `name`?" for the nearest of
+/// `candidates`, or nothing.
+pub fn did_you_mean<'a>(key: &str, candidates: impl IntoIterator<Item = &'a str>) -> String {
+    nearest_key(key, candidates).map_or_else(String::new, |c| format!("; did you mean `{c}`?"))
+}
+
 /// Overlays `over` on `base`. Every key of `over` must exist in `base` (so a typo is an error
 /// naming the key, not a silently ignored setting).
 pub fn overlay(base: &mut Table, over: &Table, prefix: &str, origin: &str) -> Result<()> {
@@ -311,10 +439,11 @@ pub fn overlay(base: &mut Table, over: &Table, prefix: &str, origin: &str) -> Re
         match base.get_mut(key) {
             None => {
                 let known: Vec<&String> = base.keys().collect();
+                let hint = did_you_mean(key, base.keys().map(String::as_str));
                 return Err(Error::config(
                     origin,
                     &path,
-                    format!("unknown key; known keys here: {known:?}"),
+                    format!("unknown key{hint}; known keys here: {known:?}"),
                 ));
             }
             Some(Value::Table(sub)) => match value {
@@ -360,11 +489,17 @@ pub fn expand_overrides(base: &Table, overrides: &Table) -> Result<Table> {
             match sections.as_slice() {
                 [one] => vec![(*one).clone(), key.clone()],
                 [] => {
+                    // Every key a keyword may name: the sections' leaves and the top level's.
+                    let leaves = base.iter().flat_map(|(name, value)| match value {
+                        Value::Table(t) => t.keys().map(String::as_str).collect::<Vec<_>>(),
+                        _ => vec![name.as_str()],
+                    });
+                    let hint = did_you_mean(key, leaves);
                     return Err(Error::config(
                         OVERRIDE_ORIGIN,
                         key,
-                        "unknown key: no scenario section has it".to_string(),
-                    ))
+                        format!("unknown key: no scenario section has it{hint}"),
+                    ));
                 }
                 many => {
                     return Err(Error::config(
@@ -420,16 +555,20 @@ pub fn render_section(
     comments: bool,
 ) {
     out.push_str(&format!("[{name}]\n"));
-    let mut lines: Vec<(String, &str)> = Vec::new();
+    let mut lines: Vec<(String, String)> = Vec::new();
     for key in keys {
         if let Some(value) = table.get(key.name) {
-            let comment = if comments { key.comment.trim() } else { "" };
+            let comment = match (comments, key.allowed()) {
+                (false, _) => String::new(),
+                (true, allowed) if allowed.is_empty() => key.comment.trim().to_string(),
+                (true, allowed) => format!("{}; allowed: {allowed}", key.comment.trim()),
+            };
             lines.push((format!("{} = {}", key.name, value), comment));
         }
     }
     for (name, value) in table {
         if !keys.iter().any(|k| k.name == name) {
-            lines.push((format!("{name} = {value}"), ""));
+            lines.push((format!("{name} = {value}"), String::new()));
         }
     }
     let width = lines
@@ -460,7 +599,7 @@ mod tests {
             /// a length (m)
             length: f32 = 0.25,
             /// an unbounded rate; inf = none
-            rate: Param = inf,
+            rate: Param = inf => Domain::POSITIVE.or_inf(),
             /// a list
             names: Vec<String> = ["a", "b"],
             /// a negative default
@@ -498,11 +637,29 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("f.toml: example.lenght: unknown key"), "{e}");
+        assert!(e.contains("did you mean `length`?"), "{e}");
         let mut table = Example::defaults_table();
         table.insert("length".into(), Value::String("long".into()));
         let e = Example::from_table(&table, "f.toml", "example")
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("f.toml: example.length"), "{e}");
+    }
+
+    #[test]
+    fn a_mistyped_keyword_gets_the_nearest_key_suggested() {
+        let mut base = Table::new();
+        base.insert("example".into(), Value::Table(Example::defaults_table()));
+        base.insert("seed".into(), Value::Integer(0));
+        let over = parse("lenhgt = 1.0\n", "kw").expect("toml");
+        let e = expand_overrides(&base, &over).unwrap_err().to_string();
+        assert!(e.contains("lenhgt: unknown key"), "{e}");
+        assert!(e.contains("did you mean `length`?"), "{e}");
+        let over = parse("seeed = 1\n", "kw").expect("toml");
+        let e = expand_overrides(&base, &over).unwrap_err().to_string();
+        assert!(e.contains("did you mean `seed`?"), "{e}");
+        let over = parse("zzzzzz = 1\n", "kw").expect("toml");
+        let e = expand_overrides(&base, &over).unwrap_err().to_string();
+        assert!(!e.contains("did you mean"), "{e}");
     }
 }

@@ -1,0 +1,86 @@
+"""Closing the loop with the real robot: log on the bench, calibrate the simulator from the log,
+replay it.
+
+The exported policy program logs every control step with ``--log FILE``, and
+``khepera-gym robot-program calibrate`` writes a program that drives a scripted manoeuvre on the
+bench and logs the same format. ``khepera-gym calibrate`` fits the simulator's parameters to
+such logs by replaying them through the simulator, and writes a scenario (each value with its
+uncertainty, optionally ranges for domain randomisation) and a report; ``khepera-gym replay``
+compares a log with the simulator driven by the same commands. One job a module:
+
+* :mod:`~khepera_gym.calibrate.logformat`: the robot log (CSV, format 1): reading, checking,
+  writing;
+* :mod:`~khepera_gym.calibrate.schedule`: the calibration manoeuvre as data and its state
+  machine (the C program runs the same);
+* :mod:`~khepera_gym.calibrate.program`: the calibration program as C
+  (``khepera-gym robot-program calibrate``);
+* :mod:`~khepera_gym.calibrate.replay`: replays of a log through the simulator, by its commands
+  or along its encoders' path, and the divergence of a replay;
+* :mod:`~khepera_gym.calibrate.synthetic`: logs made by the simulator with known parameters (the
+  tests' robot);
+* :mod:`~khepera_gym.calibrate.fit`: the fit (scipy.optimize.least_squares), with
+  uncertainties;
+* :mod:`~khepera_gym.calibrate.scenario`: the calibrated scenario as TOML;
+* :mod:`~khepera_gym.calibrate.report`: the plots and numbers;
+* :mod:`~khepera_gym.calibrate.command`: the command lines.
+
+The fit needs scipy (``pip install 'khepera-gym[calibrate]'``); everything else needs only the
+package's dependencies. Nothing here has run on a real robot: docs/sim-to-real.md says what is
+measured and what is assumed. Units: the robot's own in logs (speed units, pulses, counts, cm),
+SI in scenarios. Threading: the calling thread.
+"""
+
+from khepera_gym.calibrate.fit import CALIBRATE_EXTRA, Calibration, Estimate, calibrate
+from khepera_gym.calibrate.logformat import (
+    COLUMNS,
+    FORMAT_VERSION,
+    LogFormatError,
+    RobotLog,
+    parse_log,
+    read_log,
+    write_log,
+)
+from khepera_gym.calibrate.program import write_calibration_program
+from khepera_gym.calibrate.replay import (
+    DIVERGENCE_TIMES,
+    ReplayComparison,
+    command_replay,
+    compare_with_simulator,
+    odometry_replay,
+)
+from khepera_gym.calibrate.report import write_calibration_report, write_replay_report
+from khepera_gym.calibrate.scenario import calibrated_toml, check_scenario
+from khepera_gym.calibrate.synthetic import (
+    TrueRobot,
+    perturbed_robot,
+    synthetic_calibration_log,
+    synthetic_command_log,
+)
+
+__all__ = [
+    "CALIBRATE_EXTRA",
+    "COLUMNS",
+    "DIVERGENCE_TIMES",
+    "FORMAT_VERSION",
+    "Calibration",
+    "Estimate",
+    "LogFormatError",
+    "ReplayComparison",
+    "RobotLog",
+    "TrueRobot",
+    "calibrate",
+    "calibrated_toml",
+    "check_scenario",
+    "command_replay",
+    "compare_with_simulator",
+    "odometry_replay",
+    "parse_log",
+    "perturbed_robot",
+    "read_log",
+    "synthetic_calibration_log",
+    "synthetic_command_log",
+    "write_calibration_program",
+    "write_calibration_report",
+    "write_log",
+    "write_replay_report",
+]

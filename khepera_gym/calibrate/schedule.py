@@ -1,0 +1,245 @@
+"""The calibration manoeuvre: the phases the calibration program drives through on the bench, as
+data (:func:`calibration_phases`), and the one state machine that runs them
+(:class:`PhaseRunner`).
+
+The C program (``khepera_calibrate_main.c``, written by :mod:`~khepera_gym.calibrate.program`)
+gets the same table and runs the same state machine, step for step; the synthetic robot of
+:mod:`~khepera_gym.calibrate.synthetic` runs this one in the simulator. The manoeuvre, about two
+minutes:
+
+1. rest (the gyroscope's bias, the infrared floor);
+2. a slow approach to a white wall, from the measured gap given on the command line, until the
+   front infrared sensor reads :data:`APPROACH_STOP_IR` or the encoders say the wall is
+   :data:`APPROACH_MARGIN_M` away (the infrared curve and the ultrasonic offset against distance
+   by the encoders); a pause in which the user may measure the final gap (the wheel radius);
+3. back to the start (the same readings, moving away);
+4. a spin in place of :data:`SPIN_TURNS` turns, which leaves the robot facing away from the wall
+   (the axle against the gyroscope);
+5. steps forward and backward at several speeds, then turns in place both ways (the drive's
+   acceleration and lag), each followed by a rest.
+
+Units: commands in K-Team speed units (0.678181 mm/s at 21 mm wheels), times in s, distances in
+m, angles in rad. Threading: none.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+#: The phase kinds (the C program's ``phase_kind`` values, in this order).
+KINDS = ("timed", "approach", "return", "spin", "gap")
+#: Rest at the start and end (s).
+REST_LONG_S = 2.0
+#: Rest after a step or a turn (s).
+REST_S = 1.0
+#: Speed of the wall approach (speed units, 20 mm/s at 21 mm wheels): slow, so that the infrared
+#: curve is sampled every millimetre at 20 Hz.
+APPROACH_UNITS = 30
+#: The approach stops when the front infrared sensor reads this (raw; about 33 mm from white
+#: paper on K-Team's curve, docs/robot.md §3) ...
+APPROACH_STOP_IR = 950
+#: ... or when the encoders say the front is this close to the wall (m).
+APPROACH_MARGIN_M = 0.01
+#: Speed back to the start (speed units).
+RETREAT_UNITS = 60
+#: Wheel speed of the spin in place (speed units) and its turns: 2.5 turns leave the robot
+#: facing away from the wall, with the space of the steps ahead of it.
+SPIN_UNITS = 150
+SPIN_TURNS = 2.5
+#: Speeds of the forward and backward steps, and of the turns in place (speed units).
+STEP_UNITS = (100, 300, 600)
+TURN_UNITS = (100, 300)
+#: A step lasts at least this long (s), and 1.5 times the drive's time to reach its speed.
+STEP_MIN_S = 1.0
+#: Steps that would carry the robot farther than this (m) are left out (slow profiles).
+STEP_MAX_TRAVEL_M = 0.6
+#: One speed unit at the nominal 21 mm wheels (m/s).
+SPEED_UNIT = 0.678181e-3
+#: The front infrared sensor's index (K-Team order).
+FRONT_IR = 3
+
+
+@dataclasses.dataclass(frozen=True)
+class Phase:
+    """One phase of the manoeuvre.
+
+    Attributes:
+        name: Its name in the log's ``phase`` column.
+        kind: One of :data:`KINDS`: "timed" drives (left, right) for ``seconds``; "approach"
+            drives until the front IR reads ``limit`` or the wall is near by the encoders;
+            "return" drives until the encoders are back where the last approach started;
+            "spin" drives until the encoders have turned ``limit`` rad; "gap" stops and asks
+            for the measured gap (no rows). The last three stop after ``seconds`` at most.
+        left: Left wheel command (speed units).
+        right: Right wheel command (speed units).
+        seconds: Its duration (timed) or time limit (the others).
+        limit: The approach's IR threshold (raw) or the spin's angle (rad); else 0.
+    """
+
+    name: str
+    kind: str
+    left: int
+    right: int
+    seconds: float
+    limit: float = 0.0
+
+
+def step_seconds(units: int, accel: float) -> float:
+    """How long a step of ``units`` lasts (s) for a drive of ``accel`` m/s²."""
+    return max(STEP_MIN_S, 1.5 * units * SPEED_UNIT / accel)
+
+
+def calibration_phases(accel: float, wall_distance_guess: float = 0.6) -> tuple[Phase, ...]:
+    """The phases of the manoeuvre for a drive of ``accel`` m/s² (the profile's, or the speed
+    mode's estimate): steps last long enough to reach their speed.
+
+    Args:
+        accel: The drive's acceleration (m/s²).
+        wall_distance_guess: The largest gap to the wall the time limits allow for (m).
+    """
+    rest = Phase("rest", "timed", 0, 0, REST_S)
+    approach_s = wall_distance_guess / (APPROACH_UNITS * SPEED_UNIT) * 1.5 + 5.0
+    retreat_s = wall_distance_guess / (RETREAT_UNITS * SPEED_UNIT) * 1.5 + 5.0
+    spin_angle = SPIN_TURNS * 2.0 * math.pi
+    spin_s = spin_angle * 0.1054 / (2.0 * SPIN_UNITS * SPEED_UNIT) * 1.5 + 5.0
+    phases = [
+        Phase("rest", "timed", 0, 0, REST_LONG_S),
+        Phase(
+            "wall_approach",
+            "approach",
+            APPROACH_UNITS,
+            APPROACH_UNITS,
+            approach_s,
+            APPROACH_STOP_IR,
+        ),
+        rest,
+        Phase("wall_gap", "gap", 0, 0, 0.0),
+        Phase("wall_retreat", "return", -RETREAT_UNITS, -RETREAT_UNITS, retreat_s),
+        rest,
+        Phase("spin", "spin", -SPIN_UNITS, SPIN_UNITS, spin_s, spin_angle),
+        rest,
+    ]
+    for units in STEP_UNITS:
+        seconds = step_seconds(units, accel)
+        if units * SPEED_UNIT * seconds > STEP_MAX_TRAVEL_M:
+            continue
+        phases += [
+            Phase(f"forward_{units}", "timed", units, units, seconds),
+            rest,
+            Phase(f"backward_{units}", "timed", -units, -units, seconds),
+            rest,
+        ]
+    for units in TURN_UNITS:
+        seconds = step_seconds(units, accel)
+        phases += [
+            Phase(f"left_{units}", "timed", -units, units, seconds),
+            rest,
+            Phase(f"right_{units}", "timed", units, -units, seconds),
+            rest,
+        ]
+    phases.append(Phase("rest", "timed", 0, 0, REST_LONG_S))
+    return tuple(phases)
+
+
+def phase_steps(seconds: float, period: float) -> int:
+    """Control steps of ``seconds`` (rounded half up, as the C program does)."""
+    return math.floor(seconds / period + 0.5)
+
+
+class PhaseRunner:
+    """Runs the phases one control step at a time, from the encoders and the front IR sensor;
+    the C program's ``next_command`` does exactly the same.
+
+    Args:
+        phases: The manoeuvre.
+        period: The control period (s).
+        wall_distance: The measured gap to the wall at the start (m).
+        metres_per_pulse: The program's nominal wheel travel per encoder pulse (m).
+        axle_length: The program's nominal axle length (m).
+        ask_gap: Called at a "gap" phase; returns the measured gap (m) or None.
+    """
+
+    def __init__(
+        self,
+        phases: tuple[Phase, ...],
+        period: float,
+        wall_distance: float,
+        metres_per_pulse: float,
+        axle_length: float,
+        ask_gap: Callable[[], float | None] = lambda: None,
+    ) -> None:
+        self.phases = phases
+        self.period = period
+        self.wall_distance = wall_distance
+        self.metres_per_pulse = metres_per_pulse
+        self.axle_length = axle_length
+        self.ask_gap = ask_gap
+        self.index = 0
+        self.step = 0
+        self.start = (0, 0)
+        self.approach_start = 0.0
+        #: Gaps measured at "gap" phases, with the number of rows logged before each.
+        self.gaps: list[float | None] = []
+
+    @property
+    def finished(self) -> bool:
+        """Whether every phase has run."""
+        return self.index >= len(self.phases)
+
+    def next_command(self, enc_left: int, enc_right: int, ir_front: int) -> tuple[Phase, int, int]:
+        """The phase and command of this step, given the readings taken at its start.
+
+        Raises:
+            StopIteration: Every phase has run.
+        """
+        while self.index < len(self.phases):
+            phase = self.phases[self.index]
+            if self.step == 0:
+                self.start = (enc_left, enc_right)
+                if phase.kind == "approach":
+                    self.approach_start = 0.5 * (enc_left + enc_right)
+            if phase.kind == "gap":
+                self.gaps.append(self.ask_gap())
+                self.index += 1
+                continue
+            if self._done(phase, enc_left, enc_right, ir_front):
+                self.index += 1
+                self.step = 0
+                continue
+            self.step += 1
+            return phase, phase.left, phase.right
+        raise StopIteration
+
+    def _done(self, phase: Phase, enc_left: int, enc_right: int, ir_front: int) -> bool:
+        timed_out = self.step >= phase_steps(phase.seconds, self.period)
+        if phase.kind == "timed" or timed_out:
+            return timed_out
+        mean = 0.5 * (enc_left + enc_right)
+        if phase.kind == "approach":
+            travel = (mean - 0.5 * (self.start[0] + self.start[1])) * self.metres_per_pulse
+            return ir_front >= phase.limit or travel >= self.wall_distance - APPROACH_MARGIN_M
+        if phase.kind == "return":
+            return mean <= self.approach_start
+        # spin
+        turned = (
+            ((enc_right - self.start[1]) - (enc_left - self.start[0]))
+            * self.metres_per_pulse
+            / self.axle_length
+        )
+        return abs(turned) >= phase.limit
+
+
+__all__ = [
+    "APPROACH_MARGIN_M",
+    "APPROACH_STOP_IR",
+    "APPROACH_UNITS",
+    "FRONT_IR",
+    "KINDS",
+    "Phase",
+    "PhaseRunner",
+    "calibration_phases",
+    "phase_steps",
+    "step_seconds",
+]

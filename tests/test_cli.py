@@ -1,0 +1,180 @@
+"""The ``khepera-gym`` command as a new user meets it: every subcommand checks its arguments, its
+output's format and folder before simulating (a mistake costs no simulation), creates its
+output folder, shows progress on long work, and ends a user error with one line and a non-zero
+status, never a traceback; an unknown env id gets the nearest khepera_gym id suggested."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+from unittest import mock
+
+import pytest
+
+from khepera_gym import cli, record
+from khepera_gym.compare import run as compare_run
+
+#: A path whose folder cannot be created (/proc takes no new entries, even for root).
+UNWRITABLE = "/proc/khepera-gym-test/out"
+
+
+@pytest.fixture
+def no_simulation() -> Iterator[None]:
+    """Fails a test that steps a world: the arguments must be refused before that."""
+
+    def refuse(*args: Any, **kwargs: Any) -> Any:
+        raise AssertionError("simulated before the arguments were checked")
+
+    with (
+        mock.patch.object(record, "run_episodes", refuse),
+        mock.patch.object(compare_run, "run_episodes", refuse),
+    ):
+        yield
+
+
+def _user_error(argv: list[str]) -> str:
+    """The one-line message ``khepera-gym argv`` exits with (a non-zero status)."""
+    with pytest.raises(SystemExit) as caught:
+        cli.main(argv)
+    message = caught.value.code
+    assert isinstance(message, str), f"exit status {message!r}, expected a message"
+    assert "\n" not in message and "Traceback" not in message
+    assert message.startswith(f"khepera-gym {argv[0]}"), message
+    return message
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["--env", "KheperaIV-Nv"], "did you mean 'KheperaIV-Nav'?"),
+        (["--env", "kheperaiv-avoid-v9"], "did you mean"),
+        (["--env", "Hopper"], "unknown environment 'Hopper'"),
+        (["--out", "run.avi"], "use .gif or .mp4"),
+        (["--out", "run"], "no suffix"),
+        (["--out", f"{UNWRITABLE}/run.gif"], "cannot create the folder"),
+        (["--policy", "nosuch"], "unknown policy 'nosuch'"),
+        (["--size", "5", "5"], "frame_size width must be an int in 16..=4096, got 5"),
+        (["--fps", "0"], "--fps must be >= 1"),
+        (["--seed", "-1"], "--seed must be in [0, 2**64)"),
+        (["--steps", "0"], "--steps must be >= 1"),
+        (["--zoom", "0.5"], "--zoom must be >= 1"),
+        (["--config", "no_such_scene"], "no_such_scene"),
+    ],
+)
+def test_render_refuses_bad_arguments_in_one_line_before_simulating(
+    argv: list[str], expected: str, tmp_path: Path, no_simulation: None
+) -> None:
+    argv = ["render", "--no-progress", *argv]
+    if "--out" not in argv:
+        argv += ["--out", str(tmp_path / "run.gif")]
+    message = _user_error(argv)
+    assert expected in message, message
+    assert "Hopper" not in message.replace("'Hopper'", "")  # no suggestion from Gymnasium's ids
+
+
+def test_render_creates_the_output_folder_and_shows_progress(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "new" / "folder" / "run.gif"
+    assert cli.main(["render", "--steps", "3", "--out", str(out)]) == 0
+    assert out.is_file() and out.stat().st_size > 0
+    captured = capsys.readouterr()
+    assert "wrote 4 frames" in captured.out
+    assert "render KheperaIV-Nav" in captured.err and "step" in captured.err  # tqdm's bar
+
+
+def test_render_zooms_and_sizes_the_frames(tmp_path: Path) -> None:
+    from PIL import Image
+
+    out = tmp_path / "zoomed.gif"
+    argv = ["render", "--steps", "1", "--no-progress", "--out", str(out)]
+    assert cli.main([*argv, "--size", "200", "120", "--zoom", "3", "--center", "0.2", "0"]) == 0
+    with Image.open(out) as image:
+        assert image.size == (200, 120)
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["--env", "KheperaIV-Formaton"], "did you mean 'KheperaIV-Formation'?"),
+        (["--task", "nav", "--episodes", "0"], "--episodes must be >= 1"),
+        (["--task", "nav", "--seed", "-3"], "--seed must be in [0, 2**64)"),
+        (["--task", "nav", "--num-threads", "0"], "--num-threads must be >= 1"),
+        (["--task", "nav", "--plot-worlds", "-1"], "--plot-worlds must be >= 0"),
+        (["--task", "nav", "--out", UNWRITABLE], "cannot create the folder"),
+        (["--task", "consensus", "--out", UNWRITABLE], "cannot create the folder"),
+    ],
+)
+def test_compare_refuses_bad_arguments_in_one_line_before_simulating(
+    argv: list[str], expected: str, tmp_path: Path, no_simulation: None
+) -> None:
+    if "--out" not in argv:
+        argv = [*argv, "--out", str(tmp_path)]
+    message = _user_error(["compare", "--no-progress", "--episodes", "2", *argv])
+    assert expected in message, message
+
+
+def test_compare_creates_a_nested_output_folder_before_simulating(tmp_path: Path) -> None:
+    out = tmp_path / "a" / "b"
+    created = []
+
+    def run_policy(*args: Any, **kwargs: Any) -> Any:
+        created.append(out.is_dir())
+        raise SystemExit("stopped")
+
+    with mock.patch.object(compare_run, "run_policy", run_policy), pytest.raises(SystemExit):
+        cli.main(
+            ["compare", "--task", "nav", "--episodes", "2", "--no-progress", "--out", str(out)]
+        )
+    assert created == [True]
+
+
+def test_demo_checks_its_folder_first(no_simulation: None) -> None:
+    assert "cannot create the folder" in _user_error(["demo", "--out-dir", UNWRITABLE])
+    assert "--episodes must be >= 1" in _user_error(["demo", "--episodes", "0"])
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["--env", "KheperaIV-Nv"], "did you mean 'KheperaIV-Nav'?"),
+        (["--env", "KheperaIV-Nav", "--timesteps", "0"], "--timesteps must be >= 1"),
+        (["--env", "KheperaIV-Nav", "--n-envs", "0"], "--n-envs must be >= 1"),
+        (["--env", "KheperaIV-Nav", "--seed", "-1"], "--seed must be in [0, 2**64)"),
+        (["--env", "KheperaIV-Nav", "--eval-episodes", "0"], "--eval-episodes must be >= 1"),
+        (["--env", "KheperaIV-Nav", "--hyperparams", "missing.toml"], "no such file"),
+        (["--env", "KheperaIV-Nav", "--out", UNWRITABLE], "cannot create the folder"),
+    ],
+)
+def test_train_refuses_bad_arguments_in_one_line_before_training(
+    argv: list[str], expected: str
+) -> None:
+    pytest.importorskip("stable_baselines3")
+    with mock.patch("khepera_gym.train.train", side_effect=AssertionError("trained")):
+        message = _user_error(["train", *argv])
+    assert expected in message, message
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["--num-envs", "0"], "--num-envs must be >= 1"),
+        (["--threads", "1", "0"], "--threads must be >= 1"),
+        (["--duration", "0"], "--duration must be > 0"),
+        (["--json", "rows.txt"], "use .json"),
+        (["--json", f"{UNWRITABLE}/rows.json"], "cannot create the folder"),
+    ],
+)
+def test_bench_refuses_bad_arguments_in_one_line_before_measuring(
+    argv: list[str], expected: str
+) -> None:
+    with mock.patch("khepera_gym.bench.run", side_effect=AssertionError("measured")):
+        message = _user_error(["bench", *argv])
+    assert expected in message, message
+
+
+def test_list_and_export_errors_are_one_line(tmp_path: Path) -> None:
+    assert "unknown topic 'foo'" in _user_error(["list", "foo"])
+    message = _user_error(["export", str(tmp_path / "missing.zip"), "--no-check"])
+    assert "missing.zip" in message, message
