@@ -34,7 +34,7 @@ pub use crate::config::Param;
 pub use scenes::{scene, SCENES};
 pub use sections::{
     ArenaConfig, DriveModel, Localization, MotionSplit, ObstacleConfig, ObstacleKind, ObstacleSpec,
-    PhysicsConfig, Placement, SlipSolver, SpawnConfig, TaskConfig, MAX_DELAY_STEPS,
+    PhysicsConfig, Placement, SceneSolver, SlipSolver, SpawnConfig, TaskConfig, MAX_DELAY_STEPS,
     MAX_RANDOM_OBSTACLES,
 };
 pub use versions::VERSION_DEFAULTS;

@@ -310,7 +310,19 @@ crate::config_table! {
         contact_prediction: f32 = 0.0 => Domain::range(0.0, 1.0),
         /// traction drive: a world where a robot slips (its body not yet rolling on its wheels, after a contact) but nothing can be touched: "tyres" moves each slipping robot by its tyres' impulses directly, as rapier moves a free body (v2); "rapier" hands the whole world to rapier's step as for a contact (v1; the same motion at rapier's cost)
         slip_solver: SlipSolver = "tyres",
+        /// traction drive, split = "world": a substep in which robots can touch walls or obstacles but no robot can touch another: "disc" solves each robot's contacts with the scene directly, as a rigid disc with Coulomb friction and no restitution (src/world/scene_contacts.rs, docs/dynamics.md; v2); "rapier" hands the whole world to rapier's step (v1). Contacts between robots always go to rapier, and so do a split = "robot" world's robots that can touch anything
+        scene_solver: SceneSolver = "disc",
     }
+}
+
+/// Who solves a robot's contacts with the scene while no robot can touch another.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SceneSolver {
+    /// Each robot as a rigid disc against the shapes within its reach (v2).
+    Disc,
+    /// Rapier's step of the whole world (v1).
+    Rapier,
 }
 
 /// Who moves a slipping robot that can touch nothing.

@@ -14,6 +14,7 @@ mode = "ramp"                # v1: the wheels ramp at robot.wheel_accel_limit (0
 whole_step_arc = true        # v1: split = "robot" worlds rolled one arc over the whole step when nothing could be touched
 contact_prediction = 0.02    # v1: rapier's default, whatever the speeds
 slip_solver = "rapier"       # v1: a slipping robot's world went to rapier even with nothing to touch
+scene_solver = "rapier"      # v1: a robot's contacts with walls and obstacles went to rapier's step of the whole world
 "#,
     ),
     (

@@ -34,6 +34,7 @@ pub mod physics;
 pub mod rays;
 mod reach;
 pub mod scene;
+pub mod scene_contacts;
 mod split;
 mod swarm;
 
@@ -43,7 +44,7 @@ use rapier2d::math::Vector;
 
 use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
-use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario, SlipSolver};
+use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario, SceneSolver, SlipSolver};
 use crate::sensors::{Readings, SenseContext, Suite};
 use floor::{FloorMarks, SharedFloor};
 use grid::Grid;
@@ -124,6 +125,9 @@ pub struct World {
     /// Whether a slipping robot that can touch nothing moves by its tyres without rapier
     /// (`physics.slip_solver = "tyres"`).
     slip_by_tyres: bool,
+    /// Whether robots that can touch the scene but no other robot are moved as discs against it
+    /// without rapier (`physics.scene_solver = "disc"`).
+    scene_by_disc: bool,
     /// Tyre–floor friction coefficient of this episode (traction model).
     tyre_friction: f32,
     /// Infrared reflectance of the robots' shells.
@@ -229,6 +233,7 @@ impl World {
             split_robots: cfg.physics.split == MotionSplit::Robot,
             whole_step_arc: cfg.physics.whole_step_arc,
             slip_by_tyres: cfg.physics.slip_solver == SlipSolver::Tyres,
+            scene_by_disc: cfg.physics.scene_solver == SceneSolver::Disc,
             tyre_friction: cfg.robot.tyre_friction.bounds().0,
             robot_reflectance: cfg.robot.shell_reflectance,
             robot_led: cfg.robot.led_color,

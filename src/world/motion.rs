@@ -21,11 +21,29 @@ pub(super) const MIN_CELL: f32 = 0.5;
 /// Slip (m/s at the centre or the wheels) under which a body counts as rolling on its wheels.
 pub(super) const ROLLING_TOLERANCE: f32 = 1e-4;
 
+/// What the robots of a world can touch within a span.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Reach {
+    /// Nothing.
+    Nothing,
+    /// The scene (walls, obstacles), and no robot another.
+    Scene,
+    /// Some robot another robot (and maybe the scene).
+    Robots,
+}
+
 impl World {
     /// Whether some robot could touch the scene or another robot within `duration` seconds.
-    /// A robot's centre moves no faster than its fastest wheel, and a ramping wheel never
-    /// exceeds the larger of its current and commanded speeds.
     fn contact_possible(&mut self, duration: f32) -> bool {
+        self.contact_reach(duration, false) != Reach::Nothing
+    }
+
+    /// What the robots could touch within `duration` seconds. A robot's centre moves no faster
+    /// than its fastest wheel, and a ramping wheel never exceeds the larger of its current and
+    /// commanded speeds. With `classify` false it answers at the first possible contact of
+    /// either kind (`Reach::Scene` or `Reach::Robots`, whichever comes first); with `classify`
+    /// it tells a world whose robots can only touch the scene from one where two can meet.
+    fn contact_reach(&mut self, duration: f32, classify: bool) -> Reach {
         // (In the traction model a body may also move faster than its wheels, pushed or
         // sliding: its own speed counts too; it is 0 in the kinematic model. There the wheels
         // also follow a speed profile: within `duration` a wheel's speed and setpoint gain at
@@ -45,15 +63,19 @@ impl World {
             let fastest = self.speeds.iter().fold(0.0f32, |a, &b| a.max(b));
             let cutoff = 2.0 * radius + 2.0 * fastest * duration + CONTACT_MARGIN + 0.001;
             if !cutoff.is_finite() {
-                return true;
+                return Reach::Robots;
             }
             self.gather_positions();
             let widen = self.refresh_contact_grid(cutoff);
             let (grid, positions) = (&self.contact_grid, &self.positions);
+            let mut found = Reach::Nothing;
             for (i, &p) in positions.iter().enumerate() {
                 let reach = self.speeds[i] * duration + CONTACT_MARGIN;
-                if self.scene.clearance(p) - radius <= reach {
-                    return true;
+                if found == Reach::Nothing && self.scene.clearance(p) - radius <= reach {
+                    found = Reach::Scene;
+                    if !classify {
+                        return found;
+                    }
                 }
                 let mut touch = false;
                 grid.for_each_near(p, cutoff + widen, i, |j, _| {
@@ -64,24 +86,28 @@ impl World {
                     }
                 });
                 if touch {
-                    return true;
+                    return Reach::Robots;
                 }
             }
-            return false;
+            return found;
         }
+        let mut found = Reach::Nothing;
         for (i, r) in self.robots.iter().enumerate() {
             let reach = speed(r) * duration + CONTACT_MARGIN;
-            if self.scene.clearance(r.position) - radius <= reach {
-                return true;
+            if found == Reach::Nothing && self.scene.clearance(r.position) - radius <= reach {
+                found = Reach::Scene;
+                if !classify {
+                    return found;
+                }
             }
             for other in &self.robots[i + 1..] {
                 let gap = (other.position - r.position).length() - 2.0 * radius;
                 if gap <= reach + speed(other) * duration {
-                    return true;
+                    return Reach::Robots;
                 }
             }
         }
-        false
+        found
     }
 
     /// Advances every robot by one control step toward its `wheel_command`.
@@ -228,9 +254,20 @@ impl World {
                 keeps_rolling.push(keeps);
                 rolls &= keeps;
             }
-            let touch = !far && self.contact_possible(h);
-            if touch || (!rolls && !self.slip_by_tyres) {
+            let reach = if far {
+                Reach::Nothing
+            } else {
+                self.contact_reach(h, self.scene_by_disc)
+            };
+            let to_rapier = match reach {
+                Reach::Robots => true,
+                Reach::Scene => !self.scene_by_disc,
+                Reach::Nothing => false,
+            };
+            if to_rapier || (!rolls && !self.slip_by_tyres) {
                 self.traction_substep(None);
+            } else if reach == Reach::Scene {
+                self.scene_substep(h);
             } else if !rolls {
                 self.slip_substep(h);
             } else {

@@ -267,6 +267,11 @@ impl Physics {
         self.params.mass
     }
 
+    /// Shell–wall and shell–obstacle friction coefficient of this episode.
+    pub fn wall_friction(&self) -> f32 {
+        self.params.friction
+    }
+
     /// Replaces the fixed colliders with `scene`'s shapes. The rapier world is built anew (robots
     /// included; the caller places them): removing and inserting colliders in place left rapier's
     /// pending-removal lists and broad phase growing by ~35 bytes per episode, since the removals
@@ -405,7 +410,7 @@ impl Physics {
 /// that would make both wheels roll without slipping, each clamped to `cap` (its friction
 /// circle). Wheels at ±axle/2 along the robot's left axis; the body's mass `mass` (kg) and
 /// moment of inertia `inertia` (kg·m²).
-fn tyre_impulses(
+pub(super) fn tyre_impulses(
     body: &TractionBody,
     axle: f32,
     mass: f32,

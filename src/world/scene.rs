@@ -211,6 +211,44 @@ impl SceneShape {
         }
     }
 
+    /// Signed distance from `point` to the shape's surface (negative inside a solid shape) and
+    /// the unit normal of the surface toward `point` (world frame): the direction a disc centred
+    /// at `point` is pushed out along. None when `point` lies on the surface or, for a segment,
+    /// on it (no direction).
+    #[inline]
+    pub fn surface_normal(&self, point: Vector) -> Option<(f32, Vector)> {
+        let p = self.point_to_local(point);
+        let (distance, local) = match &self.geometry {
+            Geometry::Circle(s) => {
+                let l = p.length();
+                (l > 0.0).then(|| (l - s.radius, p / l))?
+            }
+            Geometry::Box(s) => {
+                let projection = s.project_local_point(p, false);
+                let away = p - projection.point;
+                let l = away.length();
+                if l <= 0.0 {
+                    return None;
+                }
+                if projection.is_inside {
+                    (-l, -away / l)
+                } else {
+                    (l, away / l)
+                }
+            }
+            Geometry::Segment(s) => {
+                let away = p - s.project_local_point(p, true).point;
+                let l = away.length();
+                (l > 0.0).then(|| (l, away / l))?
+            }
+        };
+        let normal = Vector::new(
+            self.cos * local.x - self.sin * local.y,
+            self.sin * local.x + self.cos * local.y,
+        );
+        Some((distance, normal))
+    }
+
     /// Distance from `point` to the shape (0 inside it).
     #[inline]
     pub fn distance(&self, point: Vector) -> f32 {
