@@ -171,7 +171,7 @@ fn test_drive_keys_the_mode_does_not_use_are_config_errors() {
     let (key, _) = common::config_error("nav", "acc_inc = 300");
     assert_eq!(key, "motors.acc_inc");
     // Every version's own defaults load (v1's is a ramp, which v1 ids keep).
-    for version in [0, 1, 2] {
+    for version in 0..=_core::scenario::LATEST_VERSION {
         common::scenario_in("nav", "", version);
     }
     let v1 = common::scenario_in("nav", "wheel_accel_limit = 0.678", 1);

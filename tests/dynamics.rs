@@ -13,6 +13,7 @@ use crate::common;
 use std::cell::Cell;
 use std::f32::consts::FRAC_PI_2;
 
+use _core::scenario::LATEST_VERSION;
 use _core::tasks::{load_scenario, Env, TaskKind};
 use crate::common::drive;
 use rapier2d::math::Vector;
@@ -22,10 +23,11 @@ thread_local! {
     static VERSION: Cell<u32> = const { Cell::new(1) };
 }
 
-/// Runs `test` on v1's defaults, then on v2's: the contacts' physics is specified for both
-/// (v2 changes the drive and rapier's contact prediction, not what a contact does).
+/// Runs `test` on v1's defaults, then on every later version's: the contacts' physics is
+/// specified for all of them (v2 changes the drive and rapier's contact prediction, v3 who solves
+/// a robot's contacts with the scene, not what a contact does).
 fn on_versions(test: impl Fn(u32)) {
-    for version in [1, 2] {
+    for version in 1..=LATEST_VERSION {
         // Shown with a failing test's output: which version failed.
         eprintln!("behaviour version {version}");
         VERSION.set(version);

@@ -181,6 +181,9 @@ class FormationEnv(KheperaEnv):
       details).
     * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
       the robot (the Version History of `NavEnv` has the details).
+    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
+      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
+      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "formation"

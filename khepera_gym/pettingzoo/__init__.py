@@ -32,16 +32,21 @@ from types import ModuleType
 from khepera_gym.pettingzoo import (
     consensus_v1,
     consensus_v2,
+    consensus_v3,
     drone_follow_v1,
     drone_follow_v2,
+    drone_follow_v3,
     formation_v0,
     formation_v1,
     formation_v2,
+    formation_v3,
     multinav_v0,
     multinav_v1,
     multinav_v2,
+    multinav_v3,
     platoon_v1,
     platoon_v2,
+    platoon_v3,
 )
 
 
@@ -63,15 +68,20 @@ def _v(name: str) -> int:
 __all__ = [
     "consensus_v1",
     "consensus_v2",
+    "consensus_v3",
     "drone_follow_v1",
     "drone_follow_v2",
+    "drone_follow_v3",
     "formation_v0",
     "formation_v1",
     "formation_v2",
+    "formation_v3",
     "modules",
     "multinav_v0",
     "multinav_v1",
     "multinav_v2",
+    "multinav_v3",
     "platoon_v1",
     "platoon_v2",
+    "platoon_v3",
 ]

@@ -102,8 +102,8 @@ pub struct Source<'a> {
     pub version: Option<u32>,
 }
 
-/// The behaviour version of the current defaults (the `-v2` environments).
-pub const LATEST_VERSION: u32 = 2;
+/// The behaviour version of the current defaults (the `-v3` environments).
+pub const LATEST_VERSION: u32 = 3;
 
 /// Largest arena side (m): positions are float32 metres, which keep millimetre precision well
 /// beyond this; far larger arenas overflow distances to infinity.

@@ -310,7 +310,7 @@ crate::config_table! {
         contact_prediction: f32 = 0.0 => Domain::range(0.0, 1.0),
         /// traction drive: a world where a robot slips (its body not yet rolling on its wheels, after a contact) but nothing can be touched: "tyres" moves each slipping robot by its tyres' impulses directly, as rapier moves a free body (v2); "rapier" hands the whole world to rapier's step as for a contact (v1; the same motion at rapier's cost)
         slip_solver: SlipSolver = "tyres",
-        /// traction drive, split = "world": a substep in which robots can touch walls or obstacles but no robot can touch another: "disc" solves each robot's contacts with the scene directly, as a rigid disc with Coulomb friction and no restitution (src/world/scene_contacts.rs, docs/dynamics.md; v2); "rapier" hands the whole world to rapier's step (v1). Contacts between robots always go to rapier, and so do a split = "robot" world's robots that can touch anything
+        /// traction drive, split = "world": a substep in which robots can touch walls or obstacles but no robot can touch another: "disc" solves each robot's contacts with the scene directly, as a rigid disc with Coulomb friction and no restitution (src/world/scene_contacts.rs, docs/dynamics.md; v3); "rapier" hands the whole world to rapier's step (v0 to v2). Contacts between robots always go to rapier, and so do a split = "robot" world's robots that can touch anything
         scene_solver: SceneSolver = "disc",
     }
 }
@@ -319,9 +319,9 @@ crate::config_table! {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SceneSolver {
-    /// Each robot as a rigid disc against the shapes within its reach (v2).
+    /// Each robot as a rigid disc against the shapes within its reach (v3).
     Disc,
-    /// Rapier's step of the whole world (v1).
+    /// Rapier's step of the whole world (v0 to v2).
     Rapier,
 }
 

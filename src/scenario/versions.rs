@@ -5,6 +5,13 @@
 /// defaults, so that `KheperaIV-*-v0` keeps the behaviour its published numbers came from.
 pub const VERSION_DEFAULTS: &[(u32, &str)] = &[
     (
+        2,
+        r#"
+[physics]
+scene_solver = "rapier"      # v2 and earlier: a robot's contacts with walls and obstacles went to rapier's step of the whole world
+"#,
+    ),
+    (
         1,
         r#"
 [motors]
@@ -14,7 +21,6 @@ mode = "ramp"                # v1: the wheels ramp at robot.wheel_accel_limit (0
 whole_step_arc = true        # v1: split = "robot" worlds rolled one arc over the whole step when nothing could be touched
 contact_prediction = 0.02    # v1: rapier's default, whatever the speeds
 slip_solver = "rapier"       # v1: a slipping robot's world went to rapier even with nothing to touch
-scene_solver = "rapier"      # v1: a robot's contacts with walls and obstacles went to rapier's step of the whole world
 "#,
     ),
     (

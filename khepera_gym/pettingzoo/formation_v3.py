@@ -1,0 +1,45 @@
+"""``formation_v3``: leader-follower formation (paper §3.5, Fig. 7), as PettingZoo agents.
+
+Behaviour version 3: v2's drive (K-Team's speed profile at Acc_Inc 40, 2.71 m/s², which the
+exported program sets on the robot), with a robot's contacts with walls and obstacles solved as a
+rigid disc's instead of by rapier's step (see the Version History of
+:class:`khepera_gym.envs.NavEnv`).
+Everything else is that of :mod:`khepera_gym.pettingzoo.formation`::
+
+    from khepera_gym.pettingzoo import formation_v3
+
+    env = formation_v3.parallel_env()
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+from pettingzoo import AECEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from khepera_gym.pettingzoo import formation as _source
+from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs
+
+_BASE = _source.FormationParallelEnv
+
+
+class FormationParallelEnv(_BASE):
+    """:class:`khepera_gym.pettingzoo.formation.FormationParallelEnv` with behaviour version 3."""
+
+    metadata: ClassVar[dict[str, Any]] = {**_BASE.metadata, "name": "formation_v3"}
+    VERSION: ClassVar[int | None] = 3
+
+
+def parallel_env(**kwargs: Any) -> FormationParallelEnv:
+    """The task as a PettingZoo ``ParallelEnv``; see :class:`FormationParallelEnv`."""
+    return FormationParallelEnv(**kwargs)
+
+
+def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
+    """The task as a PettingZoo AEC env (agents act in turn, the world steps once all have
+    acted); takes the arguments of :func:`parallel_env`."""
+    return parallel_to_aec(parallel_env(**kwargs))
+
+
+__all__ = ["FormationParallelEnv", "env", "parallel_env"]
