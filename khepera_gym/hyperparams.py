@@ -37,7 +37,9 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
             ``configs/hyperparams/<algo>.toml``.
         env_id: The table's name (a registered id such as "KheperaIV-Nav-v1", or another
             table such as "formation_v1-followers"); a table named without the version
-            ("KheperaIV-Nav") serves every version.
+            ("KheperaIV-Nav") serves every version, one named with a version
+            ("KheperaIV-Avoid-v2") that version and the later ones until a table of a later
+            version.
         path: Another TOML file to read instead.
 
     Raises:
@@ -54,9 +56,18 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     except (OSError, tomllib.TOMLDecodeError) as error:
         raise ConfigError(f"{file}: cannot read hyperparameters: {error}") from None
     # A table named without the version ("KheperaIV-Nav", "formation-followers") serves every
-    # version of the env; one named with it wins for that version.
+    # version of the env; one named with a version ("KheperaIV-Avoid-v2") wins for that version
+    # and the later ones, until a table of a later version.
     unversioned = re.sub(r"[-_]v\d+(?=$|-)", "", env_id)
     name = env_id if env_id in tables else unversioned
+    match = re.search(r"[-_]v(\d+)(?=$|-)", env_id)
+    if env_id not in tables and match is not None:
+        version = int(match.group(1))
+        for earlier in range(version - 1, -1, -1):
+            candidate = env_id[: match.start(1)] + str(earlier) + env_id[match.end(1) :]
+            if candidate in tables:
+                name = candidate
+                break
     if name not in tables:
         raise ConfigError(
             f"{file}: no table [{env_id!r}] or [{unversioned!r}]; tables: {sorted(tables)}"

@@ -353,6 +353,21 @@ def test_hyperparameter_files_build_every_algorithm_they_list() -> None:
         load_hyperparams("ppo", "KheperaIV-Swim-v1")
 
 
+def test_a_versioned_table_serves_its_version_and_the_later_ones(tmp_path: Path) -> None:
+    path = tmp_path / "ppo.toml"
+    path.write_text(
+        '["X"]\nn_steps = 1\n["X-v2"]\nn_steps = 2\n["X-v4"]\nn_steps = 4\n'
+        '["x-followers"]\nn_steps = 5\n["x_v3-followers"]\nn_steps = 6\n'
+    )
+    steps = {
+        env_id: load_hyperparams("ppo", env_id, path)["n_steps"]
+        for env_id in ["X-v0", "X-v1", "X-v2", "X-v3", "X-v4", "X-v9", "X"]
+    }
+    assert steps == {"X-v0": 1, "X-v1": 1, "X-v2": 2, "X-v3": 2, "X-v4": 4, "X-v9": 4, "X": 1}
+    assert load_hyperparams("ppo", "x_v2-followers", path)["n_steps"] == 5
+    assert load_hyperparams("ppo", "x_v4-followers", path)["n_steps"] == 6
+
+
 def test_parse_override_reads_toml_values() -> None:
     assert parse_override("n_steps=64") == ("n_steps", 64)
     assert parse_override("learning_rate=lin_1e-3") == ("learning_rate", "lin_1e-3")
