@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from khepera_gym import _core
 from khepera_gym.baselines import LeaderFollower
 from khepera_gym.benchmarl import KheperaTask
 from khepera_gym.compare import parse_overrides
@@ -347,7 +348,15 @@ def main() -> None:
         rows = [result_row(method, learned), result_row("LeaderFollower", baseline)]
         frames = experiment.total_frames
         write_formation_learning(
-            args.json, method, frames, elapsed, args.episodes, EVAL_SEED, rows, args.seed
+            args.json,
+            method,
+            frames,
+            elapsed,
+            args.episodes,
+            EVAL_SEED,
+            rows,
+            args.seed,
+            version=_core.LATEST_VERSION if args.version is None else args.version,
         )
         print(f"saved {args.json}")
 

@@ -12,8 +12,8 @@ the scripted leader drives to its goal. After training, the policy and the Leade
 baseline (``khepera_gym.baselines.LeaderFollower``, or the proportional follower heuristic when
 the baselines module is not there) play the same seeded episodes, and their mean formation error
 is printed (and, with ``--json``, written with the date, commit, machine and command: the results
-page renders it); finally the policy drives the PettingZoo env ``formation_v2``, one agent per
-follower.
+page renders it); finally the policy drives the PettingZoo env ``formation_vN`` of the latest
+behaviour version N, one agent per follower.
 Hyperparameters: the ``formation-followers`` table of configs/hyperparams/ppo.toml. Needs the
 ``sb3`` extra.
 """
@@ -21,6 +21,7 @@ Hyperparameters: the ``formation-followers`` table of configs/hyperparams/ppo.to
 from __future__ import annotations
 
 import argparse
+import importlib
 import time
 from typing import Any
 
@@ -28,8 +29,8 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecMonitor
 
+from khepera_gym import _core
 from khepera_gym.compare.report import write_formation_learning
-from khepera_gym.pettingzoo import formation_v2
 from khepera_gym.sb3 import first_episode_stats, make_formation_vec_env
 from khepera_gym.train import build_model, load_hyperparams
 
@@ -83,7 +84,8 @@ def main() -> None:
     parser.add_argument("--json", help="also write the figures to this results file")
     args = parser.parse_args()
 
-    hyperparams = load_hyperparams("ppo", "formation_v2-followers")
+    version = _core.LATEST_VERSION  # the Formation env's default, which the vec env makes
+    hyperparams = load_hyperparams("ppo", f"formation_v{version}-followers")
     worlds = args.worlds or hyperparams["n_envs"]
     timesteps = args.timesteps or hyperparams["n_timesteps"]
     envs = VecMonitor(make_formation_vec_env(worlds, seed=0))
@@ -103,18 +105,27 @@ def main() -> None:
     if args.json:
         rows = [result_row("shared PPO (SB3)", learned), result_row(name, reference)]
         write_formation_learning(
-            args.json, "shared PPO (SB3)", timesteps, train_seconds, args.episodes, EVAL_SEED, rows
+            args.json,
+            "shared PPO (SB3)",
+            timesteps,
+            train_seconds,
+            args.episodes,
+            EVAL_SEED,
+            rows,
+            version=version,
         )
         print(f"saved {args.json}")
 
     # The same policy drives each PettingZoo agent from its own observation.
-    env = formation_v2.parallel_env()
+    formation = importlib.import_module(f"khepera_gym.pettingzoo.formation_v{version}")
+    env = formation.parallel_env()
     observations, _ = env.reset(seed=EVAL_SEED)
     while env.agents:
         actions = {a: model.predict(observations[a], deterministic=True)[0] for a in env.agents}
         observations, _, _, _, infos = env.step(actions)
     stats = next(iter(infos.values()))["world_episode_stats"]
-    print(f"formation_v2, seed {EVAL_SEED}: error {100 * stats['formation_error_mean']:.1f} cm")
+    error = 100 * stats["formation_error_mean"]
+    print(f"formation_v{version}, seed {EVAL_SEED}: error {error:.1f} cm")
 
 
 if __name__ == "__main__":

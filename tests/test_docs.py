@@ -377,22 +377,26 @@ def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -
             "contact_steps": 0.0,
         },
     ]
-    path = write_formation_learning(tmp_path / "m.json", "MAPPO (BenchMARL)", 600, 9.0, 50, 7, rows)
+    path = write_formation_learning(
+        tmp_path / "m.json", "MAPPO (BenchMARL)", 600, 9.0, 50, 7, rows, version=3
+    )
     document = json.loads(path.read_text())
     assert kind(document) == "learning" and document["meta"]["command"]
-    assert target_name(document).startswith("learning_formation_MAPPO__BenchMARL__")
+    assert target_name(document).startswith("learning_formation_v3_MAPPO__BenchMARL__")
     text = learning_fragment([(path, document)])
+    assert "formation_v3, cross of 4 followers" in text
     assert "| MAPPO (BenchMARL) | 2.1 cm | 6.3 cm | – | 0.0 |" in text
     assert "| LeaderFollower | 0.4 cm | 0.8 cm | 100 | 0.0 |" in text
     # Another training seed is another file, and the page says which seed it was; a file
     # without train_seed takes it from its command line.
     seeded = write_formation_learning(
-        tmp_path / "s.json", "MAPPO (BenchMARL)", 600, 9.0, 50, 7, rows, 2
+        tmp_path / "s.json", "MAPPO (BenchMARL)", 600, 9.0, 50, 7, rows, 2, version=3
     )
     document = json.loads(seeded.read_text())
-    assert target_name(document).startswith("learning_formation_MAPPO__BenchMARL__seed2_")
+    assert target_name(document).startswith("learning_formation_v3_MAPPO__BenchMARL__seed2_")
     assert "training seed 2" in learning_fragment([(seeded, document)])
     del document["formation_learning"]["train_seed"]
+    del document["formation_learning"]["version"]  # as in the files of v2's runs
     document["meta"]["command"] = "python examples/benchmarl_mappo.py --seed 1 --json s.json"
     assert "_seed1_" in target_name(document)
     document["meta"]["command"] = "python examples/benchmarl_mappo.py --json s.json"

@@ -414,6 +414,8 @@ def target_name(document: dict[str, Any]) -> str:
         "consensus": lambda: "sweep",
         "learning": lambda: (
             "formation_"
+            # Files since v3 name their version (earlier ones were all v2's, the latest then).
+            + (f"v{version}_" if (version := document["formation_learning"].get("version")) else "")
             + "".join(c if c.isalnum() else "_" for c in document["formation_learning"]["method"])
             + (f"_seed{seed}" if (seed := learning_seed(document)) else "")
         ),

@@ -269,6 +269,8 @@ def write_formation_learning(
     eval_seed: int,
     rows: list[dict[str, float | str | None]],
     train_seed: int | None = None,
+    *,
+    version: int,
 ) -> Path:
     """Writes the results file of a learned formation against its baseline (the results page's
     "Learned formations"), with :func:`~khepera_gym.provenance.provenance` under ``meta``.
@@ -284,12 +286,14 @@ def write_formation_learning(
             (m, means over the episodes), ``success_rate`` (the leader arrived; None when not
             measured) and ``contact_steps``.
         train_seed: The training's seed, when it has one.
+        version: The behaviour version of the Formation env it trained and was evaluated on.
     """
     record = {
         "meta": provenance(),
         "formation_learning": {
             "method": method,
-            "env": "formation (latest), cross of 4 followers",
+            "env": f"formation_v{version}, cross of 4 followers",
+            "version": int(version),
             "steps": int(steps),
             "train_seconds": float(seconds),
             "episodes": int(episodes),
