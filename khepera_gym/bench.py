@@ -2,7 +2,7 @@
 
 Measures env-steps per second of
 
-* the native vector env, ``gym.make_vec("KheperaIV-Nav-v2", num_envs=n, num_threads=t)``, for
+* the native vector env, ``gym.make_vec("KheperaIV-Nav-v3", num_envs=n, num_threads=t)``, for
   n in 1, 64, 1024, 4096 and t in 1, 2; then every other task with a Gymnasium env (from the
   registry: :data:`OTHER_TASKS`) and Nav with the camera (4 rays a pixel, and 1) for n = 1024;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);

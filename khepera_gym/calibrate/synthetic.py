@@ -292,7 +292,7 @@ def synthetic_command_log(
     commands: npt.ArrayLike,
     *,
     scene: Mapping[str, Any] | None = None,
-    env_id: str = "KheperaIV-Nav-v2",
+    env_id: str = f"KheperaIV-Nav-v{khepera_gym._core.LATEST_VERSION}",
     period: float = 0.05,
     seed: int = 0,
 ) -> RobotLog:

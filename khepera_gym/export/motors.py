@@ -182,8 +182,8 @@ def motor_setting(scenario: Mapping[str, Any], drive: str = "trained") -> MotorS
         raise ConfigError(
             f"the policy was trained with motors.mode = 'ramp' (robot.wheel_accel_limit = "
             f"{accel:g} m/s², the drive of the v0 and v1 envs), which no mode of the robot's "
-            f"firmware gives exactly: retrain on a v2 env (K-Team's profile) or export with "
-            f"drive='nominal' (--drive nominal) to set {nominal.note}"
+            f"firmware gives exactly: retrain on a v2 or later env (K-Team's profile) or export "
+            f"with drive='nominal' (--drive nominal) to set {nominal.note}"
         )
     return nominal
 
