@@ -30,15 +30,16 @@ PETTINGZOO_MODULES = khepera_gym.pettingzoo.modules()
 
 
 def latest_module(task_module: str) -> ModuleType:
-    """The latest version of a PettingZoo module (``"formation"`` → ``formation_v2``)."""
+    """The latest version of a PettingZoo module (``"formation"`` → ``formation_v3``)."""
     versions = [
         m for name, m in PETTINGZOO_MODULES.items() if name.rpartition("_v")[0] == task_module
     ]
     return versions[-1]
 
 
-#: The latest versioned id of every task, from the registry (v2: K-Team's speed profile at
-#: Acc_Inc 40 on the v1 contacts); tests of behaviour every version shares use these.
+#: The latest versioned id of every task, from the registry (v3: K-Team's speed profile at
+#: Acc_Inc 40, contacts with the scene solved as a disc's); tests of behaviour every version
+#: shares use these.
 LATEST = latest_ids()
 NAV_ID = LATEST["nav"]
 AVOID_ID = LATEST["avoid"]

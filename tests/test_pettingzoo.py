@@ -30,9 +30,11 @@ from khepera_gym.pettingzoo import (
     formation_v0,
     formation_v1,
     formation_v2,
+    formation_v3,
     multinav_v0,
     multinav_v1,
     multinav_v2,
+    multinav_v3,
 )
 
 FOLLOWERS = ["follower_0", "follower_1", "follower_2", "follower_3"]
@@ -78,9 +80,11 @@ def _heuristic_actions(env: ParallelEnv, observations: dict) -> dict:
         (formation_v0, 0, "kinematic"),
         (formation_v1, 1, "traction"),
         (formation_v2, 2, "traction"),
+        (formation_v3, 3, "traction"),
         (multinav_v0, 0, "kinematic"),
         (multinav_v1, 1, "traction"),
         (multinav_v2, 2, "traction"),
+        (multinav_v3, 3, "traction"),
     ],
 )
 def test_each_module_keeps_its_versions_dynamics(module, version: int, drive: str) -> None:
@@ -129,15 +133,15 @@ def test_agent_leader_passes_the_api_tests_with_only_naming_advice() -> None:
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        parallel_api_test(formation_v2.parallel_env(leader="agent"), num_cycles=1000)
-        api_test(formation_v2.env(leader="agent"), num_cycles=1000)
+        parallel_api_test(formation_v3.parallel_env(leader="agent"), num_cycles=1000)
+        api_test(formation_v3.env(leader="agent"), num_cycles=1000)
     for warning in caught:
         assert str(warning.message).startswith(expected_advice), warning
 
 
 def test_metadata_and_agents() -> None:
-    formation = formation_v2.parallel_env()
-    assert formation.metadata["name"] == "formation_v2"
+    formation = formation_v3.parallel_env()
+    assert formation.metadata["name"] == "formation_v3"
     assert formation.metadata["is_parallelizable"] is True
     assert formation.metadata["render_modes"] == ["rgb_array", "human"]
     assert formation.possible_agents == FOLLOWERS
@@ -146,17 +150,17 @@ def test_metadata_and_agents() -> None:
     assert formation.agents == FOLLOWERS
     assert list(observations) == list(infos) == FOLLOWERS
     assert all(info == {} for info in infos.values())
-    assert formation_v2.parallel_env(leader="agent").possible_agents == ["leader", *FOLLOWERS]
-    assert formation_v2.parallel_env(n_followers=2).possible_agents == FOLLOWERS[:2]
+    assert formation_v3.parallel_env(leader="agent").possible_agents == ["leader", *FOLLOWERS]
+    assert formation_v3.parallel_env(n_followers=2).possible_agents == FOLLOWERS[:2]
 
-    multinav = multinav_v2.parallel_env()
-    assert multinav.metadata["name"] == "multinav_v2"
+    multinav = multinav_v3.parallel_env()
+    assert multinav.metadata["name"] == "multinav_v3"
     assert multinav.possible_agents == ROBOTS
-    assert multinav_v2.parallel_env(n_robots=6).max_num_agents == 6
+    assert multinav_v3.parallel_env(n_robots=6).max_num_agents == 6
 
 
 def test_spaces_are_cached_and_followers_share_one_space() -> None:
-    env = formation_v2.parallel_env(leader="agent")
+    env = formation_v3.parallel_env(leader="agent")
     for agent in env.possible_agents:
         assert env.observation_space(agent) is env.observation_space(agent)
         assert env.action_space(agent) is env.action_space(agent)
@@ -177,7 +181,7 @@ def test_spaces_are_cached_and_followers_share_one_space() -> None:
 
 
 def test_observations_are_slices_of_the_state_and_match_the_gymnasium_env() -> None:
-    parallel = formation_v2.parallel_env(config="paper_fig7")
+    parallel = formation_v3.parallel_env(config="paper_fig7")
     single = gym.make(FORMATION_ID, config="paper_fig7")
     observations, _ = parallel.reset(seed=9)
     joint, _ = single.reset(seed=9)
@@ -215,7 +219,7 @@ def test_formation_episode_ends_for_every_follower_with_stats() -> None:
 
 
 def test_max_cycles_truncates_every_agent() -> None:
-    env = formation_v2.parallel_env(max_cycles=7)
+    env = formation_v3.parallel_env(max_cycles=7)
     assert env.max_cycles == 7
     env.reset(seed=0)
     for step in range(7):
@@ -232,7 +236,7 @@ def test_max_cycles_truncates_every_agent() -> None:
         _, _, _, truncations, infos = env.step({a: np.zeros(2) for a in env.agents})
     assert all(truncations.values()) and env.agents == []
     with pytest.raises(ConfigError, match="max_cycles"):
-        formation_v2.parallel_env(max_cycles=5, max_steps=6)
+        formation_v3.parallel_env(max_cycles=5, max_steps=6)
 
 
 def test_multinav_robots_that_arrive_leave_and_park() -> None:
@@ -258,11 +262,11 @@ def test_multinav_robots_that_arrive_leave_and_park() -> None:
     assert all(info["episode_stats"]["success"] for info in infos.values())
 
 
-@pytest.mark.parametrize("module", [multinav_v1, multinav_v2])
+@pytest.mark.parametrize("module", [multinav_v1, multinav_v2, multinav_v3])
 def test_multinav_robots_that_arrive_brake_to_rest_within_their_stopping_distance(module) -> None:
-    """A parked robot's wheels follow the drive down to 0 (v1: the 0.203 m/s² ramp; v2: K-Team's
-    profile at 2.71 m/s², whose last order drops from at most its minimum to 0), so it rolls on
-    for at most v^2 / (2 a) and then stands still."""
+    """A parked robot's wheels follow the drive down to 0 (v1: the 0.203 m/s² ramp; v2 and v3:
+    K-Team's profile at 2.71 m/s², whose last order drops from at most its minimum to 0), so it
+    rolls on for at most v^2 / (2 a) and then stands still."""
     env = module.parallel_env()
     scenario = tomllib.loads(env.config_toml())
     motors = scenario["motors"]
@@ -294,7 +298,7 @@ def test_multinav_robots_that_arrive_brake_to_rest_within_their_stopping_distanc
 
 
 def test_actions_for_finished_or_unknown_agents_raise_action_error() -> None:
-    env = multinav_v2.parallel_env()
+    env = multinav_v3.parallel_env()
     observations, _ = env.reset(seed=1)
     while len(env.agents) == len(ROBOTS):
         observations, *_ = env.step(_heuristic_actions(env, observations))
@@ -318,14 +322,14 @@ def test_actions_for_finished_or_unknown_agents_raise_action_error() -> None:
     ],
 )
 def test_bad_actions_raise_action_error_naming_the_agent(actions, message: str) -> None:
-    env = formation_v2.parallel_env()
+    env = formation_v3.parallel_env()
     env.reset(seed=0)
     with pytest.raises(ActionError, match=message):
         env.step(actions)
 
 
 def test_reset_without_seed_continues_and_seed_reproduces() -> None:
-    env = formation_v2.parallel_env()
+    env = formation_v3.parallel_env()
     first, _ = env.reset(seed=5)
     continued, _ = env.reset()
     again, _ = env.reset(seed=5)
@@ -335,7 +339,7 @@ def test_reset_without_seed_continues_and_seed_reproduces() -> None:
 
 
 def test_kwargs_reach_the_scenario() -> None:
-    env = formation_v2.parallel_env(n_followers=3, shape="wedge", spacing=0.4)
+    env = formation_v3.parallel_env(n_followers=3, shape="wedge", spacing=0.4)
     env.reset(seed=0)
     poses = env.poses()
     assert poses.shape == (4, 3)
@@ -344,15 +348,15 @@ def test_kwargs_reach_the_scenario() -> None:
     assert env.formation_targets().shape == (3, 2)
     assert 'shape = "wedge"' in env.config_toml()
     with pytest.raises(ConfigError, match="n_followers"):
-        formation_v2.parallel_env(n_followers=0)
-    multinav = multinav_v2.parallel_env(n_robots=3, config="multinav", max_cycles=50)
+        formation_v3.parallel_env(n_followers=0)
+    multinav = multinav_v3.parallel_env(n_robots=3, config="multinav", max_cycles=50)
     multinav.reset(seed=0)
     assert multinav.poses().shape == (3, 3) and multinav.goals().shape == (3, 2)
     assert multinav.max_cycles == 50
 
 
 def test_aec_env_runs_the_heuristic_to_the_end() -> None:
-    env = formation_v2.env(config="paper_fig7")
+    env = formation_v3.env(config="paper_fig7")
     env.reset(seed=0)
     for _agent in env.agent_iter():
         observation, _, terminated, truncated, info = env.last()

@@ -276,11 +276,11 @@ def test_formation_rows_are_world_follower_pairs_with_their_own_rewards() -> Non
 
 def test_shared_agents_rows_are_a_consensus_worlds_robots() -> None:
     from khepera_gym.baselines import ConsensusLaw
-    from khepera_gym.pettingzoo import consensus_v2
+    from khepera_gym.pettingzoo import consensus_v3
 
     n_worlds, seed = 2, 5
     env = SharedAgentsVecEnv("consensus", n_worlds, seed=seed, max_steps=30)
-    single = consensus_v2.parallel_env(max_steps=30)
+    single = consensus_v3.parallel_env(max_steps=30)
     assert env.num_envs == n_worlds * 4 and env.agent_names == single.possible_agents
     assert env.observation_space == single.observation_space("robot_0")
     rows = env.reset()
