@@ -396,6 +396,8 @@ def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -
     assert target_name(document).startswith("learning_formation_v3_MAPPO__BenchMARL__seed2_")
     assert "training seed 2" in learning_fragment([(seeded, document)])
     del document["formation_learning"]["train_seed"]
+    document["formation_learning"]["method"] = "MAPPO (BenchMARL, one σ per action)"
+    assert target_name(document).isascii()  # a file name any checkout can hold
     del document["formation_learning"]["version"]  # as in the files of v2's runs
     document["meta"]["command"] = "python examples/benchmarl_mappo.py --seed 1 --json s.json"
     assert "_seed1_" in target_name(document)

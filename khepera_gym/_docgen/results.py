@@ -416,7 +416,10 @@ def target_name(document: dict[str, Any]) -> str:
             "formation_"
             # Files since v3 name their version (earlier ones were all v2's, the latest then).
             + (f"v{version}_" if (version := document["formation_learning"].get("version")) else "")
-            + "".join(c if c.isalnum() else "_" for c in document["formation_learning"]["method"])
+            + "".join(
+                c if c.isascii() and c.isalnum() else "_"
+                for c in document["formation_learning"]["method"]
+            )
             + (f"_seed{seed}" if (seed := learning_seed(document)) else "")
         ),
         "bench": lambda: f"v{document['version']}",
