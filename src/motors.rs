@@ -113,7 +113,8 @@ pub const PRESETS: &[MotorPreset] = &[
         name: "khepera_gym_v2",
         settings:
             "mode = \"profile\"\nacc_inc = 40\nacc_div = 0\nmin_speed_acc = 20\nmin_speed_dec = 1",
-        source: "the default of the v2 and v3 envs: 2.71 m/s^2, the acceleration of Webots' Khepera IV \
+        source:
+            "the default of the v2 and v3 envs: 2.71 m/s^2, the acceleration of Webots' Khepera IV \
                  motor, set on the robot exactly by the exported program",
     },
     MotorPreset {
