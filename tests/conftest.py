@@ -37,6 +37,19 @@ def latest_module(task_module: str) -> ModuleType:
     return versions[-1]
 
 
+#: The latest PettingZoo module of the tasks tests use as "the current one", from the registry
+#: (``formation_v3`` while v3 is the latest): a new version is covered without editing a test.
+FORMATION = latest_module("formation")
+MULTINAV = latest_module("multinav")
+CONSENSUS = latest_module("consensus")
+
+
+def module_name(module: ModuleType) -> str:
+    """A PettingZoo module's own name (``formation_v3``), as its envs' metadata and RLlib's
+    registry name it."""
+    return module.__name__.rpartition(".")[2]
+
+
 #: The latest versioned id of every task, from the registry (v3: K-Team's speed profile at
 #: Acc_Inc 40, contacts with the scene solved as a disc's); tests of behaviour every version
 #: shares use these.

@@ -14,14 +14,13 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID
+from conftest import AVOID_ID, FORMATION, FORMATION_ID, MULTINAV, NAV_ID
 
 import khepera_gym
 from khepera_gym import _core
 from khepera_gym.baselines import VFH, Braitenberg, PositionControl, parameters
 from khepera_gym.envs import ENV_CLASSES, NavEnv
 from khepera_gym.errors import ConfigError, StateError
-from khepera_gym.pettingzoo import formation_v3, multinav_v3
 from khepera_gym.registration import latest_ids
 from khepera_gym.vector import KheperaVectorEnv, NavVectorEnv
 
@@ -147,7 +146,7 @@ def _faces():
     return [
         gym.make(FORMATION_ID).unwrapped,
         gym.make_vec(FORMATION_ID, num_envs=3),
-        formation_v3.parallel_env(),
+        FORMATION.parallel_env(),
     ]
 
 
@@ -168,7 +167,7 @@ def test_every_face_shows_the_same_world_through_the_same_accessors(face) -> Non
 
 
 def test_pettingzoo_envs_save_and_restore_their_state() -> None:
-    env = multinav_v3.parallel_env()
+    env = MULTINAV.parallel_env()
     env.reset(seed=2)
     rng = np.random.default_rng(0)
     actions = [{a: rng.uniform(-1, 1, 2).astype(np.float32) for a in env.agents} for _ in range(40)]
@@ -215,7 +214,7 @@ def test_last_outputs_show_each_world_as_it_now_is_and_are_saved() -> None:
         lambda: NavVectorEnv(num_envs=0),
         lambda: gym.make_vec(NAV_ID, num_envs=0),
         lambda: NavEnv(radius=-1.0),
-        lambda: formation_v3.parallel_env(n_followers=0),
+        lambda: FORMATION.parallel_env(n_followers=0),
     ],
     ids=["vector", "make_vec", "single", "pettingzoo"],
 )
@@ -233,7 +232,7 @@ def test_a_failed_construction_raises_its_error_and_nothing_else(build) -> None:
 
 @pytest.mark.parametrize(
     "cls",
-    [NavEnv, NavVectorEnv, formation_v3.FormationParallelEnv],
+    [NavEnv, NavVectorEnv, FORMATION.FormationParallelEnv],
     ids=["single", "vector", "pettingzoo"],
 )
 def test_a_half_built_env_closes_cleanly(cls) -> None:

@@ -15,7 +15,14 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import FORMATION_ID, PETTINGZOO_MODULES, latest_module
+from conftest import (
+    FORMATION,
+    FORMATION_ID,
+    MULTINAV,
+    PETTINGZOO_MODULES,
+    latest_module,
+    module_name,
+)
 from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, seed_test
 
@@ -26,16 +33,7 @@ from khepera_gym.envs import (
     track_heuristic,
 )
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
-from khepera_gym.pettingzoo import (
-    formation_v0,
-    formation_v1,
-    formation_v2,
-    formation_v3,
-    multinav_v0,
-    multinav_v1,
-    multinav_v2,
-    multinav_v3,
-)
+from khepera_gym.pettingzoo import formation_v0, multinav_v0
 
 FOLLOWERS = ["follower_0", "follower_1", "follower_2", "follower_3"]
 ROBOTS = ["robot_0", "robot_1", "robot_2", "robot_3"]
@@ -74,20 +72,18 @@ def _heuristic_actions(env: ParallelEnv, observations: dict) -> dict:
     return {agent: formation_follower_heuristic(observations[agent]) for agent in env.agents}
 
 
-@pytest.mark.parametrize(
-    ("module", "version", "drive"),
-    [
-        (formation_v0, 0, "kinematic"),
-        (formation_v1, 1, "traction"),
-        (formation_v2, 2, "traction"),
-        (formation_v3, 3, "traction"),
-        (multinav_v0, 0, "kinematic"),
-        (multinav_v1, 1, "traction"),
-        (multinav_v2, 2, "traction"),
-        (multinav_v3, 3, "traction"),
-    ],
-)
-def test_each_module_keeps_its_versions_dynamics(module, version: int, drive: str) -> None:
+#: Every version's module of the tasks since v0, from the registry, with its behaviour version.
+VERSIONED = {
+    name: (module, int(name.rpartition("_v")[2]))
+    for name, module in PETTINGZOO_MODULES.items()
+    if name.rpartition("_v")[0] in ("formation", "multinav")
+}
+
+
+@pytest.mark.parametrize(("module", "version"), VERSIONED.values(), ids=VERSIONED.keys())
+def test_each_module_keeps_its_versions_dynamics(module, version: int) -> None:
+    # v0: the paper's imposed velocities; v1 on: tyres with bounded grip.
+    drive = "kinematic" if version == 0 else "traction"
     env = module.parallel_env()
     assert env.metadata["name"].endswith(f"_v{version}")
     assert f'drive = "{drive}"' in env.config_toml()
@@ -133,15 +129,15 @@ def test_agent_leader_passes_the_api_tests_with_only_naming_advice() -> None:
     )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        parallel_api_test(formation_v3.parallel_env(leader="agent"), num_cycles=1000)
-        api_test(formation_v3.env(leader="agent"), num_cycles=1000)
+        parallel_api_test(FORMATION.parallel_env(leader="agent"), num_cycles=1000)
+        api_test(FORMATION.env(leader="agent"), num_cycles=1000)
     for warning in caught:
         assert str(warning.message).startswith(expected_advice), warning
 
 
 def test_metadata_and_agents() -> None:
-    formation = formation_v3.parallel_env()
-    assert formation.metadata["name"] == "formation_v3"
+    formation = FORMATION.parallel_env()
+    assert formation.metadata["name"] == module_name(FORMATION)
     assert formation.metadata["is_parallelizable"] is True
     assert formation.metadata["render_modes"] == ["rgb_array", "human"]
     assert formation.possible_agents == FOLLOWERS
@@ -150,17 +146,17 @@ def test_metadata_and_agents() -> None:
     assert formation.agents == FOLLOWERS
     assert list(observations) == list(infos) == FOLLOWERS
     assert all(info == {} for info in infos.values())
-    assert formation_v3.parallel_env(leader="agent").possible_agents == ["leader", *FOLLOWERS]
-    assert formation_v3.parallel_env(n_followers=2).possible_agents == FOLLOWERS[:2]
+    assert FORMATION.parallel_env(leader="agent").possible_agents == ["leader", *FOLLOWERS]
+    assert FORMATION.parallel_env(n_followers=2).possible_agents == FOLLOWERS[:2]
 
-    multinav = multinav_v3.parallel_env()
-    assert multinav.metadata["name"] == "multinav_v3"
+    multinav = MULTINAV.parallel_env()
+    assert multinav.metadata["name"] == module_name(MULTINAV)
     assert multinav.possible_agents == ROBOTS
-    assert multinav_v3.parallel_env(n_robots=6).max_num_agents == 6
+    assert MULTINAV.parallel_env(n_robots=6).max_num_agents == 6
 
 
 def test_spaces_are_cached_and_followers_share_one_space() -> None:
-    env = formation_v3.parallel_env(leader="agent")
+    env = FORMATION.parallel_env(leader="agent")
     for agent in env.possible_agents:
         assert env.observation_space(agent) is env.observation_space(agent)
         assert env.action_space(agent) is env.action_space(agent)
@@ -181,7 +177,7 @@ def test_spaces_are_cached_and_followers_share_one_space() -> None:
 
 
 def test_observations_are_slices_of_the_state_and_match_the_gymnasium_env() -> None:
-    parallel = formation_v3.parallel_env(config="paper_fig7")
+    parallel = FORMATION.parallel_env(config="paper_fig7")
     single = gym.make(FORMATION_ID, config="paper_fig7")
     observations, _ = parallel.reset(seed=9)
     joint, _ = single.reset(seed=9)
@@ -219,7 +215,7 @@ def test_formation_episode_ends_for_every_follower_with_stats() -> None:
 
 
 def test_max_cycles_truncates_every_agent() -> None:
-    env = formation_v3.parallel_env(max_cycles=7)
+    env = FORMATION.parallel_env(max_cycles=7)
     assert env.max_cycles == 7
     env.reset(seed=0)
     for step in range(7):
@@ -236,7 +232,7 @@ def test_max_cycles_truncates_every_agent() -> None:
         _, _, _, truncations, infos = env.step({a: np.zeros(2) for a in env.agents})
     assert all(truncations.values()) and env.agents == []
     with pytest.raises(ConfigError, match="max_cycles"):
-        formation_v3.parallel_env(max_cycles=5, max_steps=6)
+        FORMATION.parallel_env(max_cycles=5, max_steps=6)
 
 
 def test_multinav_robots_that_arrive_leave_and_park() -> None:
@@ -262,7 +258,10 @@ def test_multinav_robots_that_arrive_leave_and_park() -> None:
     assert all(info["episode_stats"]["success"] for info in infos.values())
 
 
-@pytest.mark.parametrize("module", [multinav_v1, multinav_v2, multinav_v3])
+@pytest.mark.parametrize(
+    "module",
+    [m for name, (m, version) in VERSIONED.items() if name.startswith("multinav") and version >= 1],
+)
 def test_multinav_robots_that_arrive_brake_to_rest_within_their_stopping_distance(module) -> None:
     """A parked robot's wheels follow the drive down to 0 (v1: the 0.203 m/s² ramp; v2 and v3:
     K-Team's profile at 2.71 m/s², whose last order drops from at most its minimum to 0), so it
@@ -298,7 +297,7 @@ def test_multinav_robots_that_arrive_brake_to_rest_within_their_stopping_distanc
 
 
 def test_actions_for_finished_or_unknown_agents_raise_action_error() -> None:
-    env = multinav_v3.parallel_env()
+    env = MULTINAV.parallel_env()
     observations, _ = env.reset(seed=1)
     while len(env.agents) == len(ROBOTS):
         observations, *_ = env.step(_heuristic_actions(env, observations))
@@ -322,14 +321,14 @@ def test_actions_for_finished_or_unknown_agents_raise_action_error() -> None:
     ],
 )
 def test_bad_actions_raise_action_error_naming_the_agent(actions, message: str) -> None:
-    env = formation_v3.parallel_env()
+    env = FORMATION.parallel_env()
     env.reset(seed=0)
     with pytest.raises(ActionError, match=message):
         env.step(actions)
 
 
 def test_reset_without_seed_continues_and_seed_reproduces() -> None:
-    env = formation_v3.parallel_env()
+    env = FORMATION.parallel_env()
     first, _ = env.reset(seed=5)
     continued, _ = env.reset()
     again, _ = env.reset(seed=5)
@@ -339,7 +338,7 @@ def test_reset_without_seed_continues_and_seed_reproduces() -> None:
 
 
 def test_kwargs_reach_the_scenario() -> None:
-    env = formation_v3.parallel_env(n_followers=3, shape="wedge", spacing=0.4)
+    env = FORMATION.parallel_env(n_followers=3, shape="wedge", spacing=0.4)
     env.reset(seed=0)
     poses = env.poses()
     assert poses.shape == (4, 3)
@@ -348,15 +347,15 @@ def test_kwargs_reach_the_scenario() -> None:
     assert env.formation_targets().shape == (3, 2)
     assert 'shape = "wedge"' in env.config_toml()
     with pytest.raises(ConfigError, match="n_followers"):
-        formation_v3.parallel_env(n_followers=0)
-    multinav = multinav_v3.parallel_env(n_robots=3, config="multinav", max_cycles=50)
+        FORMATION.parallel_env(n_followers=0)
+    multinav = MULTINAV.parallel_env(n_robots=3, config="multinav", max_cycles=50)
     multinav.reset(seed=0)
     assert multinav.poses().shape == (3, 3) and multinav.goals().shape == (3, 2)
     assert multinav.max_cycles == 50
 
 
 def test_aec_env_runs_the_heuristic_to_the_end() -> None:
-    env = formation_v3.env(config="paper_fig7")
+    env = FORMATION.env(config="paper_fig7")
     env.reset(seed=0)
     for _agent in env.agent_iter():
         observation, _, terminated, truncated, info = env.last()

@@ -29,6 +29,7 @@ pytest.importorskip("ray.rllib", reason="needs the rllib extra: pip install 'khe
 
 import ray
 import torch
+from conftest import FORMATION, module_name
 from ray.rllib.core.rl_module.rl_module import RLModule, RLModuleSpec
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.env.single_agent_env_runner import SingleAgentEnvRunner
@@ -37,7 +38,7 @@ from khepera_gym import rllib
 from khepera_gym.cli import main as cli_main
 from khepera_gym.errors import ConfigError
 from khepera_gym.face import BatchFace
-from khepera_gym.pettingzoo import formation_v3, multinav_v0
+from khepera_gym.pettingzoo import multinav_v0
 from khepera_gym.registration import latest_ids
 
 NAV = "khepera_gym/KheperaIV-Nav-v0"
@@ -217,7 +218,7 @@ def test_followers_rows_replay_pettingzoo_followers_across_an_episode_end() -> N
     env = rllib.FormationFollowersVectorEnv(worlds, n_followers=3, max_steps=5, num_threads=1)
     followers = env.followers_per_world
     observations, _ = env.reset(seed=seed)
-    references = [formation_v3.parallel_env(n_followers=3, max_cycles=5) for _ in range(worlds)]
+    references = [FORMATION.parallel_env(n_followers=3, max_cycles=5) for _ in range(worlds)]
     reference_obs = [ref.reset(seed=seed + w)[0] for w, ref in enumerate(references)]
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, env.num_envs, 2))
     for step in range(steps):
@@ -335,7 +336,9 @@ def test_rllib_envs_show_their_world_through_the_shared_face() -> None:
     single.reset(seed=4)
     followers = rllib.FormationFollowersVectorEnv(2, n_followers=3, num_threads=1)
     followers.reset(seed=4)
-    multi_agent = rllib.make_multi_agent_env("khepera_gym/formation_v3", {"n_followers": 3})
+    multi_agent = rllib.make_multi_agent_env(
+        f"khepera_gym/{module_name(FORMATION)}", {"n_followers": 3}
+    )
     multi_agent.reset(seed=4)
     for face, world in ((followers, lambda a: a[0]), (multi_agent, lambda a: a)):
         assert isinstance(face, BatchFace)

@@ -18,7 +18,15 @@ pytest.importorskip(
     "stable_baselines3", reason="needs the sb3 extra: pip install 'khepera-gym[sb3]'"
 )
 
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID, random_actions
+from conftest import (
+    AVOID_ID,
+    CONSENSUS,
+    FORMATION_ID,
+    NAV_ID,
+    PATHFOLLOW_ID,
+    TRACK_ID,
+    random_actions,
+)
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.env_checker import check_env
@@ -276,11 +284,10 @@ def test_formation_rows_are_world_follower_pairs_with_their_own_rewards() -> Non
 
 def test_shared_agents_rows_are_a_consensus_worlds_robots() -> None:
     from khepera_gym.baselines import ConsensusLaw
-    from khepera_gym.pettingzoo import consensus_v3
 
     n_worlds, seed = 2, 5
     env = SharedAgentsVecEnv("consensus", n_worlds, seed=seed, max_steps=30)
-    single = consensus_v3.parallel_env(max_steps=30)
+    single = CONSENSUS.parallel_env(max_steps=30)
     assert env.num_envs == n_worlds * 4 and env.agent_names == single.possible_agents
     assert env.observation_space == single.observation_space("robot_0")
     rows = env.reset()

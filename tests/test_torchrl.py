@@ -19,11 +19,10 @@ import pytest
 pytest.importorskip("torchrl", reason="needs the torchrl extra: pip install 'khepera-gym[torchrl]'")
 
 import torch
-from conftest import FORMATION_ID, NAV_ID, random_actions
+from conftest import FORMATION, FORMATION_ID, MULTINAV, NAV_ID, random_actions
 
 from khepera_gym.baselines import PositionControl
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
-from khepera_gym.pettingzoo import formation_v3, multinav_v3
 from khepera_gym.torchrl import (
     KheperaTorchEnv,
     multi_agent_tasks,
@@ -223,8 +222,8 @@ def test_first_episode_equals_the_native_vector_env() -> None:
 @pytest.mark.parametrize(
     ("task", "module", "overrides"),
     [
-        ("formation", formation_v3, {"n_followers": 3, "max_steps": 30}),
-        ("multinav", multinav_v3, {"n_robots": 3, "max_steps": 120}),
+        ("formation", FORMATION, {"n_followers": 3, "max_steps": 30}),
+        ("multinav", MULTINAV, {"n_robots": 3, "max_steps": 120}),
     ],
 )
 def test_multi_agent_rollout_equals_pettingzoo_envs(
