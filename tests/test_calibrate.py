@@ -645,7 +645,10 @@ def test_the_calibration_programs_log_is_the_manoeuvre_pythons_runner_plays(
     )
     for row in range(len(log)):
         phase, left, right = runner.next_command(
-            int(log.encoders[row, 0]), int(log.encoders[row, 1]), int(log.ir[row, 3])
+            int(log.encoders[row, 0]),
+            int(log.encoders[row, 1]),
+            int(log.ir[row, 3]),
+            int(log.us[row, 2]),
         )
         assert (phase.name, left, right) == (
             log.phases[row],
