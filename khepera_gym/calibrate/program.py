@@ -86,7 +86,7 @@ def _phase_row(phase: schedule.Phase) -> str:
     elif phase.kind == "return":
         what = "until back at the approach's start"
     else:
-        what = "asks for the measured gap (no rows)"
+        what = "asks for the measured gap (one row: the pause)"
     return f"| `{phase.name}` | {phase.kind} | {phase.left}, {phase.right} | {what} |"
 
 

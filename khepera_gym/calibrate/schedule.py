@@ -99,7 +99,8 @@ class Phase:
             (:class:`PhaseRunner`), slower near the wall;
             "return" drives until the encoders are back where the last approach started;
             "spin" drives until the encoders have turned ``limit`` rad; "gap" stops and asks
-            for the measured gap (no rows). The last three stop after ``seconds`` at most.
+            for the measured gap (one row, the pause's, with the readings from before it). The
+            approach, the return and the spin stop after ``seconds`` at most.
         left: Left wheel command (speed units).
         right: Right wheel command (speed units).
         seconds: Its duration (timed) or time limit (the others).
@@ -251,9 +252,11 @@ class PhaseRunner:
                     self.wall = self.wall_distance
                     self.ir_rows = self.near_rows = self.close_rows = 0
             if phase.kind == "gap":
+                # This row stands for the pause (its readings were taken before it); the next
+                # phase starts on the next row.
                 self.gaps.append(self.ask_gap())
                 self.index += 1
-                continue
+                return phase, phase.left, phase.right
             if self._done(phase, enc_left, enc_right, ir_front, us_front):
                 self.index += 1
                 self.step = 0

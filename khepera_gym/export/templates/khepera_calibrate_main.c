@@ -159,10 +159,13 @@ static const calibration_phase *next_command(manoeuvre *state, const khepera_rea
             }
         }
         if (phase->kind == PHASE_GAP) {
+            /* This row stands for the pause: its readings were taken before it, and the next
+             * phase starts on the next row, with readings taken after it. */
             ask_wall_gap(log);
             *next_tick = khepera_clock_now();
             state->index += 1;
-            continue;
+            state->command = *phase;
+            return &state->command;
         }
         if (phase_done(state, phase, readings)) {
             state->index += 1;
