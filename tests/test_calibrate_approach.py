@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -65,10 +66,15 @@ def _approach_phases() -> tuple[schedule.Phase, ...]:
     return phases[: end + 1]
 
 
-def _build(out: Path, stuck: int | None, **fake: float) -> Path:
-    """The calibration program on the fake robot (its settings ``fake``), with the front
-    infrared sensor stuck at ``stuck`` (raw) if given."""
-    write_calibration_program(out, env_id=NAV_ID, phases=_approach_phases())
+def _build(
+    out: Path,
+    stuck: int | None,
+    phases: tuple[schedule.Phase, ...] | None = None,
+    **fake: float,
+) -> Path:
+    """The calibration program (``phases``: the approach's by default) on the fake robot (its
+    settings ``fake``), with the front infrared sensor stuck at ``stuck`` (raw) if given."""
+    write_calibration_program(out, env_id=NAV_ID, phases=phases or _approach_phases())
     defines = [f"-D{key}={value}" for key, value in fake.items()]
     objects = []
     program_defines = []
@@ -100,11 +106,18 @@ def _compile(out: Path, source: Path, flags: list[str]) -> Path:
     return target
 
 
-def _run_on_fake(
-    out: Path, *, gap_given: float, gap_true: float, stuck: int | None, **fake: float
-) -> tuple[np.ndarray, object]:
-    """Runs the approach; returns the fake's trace (time, x, y, heading, gap) and the log."""
-    program = _build(out, stuck, FAKE_WALL_X=gap_true + rp.BODY_RADIUS, **fake)
+def run_on_fake(
+    out: Path,
+    *,
+    gap_given: float,
+    gap_true: float,
+    stuck: int | None,
+    phases: tuple[schedule.Phase, ...] | None = None,
+    **fake: float,
+) -> tuple[np.ndarray, Any]:
+    """Runs the program (the approach by default); returns the fake's trace (time, x, y,
+    heading, gap) and the log."""
+    program = _build(out, stuck, phases, FAKE_WALL_X=gap_true + rp.BODY_RADIUS, **fake)
     trace = out / "trace.txt"
     subprocess.run(
         [str(program), repr(gap_given), str(out / "approach.csv")],
@@ -136,7 +149,7 @@ FAKE_CASES = {
 def test_the_calibration_program_stops_short_of_the_wall(case: str, tmp_path: Path) -> None:
     gap_given, gap_true, stuck, settings = FAKE_CASES[case]
     radius = rp.NOMINAL_WHEEL_RADIUS * (1.0 + schedule.RADIUS_TOLERANCE)
-    trace, log = _run_on_fake(
+    trace, log = run_on_fake(
         tmp_path,
         gap_given=gap_given,
         gap_true=gap_true,
@@ -160,7 +173,7 @@ def test_the_calibration_program_stops_short_of_the_wall(case: str, tmp_path: Pa
 def test_the_calibration_program_stops_at_once_on_an_infrared_sensor_stuck_high(
     tmp_path: Path,
 ) -> None:
-    trace, log = _run_on_fake(tmp_path, gap_given=0.5, gap_true=0.5, stuck=1023)
+    trace, log = run_on_fake(tmp_path, gap_given=0.5, gap_true=0.5, stuck=1023)
     # Three rows of 1023 (the debounce) and the robot stops: a few millimetres travelled.
     approach = log.phases == "wall_approach"
     assert approach.sum() == schedule.APPROACH_DEBOUNCE - 1

@@ -218,7 +218,7 @@ def run_replay_from_args(args: argparse.Namespace) -> int:
         for d in comparison.phase_divergences:
             print(
                 f"  {d.phase:<14} travel {d.travel * 100:6.1f} cm, turn "
-                f"{math.degrees(d.turn):7.1f}°: apart {d.position * 100:5.2f} cm, "
+                f"{math.degrees(d.turn):7.1f}°: up to {d.position * 100:5.2f} cm apart, "
                 f"{math.degrees(d.heading):5.2f}°"
             )
     print(

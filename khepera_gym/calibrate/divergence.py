@@ -6,7 +6,8 @@ calibration log would read nothing whatever the fit.
 
 A phase's divergence compares what the robot and the simulator did *during* it, each from
 where it was at the phase's start (in that pose's frame), over the phase and the rest after it
-(the robot comes to a stop), so that an earlier phase's error is not counted again.
+(the robot comes to a stop), so that an earlier phase's error is not counted again: the
+farthest apart they came, and the most their headings differed, on the way.
 
 Units: m and rad. Threading: none.
 """
@@ -49,8 +50,8 @@ class PhaseDivergence:
         rows: (first, last) rows compared.
         travel: How far the logged robot went (m) and ...
         turn: ... turned (rad) over them.
-        position: The distance (m) between where each ended, from a common start.
-        heading: The difference of their turns (rad).
+        position: The farthest apart (m) the two came over them, from a common start.
+        heading: The largest difference of their turns (rad).
     """
 
     phase: str
@@ -113,16 +114,21 @@ def phase_divergences(
         last = min(last, rows_replayed - 1)
         if last <= first:
             continue
-        mine = _relative(logged, first, last)
-        theirs = _relative(simulated, first, last)
+        moves = [
+            (_relative(logged, first, row), _relative(simulated, first, row))
+            for row in range(first, last + 1)
+        ]
+        apart = max(float(np.hypot(m[0] - t[0], m[1] - t[1])) for m, t in moves)
+        turned = max((_wrap(m[2] - t[2]) for m, t in moves), key=abs)
+        mine = moves[-1][0]
         found.append(
             PhaseDivergence(
                 phase=str(log.phases[first]),
                 rows=(first, last),
                 travel=float(np.hypot(mine[0], mine[1])),
                 turn=float(mine[2]),
-                position=float(np.hypot(mine[0] - theirs[0], mine[1] - theirs[1])),
-                heading=_wrap(mine[2] - theirs[2]),
+                position=apart,
+                heading=turned,
             )
         )
     return found

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 import khepera_gym.calibrate.replay as rp
+from khepera_gym.calibrate.goodness import OUTLIER_SHARE
 from khepera_gym.calibrate.logformat import RobotLog
 from khepera_gym.calibrate.noise import (
     OUTLIER_SIGMA,
@@ -124,6 +125,7 @@ class DriveFit:
             [np.repeat(blocks(log, 100000 * k)[1:], 2) for k, log in enumerate(self.logs)]
         )
         self.expected = np.ones(len(self.labels))
+        self.step, self.dt, self.substeps = self._step()
 
     def _plateau_noise(self) -> Noise:
         """The measured speeds' spread where the command has held long enough for the wheels
@@ -173,7 +175,8 @@ class DriveFit:
 
     def _set_expected(self, accel: float, tau: float) -> None:
         """Each residual's expected noise: the plateaus' spread and the simulated speed's
-        change over the firmware's 10 ms in which the reading was counted."""
+        change over the time the reading cannot be placed to: the firmware's 10 ms in which it
+        was counted and the one the set point waited for, and the simulator's step."""
         sigma = max(self.noise.sigma, RESOLUTION) if self.noise.count >= 5 else 1.0
         unit = rp.speed_unit(self.wheel_radius)
         found, labels = [], []
@@ -181,7 +184,7 @@ class DriveFit:
             speeds = replay.wheel_speeds / unit
             rate = np.gradient(np.nan_to_num(speeds), axis=0) / row_intervals(log)[:, None]
             rows = self.rows[k]
-            found.append(expected_sigma(sigma, rate[rows], "speed").ravel())
+            found.append(expected_sigma(sigma, rate[rows], "speed", step=self.step).ravel())
             labels.append(np.repeat(blocks(log, 100000 * k)[rows], 2))
         self.expected = np.concatenate(found)
         self.labels = np.concatenate(labels)
@@ -242,7 +245,7 @@ class DriveFit:
             abs(values[j] - low[j]) < 1e-3 * scale[j] or abs(high[j] - values[j]) < 1e-3 * scale[j]
             for j in range(len(values))
         ]
-        step, dt, substeps = self._step()
+        step, dt, substeps = self.step, self.dt, self.substeps
         tau_estimate = Estimate(
             "robot.motor_time_constant",
             tau,
@@ -315,6 +318,9 @@ class DriveFit:
         (either wheel); returns how many readings."""
         weighted = np.abs(self.channel(accel, tau) / self.expected).reshape(-1, 2)
         bad = np.any(weighted > OUTLIER_SIGMA, axis=1)
+        if bad.sum() > OUTLIER_SHARE * len(bad):
+            # Too many to be spikes: the model is wrong, which the goodness of fit must see.
+            return 0
         start = 0
         for k, rows in enumerate(self.rows):
             count = int(rows.sum())

@@ -29,6 +29,7 @@ import numpy.typing as npt
 import khepera_gym.calibrate.ir_curve as ic
 import khepera_gym.calibrate.replay as rp
 from khepera_gym.calibrate.geometry_result import GeometryResult, build_result
+from khepera_gym.calibrate.goodness import OUTLIER_SHARE
 from khepera_gym.calibrate.logformat import WALL_GAP_NOTE, RobotLog, note
 from khepera_gym.calibrate.noise import (
     OUTLIER_SIGMA,
@@ -130,6 +131,8 @@ class GeometryFit:
         self.noise: dict[str, tuple[Noise, float]] = {}
         self.names = NAMES
         self.first_point = _FIRST_POINT
+        #: The parameters that reached a bound of the search in any solve.
+        self.bounded = np.zeros(len(NAMES), dtype=bool)
         #: The channels the residuals hold (a stage's).
         self.in_use: tuple[str, ...] = ("gyro", "ir", "us", "gap")
 
@@ -310,7 +313,7 @@ class GeometryFit:
         """The free parameters, not yet held, whose uncertainty from the readings alone (the
         held ones' spread left out) is not below the real robots' spread."""
         jac = self._jacobian(x, selections)
-        readings = jac[: len(jac) - int(self.pinned.sum())]
+        readings = jac[: len(jac) - int((self.pinned & self.free).sum())]
         free = np.nonzero(self.free)[0]
         known = identified(readings, np.where(self.pinned[free], np.inf, self.prior[free]))
         unknown = np.zeros(len(x), dtype=bool)
@@ -335,7 +338,11 @@ class GeometryFit:
     def _solve(
         self, x: npt.NDArray[np.float64], selections: list[_Selection]
     ) -> npt.NDArray[np.float64]:
-        free = np.nonzero(self.free)[0]
+        """The free parameters fitted; those held keep their nominal value (their spread
+        enters the uncertainty through the Jacobian's prior rows)."""
+        free = np.nonzero(self.free & ~self.pinned)[0]
+        x = np.where(self.pinned, self.nominal, x)
+        self.bounded |= self._at_bounds(x)
         start = x.copy()
         scale = self.scale[free]
 
@@ -353,7 +360,13 @@ class GeometryFit:
         self.progress.replayed(float(2 * result.cost))
         out = start.copy()
         out[free] = start[free] + result.x * scale
+        self.bounded |= self._at_bounds(out)
         return out
+
+    def _at_bounds(self, x: npt.NDArray[np.float64]) -> npt.NDArray[np.bool_]:
+        """The free parameters at a bound of the search (a thousandth of their scale)."""
+        near = (x - self.lower < 1e-3 * self.scale) | (self.upper - x < 1e-3 * self.scale)
+        return near & self.free & ~self.pinned
 
     # -- the start, the noise, the selection ------------------------------------------------
 
@@ -527,6 +540,10 @@ class GeometryFit:
             for name in counts:
                 residual, sigma, _ = (part[k] for part in found[name])
                 bad = np.abs(residual) > OUTLIER_SIGMA * sigma
+                if bad.sum() > OUTLIER_SHARE * len(bad):
+                    # Too many to be spikes: the model (or the sensor) is wrong, which the
+                    # goodness of fit must see; they stay.
+                    bad[:] = False
                 counts[name] += int(bad.sum())
                 mask = fields[name].copy()
                 where = np.nonzero(mask)

@@ -120,8 +120,10 @@ def build_result(
                 f"not identified: the logs tell it less well than the real robots' spread "
                 f"(± {fit.prior[i] * fit.scale[i]:.3g} {unit}); the nominal value is kept"
             )
-        else:
-            estimate.flags += _bound_flags(x[i], fit.lower[i], fit.upper[i], fit.scale[i])
+        elif fit.bounded[i]:
+            estimate.flags += _bound_flags(x[i], fit.lower[i], fit.upper[i], fit.scale[i]) or [
+                "reached a bound of the search on the way"
+            ]
         named[name] = estimate
     curve, curve_estimate = _curve_estimate(fit, x, parts)
     count = rp.GYRO_DEG_S_PER_COUNT

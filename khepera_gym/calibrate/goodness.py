@@ -14,7 +14,8 @@ Per channel (:func:`channel_fit`):
   of either. Structure alone is a warning: the simulator's curve between its points and its
   lag are simpler than a robot's.
 
-``khepera-gym calibrate`` says a poor fit failed, in the report and in its exit status, unless
+A channel with more than :data:`OUTLIER_SHARE` of its readings set aside as outliers is poor
+too. ``khepera-gym calibrate`` says a poor fit failed, in the report and in its exit status, unless
 ``--accept-poor-fit`` is given. Units: each channel's own. Threading: none.
 """
 
@@ -31,6 +32,10 @@ import numpy.typing as npt
 POOR_CHI2 = 2.0
 #: Standard errors a statistic may stray before it is flagged.
 TOLERANCE = 3.0
+#: The share of a channel's readings that may be set aside as outliers (five expected widths
+#: away: one Gaussian reading in 1.7 million) before the channel is poor: more is a sensor
+#: that is broken or stuck, or a model that is wrong [E].
+OUTLIER_SHARE = 0.01
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,7 +57,10 @@ class ChannelFit:
 
     @property
     def poor(self) -> bool:
-        """The simulator leaves more than the noise unexplained."""
+        """The simulator leaves more than the noise unexplained, or too many readings lie far
+        outside it."""
+        if self.outliers > OUTLIER_SHARE * (self.count + self.outliers):
+            return True
         return self.count > 0 and self.chi2 > self.limit
 
     @property
@@ -61,6 +69,13 @@ class ChannelFit:
         if self.count < 20:
             return False
         return abs(self.runs_z) > TOLERANCE or self.lag1 > TOLERANCE / math.sqrt(self.count)
+
+    def why(self) -> str:
+        """What makes the channel poor, in words."""
+        if self.count > 0 and self.chi2 > self.limit:
+            return f"{self.name} (reduced chi-square {self.chi2:.2f} > {self.limit:.2f})"
+        share = self.outliers / max(self.count + self.outliers, 1)
+        return f"{self.name} ({self.outliers} readings, {share:.1%}, far outside the noise)"
 
     def verdict(self) -> str:
         """ "poor", "structured" or "good"."""
@@ -142,11 +157,7 @@ class Goodness:
     def summary(self) -> str:
         """One line for the command's output."""
         if self.poor:
-            worst = ", ".join(
-                f"{c.name} (reduced chi-square {c.chi2:.2f} > {c.limit:.2f})"
-                for c in self.channels
-                if c.poor
-            )
+            worst = ", ".join(c.why() for c in self.channels if c.poor)
             return f"POOR FIT: the simulator does not explain {worst}"
         text = "good fit: every channel's residuals are within their noise"
         if self.structured:
@@ -154,4 +165,4 @@ class Goodness:
         return text
 
 
-__all__ = ["POOR_CHI2", "TOLERANCE", "ChannelFit", "Goodness", "channel_fit"]
+__all__ = ["OUTLIER_SHARE", "POOR_CHI2", "TOLERANCE", "ChannelFit", "Goodness", "channel_fit"]

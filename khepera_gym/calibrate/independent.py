@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -422,7 +422,7 @@ def bench_calibration_run(
     drive: Drive = Drive(),
     seed: int = 0,
     measure_final_gap: bool = True,
-    stuck_front_ir: int | None = None,
+    front_ir_fault: Callable[[int, int], int] | None = None,
     speed_ripple: float = SPEED_RIPPLE,
 ) -> BenchRun:
     """The calibration program's run on ``robot`` (this module's model).
@@ -437,7 +437,8 @@ def bench_calibration_run(
         drive: The motor controller the program set.
         seed: The noise, the clocks' phases and the program's timing.
         measure_final_gap: Whether the user measures the final gap (to the nearest mm).
-        stuck_front_ir: The front infrared sensor reads this whatever it sees (a fault).
+        front_ir_fault: A fault of the front infrared sensor: (row, reading) → what it reads
+            instead (a stuck sensor, a glitch).
         speed_ripple: The wheels' ripple (speed units a tick; 0: none).
     """
     rng = np.random.default_rng(seed)
@@ -458,8 +459,8 @@ def bench_calibration_run(
         bench.advance(float(reads[-1]) + STEP_S)
         enc = bench.encoders(float(reads[1]))
         ir = bench.infrared(float(reads[2]), rng.standard_normal(8))
-        if stuck_front_ir is not None:
-            ir[3] = stuck_front_ir
+        if front_ir_fault is not None:
+            ir[3] = front_ir_fault(len(rows), ir[3])
         us = bench.ultrasonic(float(reads[3]))
         decision = program.next_command(enc[0], enc[1], ir[3], us[2])
         if decision is None:

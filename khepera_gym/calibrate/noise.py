@@ -31,11 +31,17 @@ MAD_TO_SIGMA = 1.0 / 0.6745
 #: How well the log places each channel's reading in time (s, one standard deviation): a
 #: sensor sampling on its own clock, of period P, read at a time that falls anywhere in its
 #: period, P/√12. The gyroscope samples at 95 Hz (manual §4.10); the firmware counts a wheel's
-#: pulses over its 10 ms period (§4.14); the infrared ring refreshes every 5 ms (§4.1); the
-#: ultrasonic sensors sweep in 100 ms (§4.2).
+#: pulses over its 10 ms period (§4.14) and takes a set point at its next period, so that a
+#: wheel's speed against the command's time is placed to √2 times that; the infrared ring
+#: refreshes every 5 ms (§4.1); the ultrasonic sensors sweep in 100 ms (§4.2).
 TIMING_S = {
     channel: period / math.sqrt(12.0)
-    for channel, period in {"gyro": 1.0 / 95.0, "speed": 0.01, "ir": 0.005, "us": 0.1}.items()
+    for channel, period in {
+        "gyro": 1.0 / 95.0,
+        "speed": math.sqrt(2.0) * 0.01,
+        "ir": 0.005,
+        "us": 0.1,
+    }.items()
 }
 #: The least noise a channel's residuals can have: the readings' rounding to whole units
 #: (counts, raw, cm, speed units), one over √12 of a unit.
@@ -124,12 +130,14 @@ def expected_sigma(
     channel: str,
     level: npt.ArrayLike | None = None,
     interval: npt.ArrayLike | None = None,
+    step: float = 0.0,
 ) -> npt.NDArray[np.float64]:
     """The expected residual of each reading: the noise and the reading's change over the
     time the log cannot place it to (:data:`TIMING_S`), ``rate`` being its rate of change (units
     a second); for a model value ``level`` that is a rate over a row's ``interval`` from two
-    reads of the encoders, also their timing (:data:`READ_TIMING_S`)."""
-    timing = TIMING_S[channel]
+    reads of the encoders, also their timing (:data:`READ_TIMING_S`); for a model value the
+    simulator integrates in steps of ``step`` s, also that step's resolution, step/√12."""
+    timing = math.hypot(TIMING_S[channel], step / math.sqrt(12.0))
     rate = np.nan_to_num(np.asarray(rate, dtype=np.float64))
     variance = noise**2 + (rate * timing) ** 2
     if level is not None and interval is not None:

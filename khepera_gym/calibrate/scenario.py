@@ -61,7 +61,8 @@ def _sigma_text(estimate: Estimate) -> str:
     text = f"± {sigma:.2g} {estimate.unit}".rstrip()
     stat, sys = float(estimate.sigma_stat), float(estimate.sigma_sys)  # type: ignore[arg-type]
     if math.isfinite(stat) and math.isfinite(sys):
-        text += f" (statistical ± {stat:.2g}, systematic ± {sys:.2g})"
+        systematic = f"systematic ± {sys:.2g}" if sys > 0 else "no systematic part found"
+        text += f" (statistical ± {stat:.2g}, {systematic})"
     return text
 
 

@@ -33,16 +33,17 @@ from collections.abc import Callable
 
 #: The phase kinds (the C program's ``phase_kind`` values, in this order).
 KINDS = ("timed", "approach", "return", "spin", "gap")
-#: Rest at the start and end (s).
-REST_LONG_S = 2.0
+#: Rest at the start and end (s): at the start, the gyroscope's bias and noise and the front
+#: ultrasonic sensor's noise (30 of its 100 ms sweeps) are measured with the robot still.
+REST_LONG_S = 3.0
 #: Rest after a step or a turn (s).
 REST_S = 1.0
 #: Speed of the wall approach (speed units, 20 mm/s at 21 mm wheels): slow, so that the infrared
 #: curve is sampled every millimetre at 20 Hz ...
 APPROACH_UNITS = 30
-#: ... and near the wall (10 mm/s; a profile's min_speed_acc may raise it), where a stop takes
-#: effect within half a millimetre.
-APPROACH_SLOW_UNITS = 15
+#: ... and near the wall (14 mm/s): K-Team's default min_speed_acc, below which the profile
+#: raises an order (manual §4.14.2, docs/drive.md), so that the robot does slow down.
+APPROACH_SLOW_UNITS = 20
 #: The approach stops when the front infrared sensor reads at least this (raw) on
 #: APPROACH_DEBOUNCE consecutive rows (one glitch does not stop it). Every robot of the real
 #: robots' spread reaches it (synthetic.SPREAD, ir_gain >= 0.85): K-Team's curve reads 764 at
@@ -56,8 +57,9 @@ APPROACH_DEBOUNCE = 3
 APPROACH_SLOW_IR = 300
 APPROACH_SLOW_GAP_M = 0.06
 #: The odometry's stop: the approach ends when the wall may be this close (m) for wheels
-#: RADIUS_TOLERANCE larger than the program's nominal ones. Stopping from the slow speed then
-#: takes well under a millimetre (a period, the motors' lag and the profile's ramp at 10 mm/s).
+#: RADIUS_TOLERANCE larger than the program's nominal ones. Stopping then takes a few
+#: millimetres at most (a period, the motors' lag and the profile's ramp, tests/
+#: test_calibrate_approach.py).
 APPROACH_CLEARANCE_M = 0.010
 #: The wheel radius may differ from nominal by this fraction: three times the real robots'
 #: spread of 1 % (synthetic.SPREAD["wheel_radius"], one standard deviation).

@@ -15,7 +15,8 @@ a definition is needed:
 
 * the **infrared curve**: the simulator's curve is 16 points joined by straight lines, the
   robot's is smooth; the truth of a fitted point is the 16-point curve closest (least squares)
-  to the robot's noise-free readings at their true distances, over the readings the fit uses.
+  to the robot's noise-free readings at their true distances, over the readings the fit uses
+  (its 200 mm point not below the floor value, which the simulator requires).
   Points the fit leaves unidentified are compared with the robot's curve at the point, and not
   counted (they carry no uncertainty);
 * the **effective lag**: the simulator's lag that follows the robot best at its step, which no
@@ -108,6 +109,8 @@ def curve_truth(run: BenchRun, robot: BenchRobot, fitted: Sequence[bool]) -> lis
     target = mean[keep] - basis[:, -1] * robot.ir_floor - basis[:, :-1][:, ~chosen] @ own[~chosen]
     truth = own.copy()
     truth[chosen] = np.linalg.lstsq(basis[:, :-1][:, chosen], target, rcond=None)[0]
+    # The simulator takes no 200 mm point below the floor value: the closest it can hold.
+    truth[-1] = max(truth[-1], robot.ir_floor)
     return [float(v) for v in truth]
 
 
