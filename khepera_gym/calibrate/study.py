@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import sys
 import tempfile
 from collections.abc import Sequence
@@ -149,11 +150,14 @@ def _case(key: str, truth: float, estimate: Any, index: int | None = None) -> di
     }
 
 
-def run_study(robots: int, seeds: int, seed: int = 0, echo: bool = True) -> dict[str, Any]:
-    """Fits ``seeds`` logs of each of ``robots`` robots; returns the results document."""
+def run_study(
+    robots: int, seeds: int, seed: int = 0, echo: bool = True, command: str | None = None
+) -> dict[str, Any]:
+    """Fits ``seeds`` logs of each of ``robots`` robots; returns the results document (its
+    ``meta`` naming ``command``, by default this process's)."""
     phases = program_phases()
     document: dict[str, Any] = {
-        "meta": provenance(),
+        "meta": provenance(command),
         "settings": {
             "robots": robots,
             "seeds": seeds,
@@ -311,7 +315,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     if args.out is None:
         parser.error("give --out (to run the study) or --markdown (to print its tables)")
-    document = run_study(args.robots, args.seeds, args.seed)
+    typed = sys.argv[1:] if argv is None else list(argv)
+    command = shlex.join(["python", "-m", "khepera_gym.calibrate.study", *typed])
+    document = run_study(args.robots, args.seeds, args.seed, command=command)
     args.out.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     print(markdown(document), end="")
     return 0
