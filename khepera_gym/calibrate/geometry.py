@@ -318,6 +318,11 @@ class GeometryFit:
         known = identified(readings, np.where(self.pinned[free], np.inf, self.prior[free]))
         unknown = np.zeros(len(x), dtype=bool)
         unknown[free] = ~known & ~self.pinned[free]
+        # A point of the curve at 1023 (or 0) is saturated: the readings ask for more than the
+        # sensor gives, and its uncertainty means nothing.
+        points = np.zeros(len(x), dtype=bool)
+        points[self.first_point :] = True
+        unknown |= points & self._at_bounds(x)
         return unknown
 
     def _jacobian(

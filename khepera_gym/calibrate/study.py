@@ -170,8 +170,11 @@ def run_study(
         "cases": [],
     }
     for number, robot in enumerate(spread_robots(robots, seed)):
+        # Each case its own noise: a seed shared by the robots would repeat one draw's luck.
         runs = [
-            bench_calibration_run(robot, phases, wall_distance=WALL_DISTANCE, seed=case_seed)
+            bench_calibration_run(
+                robot, phases, wall_distance=WALL_DISTANCE, seed=case_seed + 1000 * number
+            )
             for case_seed in range(seeds)
         ]
         speed_noise = float(
@@ -201,7 +204,7 @@ def run_study(
             ]
             verdict = "poor" if calibration.goodness.poor else "good"
             for row in rows:
-                row.update({"robot": number, "seed": case_seed, "verdict": verdict})
+                row.update({"robot": number, "seed": case_seed + 1000 * number, "verdict": verdict})
             document["cases"] += rows
             if echo:
                 worst = max((r["ratio"] or 0.0) for r in rows)
