@@ -181,8 +181,10 @@ def test_the_calibration_program_stops_at_once_on_an_infrared_sensor_stuck_high(
 
 
 def test_one_infrared_glitch_does_not_stop_the_approach() -> None:
+    # The program's approach (and what follows), from its first row; 1 mm a row.
+    approach = _approach_phases()[1:]
     runner = schedule.PhaseRunner(
-        _approach_phases(), 0.05, 0.5, rp.metres_per_pulse(rp.NOMINAL_WHEEL_RADIUS), 0.1054
+        approach, 0.05, 0.5, rp.metres_per_pulse(rp.NOMINAL_WHEEL_RADIUS), 0.1054
     )
     pulses_per_row = round(0.001 / rp.metres_per_pulse(rp.NOMINAL_WHEEL_RADIUS))
     readings = [100] * 60 + [1023] + [100] * 10 + [1023, 1023] + [100] * 10

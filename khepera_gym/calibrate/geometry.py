@@ -282,8 +282,11 @@ class GeometryFit:
         x = self._solve(x, selections)
         selections, outliers = self._drop_outliers(x, selections, channels)
         x = self._solve(x, selections)
-        unknown = self._unidentified(x, selections)
-        if unknown.any():
+        for _ in range(3):
+            # Held values move the others: what they leave unidentified is held in turn.
+            unknown = self._unidentified(x, selections)
+            if not unknown.any():
+                break
             self.pinned |= unknown
             points = x[_FIRST_POINT:]
             kept = self.free[_FIRST_POINT:] & ~self.pinned[_FIRST_POINT:]

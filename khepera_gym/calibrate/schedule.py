@@ -34,8 +34,9 @@ from collections.abc import Callable
 #: The phase kinds (the C program's ``phase_kind`` values, in this order).
 KINDS = ("timed", "approach", "return", "spin", "gap")
 #: Rest at the start and end (s): at the start, the gyroscope's bias and noise and the front
-#: ultrasonic sensor's noise (30 of its 100 ms sweeps) are measured with the robot still.
-REST_LONG_S = 3.0
+#: ultrasonic sensor's noise (50 of its 100 ms sweeps: a standard deviation from 50 readings
+#: is good to a tenth) are measured with the robot still.
+REST_LONG_S = 5.0
 #: Rest after a step or a turn (s).
 REST_S = 1.0
 #: Speed of the wall approach (speed units, 20 mm/s at 21 mm wheels): slow, so that the infrared
