@@ -30,18 +30,19 @@ OUTLIER_SIGMA = 5.0
 MAD_TO_SIGMA = 1.0 / 0.6745
 #: How well the log places each channel's reading in time (s, one standard deviation): a
 #: sensor sampling on its own clock, of period P, read at a time that falls anywhere in its
-#: period, P/√12. The gyroscope samples at 95 Hz (manual §4.10); the firmware counts a wheel's
-#: pulses over its 10 ms period (§4.14) and takes a set point at its next period, so that a
-#: wheel's speed against the command's time is placed to √2 times that; the infrared ring
-#: refreshes every 5 ms (§4.1); the ultrasonic sensors sweep in 100 ms (§4.2).
+#: period, P/√12. The firmware counts a wheel's pulses over its 10 ms period (manual §4.14) and
+#: takes a set point at its next period, so that a wheel's speed against the command's time is
+#: placed to √2 times that; the infrared ring refreshes every 5 ms (§4.1); the ultrasonic
+#: sensors sweep in 100 ms (§4.2). The gyroscope samples at 95 Hz (§4.10), and a row averages
+#: its newest five samples: 52.6 ms ending anywhere in the sample period before the read, so
+#: that their middle falls some 5 ms before the middle of the encoders' interval, give or take
+#: 3: one sample period, 10.5 ms, covers both.
 TIMING_S = {
-    channel: period / math.sqrt(12.0)
-    for channel, period in {
-        "gyro": 1.0 / 95.0,
-        "speed": math.sqrt(2.0) * 0.01,
-        "ir": 0.005,
-        "us": 0.1,
-    }.items()
+    "gyro": 1.0 / 95.0,
+    **{
+        channel: period / math.sqrt(12.0)
+        for channel, period in {"speed": math.sqrt(2.0) * 0.01, "ir": 0.005, "us": 0.1}.items()
+    },
 }
 #: The least noise a channel's residuals can have: the readings' rounding to whole units
 #: (counts, raw, cm, speed units), one over √12 of a unit.

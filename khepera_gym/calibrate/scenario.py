@@ -215,8 +215,8 @@ def calibrated_toml(
         "# copy the sections into your scenario. Only the simulator's own keys are written; the",
         "# rest keeps the env's defaults.",
         f"# {FITTED_AT} physics.dt = {calibration.period!r} s, physics.substeps = "
-        f"{calibration.drive.substeps} (the drive's lag is the simulator's effective one at",
-        "# that step: fit again for another).",
+        f"{calibration.drive.substeps}",
+        "# (the drive's lag is the simulator's effective one at that step: fit again for another).",
         f"# Fit: {calibration.goodness.summary()}.",
     ]
     body = []
