@@ -297,3 +297,16 @@ def test_the_independent_state_machine_plays_the_c_programs_log(tmp_path: Path) 
         assert decision is not None
         assert decision[:3] == (log.phases[row], log.commands[row, 0], log.commands[row, 1]), row
     assert program.next_command(int(log.encoders[-1, 0]), int(log.encoders[-1, 1]), 0, 1000) is None
+
+
+def test_the_pages_tables_are_the_studys_and_meet_the_issue() -> None:
+    document = json.loads(RESULTS.read_text(encoding="utf-8"))
+    page = PAGE.read_text(encoding="utf-8")
+    start, end = page.index(TABLES[0]) + len(TABLES[0]), page.index(TABLES[1])
+    assert page[start:end].strip() == study.markdown(document).strip()
+    assert document["settings"]["robots"] >= 3 and document["settings"]["seeds"] >= 10
+    for key in ("date", "commit", "machine", "command"):
+        assert document["meta"].get(key), key
+    for row in document["summary"]:
+        if row["identified"]:
+            assert row["within"] >= 0.9, row

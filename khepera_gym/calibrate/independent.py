@@ -208,7 +208,12 @@ class _Bench:
     their own times, the state kept per step for the sensors that read the past."""
 
     def __init__(
-        self, robot: BenchRobot, drive: Drive, wall_x: float, seconds: float, seed: int
+        self,
+        robot: BenchRobot,
+        drive: Drive,
+        wall_x: float,
+        seconds: float,
+        seed: np.random.SeedSequence,
     ) -> None:
         self.robot, self.drive, self.wall_x = robot, drive, wall_x
         self.rng = np.random.default_rng(seed)
@@ -441,12 +446,15 @@ def bench_calibration_run(
             instead (a stuck sensor, a glitch).
         speed_ripple: The wheels' ripple (speed units a tick; 0: none).
     """
-    rng = np.random.default_rng(seed)
+    # Two independent streams (the program's timing and the user's; the robot's noise), from
+    # the seed's own sequence: seeds n and n + 1 share nothing.
+    program_stream, robot_stream = np.random.SeedSequence(seed).spawn(2)
+    rng = np.random.default_rng(program_stream)
     typed_gap = round(wall_distance * 1000.0) / 1000.0
     samples = max(1, min(10, round(period * 100)))
     pause = float(rng.uniform(*USER_PAUSE_S))
     limit = sum(p.seconds for p in phases) + pause + 10.0
-    bench = _Bench(robot, drive, SHELL_RADIUS + wall_distance, limit, seed + 1)
+    bench = _Bench(robot, drive, SHELL_RADIUS + wall_distance, limit, robot_stream)
     bench.ripple = speed_ripple
     program = BenchProgram(phases, period, typed_gap, 0.021, 0.1054)
     gyro_noise = rng.standard_normal(int(limit * GYRO_RATE_HZ) + 20)
