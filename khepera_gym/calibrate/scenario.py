@@ -150,6 +150,14 @@ def calibrated_toml(
     values["motors.mode"] = (motors["mode"], f"the mode the program set ({motors['mode']})")
     curve_estimate = calibration.geometry.ir_curve
     curve = [round(v, 1) for v in curve_estimate.value]  # type: ignore[union-attr]
+    # The floor is written with its own digits: the curve's 200 mm point, rounded to 0.1, must
+    # stay at or above it (the simulator requires it).
+    floor = calibration.geometry.ir_floor_value
+    if math.isfinite(float(floor.value)):  # type: ignore[arg-type]
+        written = float(_number(float(floor.value), float(floor.sigma)))  # type: ignore[arg-type]
+        curve[-1] = max(curve[-1], math.ceil(written * 10.0) / 10.0)
+        for i in range(len(curve) - 2, -1, -1):
+            curve[i] = max(curve[i], curve[i + 1])
     for estimate in calibration.estimates():
         key = estimate.key
         if key == "sensors.ir_curve":
