@@ -5,7 +5,9 @@ wall, the wheel speeds on the plateaus of the steps (:func:`robust_noise`).
 
 Every estimate is robust: each group's median and the pooled median absolute deviation give a
 first width; readings beyond :data:`OUTLIER_SIGMA` of it are set aside (and counted, so that the
-report can flag them), and the standard deviation of the rest is the noise. One reading of 1023
+report can flag them), and the standard deviation of the rest is the noise; its uncertainty is
+half the larger side of its exact (chi-square) interval, a standard deviation from few readings
+being found too low more often than too high. One reading of 1023
 among thousands then changes nothing.
 
 A reading also depends on when its sensor sampled, which the log does not say to better than
@@ -117,12 +119,26 @@ def robust_noise(
     dof = max(int(kept.sum()) - len(unique), 1)
     variance = float(residual @ residual) / dof
     sigma = math.sqrt(variance)
-    # The variance's standard error from the readings' own fourth moment (whole-unit readings
-    # of a quiet sensor are far from Gaussian), at least the Gaussian one.
-    fourth = float(np.mean(residual**4)) if len(residual) else math.nan
-    spread = math.sqrt(max(fourth - variance * variance, 2.0 * variance * variance) / dof)
-    error = spread / (2.0 * sigma) if sigma > 0 else math.nan
-    return Noise(sigma, error, int(kept.sum()), int(outliers.sum()), source), outliers
+    return Noise(
+        sigma, _sigma_error(residual, variance, dof), int(kept.sum()), int(outliers.sum()), source
+    ), outliers
+
+
+def _sigma_error(residual: npt.NDArray[np.float64], variance: float, dof: int) -> float:
+    """The uncertainty of a standard deviation from ``dof`` degrees of freedom. Its spread is
+    skewed (found too low more often and by more than too high), so it is half the larger side
+    of its interval of ±2 standard deviations' probability: the chi-square interval with the
+    degrees of freedom that give the readings' own fourth moment (whole-unit readings of a
+    quiet sensor are far from Gaussian; a Gaussian's at most)."""
+    from scipy.stats import chi2, norm
+
+    if variance <= 0 or not len(residual):
+        return math.nan
+    kurtosis = float(np.mean(residual**4)) / (variance * variance)
+    effective = 2.0 * dof / max(kurtosis - 1.0, 2.0)
+    low = float(chi2.ppf(norm.cdf(-2.0), effective))
+    sigma = math.sqrt(variance)
+    return 0.5 * sigma * (math.sqrt(effective / low) - 1.0)
 
 
 def expected_sigma(
