@@ -25,7 +25,8 @@ import numpy.typing as npt
 from khepera_gym.calibrate.replay import IR_CURVE_MM, IR_RANGE, KTEAM_IR_CURVE
 
 #: The readings a point needs (in units of readings at the point itself: each reading counts
-#: the square of its weight on the point) to be fitted.
+#: the square of its weight on the point) to be fitted: with four, its noise alone is half a
+#: reading's [E: a design choice]; fewer, and it is held along K-Team's shape.
 MIN_READINGS = 4.0
 #: The largest raw reading.
 IR_MAX = 1023.0

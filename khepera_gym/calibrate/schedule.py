@@ -51,10 +51,12 @@ APPROACH_SLOW_UNITS = 20
 #: 40 mm and 889 at 35 mm (docs/robot.md §3), 0.85 of which is 650 and 756; 700 is about 38 mm
 #: from the wall at gain 0.85 and 45 mm at gain 1.15.
 APPROACH_STOP_IR = 700
-#: Consecutive rows (50 ms each at the default period) a stop condition must hold.
+#: Consecutive rows (50 ms each at the default period) a stop condition must hold: a glitch of
+#: one or two readings passes [E: a design choice], at the approach's 20 mm/s 3 mm of travel.
 APPROACH_DEBOUNCE = 3
 #: The approach slows down when the front infrared sensor reads this (raw; about 70 mm on
-#: K-Team's curve) or the wall may be APPROACH_SLOW_GAP_M away.
+#: K-Team's curve) or the wall may be APPROACH_SLOW_GAP_M away (the last few centimetres, where
+#: the stops act [E: a design choice]).
 APPROACH_SLOW_IR = 300
 APPROACH_SLOW_GAP_M = 0.06
 #: The odometry's stop: the approach ends when the wall may be this close (m) for wheels

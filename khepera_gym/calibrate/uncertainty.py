@@ -27,7 +27,9 @@ import numpy.typing as npt
 
 from khepera_gym.calibrate.logformat import RobotLog
 
-#: The longest block of the jackknife (s): a phase longer than this is cut into blocks.
+#: The longest block of the jackknife (s): a phase longer than this is cut into blocks, so that
+#: the approach and the spin give several each while a step and its rest stay whole [E: a
+#: design choice].
 BLOCK_S = 2.0
 
 
