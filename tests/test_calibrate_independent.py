@@ -300,7 +300,7 @@ def test_the_independent_state_machine_plays_the_c_programs_log(tmp_path: Path) 
 
 
 def test_the_pages_tables_are_the_studys_and_meet_the_issue() -> None:
-    document = json.loads(RESULTS.read_text(encoding="utf-8"))
+    document = study.read_results(RESULTS)
     page = PAGE.read_text(encoding="utf-8")
     start, end = page.index(TABLES[0]) + len(TABLES[0]), page.index(TABLES[1])
     assert page[start:end].strip() == study.markdown(document).strip()

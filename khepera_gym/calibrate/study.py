@@ -234,6 +234,42 @@ def summary(cases: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return found
 
 
+#: The columns of a case in the results file (one list a case, to keep the file small).
+CASE_COLUMNS = (
+    "robot",
+    "seed",
+    "key",
+    "truth",
+    "fitted",
+    "sigma",
+    "sigma_stat",
+    "sigma_sys",
+    "identified",
+    "ratio",
+    "verdict",
+)
+
+
+def _round(value: Any) -> Any:
+    return float(f"{value:.7g}") if isinstance(value, float) else value
+
+
+def results_file(document: dict[str, Any]) -> str:
+    """The results document as the file holds it: every case a row of :data:`CASE_COLUMNS`,
+    numbers to 7 significant digits."""
+    rows = [[_round(case[c]) for c in CASE_COLUMNS] for case in document["cases"]]
+    compact = {**document, "cases": {"columns": list(CASE_COLUMNS), "rows": rows}}
+    return json.dumps(compact, separators=(",", ":")) + "\n"
+
+
+def read_results(path: Path) -> dict[str, Any]:
+    """A results file (:func:`results_file`) as the document :func:`run_study` returns."""
+    document = json.loads(path.read_text(encoding="utf-8"))
+    table = document["cases"]
+    document["cases"] = [dict(zip(table["columns"], row, strict=True)) for row in table["rows"]]
+    return document
+
+
 def _number(value: float | None, digits: int = 4) -> str:
     if value is None or not math.isfinite(value):
         return "–"
@@ -314,19 +350,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--markdown", type=Path, help="print the tables of a results file")
     args = parser.parse_args(argv)
     if args.markdown is not None:
-        print(markdown(json.loads(args.markdown.read_text(encoding="utf-8"))), end="")
+        print(markdown(read_results(args.markdown)), end="")
         return 0
     if args.out is None:
         parser.error("give --out (to run the study) or --markdown (to print its tables)")
     typed = sys.argv[1:] if argv is None else list(argv)
     command = shlex.join(["python", "-m", "khepera_gym.calibrate.study", *typed])
     document = run_study(args.robots, args.seeds, args.seed, command=command)
-    args.out.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+    args.out.write_text(results_file(document), encoding="utf-8")
     print(markdown(document), end="")
     return 0
 
 
 __all__ = [
+    "CASE_COLUMNS",
     "KEYS",
     "TRUTH_RUNS",
     "WITHIN",
@@ -335,6 +372,8 @@ __all__ = [
     "main",
     "markdown",
     "program_phases",
+    "read_results",
+    "results_file",
     "run_study",
     "spread_robots",
     "summary",
