@@ -34,6 +34,8 @@ pub struct Batch {
     requested_threads: Option<usize>,
     autoreset: bool,
     trail_length: usize,
+    /// The behaviour version whose defaults the scenario started from.
+    version: u32,
 }
 
 #[pymethods]
@@ -115,8 +117,16 @@ impl Batch {
                 requested_threads: num_threads,
                 autoreset,
                 trail_length: 0,
+                version: version.unwrap_or(crate::scenario::LATEST_VERSION),
             })
         })
+    }
+
+    /// The behaviour version whose defaults the scenario started from (`version`, or the
+    /// latest).
+    #[getter]
+    fn version(&self) -> u32 {
+        self.version
     }
 
     /// Number of worlds.
@@ -485,6 +495,7 @@ impl Batch {
             this.autoreset,
             this.trail_length,
             state,
+            this.version,
         )
             .into_pyobject(py)?;
         Ok((rebuild, args))
@@ -562,6 +573,7 @@ impl Batch {
 
 /// Unpickles a `Batch` (see `Batch.__reduce__`).
 #[pyfunction]
+#[pyo3(signature = (task, num_worlds, config_text, action_type, num_threads, autoreset, trail_length, state, version=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn _batch_from_state(
     py: Python<'_>,
@@ -573,6 +585,7 @@ pub fn _batch_from_state(
     autoreset: bool,
     trail_length: usize,
     state: &Bound<'_, PyAny>,
+    version: Option<u32>,
 ) -> PyResult<Batch> {
     let mut batch = Batch::new(
         py,
@@ -584,7 +597,7 @@ pub fn _batch_from_state(
         action_type,
         num_threads,
         autoreset,
-        None,
+        version,
     )?;
     batch.set_trail_length(trail_length);
     batch.set_state(py, state)?;
