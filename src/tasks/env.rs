@@ -389,7 +389,9 @@ impl Env {
             let robot = match *body {
                 Body::Robot(i) => i,
                 Body::Vehicle(v) => {
-                    self.task.act(v, wheels);
+                    // Clipped to the action space like a robot's wheels (robot.rs): out-of-range
+                    // values act as the nearest ones in [-1, 1].
+                    self.task.act(v, wheels.map(|a| a.clamp(-1.0, 1.0)));
                     continue;
                 }
             };

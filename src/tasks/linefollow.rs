@@ -30,7 +30,7 @@ use toml::Table;
 use super::pathfollow::geometry::Path;
 use super::reference::{random_spline, Curve, Shape};
 use super::track::Direction;
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Column, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -66,6 +66,26 @@ max_steps = 4000             # cap; truncation is truncation_factor laps at refe
             keys: LineFollowConfig::KEYS,
             check: check_section,
         }),
+    },
+    scoring: Scoring {
+        success: Some("lap"),
+        time: "lap time",
+        termination: Some("lost"),
+        columns: &[
+            Column {
+                stat: "on_line_share",
+                header: "on line %",
+                scale: 100.0,
+                digits: 1,
+            },
+            Column {
+                stat: "line_offset_rms",
+                header: "offset RMS mm",
+                scale: 1000.0,
+                digits: 1,
+            },
+        ],
+        ..Scoring::GOAL
     },
 };
 

@@ -18,7 +18,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -68,6 +68,7 @@ collision_penalty = 0.5      # as Avoid
             check: check_section,
         }),
     },
+    scoring: Scoring::GOAL,
 };
 
 crate::config_table! {
