@@ -140,15 +140,6 @@ class LineFollowEnv(KheperaEnv):
     A size that leaves the arena, a width outside [5 mm, 20 cm], waypoints that are fewer than 4,
     not closed, closer than 1 mm or whose line leaves the arena, or a scenario that does not carry
     the ground sensors raise `khepera_gym.errors.ConfigError` naming the key.
-
-    ## Version History
-
-    * v1: Initial version (issue 15), on the v1 dynamics. There is no v0.
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "linefollow"

@@ -181,38 +181,6 @@ class NavEnv(KheperaEnv):
     `[low, high]` ranges, drawn anew at every reset (domain randomisation). Built-in scenes
     (`khepera_gym.scenes()`, e.g. `config="paper_fig6"`) overlay their keys the same way.
     `env.unwrapped.config_toml()` returns the resolved scenario.
-
-    ## Version History
-
-    * v0: Initial version: the KH4VREP paper's V-REP-like dynamics. The body's velocity is imposed
-      (kinematic drive), contacts are frictionless (robots slide along walls and shove each other),
-      wheels reach their command within a step, the sonars refresh every step and echo from any
-      angle. Registered as `KheperaIV-Nav-v0` with these defaults, so published v0 numbers
-      reproduce.
-    * v1: Dynamics of the real robot (issue 13). Tyres with bounded grip drive the body
-      (`physics.drive = "traction"`), contacts have friction (0.7), the wheels follow K-Team's
-      default speed profile (0.203 m/s²), the robot carries a gyroscope, the sonars refresh every
-      100 ms and do not echo beyond 22.5° from a surface's normal. Pushed into a wall a robot
-      slows, turns toward it and stalls; a stopped robot resists being shoved. New keys: IR
-      reflectances, `task.localization` with `[odometry]`, action and observation delays.
-    * v2: One robot in the simulator and on the bench (issue 32). The wheels follow K-Team's speed
-      profile as the firmware computes it (`[motors]`: `mode = "profile"`, Acc_Inc 40 speed
-      units per 10 ms = 2.71 m/s², orders under Min_Speed_Acc = 20 units raised to it), which the
-      program `khepera-gym export` writes sets on the robot with `kh4_SetSpeedProfile` (v1's
-      0.203 m/s² ramp was not what that program set). With it the paper's reactive controllers
-      work at the paper's speeds. Also: rapier makes contacts ahead of two robots closing at full
-      speed, a slipping robot that can touch nothing is moved by its tyres without rapier, and
-      a world split by robot rolls each robot substep by substep. Contacts, sensors and rewards
-      are v1's. `motors.preset` names the drives real programs set (`khepera_gym.motor_presets()`).
-    * v3: Contacts with the scene without rapier (issue 32). In a substep where a robot can touch
-      a wall or an obstacle but no robot can touch another, each robot is moved by its tyres and
-      then as a rigid disc against the shapes within its reach (`physics.scene_solver = "disc"`):
-      normal impulses without restitution, Coulomb friction at the shell (0.7), the contacts of a
-      corner solved together. Contacts between robots still go to rapier. The contact tests of
-      v1 and v2 (the impact's slowdown, the 75° stall, sliding on a frictionless wall,
-      convergence as substeps grow) hold on v3; a trajectory that touches the scene differs from
-      v2's within them, one that touches nothing is v2's. It makes steps with wall contacts,
-      about half of the work under random actions, several times cheaper.
     """
 
     TASK: ClassVar[str] = "nav"
@@ -353,19 +321,6 @@ class AvoidEnv(KheperaEnv):
     key: an obstacle with a size ≤ 0 or outside the arena (`obstacles.fixed[i]`), random
     obstacles that cannot fit (`obstacles.count`), a gap too small to pass
     (`obstacles.min_gap`, at least the robot's diameter + 1 cm).
-
-    ## Version History
-
-    * v0: Initial version, on the KH4VREP paper's V-REP-like dynamics (kinematic drive,
-      frictionless contacts, wheels at their command within a step); `KheperaIV-Avoid-v0`.
-    * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
-      gyroscope, sonar timing and acceptance cone (the Version History of `NavEnv` has the
-      details).
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "avoid"

@@ -1,4 +1,5 @@
-"""``drone_follow_v1``: the quadcopter of the KH4VREP paper's Fig. 8 following a Khepera IV, as a
+"""The ``drone_follow_vN`` modules (one a behaviour version, the same env on that version's
+dynamics): the quadcopter of the KH4VREP paper's Fig. 8 following a Khepera IV, as a
 PettingZoo env with one agent, ``drone``, or two with ``driver="agent"``: ``drone`` and
 ``robot``, the Khepera driven by an agent along its route (Nav's observation and reward toward
 its current waypoint). The task, its observations, rewards and keys are
@@ -6,19 +7,16 @@ its current waypoint). The task, its observations, rewards and keys are
 scripted.
 Units are SI (m, s, rad); world frame x right, y up::
 
-    from khepera_gym.pettingzoo import drone_follow_v1
+    from khepera_gym.pettingzoo import drone_follow_v3
 
-    env = drone_follow_v1.parallel_env()
+    env = drone_follow_v3.parallel_env()
 """
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
-from pettingzoo import AECEnv
-from pettingzoo.utils.conversions import parallel_to_aec
-
-from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs, KheperaParallelEnv
+from khepera_gym.pettingzoo._parallel import KheperaParallelEnv
 
 
 class DroneFollowParallelEnv(KheperaParallelEnv):
@@ -27,22 +25,8 @@ class DroneFollowParallelEnv(KheperaParallelEnv):
     one robot: its position is ``targets()``), and with ``driver="agent"`` agent ``robot`` (the
     Khepera, robot 0: a wheel command). Arguments as :class:`KheperaParallelEnv`."""
 
-    metadata: ClassVar[dict[str, Any]] = {
-        **KheperaParallelEnv.metadata,
-        "name": "drone_follow_v1",
-    }
     TASK: ClassVar[str] = "dronefollow"
-    VERSION: ClassVar[int | None] = 1
+    FAMILY: ClassVar[str] = "drone_follow"
 
 
-def parallel_env(**kwargs: Any) -> DroneFollowParallelEnv:
-    """DroneFollow as a PettingZoo ``ParallelEnv``; see :class:`DroneFollowParallelEnv`."""
-    return DroneFollowParallelEnv(**kwargs)
-
-
-def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """DroneFollow as a PettingZoo AEC env; takes the arguments of :func:`parallel_env`."""
-    return parallel_to_aec(parallel_env(**kwargs))
-
-
-__all__ = ["DroneFollowParallelEnv", "env", "parallel_env"]
+__all__ = ["DroneFollowParallelEnv"]
