@@ -15,16 +15,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import (
-    AVOID_ID,
-    DRONE_ID,
-    FORMATION_ID,
-    LINEFOLLOW_ID,
-    NAV_ID,
-    PATHFOLLOW_ID,
-    SEEK_ID,
-    TRACK_ID,
-)
+from conftest import LATEST
 
 import khepera_gym
 import khepera_gym.baselines
@@ -33,14 +24,8 @@ import khepera_gym.registration
 from khepera_gym import envs
 from khepera_gym.config import tomllib
 from khepera_gym.envs import (
-    AvoidEnv,
-    DroneFollowEnv,
+    ENV_CLASSES,
     FormationEnv,
-    LineFollowEnv,
-    NavEnv,
-    PathFollowEnv,
-    SeekEnv,
-    TrackEnv,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,27 +44,10 @@ MANUAL_SECTIONS = [
     "Scenario file",
     "Version History",
 ]
-#: (env class, registered id, task) of every manual.
-MANUALS = [
-    (NavEnv, NAV_ID, "nav"),
-    (AvoidEnv, AVOID_ID, "avoid"),
-    (FormationEnv, FORMATION_ID, "formation"),
-    (TrackEnv, TRACK_ID, "track"),
-    (PathFollowEnv, PATHFOLLOW_ID, "pathfollow"),
-    (DroneFollowEnv, DRONE_ID, "dronefollow"),
-    (LineFollowEnv, LINEFOLLOW_ID, "linefollow"),
-    (SeekEnv, SEEK_ID, "seek"),
-]
-MANUAL_IDS = [
-    "nav",
-    "avoid",
-    "formation",
-    "track",
-    "pathfollow",
-    "dronefollow",
-    "linefollow",
-    "seek",
-]
+#: (env class, registered id, task) of every manual: every task with a Gymnasium env, from the
+#: registry.
+MANUALS = [(ENV_CLASSES[task], env_id, task) for task, env_id in LATEST.items()]
+MANUAL_IDS = list(LATEST)
 
 
 def _section(manual: str, name: str) -> str:
@@ -146,14 +114,14 @@ def test_manual_observation_table_matches_layout_and_bounds(
 def test_formation_manual_states_the_agent_leader_block_is_navs() -> None:
     manual = FormationEnv.__doc__ or ""
     assert "Nav block (18 values" in _section(manual, "Observation Space")
-    env = gym.make(FORMATION_ID, leader="agent")
+    env = gym.make(LATEST["formation"], leader="agent")
     layout = env.unwrapped.obs_layout()
     nav_layout = khepera_gym.obs_layout("nav")
     assert {name.removeprefix("leader/"): s for name, s in layout.items() if "leader/" in name} == (
         nav_layout
     )
     np.testing.assert_array_equal(
-        env.observation_space.low[:18], gym.make(NAV_ID).observation_space.low
+        env.observation_space.low[:18], gym.make(LATEST["nav"]).observation_space.low
     )
     env.close()
 

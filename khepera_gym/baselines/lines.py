@@ -18,6 +18,7 @@ class LineThreshold(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "line_threshold"
+    TASKS: ClassVar[tuple[str, ...]] = ("linefollow",)
 
 
 class LineProportional(BaselinePolicy):
@@ -29,3 +30,4 @@ class LineProportional(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "line_proportional"
+    TASKS: ClassVar[tuple[str, ...]] = ("linefollow",)

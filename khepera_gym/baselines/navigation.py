@@ -30,6 +30,7 @@ class PositionControl(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "position_control"
+    TASKS: ClassVar[tuple[str, ...]] = ("nav", "avoid")
 
 
 def braitenberg_weights(
@@ -88,6 +89,7 @@ class Braitenberg(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "braitenberg"
+    TASKS: ClassVar[tuple[str, ...]] = ("nav", "avoid")
 
     @property
     def effective_weights(self) -> npt.NDArray[np.float64]:
@@ -142,6 +144,7 @@ class VFH(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "vfh"
+    TASKS: ClassVar[tuple[str, ...]] = ("nav", "avoid")
 
 
 __all__ = ["VFH", "Braitenberg", "PositionControl", "braitenberg_weights"]

@@ -26,6 +26,7 @@ class Samson(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "samson"
+    TASKS: ClassVar[tuple[str, ...]] = ("pathfollow",)
 
 
 class PurePursuit(BaselinePolicy):
@@ -40,6 +41,7 @@ class PurePursuit(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "pure_pursuit"
+    TASKS: ClassVar[tuple[str, ...]] = ("pathfollow",)
 
 
 class WaypointSwitching(BaselinePolicy):
@@ -54,3 +56,4 @@ class WaypointSwitching(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "waypoint_switching"
+    TASKS: ClassVar[tuple[str, ...]] = ("pathfollow",)

@@ -25,3 +25,4 @@ class DronePursuit(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "drone_pursuit"
+    TASKS: ClassVar[tuple[str, ...]] = ("dronefollow",)

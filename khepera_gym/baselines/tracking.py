@@ -27,6 +27,7 @@ class Kanayama(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "kanayama"
+    TASKS: ClassVar[tuple[str, ...]] = ("track",)
 
 
 class PositionChase(BaselinePolicy):
@@ -40,3 +41,4 @@ class PositionChase(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "position_chase"
+    TASKS: ClassVar[tuple[str, ...]] = ("track",)

@@ -12,7 +12,7 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from khepera_gym import baselines
+from khepera_gym import _core, baselines
 from khepera_gym.errors import ConfigError, KheperaError
 
 #: The baselines by their controller's name (``position_control``, ...: every controller of the
@@ -22,7 +22,8 @@ BASELINES: dict[str, type[baselines.BaselinePolicy]] = {
     for cls in baselines.BaselinePolicy.__subclasses__()
     if cls.CONTROLLER and cls.COMPARABLE
 }
-#: Named variants of the baselines: parameters other than the defaults.
+#: Named variants of the baselines: parameters other than the defaults, and the tasks whose
+#: comparison runs the variant by default (after its baseline; see ``BaselinePolicy.TASKS``).
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "braitenberg_kteam": ("braitenberg", {"weights": "kteam"}),
     # At K-Team's demo cruise speed, 200 speed units = 0.136 m/s (its braitenbergAvoidance's
@@ -33,6 +34,11 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     # An agent leader (formation.leader = "agent") drives like the scripted one.
     "leader_follower": ("leader_follower", {"leader": baselines.Braitenberg()}),
 }
+#: The tasks each variant is a default policy of (a variant named as its baseline replaces it).
+VARIANT_TASKS: dict[str, tuple[str, ...]] = {
+    "braitenberg_kteam": ("avoid",),
+    "leader_follower": ("formation",),
+}
 #: Every policy name (besides ``sb3:path.zip``).
 POLICY_NAMES = tuple(dict.fromkeys((*BASELINES, *VARIANTS, "random")))
 #: Prefix of a stable-baselines3 model file among the policies.
@@ -41,17 +47,29 @@ SB3_PREFIX = "sb3:"
 SAMPLED_SUFFIX = " (sampled)"
 #: stable-baselines3 algorithms tried in turn to load a model without ``--algo``.
 SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DQN")
-#: Policies compared when none is given.
-DEFAULT_POLICIES = {
-    "nav": ("position_control", "braitenberg", "vfh", "random"),
-    "avoid": ("position_control", "braitenberg", "braitenberg_kteam", "vfh", "random"),
-    "formation": ("leader_follower", "random"),
-    "track": ("kanayama", "position_chase", "random"),
-    "pathfollow": ("samson", "pure_pursuit", "waypoint_switching", "random"),
-    "linefollow": ("line_threshold", "line_proportional", "random"),
-    "dronefollow": ("drone_pursuit", "random"),
-    "seek": ("blob_vfh", "blob_servo", "random"),
-}
+
+
+def _default_policies() -> dict[str, tuple[str, ...]]:
+    """Each task's default policies, from what the baselines and variants declare."""
+    defaults: dict[str, tuple[str, ...]] = {}
+    for task, _, _ in _core.tasks():
+        names: list[str] = []
+        for controller, cls in BASELINES.items():
+            if task in cls.TASKS:
+                names.append(controller)
+            names += [
+                name
+                for name, (base, _) in VARIANTS.items()
+                if base == controller and task in VARIANT_TASKS.get(name, ())
+            ]
+        if names:
+            defaults[task] = (*dict.fromkeys(names), "random")
+    return defaults
+
+
+#: Policies compared when none is given, for each task that has baselines: the baselines that
+#: name the task in their ``TASKS`` (and their variants), then ``random``.
+DEFAULT_POLICIES: dict[str, tuple[str, ...]] = _default_policies()
 
 Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]
 
