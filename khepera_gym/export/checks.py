@@ -164,7 +164,8 @@ def record_rollouts(
     Args:
         env: A single env (one world) of khepera_gym, as :func:`robot_interface` read it.
         robot: The export's robot side (which agent's block, which inputs).
-        act: Maps the policy's observations (M, obs_dim) to actions (M, 2). In a multi-robot
+        act: Maps the policy's observations (M, obs_dim) to actions (M, 2), or (M, 5) for a
+            policy that also sets the LEDs (``robot.led_action``). In a multi-robot
             env it drives every agent whose block has the policy's width (a shared policy);
             other agents stand still. It sees every observation, in order (even where a random
             action replaces its own), and its ``reset()``, if it has one, is called before each
@@ -178,9 +179,10 @@ def record_rollouts(
     batch = unwrapped._batch
     width = robot.obs_dim
     # (block start, first action column) of every agent the policy drives: agent i's action is
-    # joint columns 2i, 2i + 1.
+    # joint columns k i to k i + k - 1, k its action's width (its wheels, then its LEDs').
+    per_agent = 5 if robot.led_action else 2
     driven = [
-        (int(start), 2 * i)
+        (int(start), per_agent * i)
         for i, (_, _, start, stop, _) in enumerate(batch.agents())
         if stop - start == width
     ]
@@ -206,12 +208,12 @@ def record_rollouts(
 
     def policy(joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         blocks = np.stack([joint[0, start : start + width] for start, _ in driven])
-        agent_actions = np.asarray(act(blocks), np.float32).reshape(len(driven), 2)
+        agent_actions = np.asarray(act(blocks), np.float32).reshape(len(driven), per_agent)
         if rng.random() < random_fraction:
             return rng.uniform(-1.0, 1.0, (1, batch.act_dim)).astype(np.float32)
         actions = np.zeros((1, batch.act_dim), np.float32)
         for (_, column), action in zip(driven, agent_actions, strict=True):
-            actions[0, column : column + 2] = action
+            actions[0, column : column + per_agent] = action
         return actions
 
     def on_step(
