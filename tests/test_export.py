@@ -13,6 +13,7 @@ does need actions that are not all near zero. The C code is compiled with the sy
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -966,3 +967,48 @@ def test_a_drive_the_robot_cannot_be_set_to_needs_its_nominal_setting(tmp_path: 
     assert ["set_profile", "40", "0", "20", "1", "400"] in calls
     with pytest.raises(ConfigError, match="drive must be one of"):
         export.export_policy(model, tmp_path / "x", env_id=NAV_ID, check=False, drive="fast")
+
+
+@pytest.mark.skipif(
+    not os.environ.get("KHEPERA_SDK"),
+    reason="set KHEPERA_SDK to K-Team's libkhepera 2.1 (its source tree, e.g. libkhepera-2.1/, "
+    "or its install) to compile the programs against K-Team's own headers",
+)
+def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) -> None:
+    """Optional: ``KHEPERA_SDK=/path/to/libkhepera-2.1 pytest tests/test_export.py -k sdk``."""
+    import robot_programs as rp
+
+    from khepera_gym.calibrate import write_calibration_program
+
+    include = rp.sdk_include(Path(os.environ["KHEPERA_SDK"]), tmp_path / "include")
+    # The robot's compiler when there is one; else this PC's, with the robot's unsigned char.
+    arm = rp.TARGETS["arm"]
+    compiler, flags = (
+        (arm.compiler, arm.flags) if arm.missing() is None else ("cc", ("-O2", "-funsigned-char"))
+    )
+    led = PPO("MlpPolicy", gym.make(NAV_ID, led_action=True), seed=0, device="cpu", n_steps=64)
+    sampled = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    programs = {
+        "plain": (nav_models()["ppo"]()[0], {}),
+        "frame_stack": (frame_stacked_ppo(3), {}),
+        "sampled": (sampled, {"sample_seed": 1}),
+        "led_action": (led, {"led_action": True}),
+    }
+    folders = []
+    for name, (model, options) in programs.items():
+        export.export_policy(model, tmp_path / name, env_id=NAV_ID, check=False, **options)
+        folders.append(tmp_path / name)
+    write_calibration_program(tmp_path / "calibrate", env_id=NAV_ID)
+    folders.append(tmp_path / "calibrate")
+    compile_only = [compiler, *flags, rp.ROBOT_STD, *rp.WARNINGS, f"-I{include}", "-c"]
+    compiled = 0
+    for folder in folders:
+        for source in sorted(folder.glob("*.c")):
+            result = subprocess.run(
+                [*compile_only, str(source), "-o", str(tmp_path / "program.o")],
+                capture_output=True,
+                text=True,
+            )
+            assert result.returncode == 0, f"{source} against {include}:\n{result.stderr}"
+            compiled += 1
+    assert compiled == 4 * 8 + 4  # each export's 8 C files, the calibration program's 4
