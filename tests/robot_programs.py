@@ -36,12 +36,20 @@ ARM_SKIP = (
 )
 
 
+#: Set (by .ci/run) where a missing ARM toolchain is a failure rather than a skip.
+REQUIRE_ARM = "KHEPERA_GYM_REQUIRE_ARM"
+
+
 def target(name: str) -> Target:
-    """The target ``name``, or a skip saying what is missing."""
+    """The target ``name``, or a skip saying what is missing (a failure where the environment
+    sets :data:`REQUIRE_ARM`)."""
     chosen = TARGETS[name]
     reason = chosen.missing()
     if reason is not None:
-        pytest.skip(ARM_SKIP.format(reason=reason) if name == "arm" else reason)
+        message = ARM_SKIP.format(reason=reason) if name == "arm" else reason
+        if os.environ.get(REQUIRE_ARM):
+            pytest.fail(f"{REQUIRE_ARM} is set: {message}")
+        pytest.skip(message)
     return chosen
 
 
