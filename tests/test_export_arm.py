@@ -190,7 +190,9 @@ def test_the_arm_build_acts_as_the_python_policy_over_whole_episodes(
             assert np.ptp(levels) > 10
     print(
         f"\nparity {kind}: export check host {checks['c_max_abs_error']:.2g}, "
-        f"arm {checks['c_arm_max_abs_error']:.2g} ({checks['observations']} observations); "
+        f"arm {checks['c_arm_max_abs_error']:.2g} ({checks['observations']} observations; "
+        f"observation host {checks['observation_max_abs_error']:.2g}, "
+        f"arm {checks['observation_arm_max_abs_error']:.2g}); "
         f"robot program ({steps} steps) host {figures['host']:.2g}, "
         f"arm {figures['arm']:.2g}"
     )
