@@ -18,6 +18,7 @@ against K-Team's own headers, where a user points ``KHEPERA_SDK`` at them.
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 from collections.abc import Callable
 from pathlib import Path
@@ -34,7 +35,7 @@ from stable_baselines3 import PPO
 from test_calibrate import SHORT_PHASES, WALL_DISTANCE
 from test_export import ACTION_TOLERANCE, frame_stacked_ppo, nav_models, scale_output_layer
 
-from khepera_gym import export
+from khepera_gym import cli, export
 from khepera_gym.calibrate import calibrate, read_log, write_calibration_program
 from khepera_gym.calibrate import replay as calibration_replay
 
@@ -429,3 +430,26 @@ def test_the_generated_makefiles_build_every_program_for_the_robot(
     )
     on_host = export.run_check_program(out / "export_check", "policy", [observation])
     np.testing.assert_array_equal(on_arm, on_host)
+
+
+def test_the_export_command_checks_on_arm_or_says_why_not(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "model.zip"
+    PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64).save(path)
+    base = ["export", str(path), "--env", NAV_ID, "--check-arm"]
+    if rp.TARGETS["arm"].missing() is None:
+        assert cli.main([*base, "--out", str(tmp_path / "arm")]) == 0
+        printed = capsys.readouterr().out
+        figures = re.findall(r"c (?:arm )?max abs error: (\S+)", printed)
+        assert len(figures) == 2 and all(float(f) < ACTION_TOLERANCE for f in figures), printed
+        assert "observation arm max abs error: 0\n" in printed
+    # Without the cross compiler: the host's figures, and why the ARM check was skipped.
+    monkeypatch.setattr(export.exporter, "arm_target", lambda: export.arm_target("no-such-gcc"))
+    assert cli.main([*base, "--out", str(tmp_path / "none")]) == 0
+    printed = capsys.readouterr().out
+    assert "c max abs error" in printed and "c arm max abs error" not in printed
+    assert (
+        "C check on ARM skipped: no C compiler 'no-such-gcc' on PATH (Debian: apt-get install "
+        "gcc-arm-linux-gnueabihf qemu-user)" in printed
+    )
