@@ -38,7 +38,7 @@ FLOORS_CANDIDATES   = python3.10 $(wildcard $(PYENV_ROOT)/versions/3.10*/bin/pyt
 FLOORS_PYTHON      ?= $(firstword $(foreach candidate,$(FLOORS_CANDIDATES), \
                         $(call is_python310,$(candidate))))
 
-.PHONY: develop test test-floors demo bench lint format clean wheel docs
+.PHONY: develop test test-floors demo bench lint format clean wheel docs configs
 
 develop: $(BUILT)
 
@@ -127,6 +127,11 @@ docs: develop $(DOCS_TOOLS)
 	rm -rf docs/_build docs/generated
 	$(PYTHON) -m sphinx -W --keep-going -n -q -b html docs docs/_build/html
 	@echo "docs: open docs/_build/html/index.html"
+
+# Every task's default scenario file, configs/<task>.toml, written from the core's declarations
+# (the files are what the docs point users to; tests/test_scenarios.py checks they are current).
+configs: develop
+	$(PYTHON) -m khepera_gym._docgen --configs configs
 
 # Clippy runs twice: the binding (src/python/) is compiled only with the `python` feature.
 lint: develop

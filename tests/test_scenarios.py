@@ -89,7 +89,7 @@ def test_the_config_files_list_each_tasks_defaults(task: str) -> None:
     must be the scenario the core builds, comments included."""
     path = Path(__file__).resolve().parent.parent / "configs" / f"{task}.toml"
     assert path.read_text(encoding="utf-8") == _core.default_config(task), (
-        f"{path.name} is stale: rewrite it from khepera_gym._core.default_config({task!r})"
+        f"{path.name} is stale: `make configs` writes it from the core"
     )
 
 
