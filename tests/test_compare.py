@@ -156,6 +156,7 @@ def test_an_older_version_compares_its_tasks_default_policies(
     ("argv", "message"),
     [
         (["--task", "avoid", "--policy", "bogus"], "unknown policy 'bogus'; known: position_cont"),
+        (["--task", "avoid", "--policy", "braitenbreg"], "did you mean 'braitenberg'"),
         (["--task", "formation", "--policy", "vfh"], "'vfh' does not act on 'formation'"),
         (["--task", "nav", "--policy", "leader_follower"], "'leader_follower' does not act on"),
         (["--env", "KheperaIV-Fly"], "'KheperaIV-Fly' is not registered"),

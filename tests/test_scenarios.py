@@ -225,3 +225,25 @@ def test_bad_keyword_overrides_on_top_of_a_file_name_the_key() -> None:
         gym.make(LATEST["avoid"], config="paper_fig6", count=-1)
     with pytest.raises(ConfigError, match="n_followerz"):
         gym.make(LATEST["formation"], config="paper_fig7", n_followerz=3)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "[task]\nmax_steps = 10\ngoal_radus = 0.1\n",
+            r"task\.goal_radus: unknown key \(line 3\); did you mean `goal_radius`\?",
+        ),
+        (
+            "# two letters swapped\n\n[taks]\ngoal_radius = 0.1\n",
+            r"taks: unknown key \(line 3\); did you mean `task`\?",
+        ),
+    ],
+)
+def test_a_misspelt_key_in_a_file_gets_its_line_and_a_suggestion(
+    text: str, message: str, tmp_path: Path
+) -> None:
+    path = tmp_path / "mine.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=rf"mine\.toml: {message}"):
+        gym.make(LATEST["nav"], config=path)

@@ -4,6 +4,11 @@ actions, and stable-baselines3 models (``sb3:path.zip``).
 
 from __future__ import annotations
 
+import difflib
+import importlib
+import importlib.util
+import re
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -41,6 +46,8 @@ VARIANT_TASKS: dict[str, tuple[str, ...]] = {
 }
 #: Every policy name (besides ``sb3:path.zip``).
 POLICY_NAMES = tuple(dict.fromkeys((*BASELINES, *VARIANTS, "random")))
+#: A user's own policy function: ``module:function`` or ``path/to/file.py:function``.
+USER_POLICY = re.compile(r"(?P<where>[\w./\\~-]+):(?P<attribute>[A-Za-z_]\w*)")
 #: Prefix of a stable-baselines3 model file among the policies.
 SB3_PREFIX = "sb3:"
 #: What an ``sb3:`` model's name gets in the results when it samples its actions.
@@ -203,6 +210,60 @@ def load_sb3_policy(
     raise ValueError(f"cannot load {path} as a stable-baselines3 model: " + "; ".join(failures))
 
 
+class UserPolicy:
+    """A user's own function as a policy: ``module:function`` or ``path/to/file.py:function``.
+
+    The function takes a batch of observations (N, D) and returns actions (N, A) (anything
+    ``np.asarray`` turns into that shape); a class is instantiated without arguments first.
+    """
+
+    def __init__(self, spec: str, act_dim: int) -> None:
+        self.name = spec
+        self.act_dim = int(act_dim)
+        where, _, attribute = spec.rpartition(":")
+        try:
+            if where.endswith(".py"):
+                path = Path(where).expanduser()
+                if not path.is_file():
+                    raise ConfigError(f"policy {spec!r}: no file {path}")
+                module_spec = importlib.util.spec_from_file_location(path.stem, path)
+                if module_spec is None or module_spec.loader is None:
+                    raise ConfigError(f"policy {spec!r}: {path} is not a Python module")
+                module = importlib.util.module_from_spec(module_spec)
+                module_spec.loader.exec_module(module)
+            else:
+                # As `python -m` would find it: the working directory first.
+                sys.path.insert(0, str(Path.cwd()))
+                try:
+                    module = importlib.import_module(where)
+                finally:
+                    sys.path.remove(str(Path.cwd()))
+        except ImportError as error:
+            raise ConfigError(f"policy {spec!r}: cannot import {where!r}: {error}") from error
+        found = getattr(module, attribute, None)
+        if found is None:
+            raise ConfigError(f"policy {spec!r}: {where!r} has no {attribute!r}")
+        function = found() if isinstance(found, type) else found
+        if not callable(function):
+            raise ConfigError(f"policy {spec!r}: {attribute!r} is not callable")
+        self._function = function
+
+    def __call__(self, observations: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        actions = np.asarray(self._function(observations), dtype=np.float32)
+        expected = (*np.shape(observations)[:-1], self.act_dim)
+        if actions.shape != expected:
+            raise ConfigError(
+                f"policy {self.name!r} returned actions of shape {actions.shape} for observations "
+                f"of shape {np.shape(observations)}; expected {expected}"
+            )
+        return actions
+
+
+def is_user_policy(name: str) -> bool:
+    """Whether ``name`` names a user's function (``module:function``, ``file.py:function``)."""
+    return USER_POLICY.fullmatch(name) is not None and not name.startswith(SB3_PREFIX)
+
+
 def make_policy(
     name: str,
     env: gym.vector.VectorEnv,
@@ -213,7 +274,8 @@ def make_policy(
     """The policy of a name for an environment (see the module docstring for the names).
 
     Args:
-        name: A policy name or ``sb3:path.zip``.
+        name: A policy name, ``sb3:path.zip``, or a function of one's own as
+            ``module:function`` or ``path/to/file.py:function`` (:class:`UserPolicy`).
         env: The (vector) environment it will drive: its task decides which names fit, a
             formation's shape is read from its scenario, the random policy's action length
             from its action space.
@@ -233,9 +295,14 @@ def make_policy(
     task = getattr(env.unwrapped, "task", None)
     if name.startswith(SB3_PREFIX):
         return load_sb3_policy(name[len(SB3_PREFIX) :], algo, seed if sample_actions else None)
+    if is_user_policy(name):
+        return UserPolicy(name, env.single_action_space.shape[0])
     if name not in POLICY_NAMES:
+        near = difflib.get_close_matches(name, POLICY_NAMES, n=1, cutoff=0.6)
+        hint = f"did you mean {near[0]!r}? " if near else ""
         raise ConfigError(
-            f"unknown policy {name!r}; known: {', '.join(POLICY_NAMES)} or sb3:path/to/model.zip"
+            f"unknown policy {name!r}; {hint}known: {', '.join(POLICY_NAMES)}, "
+            "sb3:path/to/model.zip or your own function as module:function"
         )
     if name == "random":
         return RandomPolicy(env.single_action_space.shape[0], seed)
@@ -260,6 +327,8 @@ __all__ = [
     "Policy",
     "RandomPolicy",
     "SB3Policy",
+    "UserPolicy",
+    "is_user_policy",
     "load_sb3_policy",
     "make_policy",
 ]

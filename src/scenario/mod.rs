@@ -192,7 +192,7 @@ impl TaskSchema {
         let mut scenario = Scenario::from_table(&table, &defaults, self, &origin)?;
         if let Some((text, name)) = source.file {
             let file = config::parse(text, name)?;
-            config::overlay(&mut table, &file, "", name)?;
+            config::overlay(&mut table, &file, "", name).map_err(|e| at_line(e, text))?;
             scenario = Scenario::from_table(&table, &defaults, self, name)?;
         }
         if !source.overrides.is_empty() {
@@ -210,6 +210,30 @@ impl TaskSchema {
             .and_then(|path| path.parent())
             .map(std::path::Path::to_path_buf);
         Ok(scenario)
+    }
+}
+
+/// An unknown key's error from a scenario file, with the line of `text` that sets it.
+fn at_line(error: Error, text: &str) -> Error {
+    match error {
+        Error::Config {
+            origin,
+            key,
+            message,
+        } if message.starts_with("unknown key") => {
+            let message = match config::line_of(text, &key) {
+                Some(line) => {
+                    message.replacen("unknown key", &format!("unknown key (line {line})"), 1)
+                }
+                None => message,
+            };
+            Error::Config {
+                origin,
+                key,
+                message,
+            }
+        }
+        other => other,
     }
 }
 
