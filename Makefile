@@ -1,6 +1,8 @@
 # Developer entry points. On a fresh machine (Python >= 3.10 and a Rust toolchain):
-#   make demo    build the extension into .venv and run the Nav demo
-#   make test    build with the sb3 extra (torch, ~5 GB), then run the Rust and Python tests
+#   make demo    build the extension into .venv; compare the baselines on the paper's scenes and
+#                every task (khepera-gym demo), plots in demo_out/
+#   make test    build with every extra the tests use (sb3, rllib, export, calibrate, torchrl,
+#                benchmarl: torch brings ~5 GB), then run the Rust and Python tests
 #   make docs    the documentation site into docs/_build/html (Sphinx, MyST, Furo)
 # CI (.ci/run) then runs `make test-floors` (the Python tests at the declared floors, on Python
 # 3.10), `make wheel` (the abi3 wheel, smoke-tested in a fresh venv) and `make docs`.

@@ -305,6 +305,15 @@ def test_every_env_page_has_a_small_animation_of_a_baseline() -> None:
         path = DOCS / ANIMATIONS / record["file"]
         assert path.stat().st_size < 400_000, path
         assert record["policy"] in {cls.__name__ for cls in baselines_of(page.task)}
+        # It says the version it shows, and that version is the page's latest (or the page
+        # says it is older: khepera_gym._docgen.envs.env_page).
+        assert (
+            f"_v{record['version']}" in record["env"] or f"-v{record['version']}" in record["env"]
+        ), record
+        assert record["version"] == khepera_gym.catalog.task_versions(page.task)[-1], (
+            f"{page.task}'s animation shows v{record['version']}: run "
+            f"`python -m khepera_gym._docgen.pictures --task {page.task}`"
+        )
 
 
 def baselines_of(task: str) -> tuple[type, ...]:
@@ -314,7 +323,7 @@ def baselines_of(task: str) -> tuple[type, ...]:
 
 
 def test_results_pages_render_every_results_file_with_its_provenance(generated: Path) -> None:
-    from khepera_gym._docgen.results import kind, load
+    from khepera_gym._docgen.results import as_typed, kind, load
 
     files = load(DOCS / "results")
     assert files, "docs/results/ holds no results file"
@@ -322,7 +331,9 @@ def test_results_pages_render_every_results_file_with_its_provenance(generated: 
     for path, document in files:
         assert kind(document) != "unknown", path
         assert document["meta"]["date"][:10] in text, path
-        assert document["meta"]["command"] in text, path
+        assert as_typed(document["meta"]["command"]) in text, path
+    # Commands read as a user types them, not as the source tree they ran from.
+    assert "khepera_gym/cli.py" not in text
 
 
 def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -> None:
@@ -495,3 +506,16 @@ def test_python_comments_cite_the_docs_pages_not_the_research_folder() -> None:
             continue  # this test and the generator, which links the old citations
         text = path.read_text(encoding="utf-8")
         assert "research/" not in text and "khepera4_spec.md" not in text, path
+
+
+def test_product_pages_and_manuals_name_no_issue_numbers() -> None:
+    """Issue numbers belong to the project's history (the changelog and the history page), not
+    to the pages and manuals a user reads."""
+    history = {"changelog.md", "history.md"}
+    pattern = re.compile(r"\bissues? \d+", re.IGNORECASE)
+    for path in sorted(DOCS.glob("*.md")):
+        if path.name not in history:
+            assert not pattern.search(path.read_text(encoding="utf-8")), path.name
+    for task, manual in _manuals():
+        assert not pattern.search(manual), task
+    assert not pattern.search((ROOT / "README.md").read_text(encoding="utf-8"))

@@ -348,9 +348,17 @@ def env_page(page: EnvPage, pages: list[EnvPage], docs_dir: Path) -> str:
     parts = [f"(env-{page.slug})=\n# {page.title}", intro]
     record = animation(page.task, docs_dir)
     if record is not None:
+        caption = record["caption"]
+        latest = _core.task_versions(page.task)[-1]
+        if record.get("version") != latest:
+            # An animation made before the latest version says so under the page of the latest.
+            caption += (
+                f" Recorded on v{record.get('version', '?')}, before v{latest}: "
+                "`python -m khepera_gym._docgen.pictures` records it again."
+            )
         parts.append(
             f"```{{figure}} ../../{ANIMATIONS.as_posix()}/{record['file']}\n:alt: {page.title}\n\n"
-            f"{record['caption']}\n```"
+            f"{caption}\n```"
         )
     parts.append(_facts(page, env, docs_dir))
     for name in MANUAL_ORDER:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import shlex
 from collections.abc import Callable
 from pathlib import Path
@@ -63,6 +64,20 @@ def kind(document: Any) -> str:
     return "unknown"
 
 
+#: The package's command line run from a source tree (``python <tree>/khepera_gym/cli.py``, or
+#: ``python -m khepera_gym.cli``): a user types it ``khepera-gym``.
+_CLI = re.compile(r"^python3? (?:\S*/)?khepera_gym/cli\.py\b|^python3? -m khepera_gym\.cli\b")
+#: A script of the repository run by its absolute path: a user types it from the checkout.
+_SCRIPT = re.compile(r"^(python3?) \S*/((?:examples|tests)/\S+\.py)\b")
+
+
+def as_typed(command: str) -> str:
+    """A recorded command as a user types it in a checkout: ``khepera-gym train ...`` for the
+    package's command line however it was started, ``python examples/x.py ...`` for a script."""
+    command = _CLI.sub("khepera-gym", command)
+    return _SCRIPT.sub(r"\1 \2", command)
+
+
 def provenance_line(meta: dict[str, Any] | None) -> str:
     """Where a table's figures come from, in one sentence."""
     if not meta:
@@ -77,7 +92,7 @@ def provenance_line(meta: dict[str, Any] | None) -> str:
     load_text = f", load average {load_average[0]}" if load_average else ""
     return (
         f"Measured {meta.get('date', '?')[:10]} at {where} on {machine.get('cpu', '?')} "
-        f"({machine.get('cpus', '?')} CPUs{load_text}): {code(meta.get('command', '?'))}."
+        f"({machine.get('cpus', '?')} CPUs{load_text}): {code(as_typed(meta.get('command', '?')))}."
     )
 
 
@@ -275,9 +290,16 @@ def bench_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
             for row in document["rows"]
         ]
         memory = document.get("memory_per_world_bytes")
-        memory_text = (
-            f"\n\nMemory per Nav world: {memory / 1024:.1f} KiB." if memory is not None else ""
-        )
+        if memory is None:
+            memory_text = ""
+        elif document.get("memory_process") == "fresh":
+            memory_text = f"\n\nMemory per Nav world: {memory / 1024:.1f} KiB."
+        else:
+            memory_text = (
+                "\n\nMemory per Nav world: not valid in this run (measured in the benchmark's "
+                "own process, where memory the earlier measurements freed was reused; "
+                "`khepera-gym bench` now measures it in a fresh process)."
+            )
         parts.append(
             f"Version {document['version']}, {document['duration']:g} s per configuration. "
             + provenance_line(document.get("meta"))

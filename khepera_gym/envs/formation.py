@@ -150,8 +150,8 @@ class FormationEnv(KheperaEnv):
     ## Robot model
 
     As :class:`NavEnv`, for each of the K + 1 robots: Khepera IV discs (radius 0.0704 m, wheels
-    0.1054 m apart, ±0.813 m/s) as dynamic rapier2d bodies; contacts between robots are resolved
-    like any other.
+    0.1054 m apart, ±0.813 m/s) as rigid discs; contacts between robots are resolved by rapier2d,
+    those with walls and obstacles as for one robot.
 
     ## Sensors
 

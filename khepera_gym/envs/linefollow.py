@@ -20,8 +20,8 @@ class LineFollowEnv(KheperaEnv):
 
     ## Description
 
-    Line following with the four ground IR sensors under the robot's front (issue 15;
-    docs/task-design.md §5.2), K-Team's classic demo. A black line `linefollow.width` = 2.7 cm
+    Line following with the four ground IR sensors under the robot's front
+    (docs/task-design.md §5.2), K-Team's classic demo. A black line `linefollow.width` = 2.7 cm
     wide (K-Team's demo needs at least that) is drawn on the white floor of the 2 m × 2 m
     arena along a closed curve (`linefollow.track`): `"circle"` (radius `linefollow.size` =
     0.6 m, a 3.77 m lap), `"lemniscate"` (a figure eight that crosses itself), `"spline"` (a

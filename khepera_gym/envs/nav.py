@@ -26,9 +26,9 @@ class NavEnv(KheperaEnv):
     in an empty 2 m × 2 m walled arena and must bring its centre within 5 cm of a random goal
     point at least 0.5 m away, as in the position-control exercise of the KH4VREP paper (Farias
     et al., IFAC 2017, §3.3). The goal's distance and bearing are observed directly (as from
-    odometry with a known goal); the infrared and ultrasonic readings show the walls. Physics
-    (rapier2d) stops the robot at the walls: from v1 on the shell rubs on them with friction, so
-    a robot pushing into a wall turns toward it and stalls (in v0 it slid along it).
+    odometry with a known goal); the infrared and ultrasonic readings show the walls. The walls
+    stop the robot: from v1 on the shell rubs on them with friction, so a robot pushing into a
+    wall turns toward it and stalls (in v0 it slid along it).
     :func:`nav_heuristic`, the paper's position controller (eqs. 1-4), solves most episodes.
 
     ## Action Space
@@ -149,9 +149,12 @@ class NavEnv(KheperaEnv):
 
     Khepera IV: a disc of radius 0.0704 m, wheels of radius 0.021 m, 0.1054 m apart; each wheel
     speed limited to ±0.813 m/s; commands below 3 mm/s give 0 (the real controller's floor). The
-    wheels follow K-Team's default speed profile, 0.203 m/s² (`robot.wheel_accel_limit`; v0:
-    none, the command within a step). A dynamic rapier2d body driven by its tyres' bounded grip
-    (`physics.drive = "traction"`; v0: its velocity imposed); contacts stop, turn or stall it.
+    wheels follow K-Team's speed profile as the firmware computes it, at Acc_Inc 40 (2.71 m/s²,
+    `[motors]`; v1: a plain 0.203 m/s² ramp; v0: the command within a step), which the program
+    `khepera-gym export` writes sets on the robot. A rigid disc driven by its tyres' bounded grip
+    (`physics.drive = "traction"`; v0: its velocity imposed); contacts stop, turn or stall it:
+    with walls and obstacles solved as a disc's with Coulomb friction (`physics.scene_solver =
+    "disc"`; v2 and earlier: rapier2d's step), with other robots by rapier2d.
     Control step `physics.dt` = 0.05 s (V-REP's default) with `physics.substeps` = 2 physics
     substeps (v0: 4). Ground truth: `env.unwrapped.poses()` (n_robots, 3) x, y, θ in the world
     frame (x right, y up, arena centred at the origin); `env.unwrapped.goals()` (n_goals, 2).
@@ -297,7 +300,7 @@ class AvoidEnv(KheperaEnv):
     ## Robot model
 
     As :class:`NavEnv`: a Khepera IV disc (radius 0.0704 m, wheels 0.1054 m apart, ±0.813 m/s),
-    a dynamic rapier2d body that obstacles stop or deflect. From v1 on, `physics.friction` = 0.7
+    a rigid disc that obstacles stop or deflect. From v1 on, `physics.friction` = 0.7
     holds it against what it touches (it turns toward a wall it pushes and stalls); in v0
     (`physics.friction` = 0) it slid along walls and obstacles.
 

@@ -20,7 +20,7 @@ class SeekEnv(KheperaEnv):
 
     ## Description
 
-    A camera task (issue 15; docs/task-design.md §6.3): Avoid's 2 m × 2 m arena with 10 random
+    A camera task (docs/task-design.md §6.3): Avoid's 2 m × 2 m arena with 10 random
     grey obstacles, and one red pillar (radius `seek.pillar_radius` = 5 cm) standing on the goal,
     optionally with `seek.distractors` pillars of other colours. The goal's distance and bearing
     are not observed: only the IR ring, the camera's scanline and the wheel speeds.

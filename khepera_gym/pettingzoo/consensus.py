@@ -26,7 +26,7 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     ## Description
 
     The KH4VREP paper's future work (§6): multi-agent consensus with event-based communication
-    (issue 16, item 3; docs/task-design.md §8). N robots start at random in the 2 m × 2 m walled
+    (docs/task-design.md §8). N robots start at random in the 2 m × 2 m walled
     arena. Robot i has an offset c_i: 0 for `consensus.objective = "rendezvous"`, the vertex i
     of a regular polygon of radius `consensus.formation_radius` (0.3 m) for `"formation"` (the
     default). They agree when the displacements z_i = x_i − c_i are equal (a displacement-based

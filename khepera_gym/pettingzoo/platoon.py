@@ -24,8 +24,8 @@ class PlatoonParallelEnv(KheperaParallelEnv):
 
     ## Description
 
-    The multi-robot form of trajectory tracking (:class:`khepera_gym.envs.TrackEnv`; issue 14,
-    item 5). One reference point p_r(t) moves on a closed curve centred in the 2 m × 2 m walled
+    The multi-robot form of trajectory tracking (:class:`khepera_gym.envs.TrackEnv`). One
+    reference point p_r(t) moves on a closed curve centred in the 2 m × 2 m walled
     arena (`platoon.reference`: circle, lemniscate, square, spline or waypoints, as Track's
     `track.reference`); robot k must be at p_r(t − k·τ) at time t, heading along the curve, with
     τ = `platoon.time_gap` (2 s). Its reference is robot k − 1's, τ seconds later: the robots
