@@ -68,12 +68,11 @@ def _lower_first(text: str) -> str:
     return text[:1].lower() + text[1:]
 
 
-def with_history(doc: str | None, task: str) -> str:
-    """A manual (a class docstring, indented as written) with its ``## Version History``
-    section appended: one line a version of ``task``, from the core, and where the full story
-    is."""
+def with_history(doc: str | None, task: str, indent: str = "    ") -> str:
+    """A manual (a class docstring, its lines after the first indented by ``indent``; a module
+    docstring: ``indent=""``) with its ``## Version History`` section appended: one line a
+    version of ``task``, from the core, and where the full story is."""
     body = (doc or "").rstrip()
-    indent = "    " if "\n    " in body else ""
     bullets = "\n".join(
         textwrap.fill(line, 96, initial_indent=indent, subsequent_indent=indent + "  ")
         for line in history_lines(task)

@@ -339,6 +339,24 @@ def _make_env(page: EnvPage) -> tuple[Any, _core.Batch]:
     return env, env.unwrapped._batch
 
 
+def _solved(task: str) -> str:
+    """The task's entry of the learning benchmark: when it is solved, and with what."""
+    from khepera_gym.benchmark.suite import load_suite
+
+    entry = load_suite().get(task)
+    if entry is None:
+        return "## Learning benchmark\n\nThe benchmark's suite has no entry for this task yet."
+    conditions = " and ".join(code(c.describe()) for c in entry.criterion)
+    return (
+        "## Learning benchmark\n\n"
+        f"Solved when {conditions} over 200 held-out episodes ({entry.why}); trained with "
+        f"{', '.join(code(n) for n in entry.learners)} beside the baselines "
+        f"{', '.join(code(n) for n in entry.baselines)}. "
+        f"{code(f'khepera-gym benchmark --tasks {task}')} runs it; the recorded results are on "
+        "the [results page](../../results.md#learned-per-task)."
+    )
+
+
 def env_page(page: EnvPage, pages: list[EnvPage], docs_dir: Path) -> str:
     """The Markdown of one task's page."""
     links = _page_link(pages)
@@ -378,6 +396,7 @@ def env_page(page: EnvPage, pages: list[EnvPage], docs_dir: Path) -> str:
     parts.append(
         "## Scenario file\n\n" + (scenario + "\n\n" if scenario else "") + scenario_table(page.task)
     )
+    parts.append(_solved(page.task))
     history = manual_sections.get("Version History", "")
     parts.append(
         "## Version History\n\n"

@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from khepera_gym import catalog
+from khepera_gym import _core, catalog
 from khepera_gym._docgen.markdown import code, escape_cell, table
 from khepera_gym.compare.policies import SAMPLED_SUFFIX, SB3_PREFIX
 from khepera_gym.compare.report import table_notes, table_rows
@@ -393,6 +393,49 @@ FRAGMENTS: dict[str, Callable[[list[tuple[Path, dict[str, Any]]]], str]] = {
 }
 
 
+#: The learning benchmark's folder under docs/results/ (``khepera-gym benchmark --out``).
+BENCHMARK_DIR = "benchmark"
+
+
+def benchmark_fragment(folder: Path) -> str:
+    """The learning benchmark's tables (:mod:`khepera_gym.benchmark.tables`), one a task, from
+    ``docs/results/benchmark/``, with where each was measured and how to run it again."""
+    from khepera_gym.benchmark.command import reproduce
+    from khepera_gym.benchmark.tables import load_records, markdown, task_rows
+
+    baselines, runs = load_records(folder)
+    if not runs:
+        return _missing(f"khepera-gym benchmark --out docs/results/{BENCHMARK_DIR}")
+    tasks = [name for name, _, _ in _core.tasks()]
+    parts = []
+    for task in tasks:
+        table = task_rows(task, baselines, runs)
+        if not table["learners"]:
+            parts.append(f"**{task}**: no learned run recorded yet.")
+            continue
+        mine = [r for r in runs if r["key"]["task"] == task]
+        dates = sorted({r["meta"]["date"][:10] for r in mine})
+        commits = sorted(
+            {
+                (r["meta"].get("commit") or {}).get("id", "?")[:10]
+                + (" with local changes" if (r["meta"].get("commit") or {}).get("dirty") else "")
+                for r in mine
+            }
+        )
+        parts.append(
+            markdown(table)
+            + f"\n\nMeasured {', '.join(dates)} at commit {', '.join(f'`{c}`' for c in commits)}"
+            + f" on {mine[0]['meta']['machine'].get('cpu', '?')} "
+            + f"({mine[0]['meta']['machine'].get('cpus', '?')} CPUs); rows again: "
+            + "; ".join(
+                f"{code(reproduce(task, row['learner'], row['seeds'], row['version']))}"
+                for row in table["learners"]
+            )
+            + "."
+        )
+    return "\n\n".join(parts)
+
+
 def fragments(results_dir: Path) -> dict[str, str]:
     """Every results fragment (``results-<name>.md``) from the folder's files.
 
@@ -403,7 +446,9 @@ def fragments(results_dir: Path) -> dict[str, str]:
     for path, document in files:
         if kind(document) == "unknown":
             raise ValueError(f"{path}: not a results file of compare, train, bench or a campaign")
-    return {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
+    rendered = {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
+    rendered["benchmark"] = benchmark_fragment(results_dir / BENCHMARK_DIR) + "\n"
+    return rendered
 
 
 def target_name(document: dict[str, Any]) -> str:

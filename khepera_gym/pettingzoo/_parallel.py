@@ -111,7 +111,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
             cls.__doc__ = with_history(cls.__doc__, cls.TASK)
         else:
             module = sys.modules[cls.__module__]
-            module.__doc__ = with_history(module.__doc__, cls.TASK)
+            module.__doc__ = with_history(module.__doc__, cls.TASK, indent="")
 
     def __init__(
         self,
