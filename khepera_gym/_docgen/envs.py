@@ -9,7 +9,6 @@ both also holds the PettingZoo module's manual. Nothing lists tasks here.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import importlib
 import json
 from pathlib import Path
@@ -23,8 +22,6 @@ from khepera_gym._docgen.markdown import code, docstring_markdown, escape_cell, 
 from khepera_gym._docgen.scenario import SOURCE_TAGS, key_histories
 from khepera_gym.baselines import BaselinePolicy
 from khepera_gym.envs import ENV_CLASSES
-from khepera_gym.errors import ConfigError
-from khepera_gym.layout import layout_dict
 from khepera_gym.registration import registered_ids
 from khepera_gym.vector import VECTOR_ENV_CLASSES
 
@@ -134,26 +131,12 @@ def env_pages() -> list[EnvPage]:
     return pages
 
 
-@functools.cache
 def baselines(task: str) -> tuple[type[BaselinePolicy], ...]:
-    """The baseline classes that act on an agent of the task's default scenario: those that
-    find every observation block they read in its first agent's layout, in the core's
-    controller order."""
-    order = [name for name, _ in _core.controllers()]
-    layout = layout_dict(_core.Batch(task, 1).agents()[0][4])
-    classes: list[type[BaselinePolicy]] = []
-    pending = list(BaselinePolicy.__subclasses__())
-    while pending:
-        cls = pending.pop(0)
-        pending += cls.__subclasses__()
-        if not cls.CONTROLLER or cls in classes:
-            continue
-        try:
-            cls(layout=layout)
-        except ConfigError:
-            continue
-        classes.append(cls)
-    return tuple(sorted(classes, key=lambda cls: order.index(cls.CONTROLLER)))
+    """The baseline classes that act on an agent of the task's default scenario
+    (:func:`khepera_gym.baselines.for_task`)."""
+    from khepera_gym.baselines import for_task
+
+    return for_task(task)
 
 
 def _page_link(pages: list[EnvPage]) -> dict[str, str]:

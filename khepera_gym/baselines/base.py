@@ -63,7 +63,7 @@ def _layout_triples(layout: Layout | None) -> list[tuple[str, int, int]] | None:
 
 
 #: Names a policy never reads as one of its parameters.
-_CLASS_ATTRIBUTES = ("params", "PARAMETERS", "CONTROLLER", "COMPARABLE", "TASKS")
+_CLASS_ATTRIBUTES = ("params", "PARAMETERS", "CONTROLLER", "COMPARABLE")
 
 
 class BaselinePolicy:
@@ -93,7 +93,6 @@ class BaselinePolicy:
     #: (``khepera-gym compare --task seek``): a task's default policies are the baselines that
     #: name it, in the order they are defined, each followed by its named variants
     #: (:data:`khepera_gym.compare.policies.VARIANTS`), then uniform random actions.
-    TASKS: ClassVar[tuple[str, ...]] = ()
     #: Its parameters: (name, default, comment), from the Rust core.
     PARAMETERS: ClassVar[list[tuple[str, Any, str]]] = []
     _policy: _core.Policy

@@ -100,7 +100,6 @@ class LeaderFollower(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "leader_follower"
-    TASKS: ClassVar[tuple[str, ...]] = ("formation",)
     #: Parameters that the arguments above set (not passed through ``**params``).
     _DERIVED = ("offsets", "avoidance", "weights", "smax", "threshold")
 

@@ -18,7 +18,6 @@ class LineThreshold(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "line_threshold"
-    TASKS: ClassVar[tuple[str, ...]] = ("linefollow",)
 
 
 class LineProportional(BaselinePolicy):
@@ -30,4 +29,3 @@ class LineProportional(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "line_proportional"
-    TASKS: ClassVar[tuple[str, ...]] = ("linefollow",)

@@ -30,7 +30,6 @@ class PositionControl(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "position_control"
-    TASKS: ClassVar[tuple[str, ...]] = ("nav", "avoid")
 
 
 def braitenberg_weights(
@@ -89,7 +88,6 @@ class Braitenberg(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "braitenberg"
-    TASKS: ClassVar[tuple[str, ...]] = ("nav", "avoid")
 
     @property
     def effective_weights(self) -> npt.NDArray[np.float64]:
@@ -144,7 +142,6 @@ class VFH(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "vfh"
-    TASKS: ClassVar[tuple[str, ...]] = ("nav", "avoid")
 
 
 __all__ = ["VFH", "Braitenberg", "PositionControl", "braitenberg_weights"]

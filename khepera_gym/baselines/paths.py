@@ -26,7 +26,6 @@ class Samson(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "samson"
-    TASKS: ClassVar[tuple[str, ...]] = ("pathfollow",)
 
 
 class PurePursuit(BaselinePolicy):
@@ -41,7 +40,6 @@ class PurePursuit(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "pure_pursuit"
-    TASKS: ClassVar[tuple[str, ...]] = ("pathfollow",)
 
 
 class WaypointSwitching(BaselinePolicy):
@@ -56,4 +54,3 @@ class WaypointSwitching(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "waypoint_switching"
-    TASKS: ClassVar[tuple[str, ...]] = ("pathfollow",)

@@ -25,4 +25,3 @@ class DronePursuit(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "drone_pursuit"
-    TASKS: ClassVar[tuple[str, ...]] = ("dronefollow",)

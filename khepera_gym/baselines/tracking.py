@@ -27,7 +27,6 @@ class Kanayama(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "kanayama"
-    TASKS: ClassVar[tuple[str, ...]] = ("track",)
 
 
 class PositionChase(BaselinePolicy):
@@ -41,4 +40,3 @@ class PositionChase(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "position_chase"
-    TASKS: ClassVar[tuple[str, ...]] = ("track",)

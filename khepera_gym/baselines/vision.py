@@ -9,6 +9,19 @@ from typing import ClassVar
 from khepera_gym.baselines.base import BaselinePolicy
 
 
+class BlobServo(BaselinePolicy):
+    r"""Colour-blob servoing: turn toward the target-coloured pixels, slow as they fill the view.
+
+    With the blob's centroid :math:`\bar x \in [-1, 1]` (positive to the right) and its width
+    :math:`w` (share of the scanline): :math:`\omega = -k\,\omega_{max}\,\bar x`,
+    :math:`v = v_{max}(1 - |\bar x|)(1 - w/w^*)`; with nothing in view it turns in place at
+    ``search`` · ω_max. Braitenberg avoidance (eqs. 5-7) is added while the blob is narrower
+    than w*/2. A pixel matches when each channel is within ``tolerance`` of ``target``.
+    """
+
+    CONTROLLER: ClassVar[str] = "blob_servo"
+
+
 class BlobVFH(BaselinePolicy):
     r"""The Vector Field Histogram (paper eqs. 8-11, with VFH+'s enlargement and direction choice,
     as :class:`khepera_gym.baselines.VFH`) driving to the pillar the camera sees, its histogram
@@ -28,18 +41,3 @@ class BlobVFH(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "blob_vfh"
-    TASKS: ClassVar[tuple[str, ...]] = ("seek",)
-
-
-class BlobServo(BaselinePolicy):
-    r"""Colour-blob servoing: turn toward the target-coloured pixels, slow as they fill the view.
-
-    With the blob's centroid :math:`\bar x \in [-1, 1]` (positive to the right) and its width
-    :math:`w` (share of the scanline): :math:`\omega = -k\,\omega_{max}\,\bar x`,
-    :math:`v = v_{max}(1 - |\bar x|)(1 - w/w^*)`; with nothing in view it turns in place at
-    ``search`` · ω_max. Braitenberg avoidance (eqs. 5-7) is added while the blob is narrower
-    than w*/2. A pixel matches when each channel is within ``tolerance`` of ``target``.
-    """
-
-    CONTROLLER: ClassVar[str] = "blob_servo"
-    TASKS: ClassVar[tuple[str, ...]] = ("seek",)

@@ -57,25 +57,27 @@ SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DQN")
 
 
 def _default_policies() -> dict[str, tuple[str, ...]]:
-    """Each task's default policies, from what the baselines and variants declare."""
+    """Each task's default policies: the comparable baselines that fit it
+    (:func:`khepera_gym.baselines.for_task`), each followed by the variants declared for the
+    task, then ``random``."""
     defaults: dict[str, tuple[str, ...]] = {}
     for task, _, _ in _core.tasks():
         names: list[str] = []
-        for controller, cls in BASELINES.items():
-            if task in cls.TASKS:
-                names.append(controller)
+        for cls in baselines.for_task(task):
+            if cls.CONTROLLER not in BASELINES:
+                continue  # not offered on the Gymnasium envs (a PettingZoo-only task's law)
+            names.append(cls.CONTROLLER)
             names += [
                 name
                 for name, (base, _) in VARIANTS.items()
-                if base == controller and task in VARIANT_TASKS.get(name, ())
+                if base == cls.CONTROLLER and task in VARIANT_TASKS.get(name, ())
             ]
-        if names:
-            defaults[task] = (*dict.fromkeys(names), "random")
+        defaults[task] = (*dict.fromkeys(names), "random")
     return defaults
 
 
-#: Policies compared when none is given, for each task that has baselines: the baselines that
-#: name the task in their ``TASKS`` (and their variants), then ``random``.
+#: Policies compared when none is given, for every task: the baselines that fit it (and the
+#: variants declared for it), then ``random``.
 DEFAULT_POLICIES: dict[str, tuple[str, ...]] = _default_policies()
 
 Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]
