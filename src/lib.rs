@@ -20,6 +20,7 @@ pub mod config;
 pub mod controllers;
 pub mod draw;
 pub mod error;
+pub mod geometry;
 pub mod memory;
 pub mod motors;
 pub mod obs;

@@ -3,8 +3,7 @@
 //! default, units, comment), and the checks of `[obstacles]`. The other shared sections are
 //! declared by their owners (`[robot]` in `robot.rs`, `[sensors]` by each sensor in `sensors/`);
 //! the checks that relate several sections are in `scenario/mod.rs`. They are plain data: the
-//! world turns `[arena]` and `obstacles.fixed` into its types (`Scene::of_arena`,
-//! `SceneShape::of_obstacle` in `world/scene.rs`).
+//! world turns `[arena]` and `obstacles.fixed` into geometry (`world/scenery.rs`).
 //!
 //! Units: metres, seconds, radians, m/s. Frame: the world frame, origin at the arena's centre,
 //! x right, y up, angles CCW from +x.

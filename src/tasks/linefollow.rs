@@ -34,11 +34,11 @@ use super::{Agent, Body, Column, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::geometry::floor::{polyline, Segment};
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::robot::wrap_angle;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::sensors::ground::KTEAM_BLACK_THRESHOLD;
-use crate::world::floor::{polyline, Segment};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 
