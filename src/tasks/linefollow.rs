@@ -99,7 +99,7 @@ crate::config_table! {
         track: Shape = "circle",
         /// m: radius, half-width, half-side, or the spline's largest radius
         size: f32 = 0.6 => Domain::at_least(0.1).at_most(limits::LENGTH),
-        /// m, the line's width [C: K-Team's demo needs at least 2.7 cm, spec §4]
+        /// m, the line's width [C: K-Team's demo needs at least 2.7 cm, robot.md §4]
         width: f32 = 0.027 => Domain::range(0.005, 0.2),
         /// grey level of the line, 0 black .. 1 white (black tape)
         grey: f32 = 0.0 => Domain::UNIT,
