@@ -20,10 +20,10 @@ use rapier2d::math::Vector;
 use super::{action_width, led_color, Body, TaskKind, TaskState, MAX_EXTRA_STATS, WHEEL_ACTIONS};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::geometry::floor::FloorMarks;
 use crate::obs::ObsWriter;
 use crate::robot::ActionType;
 use crate::scenario::Scenario;
-use crate::world::floor::FloorMarks;
 use crate::world::layout::Spawner;
 use crate::world::World;
 

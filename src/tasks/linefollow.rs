@@ -34,11 +34,11 @@ use super::{Agent, Body, Column, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::geometry::floor::{polyline, Segment};
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::robot::wrap_angle;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::sensors::ground::KTEAM_BLACK_THRESHOLD;
-use crate::world::floor::{polyline, Segment};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 
@@ -99,7 +99,7 @@ crate::config_table! {
         track: Shape = "circle",
         /// m: radius, half-width, half-side, or the spline's largest radius
         size: f32 = 0.6 => Domain::at_least(0.1).at_most(limits::LENGTH),
-        /// m, the line's width [C: K-Team's demo needs at least 2.7 cm, spec §4]
+        /// m, the line's width [C: K-Team's demo needs at least 2.7 cm, robot.md §4]
         width: f32 = 0.027 => Domain::range(0.005, 0.2),
         /// grey level of the line, 0 black .. 1 white (black tape)
         grey: f32 = 0.0 => Domain::UNIT,

@@ -495,7 +495,7 @@ impl TaskKind {
         let header = format!(
             "{title}: {}.\nEvery key the scenario has, with its default; a scenario file or keyword \
              override may change any of them and may not add others.\nUnits: metres, seconds, \
-             radians, m/s. [E] marks an estimate (spec §11).",
+             radians, m/s. [E] marks an estimate (the tags of robot.md).",
             info.summary
         );
         info.schema.render_defaults(&header, version)

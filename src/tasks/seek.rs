@@ -22,10 +22,10 @@ use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::geometry::scene::SceneShape;
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
-use crate::world::scene::SceneShape;
 use crate::world::World;
 
 /// Colours of the distractor pillars, in turn: blue, yellow, magenta, cyan.
