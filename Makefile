@@ -1,6 +1,8 @@
 # Developer entry points. On a fresh machine (Python >= 3.10 and a Rust toolchain):
-#   make demo    build the extension into .venv and run the Nav demo
-#   make test    build with the sb3 extra (torch, ~5 GB), then run the Rust and Python tests
+#   make demo    build the extension into .venv; compare the baselines on the paper's scenes and
+#                every task (khepera-gym demo), plots in demo_out/
+#   make test    build with every extra the tests use (sb3, rllib, export, calibrate, torchrl,
+#                benchmarl: torch brings ~5 GB), then run the Rust and Python tests
 #   make docs    the documentation site into docs/_build/html (Sphinx, MyST, Furo)
 # CI (.ci/run) then runs `make test-floors` (the Python tests at the declared floors, on Python
 # 3.10), `make wheel` (the abi3 wheel, smoke-tested in a fresh venv) and `make docs`.
@@ -38,7 +40,7 @@ FLOORS_CANDIDATES   = python3.10 $(wildcard $(PYENV_ROOT)/versions/3.10*/bin/pyt
 FLOORS_PYTHON      ?= $(firstword $(foreach candidate,$(FLOORS_CANDIDATES), \
                         $(call is_python310,$(candidate))))
 
-.PHONY: develop test test-floors demo bench lint format clean wheel docs
+.PHONY: develop test test-floors demo bench lint format clean wheel docs configs
 
 develop: $(BUILT)
 
@@ -127,6 +129,11 @@ docs: develop $(DOCS_TOOLS)
 	rm -rf docs/_build docs/generated
 	$(PYTHON) -m sphinx -W --keep-going -n -q -b html docs docs/_build/html
 	@echo "docs: open docs/_build/html/index.html"
+
+# Every task's default scenario file, configs/<task>.toml, written from the core's declarations
+# (the files are what the docs point users to; tests/test_scenarios.py checks they are current).
+configs: develop
+	$(PYTHON) -m khepera_gym._docgen --configs configs
 
 # Clippy runs twice: the binding (src/python/) is compiled only with the `python` feature.
 lint: develop

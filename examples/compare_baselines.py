@@ -10,7 +10,7 @@ latest; 0 is the paper's V-REP-like dynamics):
    alone), and how much each turns (total heading change, turn-direction reversals: the paper
    says VFH zigzags);
 2. the paper's Fig. 7 scene (``config="paper_fig7"``): four LeaderFollower followers in a cross;
-3. KheperaIV-Nav, KheperaIV-Avoid and KheperaIV-Formation with every baseline that fits and a
+3. the paper's three tasks (Nav, Avoid and Formation) with every baseline that fits and a
    random policy;
 4. from v1 on, the Fig. 6 scene and Avoid as K-Team's own Braitenberg demo drives the real robot:
    its speed profile (Acc_Inc 10 per 10 ms: ``wheel_accel_limit = 0.678`` m/s^2) and its cruise

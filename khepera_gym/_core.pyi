@@ -32,6 +32,9 @@ class Batch:
     """
 
     num_worlds: int
+    #: The behaviour version whose defaults the scenario started from (``version``, or the
+    #: latest).
+    version: int
     obs_dim: int
     act_dim: int
     #: Action values per agent: 2 (its wheels), 5 with ``task.led_action`` (then its LEDs' RGB).
@@ -201,6 +204,15 @@ def tasks() -> list[tuple[str, str | None, list[str]]]:
 def task_versions(name: str) -> list[int]:
     """The behaviour versions of a task, oldest first (from the version that added it)."""
 
+def task_scoring(name: str) -> dict[str, Any]:
+    """How a task is scored: ``success``, ``time``, ``error_prefix``, ``error``, ``termination``
+    (str or None), ``speed``, ``moving_reference``, ``path_trace`` (bool) and ``columns``, a list
+    of (statistic, header, scale, digits)."""
+
+def versions() -> list[tuple[int, str, str, str]]:
+    """The behaviour versions, oldest first: (number, title, summary of what changed and why,
+    the previous version's values of the keys it changed as TOML)."""
+
 def motor_presets() -> list[tuple[str, str, str]]:
     """The named drives of ``motors.preset``: (name, the ``[drive]`` keys it sets as TOML, who
     sets it on the real robot)."""
@@ -232,6 +244,7 @@ def _batch_from_state(
     autoreset: bool,
     trail_length: int,
     state: bytes,
+    version: int | None = None,
 ) -> Batch:
     """Unpickles a Batch."""
 

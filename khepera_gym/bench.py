@@ -50,7 +50,7 @@ _ACTION_SETS = 8
 OTHER_TASKS = tuple(
     ids[-1].rsplit("-v", 1)[0] for task, ids in registered_ids().items() if task != "nav"
 )
-#: Nav with the camera observed (4 rays a pixel, then 1): what the sensor costs (issue 15).
+#: Nav with the camera observed (4 rays a pixel, then 1): what the sensor costs.
 CAMERA_ROWS: tuple[tuple[str, dict[str, object]], ...] = (
     ("Nav+camera", {"carry": ["ir", "us", "gyro", "camera"], "observe": ["ir", "us", "camera"]}),
     (
@@ -277,6 +277,8 @@ def run(
                 for m in measurements
             ],
             "memory_per_world_bytes": per_world,
+            # How it was measured: the results page shows only a fresh process's figure.
+            "memory_process": "fresh" if per_world is not None else None,
             "swarm": swarm_table,
         }
         _write_json(Path(json_path), document)

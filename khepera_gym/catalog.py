@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib
-import pkgutil
 import re
 from types import ModuleType
 
@@ -22,8 +20,6 @@ from khepera_gym import _core
 from khepera_gym.config import builtin_config_names, tomllib
 from khepera_gym.errors import ConfigError, KheperaError
 
-#: A PettingZoo module's name: the task family, then its behaviour version (``formation_v1``).
-_PETTINGZOO_MODULE = re.compile(r"^(?P<family>[a-z_]+)_v(?P<version>\d+)$")
 #: The end of a sentence: a full stop before a capital, but not that of "Fig." or "eq.".
 _SENTENCE_END = re.compile(r"(?<!Fig)(?<!eq)(?<!eqs)\.\s+(?=[A-Z])")
 #: The sensor list in the core's message for an unknown sensor (``known: ["ir", ...]``).
@@ -184,38 +180,25 @@ class PettingZooModule:
 
 
 def pettingzoo_modules() -> list[PettingZooModule]:
-    """Every ``*_vN`` module of :mod:`khepera_gym.pettingzoo`, found by listing the package,
-    sorted by family then version."""
+    """Every ``*_vN`` module of :mod:`khepera_gym.pettingzoo` (one per family and behaviour
+    version, :func:`khepera_gym.pettingzoo.modules`), sorted by family then version."""
     import khepera_gym.pettingzoo as package
 
     found = []
-    for info in pkgutil.iter_modules(package.__path__):
-        match = _PETTINGZOO_MODULE.match(info.name)
-        if match is None:
-            continue
-        module = importlib.import_module(f"{package.__name__}.{info.name}")
-        classes = [
-            value
-            for value in vars(module).values()
-            if isinstance(value, type)
-            and getattr(value, "metadata", {}).get("name") == info.name
-            and getattr(value, "TASK", "")
-        ]
-        # The module's own class first (formation_v1 also holds the base it subclasses).
-        classes.sort(key=lambda cls: cls.__module__ != module.__name__)
-        if not classes:
-            raise KheperaError(f"{module.__name__} defines no ParallelEnv named {info.name!r}")
+    for name, module in package.modules().items():
+        family, _, version = name.rpartition("_v")
+        env_class = getattr(module, package.FAMILIES[family].__name__)
         found.append(
             PettingZooModule(
-                name=info.name,
-                family=match.group("family"),
-                version=int(match.group("version")),
-                task=classes[0].TASK,
+                name=name,
+                family=family,
+                version=int(version),
+                task=env_class.TASK,
                 module=module,
-                env_class=classes[0],
+                env_class=env_class,
             )
         )
-    return sorted(found, key=lambda m: (m.family, m.version))
+    return found
 
 
 __all__ = [

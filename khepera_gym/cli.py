@@ -1,5 +1,5 @@
 """The ``khepera-gym`` command: ``list``, ``demo``, ``compare``, ``train``, ``render``,
-``export``, ``robot-program``, ``calibrate``, ``replay`` and ``bench``.
+``export``, ``robot-program``, ``calibrate``, ``replay``, ``bench`` and ``benchmark``.
 
 ``list`` prints what the package has, read from the registries (:mod:`khepera_gym.catalog`):
 the Gymnasium ids, the PettingZoo modules, the built-in scenes, the sensors and the policies
@@ -15,7 +15,8 @@ the simulator (:mod:`khepera_gym.calibrate`; a malformed log or scenario is a on
 stable-baselines3 model) on the same seeded episodes and prints a table with 95% intervals,
 writing CSV, JSON and trajectory plots (:mod:`khepera_gym.compare`). ``demo`` runs that
 comparison on the paper's Fig. 6 and Fig. 7 scenes and on every task, and says where the
-plots are (``--out-dir``, demo_out/).
+plots are (``--out-dir``, demo_out/). ``benchmark`` trains every task's learners over several
+seeds and reports them on held-out episodes beside the baselines (:mod:`khepera_gym.benchmark`).
 
 Every subcommand checks its arguments (ids, counts, seeds, output formats and folders, which it
 creates) before it simulates anything, shows a progress bar on work longer than a moment, and
@@ -31,6 +32,7 @@ from pathlib import Path
 
 import khepera_gym
 from khepera_gym import bench, catalog, cli_checks, compare, export, provenance, record, train
+from khepera_gym.benchmark import command as benchmark_command
 from khepera_gym.calibrate import command as calibrate_command
 from khepera_gym.compare.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
 from khepera_gym.registration import registered_ids
@@ -165,6 +167,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench_parser = commands.add_parser("bench", help="env-steps/s and memory per world")
     bench.add_arguments(bench_parser)
+
+    benchmark_parser = commands.add_parser(
+        "benchmark",
+        help="the learning benchmark: every task's learners over seeds, held-out, beside the "
+        "baselines (needs the sb3 extra; benchmarl for mappo/ippo)",
+    )
+    benchmark_command.add_arguments(benchmark_parser)
     return parser
 
 
@@ -211,6 +220,8 @@ def _run(args: argparse.Namespace) -> int:
     }
     if args.command in loop_commands:
         return loop_commands[args.command](args)
+    if args.command == "benchmark":
+        return benchmark_command.run_from_args(args)
     return bench.run_from_args(args)
 
 

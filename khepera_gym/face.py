@@ -88,6 +88,12 @@ class BatchFace:
     # --- the world(s) --------------------------------------------------------------------------
 
     @property
+    def behaviour_version(self) -> int:
+        """The behaviour version this env runs: the ``-vN`` of its id or ``_vN`` of its module
+        (the Version History of its manual says what each changed)."""
+        return self._batch.version
+
+    @property
     def max_episode_steps(self) -> int:
         """Steps after which the Rust core truncates an episode (the scenario's ``max_steps``)."""
         return self._batch.max_episode_steps

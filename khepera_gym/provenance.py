@@ -106,7 +106,9 @@ def command_line(argv: Sequence[str] | None = None) -> str:
     if not argv:
         return ""
     program = [Path(argv[0]).name]
-    if program[0].endswith(".py"):
+    if Path(argv[0]).as_posix().endswith("khepera_gym/cli.py"):
+        program = ["khepera-gym"]  # the package's command line, run from a source tree
+    elif program[0].endswith(".py"):
         program = ["python", argv[0]]
     elif program[0] in {"-c", ""}:
         program = ["python", "-c"]

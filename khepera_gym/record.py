@@ -41,8 +41,9 @@ def record_video(
     center: Sequence[float] | None = None,
     progress: bool = False,
 ) -> tuple[Path, int]:
-    """Records one seeded episode of ``policy`` (a baseline name or ``sb3:model.zip``, as for
-    ``khepera-gym compare``) on ``env_id`` to a GIF or MP4; returns the path and frame count.
+    """Records one seeded episode of ``policy`` (a baseline name, ``sb3:model.zip`` or a function
+    of one's own as ``module:function``, as for ``khepera-gym compare``) on ``env_id`` to a GIF or
+    MP4; returns the path and frame count.
 
     The episode runs until it terminates or truncates, or for ``max_steps`` steps. The output
     (its format, its folder, created if needed), the frame's size and view and the policy are
@@ -50,7 +51,9 @@ def record_video(
 
     Args:
         env_id: A khepera_gym id (without its version: the latest).
-        policy: A baseline's name, "random" or ``sb3:path/to/model.zip``.
+        policy: A baseline's name, "random", ``sb3:path/to/model.zip``, or a function of one's
+            own as ``module:function`` or ``path/to/file.py:function`` that maps observations
+            (N, D) to actions (N, A).
         out: The video file, ``.gif`` or ``.mp4``.
         seed: The episode's seed.
         config: A built-in scenario name or a TOML path.
@@ -115,7 +118,10 @@ def add_arguments(parser: Any) -> None:
         "--env", default=DEFAULT_ENV, help=f"environment id ({DEFAULT_ENV}, the latest version)"
     )
     parser.add_argument(
-        "--policy", default="position_control", help="baseline name or sb3:path/to/model.zip"
+        "--policy",
+        default="position_control",
+        help="baseline name, sb3:path/to/model.zip, or your own function as module:function or "
+        "file.py:function (observations (N, D) to actions (N, 2))",
     )
     parser.add_argument("--algo", default=None, help="SB3 algorithm of an sb3: model")
     parser.add_argument("--config", default=None, help="built-in scenario name or TOML path")

@@ -11,8 +11,12 @@ lists tasks by hand.
 from __future__ import annotations
 
 import difflib
+import functools
+from collections.abc import Callable
+from typing import Any
 
 import gymnasium
+import gymnasium.envs.registration
 
 from khepera_gym import _core
 from khepera_gym.envs import ENV_CLASSES
@@ -42,8 +46,40 @@ def _entry_point(cls: type, package: str) -> str:
     return f"{module}:{cls.__name__}"
 
 
+def _first_versions() -> dict[str, tuple[int, int]]:
+    """Each of our unversioned ids → (its task's first version, the latest)."""
+    firsts = {}
+    for task, ids in registered_ids().items():
+        versions = _core.task_versions(task)
+        firsts[ids[0].rsplit("-v", 1)[0]] = (versions[0], versions[-1])
+    return firsts
+
+
+def _check_our_version_exists(check: Callable[..., Any]) -> Callable[..., Any]:
+    """Gymnasium's check that an id's version exists, which would call a version our task never
+    had (``KheperaIV-Track-v0``) "deprecated", made to say what is true of our ids first."""
+
+    @functools.wraps(check)
+    def wrapper(ns: str | None, name: str, version: int | None) -> Any:
+        first, latest = _first_versions().get(name, (0, 0)) if ns is None else (0, 0)
+        if version is not None and version < first:
+            raise ConfigError(
+                f"{name}-v{version} does not exist: the task was added with behaviour version "
+                f"{first}, so its ids are {name}-v{first} to {name}-v{latest} (the latest, "
+                f"also `{name}`); see `khepera-gym list envs`"
+            )
+        return check(ns, name, version)
+
+    wrapper.__khepera_gym__ = True  # type: ignore[attr-defined]
+    return wrapper
+
+
 def register_envs() -> None:
     """Registers every version of every task's env; a second call registers nothing twice."""
+    check = getattr(gymnasium.envs.registration, "_check_version_exists", None)
+    if check is not None and not getattr(check, "__khepera_gym__", False):
+        # Gymnasium (1.1 to 1.2 at least) calls this module-level function by name.
+        gymnasium.envs.registration._check_version_exists = _check_our_version_exists(check)
     for task, ids in registered_ids().items():
         env_class = ENV_CLASSES[task]
         vector_class = VECTOR_ENV_CLASSES[task]
@@ -107,12 +143,39 @@ def task_of(env_id: str) -> str:
     return next(task for task, ids in registered_ids().items() if resolved in ids)
 
 
+def task_and_version(name: str) -> tuple[str, int]:
+    """The core's task and the behaviour version that ``name`` stands for: a Gymnasium id
+    (``"KheperaIV-Nav-v0"`` → ``("nav", 0)``; without its version, the latest), a PettingZoo
+    module's name (``"multinav_v1"`` → ``("multinav", 1)``) or a task of the core (``"nav"``:
+    its latest version).
+
+    Raises:
+        ConfigError: ``name`` is none of these (the message lists them and the nearest id).
+    """
+    from khepera_gym.pettingzoo import FAMILIES, modules
+
+    tasks = [task for task, _, _ in _core.tasks()]
+    if name in tasks:
+        return name, _core.task_versions(name)[-1]
+    if name in modules():
+        family, _, version = name.rpartition("_v")
+        return FAMILIES[family].TASK, int(version)
+    try:
+        return task_of(name), version_of(name)
+    except ConfigError as error:
+        raise ConfigError(
+            f"{error}; a PettingZoo module ({', '.join(modules())}) or a task "
+            f"({', '.join(tasks)}) is also accepted here"
+        ) from None
+
+
 __all__ = [
     "latest_ids",
     "nearest_id",
     "register_envs",
     "registered_ids",
     "resolve_env_id",
+    "task_and_version",
     "task_of",
     "version_of",
 ]

@@ -1,7 +1,8 @@
 """Native vector environments: N worlds of one task stepped by the Rust core in one call.
 
-``gym.make_vec("KheperaIV-Nav-v1", num_envs=N)`` returns a :class:`NavVectorEnv` (likewise
-:class:`AvoidVectorEnv` and :class:`FormationVectorEnv`) over a ``_core.Batch`` of N worlds: no
+``gym.make_vec("KheperaIV-Nav", num_envs=N)`` returns a :class:`NavVectorEnv` (every task's env
+class ``<Name>Env`` has its ``<Name>VectorEnv``, :data:`VECTOR_ENV_CLASSES`) over a
+``_core.Batch`` of N worlds: no
 Python loop over worlds and no subprocesses. Worlds are stepped in parallel by the batch's own
 rayon pool of ``num_threads`` threads (None = all cores) while the GIL is released; results do not
 depend on the thread count.
@@ -356,21 +357,12 @@ VECTOR_ENV_CLASSES: dict[str, type[KheperaVectorEnv]] = {
     task: vector_env_class(env_class) for task, env_class in ENV_CLASSES.items()
 }
 globals().update({cls.__name__: cls for cls in VECTOR_ENV_CLASSES.values()})
-NavVectorEnv = VECTOR_ENV_CLASSES["nav"]
-AvoidVectorEnv = VECTOR_ENV_CLASSES["avoid"]
-FormationVectorEnv = VECTOR_ENV_CLASSES["formation"]
-TrackVectorEnv = VECTOR_ENV_CLASSES["track"]
-PathFollowVectorEnv = VECTOR_ENV_CLASSES["pathfollow"]
 
 __all__ = [
     "AUTORESET_MODES",
     "VECTOR_ENV_CLASSES",
-    "AvoidVectorEnv",
-    "FormationVectorEnv",
     "KheperaVectorEnv",
-    "NavVectorEnv",
-    "PathFollowVectorEnv",
-    "TrackVectorEnv",
     "resolve_autoreset_mode",
     "vector_env_class",
+    *sorted(cls.__name__ for cls in VECTOR_ENV_CLASSES.values()),
 ]

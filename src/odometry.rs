@@ -28,7 +28,7 @@ crate::config_table! {
     pub struct OdometryConfig {
         /// relative error (standard deviation) of each wheel's believed radius, drawn per episode [E]
         radius_error: f32 = 0.01 => RELATIVE_ERROR,
-        /// relative error (standard deviation) of the believed axle length, drawn per episode [D: the EPFL toolbox's calibrated 104.7 mm against the nominal 105.4 mm, 0.7%, spec §1]
+        /// relative error (standard deviation) of the believed axle length, drawn per episode [D: the EPFL toolbox's calibrated 104.7 mm against the nominal 105.4 mm, 0.7%, robot.md §1]
         axle_error: f32 = 0.007 => RELATIVE_ERROR,
         /// relative noise (standard deviation) of each wheel's travel per step: slip on the floor [E: Enki adds ±5% uniform wheel-speed noise, 2.9% in standard deviation]
         slip_noise: f32 = 0.029 => RELATIVE_ERROR,

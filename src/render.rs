@@ -17,9 +17,9 @@ use tiny_skia::{
 };
 
 use crate::draw::{Mark, PALETTE};
+use crate::geometry::scene::Geometry;
 use crate::sensors::DrawContext;
 use crate::tasks::Env;
-use crate::world::scene::Geometry;
 
 fn paint(rgb: [u8; 3], alpha: u8) -> Paint<'static> {
     let mut p = Paint::default();
@@ -113,7 +113,7 @@ pub fn render_view(env: &Env, width: u32, height: u32, view: View) -> Vec<u8> {
     draw_floor(&mut pixmap, env, transform);
     for shape in &scene.shapes {
         // Grey as always, or the colour the camera sees when the scenario gives one.
-        let colour = if shape.color == crate::world::scene::OBSTACLE_GREY {
+        let colour = if shape.color == crate::geometry::scene::OBSTACLE_GREY {
             [120, 120, 120]
         } else {
             shape.color.map(|c| (c.clamp(0.0, 1.0) * 255.0) as u8)
@@ -303,7 +303,7 @@ fn draw_mark(pixmap: &mut Pixmap, mark: &Mark, transform: Transform) {
 
 fn fill_shape(
     pixmap: &mut Pixmap,
-    shape: &crate::world::SceneShape,
+    shape: &crate::geometry::scene::SceneShape,
     paint: Paint,
     transform: Transform,
 ) {

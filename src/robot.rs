@@ -22,7 +22,7 @@ pub const MIN_WHEEL_SPEED: f32 = 0.003;
 pub const PULSES_PER_WHEEL_TURN: f64 = 19456.0;
 
 crate::config_table! {
-    /// `[robot]`: the Khepera IV's body and drive (spec §1). Entries typed [`Param`] may be
+    /// `[robot]`: the Khepera IV's body and drive (robot.md §1). Entries typed [`Param`] may be
     /// `[low, high]` ranges, drawn at every reset (domain randomisation).
     pub struct RobotConfig {
         /// body radius (m): 140.8 mm diameter (K-Team manual fig. 8.1)
@@ -45,7 +45,7 @@ crate::config_table! {
         tyre_friction: Param = 1.0 => Domain::NON_NEGATIVE.at_most(limits::FRICTION),
         /// infrared reflectance of the shell relative to white paper (1 = K-Team's curve) [E]
         shell_reflectance: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::REFLECTANCE),
-        /// RGB in [0, 1] the camera sees of a robot: its top LEDs (3 RGB LEDs, 6 bits a colour, spec §6) [E: green]
+        /// RGB in [0, 1] the camera sees of a robot: its top LEDs (3 RGB LEDs, 6 bits a colour, robot.md §6) [E: green]
         led_color: [f32; 3] = [0.0, 0.8, 0.0] => Domain::UNIT,
     }
 }

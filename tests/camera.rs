@@ -14,7 +14,7 @@ use _core::scenario::Source;
 use _core::sensors::camera::CAMERA_AHEAD;
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
-use _core::world::SceneShape;
+use _core::geometry::scene::{Scene, SceneShape};
 use rapier2d::math::Vector;
 
 const FOV: f32 = 2.287;
@@ -62,8 +62,8 @@ fn pixels_on_disc(centre: Vector, radius: f32) -> Vec<usize> {
         .collect()
 }
 
-fn scene_with(shapes: Vec<SceneShape>) -> _core::world::Scene {
-    let mut scene = _core::world::Scene::arena(4.0, 4.0, 0.05);
+fn scene_with(shapes: Vec<SceneShape>) -> Scene {
+    let mut scene = Scene::arena(4.0, 4.0, 0.05);
     scene.shapes = shapes;
     scene
 }

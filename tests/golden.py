@@ -19,9 +19,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import importlib
 import json
-import pkgutil
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -32,6 +30,7 @@ import numpy as np
 
 import khepera_gym
 import khepera_gym.pettingzoo
+from khepera_gym.config import tomllib
 from khepera_gym.registration import registered_ids
 
 #: Where the digests are kept.
@@ -126,17 +125,6 @@ def parallel_env_digest(make: Callable[..., Any], **kwargs: Any) -> str:
     return digest.hexdigest()
 
 
-def pettingzoo_modules() -> dict[str, Any]:
-    """Every versioned PettingZoo module (``formation_v1``...), found by listing the package."""
-    found = {}
-    for info in pkgutil.iter_modules(khepera_gym.pettingzoo.__path__):
-        name = info.name
-        stem, _, version = name.rpartition("_v")
-        if stem and version.isdigit():
-            found[name] = importlib.import_module(f"khepera_gym.pettingzoo.{name}")
-    return found
-
-
 def swarm_digest(module: Any, split: str) -> str:
     """A 1,000-robot swarm scene (``config="swarm"``) on two threads through the array env,
     40 steps, split by world or by robot."""
@@ -159,10 +147,14 @@ def cases() -> Iterator[tuple[str, Callable[[], str]]]:
         for env_id in ids:
             yield f"single:{env_id}", lambda env_id=env_id: single_env_digest(env_id)
             yield f"vector:{env_id}", lambda env_id=env_id: vector_env_digest(env_id)
-    for name, module in pettingzoo_modules().items():
+    for name, module in khepera_gym.pettingzoo.modules().items():
         yield f"parallel:{name}", lambda m=module: parallel_env_digest(m.parallel_env)
         if name.startswith("multinav_") and hasattr(module, "array_env"):
-            for split in ("world", "robot"):
+            version = int(name.rpartition("_v")[2])
+            defaults = tomllib.loads(khepera_gym.default_config("multinav", version))
+            # A world split by robot needs the tyre drive (v0's kinematic drive refuses it).
+            traction = defaults["physics"]["drive"] == "traction"
+            for split in ("world", "robot") if traction else ("world",):
                 yield (
                     f"swarm:{name}:{split}",
                     lambda m=module, s=split: swarm_digest(m, s),

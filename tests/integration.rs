@@ -28,6 +28,7 @@ test_modules!(
     fuzz,
     ground,
     imu,
+    layers,
     pathfollow,
     physics,
     platoon,

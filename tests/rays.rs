@@ -3,8 +3,7 @@
 //! finds, down to which of two robots met at exactly the same distance is hit (the one of
 //! larger index: the later in robot order).
 
-use _core::world::scene::{Hit, Target};
-use _core::world::Scene;
+use _core::geometry::scene::{Hit, Scene, SceneShape, Target};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rapier2d::math::Vector;
@@ -76,7 +75,7 @@ fn any_order_with_indices_gives_the_hit_of_robot_order() {
     let mut scene = Scene::arena(6.0, 6.0, 0.05);
     scene
         .shapes
-        .push(_core::world::SceneShape::circle(Vector::new(0.5, 0.5), 0.2));
+        .push(SceneShape::circle(Vector::new(0.5, 0.5), 0.2));
     let (mut ties, mut hits) = (0, 0);
     for case in 0..20_000 {
         // Rays along an axis through a point on it, from the rim-sized neighbourhood of the

@@ -11,7 +11,7 @@ use _core::scenario::Source;
 use _core::sensors::{IR_BEARINGS, US_BEARINGS, US_DISABLED, US_NOTHING, US_TOO_CLOSE};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
-use _core::world::SceneShape;
+use _core::geometry::scene::{Scene, SceneShape};
 use rapier2d::math::Vector;
 
 fn env_with(overrides: &str) -> Env {
@@ -33,7 +33,7 @@ fn sense_wall(env: &mut Env, bearing: f32, gap: f32) {
     let radius = env.world.drive.radius;
     let dir = Vector::new(bearing.cos(), bearing.sin());
     let centre = dir * (radius + gap + 0.05);
-    let mut scene = _core::world::Scene::arena(5.0, 5.0, 0.05);
+    let mut scene = Scene::arena(5.0, 5.0, 0.05);
     scene
         .shapes
         .push(SceneShape::rect(centre, Vector::new(0.05, 0.3), bearing));
@@ -110,7 +110,7 @@ fn test_ultrasonic_centimetres_and_codes() {
     // 5 m arena to have nothing in range.
     let mut big = env_with("us_noise_sigma = 0.0\nwidth = 5.0\nheight = 5.0");
     big.world
-        .set_scene(_core::world::Scene::arena(5.0, 5.0, 0.05));
+        .set_scene(Scene::arena(5.0, 5.0, 0.05));
     big.world.place_robot(0, Vector::ZERO, 0.0);
     big.world.sense(true);
     assert_eq!(big.world.robots[0].readings.us.code, [US_NOTHING; 5]);

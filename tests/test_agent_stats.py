@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from conftest import ALL_IDS, PETTINGZOO_MODULES, latest_module, random_actions
 
+from khepera_gym import _core
 from khepera_gym.envs import formation_follower_heuristic, nav_heuristic
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.face import WORLD_STATS_KEY
@@ -197,7 +198,11 @@ def test_array_env_reports_each_agents_own_statistics(task: str, version: int | 
 # --- the adapters ------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("task", ["multinav", "platoon", "consensus", "formation"])
+#: The tasks with several agents in their default scenario, from the registry.
+MULTI_AGENT_TASKS = [t for t, _, _ in _core.tasks() if len(_core.Batch(t, 1).agents()) > 1]
+
+
+@pytest.mark.parametrize("task", MULTI_AGENT_TASKS)
 def test_sb3_shared_agent_rows_report_their_agents_own_statistics(task: str) -> None:
     pytest.importorskip("stable_baselines3")
     from khepera_gym.sb3 import SharedAgentsVecEnv

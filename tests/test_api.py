@@ -8,7 +8,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import ALL_IDS, NAV_ID, random_actions
+from conftest import ALL_IDS, LATEST, random_actions
 from gymnasium.utils.env_checker import check_env
 
 import khepera_gym
@@ -36,7 +36,7 @@ def test_package_exports_version_errors_and_obs_layout() -> None:
 
 
 def test_nav_is_registered_with_entry_point_and_vector_entry_point() -> None:
-    spec = gym.spec(NAV_ID)
+    spec = gym.spec(LATEST["nav"])
     assert spec.entry_point == "khepera_gym.envs:NavEnv"
     assert spec.vector_entry_point is not None
     assert spec.max_episode_steps is None  # the Rust core truncates by itself
@@ -48,7 +48,7 @@ def test_reimporting_the_package_registers_nothing_twice() -> None:
         warnings.simplefilter("error")
         importlib.reload(khepera_gym)
     assert gym.registry.keys() == before.keys()
-    assert gym.spec(NAV_ID) == before[NAV_ID]
+    assert gym.spec(LATEST["nav"]) == before[LATEST["nav"]]
 
 
 def test_make_versioned_id_gives_nav_env(nav_env: gym.Env) -> None:
@@ -59,9 +59,9 @@ def test_make_versioned_id_gives_nav_env(nav_env: gym.Env) -> None:
 
 
 def test_make_unversioned_id_resolves_to_latest_version() -> None:
-    with pytest.warns(UserWarning, match=f"latest versioned environment `{NAV_ID}`"):
+    with pytest.warns(UserWarning, match=f"latest versioned environment `{LATEST['nav']}`"):
         env = gym.make("KheperaIV-Nav")
-    assert env.spec is not None and env.spec.id == NAV_ID
+    assert env.spec is not None and env.spec.id == LATEST["nav"]
     assert isinstance(env.unwrapped, NavEnv)
     env.close()
 
@@ -143,7 +143,7 @@ def test_step_returns_python_scalars_and_fresh_observations(nav_env: gym.Env) ->
 
 @pytest.mark.parametrize("env_id", ALL_IDS)
 def test_gymnasium_env_checker_passes_without_warnings(env_id: str) -> None:
-    if env_id == NAV_ID:  # the unversioned id warns that it takes the latest version
+    if env_id == LATEST["nav"]:  # the unversioned id warns that it takes the latest version
         with pytest.warns(UserWarning, match="latest versioned"):
             env = gym.make(env_id.rpartition("-v")[0])
     else:
@@ -155,7 +155,7 @@ def test_gymnasium_env_checker_passes_without_warnings(env_id: str) -> None:
 
 
 def test_make_vec_gives_native_rust_vector_env() -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=3)
+    envs = gym.make_vec(LATEST["nav"], num_envs=3)
     assert isinstance(envs, KheperaVectorEnv)
     assert not isinstance(envs, gym.vector.SyncVectorEnv)
     assert envs.num_envs == 3
@@ -180,7 +180,7 @@ def test_make_vec_with_unversioned_id_and_thread_count() -> None:
 
 
 def test_vector_env_step_shapes_dtypes_and_fresh_arrays() -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=4, num_threads=2)
+    envs = gym.make_vec(LATEST["nav"], num_envs=4, num_threads=2)
     first, _ = envs.reset(seed=7)
     actions = random_actions(7, 1, (4, 2))[0]
     observations, rewards, terminations, truncations, infos = envs.step(actions)
@@ -205,7 +205,7 @@ def test_poses_and_goals_shapes_single_and_vector(nav_env: gym.Env) -> None:
     assert -np.pi < poses[0, 2] <= np.pi
     assert np.all(np.abs(poses[:, :2]) < 1.0) and np.all(np.abs(goals) < 1.0)
 
-    envs = gym.make_vec(NAV_ID, num_envs=5)
+    envs = gym.make_vec(LATEST["nav"], num_envs=5)
     envs.reset(seed=0)
     assert envs.poses().shape == (5, 1, 3)
     assert envs.goals().shape == (5, 1, 2)
@@ -234,28 +234,28 @@ def test_scene_and_resolved_config_describe_the_arena(nav_env: gym.Env) -> None:
 
 
 def test_keyword_overrides_reach_the_simulator() -> None:
-    env = gym.make(NAV_ID, max_steps=25, task={"goal_radius": 0.1})
+    env = gym.make(LATEST["nav"], max_steps=25, task={"goal_radius": 0.1})
     assert env.unwrapped.max_episode_steps == 25
     assert env.unwrapped.scene()["goal_radius"] == pytest.approx(0.1)
     env.close()
 
 
 def test_config_by_builtin_name_and_by_file(tmp_path) -> None:
-    by_name = gym.make(NAV_ID, config="nav")
+    by_name = gym.make(LATEST["nav"], config="nav")
     assert by_name.unwrapped.max_episode_steps == 400
     by_name.close()
 
     scenario = tmp_path / "short.toml"
     scenario.write_text("[task]\nmax_steps = 33\n")
     for config in (scenario, str(scenario)):
-        env = gym.make(NAV_ID, config=config)
+        env = gym.make(LATEST["nav"], config=config)
         assert env.unwrapped.max_episode_steps == 33
         assert "max_steps = 33" in env.unwrapped.config_toml()
         env.close()
 
 
 def test_time_limit_wrapper_still_applies_when_asked() -> None:
-    env = gym.make(NAV_ID, max_episode_steps=5)
+    env = gym.make(LATEST["nav"], max_episode_steps=5)
     env.reset(seed=0)
     for step in range(1, 6):
         _, _, terminated, truncated, _ = env.step(np.zeros(2, np.float32))
@@ -271,7 +271,9 @@ def test_unknown_render_mode_is_a_config_error() -> None:
 
 
 def test_unicycle_action_type_drives_forward_along_heading() -> None:
-    env = gym.make(NAV_ID, action_type="unicycle", version=0)  # wheels at the command at once
+    env = gym.make(
+        LATEST["nav"], action_type="unicycle", version=0
+    )  # wheels at the command at once
     env.reset(seed=2)
     start = env.unwrapped.poses()[0].copy()
     for _ in range(5):
@@ -287,7 +289,7 @@ def test_unicycle_action_type_drives_forward_along_heading() -> None:
 def test_close_is_idempotent(nav_env: gym.Env) -> None:
     nav_env.close()
     nav_env.close()
-    envs = gym.make_vec(NAV_ID, num_envs=2)
+    envs = gym.make_vec(LATEST["nav"], num_envs=2)
     envs.close()
     envs.close()
 
@@ -297,13 +299,13 @@ def test_gymnasium_episode_statistics_wrappers_work_on_top():
     from gymnasium.wrappers import RecordEpisodeStatistics
     from gymnasium.wrappers.vector import RecordEpisodeStatistics as VectorRecordEpisodeStatistics
 
-    envs = VectorRecordEpisodeStatistics(gym.make_vec(NAV_ID, num_envs=3, max_steps=5))
+    envs = VectorRecordEpisodeStatistics(gym.make_vec(LATEST["nav"], num_envs=3, max_steps=5))
     envs.reset(seed=0)
     for _ in range(5):
         _, _, _, truncations, infos = envs.step(np.zeros((3, 2), np.float32))
     assert truncations.all()
     assert (infos["episode"]["l"] == 5).all() and (infos["episode_stats"]["length"] == 5).all()
-    env = RecordEpisodeStatistics(gym.make(NAV_ID, max_steps=5))
+    env = RecordEpisodeStatistics(gym.make(LATEST["nav"], max_steps=5))
     env.reset(seed=0)
     for _ in range(5):
         _, _, _, truncated, info = env.step(np.zeros(2, np.float32))
@@ -346,20 +348,20 @@ def test_a_mistyped_keyword_is_a_config_error_naming_the_nearest_key(
     keywords: dict, suggestion: str
 ) -> None:
     with pytest.raises(ConfigError, match="unknown key") as caught:
-        gym.make(NAV_ID, **keywords)
+        gym.make(LATEST["nav"], **keywords)
     assert suggestion in str(caught.value)
 
 
 def test_a_keyword_far_from_every_key_gets_no_suggestion() -> None:
     with pytest.raises(ConfigError, match="unknown key") as caught:
-        gym.make(NAV_ID, zzzzzzzz=1)
+        gym.make(LATEST["nav"], zzzzzzzz=1)
     assert "did you mean" not in str(caught.value)
 
 
 @pytest.mark.parametrize("seed", [-1, 2**64, 1.5, np.int64(3), "7"])
 def test_a_bad_seed_raises_our_config_error_in_the_single_and_vector_env(seed: object) -> None:
     with pytest.raises(ConfigError, match="seed"):
-        gym.make(NAV_ID).reset(seed=seed)
+        gym.make(LATEST["nav"]).reset(seed=seed)
     if not isinstance(seed, np.integer):  # a vector env takes NumPy ints, as Gymnasium's does
         with pytest.raises(ConfigError, match="seed"):
-            gym.make_vec(NAV_ID, num_envs=2).reset(seed=seed)
+            gym.make_vec(LATEST["nav"], num_envs=2).reset(seed=seed)

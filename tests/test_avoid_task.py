@@ -7,7 +7,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, AVOID_V0_ID, NAV_ID
+from conftest import AVOID_V0_ID, LATEST
 from gymnasium.utils.env_checker import check_env
 
 import khepera_gym
@@ -36,18 +36,18 @@ def _distance_to_obstacle(point: np.ndarray, obstacle: dict) -> float:
 
 
 def test_avoid_is_registered_with_entry_point_and_vector_entry_point() -> None:
-    spec = gym.spec(AVOID_ID)
+    spec = gym.spec(LATEST["avoid"])
     assert spec.entry_point == "khepera_gym.envs:AvoidEnv"
     assert spec.vector_entry_point == "khepera_gym.vector:AvoidVectorEnv"
     assert spec.max_episode_steps is None
-    env = gym.make(AVOID_ID)
+    env = gym.make(LATEST["avoid"])
     assert isinstance(env.unwrapped, AvoidEnv)
     assert env.unwrapped.max_episode_steps == 600
     env.close()
 
 
 def test_avoid_passes_the_gymnasium_env_checker_without_warnings() -> None:
-    env = gym.make(AVOID_ID)
+    env = gym.make(LATEST["avoid"])
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped)
@@ -55,8 +55,8 @@ def test_avoid_passes_the_gymnasium_env_checker_without_warnings() -> None:
 
 
 def test_avoid_spaces_and_layout_are_navs() -> None:
-    env = gym.make(AVOID_ID)
-    nav = gym.make(NAV_ID)
+    env = gym.make(LATEST["avoid"])
+    nav = gym.make(LATEST["nav"])
     assert env.action_space == gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
     assert env.observation_space.shape == (18,)
     assert khepera_gym.obs_layout("avoid") == khepera_gym.obs_layout("nav")
@@ -68,7 +68,7 @@ def test_avoid_spaces_and_layout_are_navs() -> None:
 
 
 def test_make_vec_avoid_gives_native_rust_vector_env() -> None:
-    envs = gym.make_vec(AVOID_ID, num_envs=3, num_threads=1)
+    envs = gym.make_vec(LATEST["avoid"], num_envs=3, num_threads=1)
     assert isinstance(envs, AvoidVectorEnv)
     assert not isinstance(envs, gym.vector.SyncVectorEnv)
     assert envs.single_action_space.shape == (2,)
@@ -85,7 +85,7 @@ def test_avoid_vector_env_refuses_another_task() -> None:
 
 
 def test_random_obstacles_change_between_episodes_and_repeat_with_the_seed() -> None:
-    env = gym.make(AVOID_ID)
+    env = gym.make(LATEST["avoid"])
     layouts = []
     for seed in (3, None, 3, 4):
         env.reset(seed=seed)
@@ -101,7 +101,7 @@ def test_random_obstacles_change_between_episodes_and_repeat_with_the_seed() -> 
 
 
 def test_random_obstacles_have_all_kinds_over_a_few_episodes() -> None:
-    env = gym.make(AVOID_ID)
+    env = gym.make(LATEST["avoid"])
     kinds = set()
     for seed in range(5):
         env.reset(seed=seed)
@@ -111,7 +111,7 @@ def test_random_obstacles_have_all_kinds_over_a_few_episodes() -> None:
 
 
 def test_no_obstacle_overlaps_the_start_or_the_goal() -> None:
-    env = gym.make(AVOID_ID)
+    env = gym.make(LATEST["avoid"])
     clearance = ROBOT_RADIUS + SPAWN_CLEARANCE - 1e-4
     for seed in range(30):
         env.reset(seed=seed)
@@ -125,7 +125,7 @@ def test_no_obstacle_overlaps_the_start_or_the_goal() -> None:
 
 
 def test_robot_never_passes_through_obstacles_under_random_actions() -> None:
-    env = gym.make(AVOID_ID, max_steps=200)
+    env = gym.make(LATEST["avoid"], max_steps=200)
     rng = np.random.default_rng(0)
     for seed in range(3):
         env.reset(seed=seed)
@@ -174,7 +174,7 @@ def test_avoid_heuristic_matches_nav_heuristic_with_nothing_in_sight() -> None:
 
 
 def test_avoid_episode_end_info_has_episode_stats() -> None:
-    env = gym.make(AVOID_ID, max_steps=5)
+    env = gym.make(LATEST["avoid"], max_steps=5)
     env.reset(seed=0)
     for _ in range(5):
         *_, truncated, info = env.step(np.zeros(2, np.float32))

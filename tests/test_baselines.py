@@ -8,7 +8,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, AVOID_V0_ID, FORMATION_ID, FORMATION_V0_ID, NAV_V0_ID
+from conftest import AVOID_V0_ID, FORMATION_V0_ID, LATEST, NAV_V0_ID
 
 from khepera_gym import _core
 from khepera_gym.baselines import (
@@ -68,7 +68,7 @@ def test_braitenberg_and_vfh_reach_the_target_past_the_fig6_wall(policy: Baselin
 
 
 def test_position_control_alone_is_stopped_by_the_fig6_wall() -> None:
-    rollout = record_rollout(AVOID_ID, PositionControl(), seed=0, config="paper_fig6")
+    rollout = record_rollout(LATEST["avoid"], PositionControl(), seed=0, config="paper_fig6")
     assert not rollout.stats["success"]
     assert rollout.stats["collisions"] > 100  # pressed against the wall
     assert rollout.poses[-1, 0, 0] < -0.15  # never past the wall (x = -0.15)
@@ -92,7 +92,7 @@ def test_leader_follower_offsets_are_the_scenarios_eq12_offsets(
     shape: str, n_followers: int
 ) -> None:
     """Followers computing eq. 12 from (r, β) aim where the env's own targets are."""
-    env = gym.make(FORMATION_ID, shape=shape, n_followers=n_followers, spacing=0.4)
+    env = gym.make(LATEST["formation"], shape=shape, n_followers=n_followers, spacing=0.4)
     observation, _ = env.reset(seed=5)
     for _ in range(20):  # the leader moves and turns
         observation, *_ = env.step(np.full(2 * n_followers, 0.2, np.float32))
@@ -132,7 +132,7 @@ def test_formation_offsets_follow_the_shapes() -> None:
 
 def _avoid_observations(n: int = 16) -> np.ndarray:
     """Observations with obstacles in sight: a few steps into seeded Avoid episodes."""
-    envs = gym.make_vec(AVOID_ID, num_envs=n, num_threads=1)
+    envs = gym.make_vec(LATEST["avoid"], num_envs=n, num_threads=1)
     observations, _ = envs.reset(seed=4)
     policy = Braitenberg()
     for _ in range(30):
@@ -186,7 +186,7 @@ def test_leader_follower_acts_on_joint_observations_single_blocks_and_dicts() ->
 
 
 def test_leader_follower_drives_an_agent_leader_with_its_leader_policy() -> None:
-    env = gym.make(FORMATION_ID, leader="agent")
+    env = gym.make(LATEST["formation"], leader="agent")
     observation, _ = env.reset(seed=3)
     for leader in (PositionControl(), Braitenberg(), VFH()):
         action = LeaderFollower(leader=leader)(observation)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 from unittest import mock
 
+import numpy as np
 import pytest
 
 from khepera_gym import cli, record
@@ -82,6 +83,48 @@ def test_render_creates_the_output_folder_and_shows_progress(
     captured = capsys.readouterr()
     assert "wrote 4 frames" in captured.out
     assert "render KheperaIV-Nav" in captured.err and "step" in captured.err  # tqdm's bar
+
+
+#: A user's controller in a file of their own: drive straight at half speed.
+USER_CONTROLLER = """
+import numpy as np
+
+def straight(observations):
+    return np.full((len(observations), 2), 0.5, dtype=np.float32)
+
+def wrong_shape(observations):
+    return np.zeros(3)
+"""
+
+
+def test_render_records_a_users_own_function(tmp_path: Path) -> None:
+    """``--policy file.py:function`` drives the robot with the user's function: driving
+    straight, the robot's heading does not change and it moves forward."""
+    import gymnasium as gym
+
+    import khepera_gym
+    from khepera_gym.compare import make_policy
+    from khepera_gym.registration import latest_ids
+
+    controller = tmp_path / "mine.py"
+    controller.write_text(USER_CONTROLLER)
+    out = tmp_path / "mine.gif"
+    argv = ["render", "--steps", "5", "--no-progress", "--out", str(out)]
+    assert cli.main([*argv, "--policy", f"{controller}:straight"]) == 0
+    assert out.is_file() and out.stat().st_size > 0
+    envs = gym.make_vec(latest_ids()["nav"], num_envs=2, num_threads=1)
+    act = make_policy(f"{controller}:straight", envs)
+    observations, _ = envs.reset(seed=0)
+    np.testing.assert_array_equal(act(observations), np.full((2, 2), 0.5, np.float32))
+    with pytest.raises(khepera_gym.errors.ConfigError, match=r"returned actions of shape \(3,\)"):
+        make_policy(f"{controller}:wrong_shape", envs)(observations)
+    envs.close()
+    for spec, message in [
+        (f"{controller}:nothing", "has no 'nothing'"),
+        (f"{tmp_path / 'none.py'}:f", "no file"),
+        ("no_such_module_here:f", "cannot import 'no_such_module_here'"),
+    ]:
+        assert message in _user_error(["render", "--no-progress", "--policy", spec])
 
 
 def test_render_zooms_and_sizes_the_frames(tmp_path: Path) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, DRONE_ID, FORMATION_ID, LINEFOLLOW_ID, NAV_ID, TRACK_ID
+from conftest import LATEST
 
 from khepera_gym import cli, compare
 from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
@@ -61,7 +61,12 @@ def test_bootstrap_interval_is_seeded_and_close_to_the_t_interval() -> None:
 
 def test_compare_runs_every_policy_on_the_same_seeded_episodes() -> None:
     result = compare.compare(
-        AVOID_ID, ["braitenberg", "random"], episodes=6, seed=40, record_worlds=2, progress=False
+        LATEST["avoid"],
+        ["braitenberg", "random"],
+        episodes=6,
+        seed=40,
+        record_worlds=2,
+        progress=False,
     )
     assert [s.policy for s in result.summaries] == ["braitenberg", "random"]
     for name, episodes in result.results.items():
@@ -74,7 +79,7 @@ def test_compare_runs_every_policy_on_the_same_seeded_episodes() -> None:
         np.testing.assert_array_equal(mine.goals, theirs.goals)
         assert mine.scene == theirs.scene
     # World i of the batch is the single env reset with seed + i, step for step.
-    single = record_rollout(AVOID_ID, Braitenberg(), seed=41)
+    single = record_rollout(LATEST["avoid"], Braitenberg(), seed=41)
     np.testing.assert_array_equal(braitenberg[1].poses, single.poses)
     assert braitenberg[1].stats == single.stats
     # Time to goal is the episode length times dt, for successes only.
@@ -84,9 +89,9 @@ def test_compare_runs_every_policy_on_the_same_seeded_episodes() -> None:
         else:
             assert episode.time_to_goal is None
     assert (
-        compare.compare(AVOID_ID, ["braitenberg"], episodes=6, seed=40, progress=False).results[
-            "braitenberg"
-        ]
+        compare.compare(
+            LATEST["avoid"], ["braitenberg"], episodes=6, seed=40, progress=False
+        ).results["braitenberg"]
         == result.results["braitenberg"]
     )
 
@@ -151,6 +156,7 @@ def test_an_older_version_compares_its_tasks_default_policies(
     ("argv", "message"),
     [
         (["--task", "avoid", "--policy", "bogus"], "unknown policy 'bogus'; known: position_cont"),
+        (["--task", "avoid", "--policy", "braitenbreg"], "did you mean 'braitenberg'"),
         (["--task", "formation", "--policy", "vfh"], "'vfh' does not act on 'formation'"),
         (["--task", "nav", "--policy", "leader_follower"], "'leader_follower' does not act on"),
         (["--env", "KheperaIV-Fly"], "'KheperaIV-Fly' is not registered"),
@@ -184,11 +190,11 @@ def test_sb3_policy_without_stable_baselines3_names_the_extra(
 
 def test_record_rollout_and_plot_rollouts_side_by_side(tmp_path: Path) -> None:
     formation = record_rollout(
-        FORMATION_ID, LeaderFollower(), seed=0, config="paper_fig7", max_steps=50, label="lf"
+        LATEST["formation"], LeaderFollower(), seed=0, config="paper_fig7", max_steps=50, label="lf"
     )
     assert formation.poses.shape == (51, 5, 3) and formation.targets.shape == (51, 4, 2)
     assert formation.stats["length"] == 50 and not formation.stats["success"]  # truncated
-    nav = record_rollout(NAV_ID, Braitenberg(), seed=3, label="braitenberg")
+    nav = record_rollout(LATEST["nav"], Braitenberg(), seed=3, label="braitenberg")
     assert nav.poses.shape[1:] == (1, 3) and nav.stats["success"]
     assert nav.duration == pytest.approx(nav.stats["length"] * 0.05)
     figure = plot_rollouts([nav, formation], titles=["Nav", "Formation"])
@@ -238,7 +244,7 @@ def test_sb3_models_are_loaded_by_algorithm_and_act_on_the_episodes(
     model = tmp_path / "model.zip"
     model.write_bytes(b"")
     result = compare.compare(
-        NAV_ID, ["position_control", f"sb3:{model}"], episodes=4, progress=False, algo=algo
+        LATEST["nav"], ["position_control", f"sb3:{model}"], episodes=4, progress=False, algo=algo
     )
     # The stand-in model is position control: the same episodes give the same results.
     sb3_results = result.results[f"sb3:{model}"]
@@ -261,7 +267,7 @@ def test_sb3_follower_model_drives_every_follower_of_a_formation(
     monkeypatch.setitem(sys.modules, "khepera_gym.sb3", None)
     model = tmp_path / "followers.zip"
     model.write_bytes(b"")
-    result = compare.compare(FORMATION_ID, [f"sb3:{model}"], episodes=3, progress=False)
+    result = compare.compare(LATEST["formation"], [f"sb3:{model}"], episodes=3, progress=False)
     assert result.summaries[0].formation_error_mean.value < 0.1
 
 
@@ -313,7 +319,7 @@ def test_compare_track_tables_the_tracking_error_of_its_three_policies(
 
 def test_kanayama_tracks_the_circle_far_below_random() -> None:
     result = compare.compare(
-        TRACK_ID,
+        LATEST["track"],
         ["kanayama", "random"],
         episodes=12,
         record_worlds=1,
@@ -347,7 +353,9 @@ def test_kanayama_tracks_the_circle_far_below_random() -> None:
 
 
 def test_a_policy_that_never_converges_reports_zero_converged_and_no_nan() -> None:
-    result = compare.compare(TRACK_ID, ["random"], episodes=5, record_worlds=0, progress=False)
+    result = compare.compare(
+        LATEST["track"], ["random"], episodes=5, record_worlds=0, progress=False
+    )
     summary = result.summaries[0]
     assert summary.errors["converged"].value == 0.0
     assert summary.errors["converge_time"].value == math.inf
@@ -368,13 +376,13 @@ def test_set_chooses_the_reference_and_names_the_files(
         compare.parse_overrides(["speed=0.1", "speed=0.2"])
     argv = ["compare", "--task", "track", "--set", "reference=square", "--episodes", "2"]
     assert cli.main([*argv, "--no-progress", "--out", str(tmp_path)]) == 0
-    assert f'{TRACK_ID}, reference="square": 2 episodes' in capsys.readouterr().out
+    assert f'{LATEST["track"]}, reference="square": 2 episodes' in capsys.readouterr().out
     document = json.loads((tmp_path / "track_reference-square_results.json").read_text())
     assert document["overrides"] == {"reference": "square"}
     assert (tmp_path / "track_reference-square_references.png").is_file()
     # The reference ran on the square of half-side 0.6 m: the larger coordinate is 0.6 m.
     result = compare.compare(
-        TRACK_ID, ["kanayama"], episodes=1, progress=False, overrides={"reference": "square"}
+        LATEST["track"], ["kanayama"], episodes=1, progress=False, overrides={"reference": "square"}
     )
     corners = np.abs(result.rollouts["kanayama"][0].goal_trace[:, 0]).max(axis=1)
     np.testing.assert_allclose(corners, 0.6, atol=1e-3)
@@ -382,9 +390,9 @@ def test_set_chooses_the_reference_and_names_the_files(
 
 def test_a_policy_that_cannot_read_track_observations_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="'position_control' does not act on 'track'"):
-        compare.compare(TRACK_ID, ["position_control"], episodes=1, progress=False)
+        compare.compare(LATEST["track"], ["position_control"], episodes=1, progress=False)
     with pytest.raises(ConfigError, match="unknown policy"):
-        compare.compare(TRACK_ID, ["kanayma"], episodes=1, progress=False)
+        compare.compare(LATEST["track"], ["kanayma"], episodes=1, progress=False)
 
 
 def test_a_task_scored_by_laps_and_cross_track_error_needs_one_metrics_entry(
@@ -448,7 +456,11 @@ def test_a_tasks_own_statistics_are_columns_of_its_table() -> None:
     # DroneFollow: the PD pursuit keeps the robot in view (its footprint is 0.29 m wide at
     # 0.5 m, the PD's lag in the robot's turns is a/k_p = 4 cm); random does not.
     result = compare.compare(
-        DRONE_ID, ["drone_pursuit", "random"], episodes=4, record_worlds=0, progress=False
+        LATEST["dronefollow"],
+        ["drone_pursuit", "random"],
+        episodes=4,
+        record_worlds=0,
+        progress=False,
     )
     pursuit, random = (s.errors for s in result.summaries)
     assert pursuit["in_view_share"].value == 1.0 and random["in_view_share"].value < 1.0
@@ -460,7 +472,7 @@ def test_a_tasks_own_statistics_are_columns_of_its_table() -> None:
     assert "in view %" in table and "horizontal RMS cm" in table
     # LineFollow: the demo's follower stays over its line on the circle.
     lines = compare.compare(
-        LINEFOLLOW_ID, ["line_threshold"], episodes=2, record_worlds=0, progress=False
+        LATEST["linefollow"], ["line_threshold"], episodes=2, record_worlds=0, progress=False
     )
     (summary,) = lines.summaries
     assert summary.errors["on_line_share"].value == 1.0

@@ -9,7 +9,7 @@ import threading
 
 import gymnasium as gym
 import numpy as np
-from conftest import AVOID_ID, NAV_ID, random_actions
+from conftest import LATEST, random_actions
 
 from khepera_gym import _core
 
@@ -44,7 +44,7 @@ def test_two_batches_stepped_from_two_threads_match_sequential_runs() -> None:
 
 
 def _child_rollout(queue: multiprocessing.Queue) -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=32, num_threads=2)
+    envs = gym.make_vec(LATEST["nav"], num_envs=32, num_threads=2)
     obs, _ = envs.reset(seed=5)
     for action in random_actions(0, 20, (32, 2)):
         obs, *_ = envs.step(action)
@@ -52,7 +52,7 @@ def _child_rollout(queue: multiprocessing.Queue) -> None:
 
 
 def test_envs_work_in_a_forked_child_after_the_parents_pool_ran() -> None:
-    parent = gym.make_vec(NAV_ID, num_envs=32, num_threads=2)  # starts a rayon pool here
+    parent = gym.make_vec(LATEST["nav"], num_envs=32, num_threads=2)  # starts a rayon pool here
     obs, _ = parent.reset(seed=5)
     for action in random_actions(0, 20, (32, 2)):
         obs, *_ = parent.step(action)
@@ -67,8 +67,10 @@ def test_envs_work_in_a_forked_child_after_the_parents_pool_ran() -> None:
 
 
 def test_async_vector_env_of_our_single_envs_matches_the_native_batch() -> None:
-    envs = gym.vector.AsyncVectorEnv([lambda: gym.make(AVOID_ID) for _ in range(2)], context="fork")
-    native = gym.make_vec(AVOID_ID, num_envs=2, num_threads=1)
+    envs = gym.vector.AsyncVectorEnv(
+        [lambda: gym.make(LATEST["avoid"]) for _ in range(2)], context="fork"
+    )
+    native = gym.make_vec(LATEST["avoid"], num_envs=2, num_threads=1)
     a, _ = envs.reset(seed=9)
     b, _ = native.reset(seed=9)
     np.testing.assert_array_equal(a, b)

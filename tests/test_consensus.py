@@ -20,7 +20,7 @@ from khepera_gym import cli
 from khepera_gym.baselines import ConsensusLaw
 from khepera_gym.compare import consensus as sweep
 from khepera_gym.errors import ActionError, ConfigError
-from khepera_gym.pettingzoo import consensus_v1
+from khepera_gym.pettingzoo import consensus, consensus_v1
 from khepera_gym.pettingzoo.arrays import MultiAgentArrayEnv
 
 #: The default tolerance (m): converged below it.
@@ -153,7 +153,8 @@ def test_compare_task_consensus_rejects_policies_and_trigger_keys(
 
 
 def test_the_manual_has_its_sections_its_layout_and_running_examples() -> None:
-    manual = consensus_v1.ConsensusParallelEnv.__doc__ or ""
+    # The manual is the family's class (every consensus_vN module's env subclasses it).
+    manual = consensus.ConsensusParallelEnv.__doc__ or ""
     sections = [
         "Description",
         "Agents",
@@ -174,5 +175,5 @@ def test_the_manual_has_its_sections_its_layout_and_running_examples() -> None:
     assert rows == list(layout)
     assert layout["neighbours"] == slice(13, 25) and len(range(29)[layout["wheel_speeds"]]) == 2
     assert "v1: Initial version" in manual
-    results = doctest.testmod(consensus_v1, optionflags=doctest.ELLIPSIS)
+    results = doctest.testmod(consensus, optionflags=doctest.ELLIPSIS)
     assert results.attempted >= 4 and results.failed == 0

@@ -14,7 +14,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION, FORMATION_ID, MULTINAV, NAV_ID
+from conftest import FORMATION, LATEST, MULTINAV
 
 import khepera_gym
 from khepera_gym import _core
@@ -81,8 +81,8 @@ def test_a_task_changes_only_the_defaults_it_declares() -> None:
 
 
 def test_observed_sensors_are_scenario_data_and_the_layout_follows() -> None:
-    full = gym.make(NAV_ID)
-    ir_only = gym.make(NAV_ID, observe=["ir"])
+    full = gym.make(LATEST["nav"])
+    ir_only = gym.make(LATEST["nav"], observe=["ir"])
     assert list(full.unwrapped.obs_layout())[:2] == ["ir", "us"]
     assert "us" not in ir_only.unwrapped.obs_layout()
     assert ir_only.observation_space.shape == (full.observation_space.shape[0] - 5,)
@@ -107,7 +107,7 @@ def test_observed_sensors_are_scenario_data_and_the_layout_follows() -> None:
 
 
 def test_a_sensor_not_carried_is_not_read() -> None:
-    env = gym.make(NAV_ID, carry=["ir"], observe=["ir"])
+    env = gym.make(LATEST["nav"], carry=["ir"], observe=["ir"])
     env.reset(seed=0)
     assert set(env.unwrapped.sensor_readings()) == {
         "ir_raw",
@@ -116,9 +116,9 @@ def test_a_sensor_not_carried_is_not_read() -> None:
         "gyro_z",
     }
     with pytest.raises(ConfigError, match=r"sensors\.observe"):
-        gym.make(NAV_ID, carry=["ir"])  # observes us, which it does not carry
+        gym.make(LATEST["nav"], carry=["ir"])  # observes us, which it does not carry
     with pytest.raises(ConfigError, match='unknown sensor "lidar"'):
-        gym.make(NAV_ID, observe=["lidar"])
+        gym.make(LATEST["nav"], observe=["lidar"])
 
 
 # --- controllers ---------------------------------------------------------------------------------
@@ -144,8 +144,8 @@ def test_controller_parameters_come_from_the_rust_core() -> None:
 
 def _faces():
     return [
-        gym.make(FORMATION_ID).unwrapped,
-        gym.make_vec(FORMATION_ID, num_envs=3),
+        gym.make(LATEST["formation"]).unwrapped,
+        gym.make_vec(LATEST["formation"], num_envs=3),
         FORMATION.parallel_env(),
     ]
 
@@ -153,7 +153,7 @@ def _faces():
 @pytest.mark.parametrize("face", _faces(), ids=["single", "vector", "pettingzoo"])
 def test_every_face_shows_the_same_world_through_the_same_accessors(face) -> None:
     face.reset(seed=4)
-    single = gym.make(FORMATION_ID).unwrapped
+    single = gym.make(LATEST["formation"]).unwrapped
     single.reset(seed=4)
     world = (lambda a: a[0]) if isinstance(face, KheperaVectorEnv) else (lambda a: a)
     np.testing.assert_array_equal(world(face.poses()), single.poses())
@@ -212,7 +212,7 @@ def test_last_outputs_show_each_world_as_it_now_is_and_are_saved() -> None:
     "build",
     [
         lambda: NavVectorEnv(num_envs=0),
-        lambda: gym.make_vec(NAV_ID, num_envs=0),
+        lambda: gym.make_vec(LATEST["nav"], num_envs=0),
         lambda: NavEnv(radius=-1.0),
         lambda: FORMATION.parallel_env(n_followers=0),
     ],
@@ -242,7 +242,7 @@ def test_a_half_built_env_closes_cleanly(cls) -> None:
 
 def test_a_state_of_an_older_format_is_refused_not_misread() -> None:
     # Saved by khepera_gym before the sensor and task contracts (format 1): 2 Nav worlds.
-    envs = gym.make_vec(NAV_ID, num_envs=2)
+    envs = gym.make_vec(LATEST["nav"], num_envs=2)
     envs.reset(seed=3)
     before = envs.get_state()
     with pytest.raises(StateError, match="format version 1"):
@@ -252,4 +252,4 @@ def test_a_state_of_an_older_format_is_refused_not_misread() -> None:
 
 def test_the_package_version_and_ids_are_exported() -> None:
     assert khepera_gym.__version__ == _core.__version__
-    assert latest_ids()["avoid"] == AVOID_ID
+    assert latest_ids()["avoid"] == LATEST["avoid"]

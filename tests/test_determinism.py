@@ -7,7 +7,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import ALL_IDS, NAV_ID, random_actions
+from conftest import ALL_IDS, LATEST, random_actions
 
 from khepera_gym.envs import NavEnv
 from khepera_gym.vector import KheperaVectorEnv
@@ -106,7 +106,7 @@ def test_same_seed_twice_gives_same_trajectory(nav_env: gym.Env) -> None:
     actions = random_actions(5, 100, (2,))
     first = _rollout(nav_env, 5, actions)
     second = _rollout(nav_env, 5, actions)
-    other_env = gym.make(NAV_ID)
+    other_env = gym.make(LATEST["nav"])
     third = _rollout(other_env, 5, actions)
     other_env.close()
     for run in (second, third):

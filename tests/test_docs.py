@@ -15,16 +15,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import (
-    AVOID_ID,
-    DRONE_ID,
-    FORMATION_ID,
-    LINEFOLLOW_ID,
-    NAV_ID,
-    PATHFOLLOW_ID,
-    SEEK_ID,
-    TRACK_ID,
-)
+from conftest import LATEST
 
 import khepera_gym
 import khepera_gym.baselines
@@ -33,14 +24,8 @@ import khepera_gym.registration
 from khepera_gym import envs
 from khepera_gym.config import tomllib
 from khepera_gym.envs import (
-    AvoidEnv,
-    DroneFollowEnv,
+    ENV_CLASSES,
     FormationEnv,
-    LineFollowEnv,
-    NavEnv,
-    PathFollowEnv,
-    SeekEnv,
-    TrackEnv,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,27 +44,10 @@ MANUAL_SECTIONS = [
     "Scenario file",
     "Version History",
 ]
-#: (env class, registered id, task) of every manual.
-MANUALS = [
-    (NavEnv, NAV_ID, "nav"),
-    (AvoidEnv, AVOID_ID, "avoid"),
-    (FormationEnv, FORMATION_ID, "formation"),
-    (TrackEnv, TRACK_ID, "track"),
-    (PathFollowEnv, PATHFOLLOW_ID, "pathfollow"),
-    (DroneFollowEnv, DRONE_ID, "dronefollow"),
-    (LineFollowEnv, LINEFOLLOW_ID, "linefollow"),
-    (SeekEnv, SEEK_ID, "seek"),
-]
-MANUAL_IDS = [
-    "nav",
-    "avoid",
-    "formation",
-    "track",
-    "pathfollow",
-    "dronefollow",
-    "linefollow",
-    "seek",
-]
+#: (env class, registered id, task) of every manual: every task with a Gymnasium env, from the
+#: registry.
+MANUALS = [(ENV_CLASSES[task], env_id, task) for task, env_id in LATEST.items()]
+MANUAL_IDS = list(LATEST)
 
 
 def _section(manual: str, name: str) -> str:
@@ -146,14 +114,14 @@ def test_manual_observation_table_matches_layout_and_bounds(
 def test_formation_manual_states_the_agent_leader_block_is_navs() -> None:
     manual = FormationEnv.__doc__ or ""
     assert "Nav block (18 values" in _section(manual, "Observation Space")
-    env = gym.make(FORMATION_ID, leader="agent")
+    env = gym.make(LATEST["formation"], leader="agent")
     layout = env.unwrapped.obs_layout()
     nav_layout = khepera_gym.obs_layout("nav")
     assert {name.removeprefix("leader/"): s for name, s in layout.items() if "leader/" in name} == (
         nav_layout
     )
     np.testing.assert_array_equal(
-        env.observation_space.low[:18], gym.make(NAV_ID).observation_space.low
+        env.observation_space.low[:18], gym.make(LATEST["nav"]).observation_space.low
     )
     env.close()
 
@@ -337,6 +305,22 @@ def test_every_env_page_has_a_small_animation_of_a_baseline() -> None:
         path = DOCS / ANIMATIONS / record["file"]
         assert path.stat().st_size < 400_000, path
         assert record["policy"] in {cls.__name__ for cls in baselines_of(page.task)}
+        # It says the version it shows, one of the task's (an older one: the page says so).
+        assert (
+            f"_v{record['version']}" in record["env"] or f"-v{record['version']}" in record["env"]
+        ), record
+        assert record["version"] in khepera_gym.catalog.task_versions(page.task), record
+
+
+def test_an_env_page_says_when_its_animation_is_of_an_older_version(generated: Path) -> None:
+    from khepera_gym._docgen.envs import ANIMATIONS, env_pages
+
+    index = json.loads((DOCS / ANIMATIONS / "animations.json").read_text(encoding="utf-8"))
+    for page in env_pages():
+        text = (generated / "envs" / f"{page.slug}.md").read_text(encoding="utf-8")
+        version = index[page.task]["version"]
+        latest = khepera_gym.catalog.task_versions(page.task)[-1]
+        assert (f"Recorded on v{version}, before v{latest}" in text) == (version != latest)
 
 
 def baselines_of(task: str) -> tuple[type, ...]:
@@ -346,7 +330,7 @@ def baselines_of(task: str) -> tuple[type, ...]:
 
 
 def test_results_pages_render_every_results_file_with_its_provenance(generated: Path) -> None:
-    from khepera_gym._docgen.results import kind, load
+    from khepera_gym._docgen.results import as_typed, kind, load
 
     files = load(DOCS / "results")
     assert files, "docs/results/ holds no results file"
@@ -354,7 +338,9 @@ def test_results_pages_render_every_results_file_with_its_provenance(generated: 
     for path, document in files:
         assert kind(document) != "unknown", path
         assert document["meta"]["date"][:10] in text, path
-        assert document["meta"]["command"] in text, path
+        assert as_typed(document["meta"]["command"]) in text, path
+    # Commands read as a user types them, not as the source tree they ran from.
+    assert "khepera_gym/cli.py" not in text
 
 
 def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -> None:
@@ -489,12 +475,12 @@ def test_readme_env_table_is_the_generated_one() -> None:
 
 # --- citations ----------------------------------------------------------------------------------
 
-#: A citation of a research note by section: "spec §6", "tasks.md §3", "fidelity.md §3.2".
-_CITATION = re.compile(
-    r"(?P<note>spec|robot\.md|tasks\.md|task-design\.md|fidelity\.md) §(?P<section>\d+)"
-)
-_LABELS = {"spec": "spec", "robot.md": "spec", "tasks.md": "tasks", "task-design.md": "tasks"}
-_LABELS |= {"fidelity.md": "fidelity"}
+#: A citation of a research note by the page that holds it now and its section: "robot.md §6",
+#: "task-design.md §3", "fidelity.md §3.2".
+_CITATION = re.compile(r"(?P<note>robot\.md|task-design\.md|fidelity\.md) §(?P<section>\d+)")
+_LABELS = {"robot.md": "spec", "task-design.md": "tasks", "fidelity.md": "fidelity"}
+#: The notes' old names ("spec §6", "tasks.md §3"), which name no file a reader can open.
+_OLD_CITATION = re.compile(r"\b(?:spec|tasks\.md) §\d")
 
 
 def test_every_cited_section_of_a_research_note_is_a_section_of_a_docs_page() -> None:
@@ -513,7 +499,11 @@ def test_every_cited_section_of_a_research_note_is_a_section_of_a_docs_page() ->
     for path in sources:
         if path.name == Path(__file__).name:
             continue
-        for match in _CITATION.finditer(path.read_text(encoding="utf-8")):
+        text = path.read_text(encoding="utf-8")
+        if path.parent.name != "_docgen":  # the generator links the old names in pages
+            old_names = _OLD_CITATION.findall(text)
+            assert not old_names, f"{path.relative_to(ROOT)} cites {old_names}: name the page"
+        for match in _CITATION.finditer(text):
             assert f"{_LABELS[match.group('note')]}-{match.group('section')}" in labels, (
                 f"{path.relative_to(ROOT)} cites {match.group(0)}, which no docs page holds"
             )
@@ -527,3 +517,16 @@ def test_python_comments_cite_the_docs_pages_not_the_research_folder() -> None:
             continue  # this test and the generator, which links the old citations
         text = path.read_text(encoding="utf-8")
         assert "research/" not in text and "khepera4_spec.md" not in text, path
+
+
+def test_product_pages_and_manuals_name_no_issue_numbers() -> None:
+    """Issue numbers belong to the project's history (the changelog and the history page), not
+    to the pages and manuals a user reads."""
+    history = {"changelog.md", "history.md"}
+    pattern = re.compile(r"\bissues? \d+", re.IGNORECASE)
+    for path in sorted(DOCS.glob("*.md")):
+        if path.name not in history:
+            assert not pattern.search(path.read_text(encoding="utf-8")), path.name
+    for task, manual in _manuals():
+        assert not pattern.search(manual), task
+    assert not pattern.search((ROOT / "README.md").read_text(encoding="utf-8"))

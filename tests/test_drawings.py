@@ -6,7 +6,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID, PATHFOLLOW_ID, TRACK_ID
+from conftest import LATEST
 from matplotlib.figure import Figure
 
 from khepera_gym.baselines import Kanayama, PositionControl, PurePursuit
@@ -26,7 +26,7 @@ def goal_stars(figure: Figure) -> int:
 
 @pytest.mark.parametrize(
     ("env_id", "baseline", "outcome"),
-    [(TRACK_ID, Kanayama, "RMS error"), (PATHFOLLOW_ID, PurePursuit, "lap in")],
+    [(LATEST["track"], Kanayama, "RMS error"), (LATEST["pathfollow"], PurePursuit, "lap in")],
 )
 def test_a_reference_task_panel_draws_the_reference_not_a_goal(
     env_id: str, baseline: type, outcome: str
@@ -46,7 +46,7 @@ def test_a_reference_task_panel_draws_the_reference_not_a_goal(
 
 
 def test_a_reaching_task_panel_keeps_its_goal() -> None:
-    env = gym.make(NAV_ID)
+    env = gym.make(LATEST["nav"])
     rollout = record_rollout(env, PositionControl.for_env(env), seed=0)
     env.close()
     figure = plot_rollouts([rollout])

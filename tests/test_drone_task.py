@@ -8,7 +8,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import DRONE_ID
+from conftest import LATEST
 from pettingzoo.test import parallel_api_test
 
 from khepera_gym.envs import dronefollow_heuristic
@@ -25,7 +25,7 @@ def _episode(env: gym.Env, seed: int, policy) -> dict:
 
 
 def test_pursuit_keeps_the_robot_in_view_and_random_flight_loses_it() -> None:
-    env = gym.make(DRONE_ID)
+    env = gym.make(LATEST["dronefollow"])
     rng = np.random.default_rng(0)
     for seed in range(5):
         stats = _episode(env, seed, dronefollow_heuristic)
@@ -54,7 +54,10 @@ def _trace(env: gym.Env, seed: int, steps: int) -> list[bytes]:
 @pytest.mark.parametrize("driver", ["scripted", "agent"])
 def test_seeds_reproduce_and_a_saved_state_continues_bit_for_bit(driver: str) -> None:
     # With the agent driver the trace drives the robot too (and its reward is in the mean).
-    a, b = gym.make(DRONE_ID, driver=driver), gym.make(DRONE_ID, driver=driver)
+    a, b = (
+        gym.make(LATEST["dronefollow"], driver=driver),
+        gym.make(LATEST["dronefollow"], driver=driver),
+    )
     a.reset(seed=7)
     b.reset(seed=7)
     assert _trace(a, 1, 100) == _trace(b, 1, 100)
@@ -65,8 +68,8 @@ def test_seeds_reproduce_and_a_saved_state_continues_bit_for_bit(driver: str) ->
 
 
 def test_a_vector_world_matches_the_single_env_of_its_seed() -> None:
-    envs = gym.make_vec(DRONE_ID, num_envs=3)
-    single = gym.make(DRONE_ID)
+    envs = gym.make_vec(LATEST["dronefollow"], num_envs=3)
+    single = gym.make(LATEST["dronefollow"])
     obs, _ = envs.reset(seed=20)
     single_obs, _ = single.reset(seed=22)
     np.testing.assert_array_equal(obs[2], single_obs)
@@ -89,7 +92,7 @@ def test_the_pettingzoo_env_passes_the_api_test() -> None:
 )
 def test_a_bad_key_is_a_config_error_naming_it(key: str, value: float) -> None:
     with pytest.raises(ConfigError, match=rf"drone\.{key}"):
-        gym.make(DRONE_ID, **{key: value})
+        gym.make(LATEST["dronefollow"], **{key: value})
 
 
 def _waypoints_reached(env, seed: int, policies: dict) -> tuple[int, dict, dict]:
@@ -151,10 +154,10 @@ def test_an_agent_applying_the_script_s_law_drives_the_route_as_the_script_does(
 
 def test_the_agent_driver_passes_the_api_test_and_keeps_the_joint_env_consistent() -> None:
     parallel_api_test(drone_follow_v1.parallel_env(driver="agent"), num_cycles=200)
-    env = gym.make(DRONE_ID, driver="agent")
+    env = gym.make(LATEST["dronefollow"], driver="agent")
     # The joint action: the drone's two numbers, then the robot's wheels.
     assert env.action_space.shape == (4,)
     obs, _ = env.reset(seed=0)
     assert obs.shape == env.observation_space.shape and obs.shape[0] > 8
     with pytest.raises(ConfigError, match=r"drone\.driver"):
-        gym.make(DRONE_ID, driver="autopilot")
+        gym.make(LATEST["dronefollow"], driver="autopilot")

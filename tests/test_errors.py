@@ -8,7 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID
+from conftest import LATEST
 
 from khepera_gym import _core
 from khepera_gym.envs import NavEnv
@@ -105,9 +105,9 @@ def test_stepping_a_finished_episode_without_reset_raises() -> None:
 
 def test_unknown_override_key_raises_config_error_naming_it() -> None:
     with pytest.raises(ConfigError, match="goal_radiuss"):
-        gym.make(NAV_ID, goal_radiuss=0.1)
+        gym.make(LATEST["nav"], goal_radiuss=0.1)
     with pytest.raises(ConfigError, match="bogus"):
-        gym.make(NAV_ID, task={"bogus": 1})
+        gym.make(LATEST["nav"], task={"bogus": 1})
 
 
 def test_unknown_key_in_scenario_file_names_file_and_key(tmp_path) -> None:
@@ -152,7 +152,7 @@ def test_impossible_values_raise_config_error_naming_the_key(
 def test_missing_config_file_raises_config_error_naming_it(tmp_path) -> None:
     missing = tmp_path / "nowhere.toml"
     with pytest.raises(ConfigError, match=r"nowhere\.toml"):
-        gym.make(NAV_ID, config=str(missing))
+        gym.make(LATEST["nav"], config=str(missing))
 
 
 def test_unknown_builtin_scenario_lists_known_names() -> None:

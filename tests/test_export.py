@@ -13,6 +13,7 @@ does need actions that are not all near zero. The C code is compiled with the sy
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -54,44 +55,19 @@ SEEDS = (0, 1, 2)
 #: Steps recorded per episode at most.
 STEPS = 150
 
-# Declarations of the libkhepera calls the template uses, written here from K-Team's documented
-# signatures (docs/robot.md §10) only to check the template's syntax and types: this is not
-# K-Team's header and is not shipped.
-LIBKHEPERA_STUB = """
-#ifndef STUB_KHEPERA_H
-#define STUB_KHEPERA_H
-typedef struct knet_dev_s knet_dev_t;
-#define KNET_BUS_I2C 1
-enum kh4RegType { kh4RegIdle = 0, kh4RegSpeed = 1, kh4RegSpeedProfile = 2 };
-int kh4_init(int argc, char *argv[]);
-knet_dev_t *knet_open(const char *name, int bus, int argc, char *argv[]);
-int kh4_SetMode(int mode, knet_dev_t *device);
-int kh4_SetSpeedProfile(char accinc, char accdiv, char mindacc, char mindec, int max_speed,
-                        knet_dev_t *device);
-int kh4_set_speed(int left, int right, knet_dev_t *device);
-int kh4_get_speed(int *left, int *right, knet_dev_t *device);
-int kh4_get_position(int *left, int *right, knet_dev_t *device);
-int kh4_ResetEncoders(knet_dev_t *device);
-int kh4_proximity_ir(char *buffer, knet_dev_t *device);
-int kh4_measure_us(char *buffer, knet_dev_t *device);
-int kh4_activate_us(char mask, knet_dev_t *device);
-int kh4_SetRGBLeds(char left_r, char left_g, char left_b, char right_r, char right_g, char right_b,
-                   char back_r, char back_g, char back_b, knet_dev_t *device);
-int kh4_measure_acc(char *buffer, knet_dev_t *device);
-int kh4_measure_gyro(char *buffer, knet_dev_t *device);
-int kh4_revision(char *buffer, knet_dev_t *device);
-#endif
-"""
+#: K-Team's libkhepera interface as the generated programs use it (tests/fake_libkhepera/khepera/
+#: khepera.h: its declarations, constants and return conventions, written from K-Team's headers).
+FAKE_LIBKHEPERA = Path(__file__).resolve().parent / "fake_libkhepera"
 
 
 # A fake robot behind those declarations: fixed sensor readings, wheels turning at (300, -200)
 # speed units, encoders that do not move; it logs the commands and ultrasonic measurements it
-# gets to standard error.
+# gets to standard error. Its calls return 0, as K-Team's do when they succeed.
 FAKE_ROBOT = """
 #include <stdio.h>
 #include <khepera/khepera.h>
 
-static int device;
+static knet_dev_t device;
 
 static void put_u16(char *buffer, int index, int value)
 {
@@ -103,7 +79,7 @@ int kh4_init(int argc, char *argv[]) { (void)argc; (void)argv; return 0; }
 knet_dev_t *knet_open(const char *name, int bus, int argc, char *argv[])
 {
     (void)name; (void)bus; (void)argc; (void)argv;
-    return (knet_dev_t *)&device;
+    return &device;
 }
 int kh4_SetMode(int mode, knet_dev_t *d)
 {
@@ -147,7 +123,7 @@ int kh4_proximity_ir(char *buffer, knet_dev_t *d)
     for (i = 0; i < 12; ++i) {
         put_u16(buffer, i, i < 8 ? 100 + 60 * i : 900); /* the ring, then the ground sensors */
     }
-    return 24;
+    return 0;
 }
 int kh4_measure_us(char *buffer, knet_dev_t *d)
 {
@@ -158,7 +134,7 @@ int kh4_measure_us(char *buffer, knet_dev_t *d)
     for (i = 0; i < 5; ++i) {
         put_u16(buffer, i, codes[i]);
     }
-    return 10;
+    return 0;
 }
 int kh4_activate_us(char mask, knet_dev_t *d)
 {
@@ -182,7 +158,7 @@ int kh4_measure_acc(char *buffer, knet_dev_t *d)
     for (i = 0; i < 30; ++i) {
         put_u16(buffer, i, i < 20 ? 0 : (-1000 * 16) & 0xffff);
     }
-    return 60;
+    return 0;
 }
 int kh4_measure_gyro(char *buffer, knet_dev_t *d)
 {
@@ -191,7 +167,7 @@ int kh4_measure_gyro(char *buffer, knet_dev_t *d)
     for (i = 0; i < 30; ++i) {
         put_u16(buffer, i, i < 20 ? 0 : 5);
     }
-    return 60;
+    return 0;
 }
 int kh4_revision(char *buffer, knet_dev_t *d)
 {
@@ -537,14 +513,11 @@ def test_formation_follower_policy_exports_one_robots_block(tmp_path: Path) -> N
 
 def robot_program_on_fake_robot(out_dir: Path) -> Path:
     """The exported template program built against the fake robot (test flags)."""
-    stub = out_dir / "stub" / "khepera"
-    stub.mkdir(parents=True)
-    (stub / "khepera.h").write_text(LIBKHEPERA_STUB)
     (out_dir / "fake_robot.c").write_text(FAKE_ROBOT)
     sources = ["khepera_policy_main.c", *export.C_SOURCES, *export.ROBOT_SOURCES, "fake_robot.c"]
     program = out_dir / "khepera_policy"
     subprocess.run(
-        ["cc", *C_FLAGS, f"-I{out_dir / 'stub'}", "-o", str(program)]
+        ["cc", *C_FLAGS, f"-I{FAKE_LIBKHEPERA}", "-o", str(program)]
         + [str(out_dir / name) for name in sources]
         + ["-lm"],
         check=True,
@@ -751,10 +724,7 @@ def test_export_follows_a_scenario_that_observes_only_the_ir_ring(tmp_path: Path
 def test_robot_program_template_compiles_without_goal_inputs(tmp_path: Path) -> None:
     model = PPO("MlpPolicy", make_formation_vec_env(1), seed=0, device="cpu", n_steps=64)
     export.export_policy(model, tmp_path, env_id=FORMATION_ID, check=False)
-    stub = tmp_path / "stub" / "khepera"
-    stub.mkdir(parents=True)
-    (stub / "khepera.h").write_text(LIBKHEPERA_STUB)
-    compile_only = ["cc", *C_FLAGS, "-c", f"-I{tmp_path / 'stub'}", "-o", str(tmp_path / "o.o")]
+    compile_only = ["cc", *C_FLAGS, "-c", f"-I{FAKE_LIBKHEPERA}", "-o", str(tmp_path / "o.o")]
     for name in ("khepera_policy_main.c", *export.C_SOURCES, *export.ROBOT_SOURCES):
         subprocess.run(
             [*compile_only, str(tmp_path / name)],
@@ -997,3 +967,48 @@ def test_a_drive_the_robot_cannot_be_set_to_needs_its_nominal_setting(tmp_path: 
     assert ["set_profile", "40", "0", "20", "1", "400"] in calls
     with pytest.raises(ConfigError, match="drive must be one of"):
         export.export_policy(model, tmp_path / "x", env_id=NAV_ID, check=False, drive="fast")
+
+
+@pytest.mark.skipif(
+    not os.environ.get("KHEPERA_SDK"),
+    reason="set KHEPERA_SDK to K-Team's libkhepera 2.1 (its source tree, e.g. libkhepera-2.1/, "
+    "or its install) to compile the programs against K-Team's own headers",
+)
+def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) -> None:
+    """Optional: ``KHEPERA_SDK=/path/to/libkhepera-2.1 pytest tests/test_export.py -k sdk``."""
+    import robot_programs as rp
+
+    from khepera_gym.calibrate import write_calibration_program
+
+    include = rp.sdk_include(Path(os.environ["KHEPERA_SDK"]), tmp_path / "include")
+    # The robot's compiler when there is one; else this PC's, with the robot's unsigned char.
+    arm = rp.TARGETS["arm"]
+    compiler, flags = (
+        (arm.compiler, arm.flags) if arm.missing() is None else ("cc", ("-O2", "-funsigned-char"))
+    )
+    led = PPO("MlpPolicy", gym.make(NAV_ID, led_action=True), seed=0, device="cpu", n_steps=64)
+    sampled = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    programs = {
+        "plain": (nav_models()["ppo"]()[0], {}),
+        "frame_stack": (frame_stacked_ppo(3), {}),
+        "sampled": (sampled, {"sample_seed": 1}),
+        "led_action": (led, {"led_action": True}),
+    }
+    folders = []
+    for name, (model, options) in programs.items():
+        export.export_policy(model, tmp_path / name, env_id=NAV_ID, check=False, **options)
+        folders.append(tmp_path / name)
+    write_calibration_program(tmp_path / "calibrate", env_id=NAV_ID)
+    folders.append(tmp_path / "calibrate")
+    compile_only = [compiler, *flags, rp.ROBOT_STD, *rp.WARNINGS, f"-I{include}", "-c"]
+    compiled = 0
+    for folder in folders:
+        for source in sorted(folder.glob("*.c")):
+            result = subprocess.run(
+                [*compile_only, str(source), "-o", str(tmp_path / "program.o")],
+                capture_output=True,
+                text=True,
+            )
+            assert result.returncode == 0, f"{source} against {include}:\n{result.stderr}"
+            compiled += 1
+    assert compiled == 4 * 8 + 4  # each export's 8 C files, the calibration program's 4

@@ -7,7 +7,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import FORMATION_ID, FORMATION_V0_ID
+from conftest import FORMATION_V0_ID, LATEST
 from gymnasium.utils.env_checker import check_env
 
 import khepera_gym
@@ -40,10 +40,10 @@ def _run_episode(env: gym.Env, policy, seed: int) -> tuple[dict, list[np.ndarray
 
 
 def test_formation_is_registered_with_entry_point_and_vector_entry_point() -> None:
-    spec = gym.spec(FORMATION_ID)
+    spec = gym.spec(LATEST["formation"])
     assert spec.entry_point == "khepera_gym.envs:FormationEnv"
     assert spec.vector_entry_point == "khepera_gym.vector:FormationVectorEnv"
-    env = gym.make(FORMATION_ID)
+    env = gym.make(LATEST["formation"])
     assert isinstance(env.unwrapped, FormationEnv)
     assert env.unwrapped.n_robots == N_FOLLOWERS + 1
     assert env.unwrapped.max_episode_steps == 800
@@ -52,7 +52,7 @@ def test_formation_is_registered_with_entry_point_and_vector_entry_point() -> No
 
 @pytest.mark.parametrize("overrides", [{}, {"leader": "agent"}, {"shape": "wedge"}])
 def test_formation_passes_the_gymnasium_env_checker_without_warnings(overrides: dict) -> None:
-    env = gym.make(FORMATION_ID, **overrides)
+    env = gym.make(LATEST["formation"], **overrides)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped)
@@ -60,16 +60,16 @@ def test_formation_passes_the_gymnasium_env_checker_without_warnings(overrides: 
 
 
 def test_action_space_is_two_wheels_per_follower_plus_an_agent_leader() -> None:
-    env = gym.make(FORMATION_ID)
+    env = gym.make(LATEST["formation"])
     assert env.action_space == gym.spaces.Box(-1.0, 1.0, (2 * N_FOLLOWERS,), np.float32)
     assert env.observation_space.shape == (FOLLOWER_OBS_DIM * N_FOLLOWERS,)
     env.close()
     for overrides in ({"leader": "agent"}, {"formation": {"leader": "agent"}}):
-        env = gym.make(FORMATION_ID, **overrides)
+        env = gym.make(LATEST["formation"], **overrides)
         assert env.action_space.shape == (2 + 2 * N_FOLLOWERS,)
         assert env.observation_space.shape == (NAV_OBS_DIM + FOLLOWER_OBS_DIM * N_FOLLOWERS,)
         env.close()
-    env = gym.make(FORMATION_ID, n_followers=2, shape="line")
+    env = gym.make(LATEST["formation"], n_followers=2, shape="line")
     assert env.action_space.shape == (4,)
     env.close()
 
@@ -90,7 +90,7 @@ def test_obs_layout_names_each_followers_blocks() -> None:
     assert layout["follower_1/ir"] == slice(FOLLOWER_OBS_DIM, FOLLOWER_OBS_DIM + 8)
     end = N_FOLLOWERS * FOLLOWER_OBS_DIM
     assert layout["follower_3/wheel_speeds"] == slice(end - 2, end)
-    env = gym.make(FORMATION_ID, leader="agent")
+    env = gym.make(LATEST["formation"], leader="agent")
     agent_layout = env.unwrapped.obs_layout()
     assert list(agent_layout)[:6] == [f"leader/{name}" for name in khepera_gym.obs_layout("nav")]
     assert agent_layout["follower_0/ir"] == slice(18, 26)
@@ -98,7 +98,7 @@ def test_obs_layout_names_each_followers_blocks() -> None:
 
 
 def test_every_follower_block_has_the_same_bounds_for_parameter_sharing() -> None:
-    env = gym.make(FORMATION_ID)
+    env = gym.make(LATEST["formation"])
     space = env.observation_space
     blocks = np.split(np.stack([space.low, space.high]), N_FOLLOWERS, axis=1)
     for block in blocks[1:]:
@@ -108,7 +108,7 @@ def test_every_follower_block_has_the_same_bounds_for_parameter_sharing() -> Non
 
 
 def test_paper_fig7_starts_the_cross_around_the_leader() -> None:
-    env = gym.make(FORMATION_ID, config="paper_fig7")
+    env = gym.make(LATEST["formation"], config="paper_fig7")
     env.reset(seed=0)
     poses = env.unwrapped.poses()
     np.testing.assert_allclose(poses[0], FIG7_START, atol=1e-6)
@@ -125,7 +125,7 @@ def test_paper_fig7_starts_the_cross_around_the_leader() -> None:
 
 def test_followers_start_on_eq_12_targets_for_a_turned_leader() -> None:
     heading = 0.7
-    env = gym.make(FORMATION_ID, config="paper_fig7", spawn={"start": [-0.6, 0.1, heading]})
+    env = gym.make(LATEST["formation"], config="paper_fig7", spawn={"start": [-0.6, 0.1, heading]})
     observation, _ = env.reset(seed=1)
     poses = env.unwrapped.poses()
     leader = poses[0]
@@ -141,7 +141,7 @@ def test_followers_start_on_eq_12_targets_for_a_turned_leader() -> None:
 
 
 def test_target_offset_is_the_target_in_the_followers_frame() -> None:
-    env = gym.make(FORMATION_ID)
+    env = gym.make(LATEST["formation"])
     observation, _ = env.reset(seed=5)
     layout = env.unwrapped.obs_layout()
     rng = np.random.default_rng(5)
@@ -160,7 +160,7 @@ def test_target_offset_is_the_target_in_the_followers_frame() -> None:
 
 
 def test_joint_reward_is_the_mean_of_the_followers_negative_errors() -> None:
-    env = gym.make(FORMATION_ID)
+    env = gym.make(LATEST["formation"])
     env.reset(seed=2)
     rng = np.random.default_rng(2)
     for _ in range(20):
@@ -177,7 +177,7 @@ def test_joint_reward_is_the_mean_of_the_followers_negative_errors() -> None:
 
 
 def test_formation_error_grows_when_followers_stand_still() -> None:
-    env = gym.make(FORMATION_ID, max_steps=200)
+    env = gym.make(LATEST["formation"], max_steps=200)
     info, errors = _run_episode(env, lambda obs: np.zeros(8, np.float32), seed=0)
     mean_errors = np.array([e.mean() for e in errors])
     assert mean_errors[0] < 0.02
@@ -201,7 +201,7 @@ def test_leader_follower_heuristic_keeps_the_formation(seed: int) -> None:
 
 
 def test_agent_leader_is_driven_by_the_first_action_pair() -> None:
-    env = gym.make(FORMATION_ID, leader="agent")
+    env = gym.make(LATEST["formation"], leader="agent")
     observation, _ = env.reset(seed=3)
     start = env.unwrapped.poses()[0].copy()
     for _ in range(10):
@@ -217,7 +217,7 @@ def test_agent_leader_is_driven_by_the_first_action_pair() -> None:
 
 
 def test_formation_heuristic_splits_blocks_and_is_batched() -> None:
-    env = gym.make(FORMATION_ID)
+    env = gym.make(LATEST["formation"])
     observation, _ = env.reset(seed=0)
     observation, *_ = env.step(np.full(8, 0.3, np.float32))
     action = formation_heuristic(observation)
@@ -247,7 +247,7 @@ def test_follower_heuristic_drives_toward_its_target() -> None:
 
 
 def test_make_vec_formation_gives_native_env_with_targets_and_stats() -> None:
-    envs = gym.make_vec(FORMATION_ID, num_envs=3, num_threads=2, max_steps=10)
+    envs = gym.make_vec(LATEST["formation"], num_envs=3, num_threads=2, max_steps=10)
     assert isinstance(envs, FormationVectorEnv)
     assert not isinstance(envs, gym.vector.SyncVectorEnv)
     observations, _ = envs.reset(seed=0)

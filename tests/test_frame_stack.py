@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
-from conftest import AVOID_ID
+from conftest import LATEST
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
 
@@ -30,7 +30,7 @@ pytestmark = pytest.mark.usefixtures("one_torch_thread")
 def test_the_policy_feeds_the_model_exactly_what_vec_frame_stack_feeds_it(normalize: bool) -> None:
     """Through episode ends (autoreset), with and without VecNormalize inside the stack."""
     worlds, n_stack = 4, 3
-    base = VecMonitor(make_vec_env(AVOID_ID, worlds, seed=0, num_threads=1, max_steps=40))
+    base = VecMonitor(make_vec_env(LATEST["avoid"], worlds, seed=0, num_threads=1, max_steps=40))
     inner = base
     normalizer = None
     if normalize:
@@ -63,7 +63,7 @@ def test_the_policy_feeds_the_model_exactly_what_vec_frame_stack_feeds_it(normal
 
 
 def test_a_stack_that_does_not_divide_the_model_observation_is_refused() -> None:
-    env = make_vec_env(AVOID_ID, 2, seed=0, num_threads=1)
+    env = make_vec_env(LATEST["avoid"], 2, seed=0, num_threads=1)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, device="cpu")
     with pytest.raises(ConfigError, match="not 4 stacked observations"):
         FrameStackPolicy(model, 4)
@@ -72,7 +72,7 @@ def test_a_stack_that_does_not_divide_the_model_observation_is_refused() -> None
 
 
 def test_train_stacks_frames_and_the_saved_model_stacks_them_again(tmp_path: Path) -> None:
-    arguments = ["train", "--env", AVOID_ID, "--timesteps", "256", "--n-envs", "4"]
+    arguments = ["train", "--env", LATEST["avoid"], "--timesteps", "256", "--n-envs", "4"]
     arguments += ["--out", str(tmp_path), "--eval-freq", "128", "--eval-episodes", "3"]
     arguments += ["--no-progress", "--verbose", "0", "--num-threads", "1"]
     arguments += ["--hp", "frame_stack=3", "--hp", "n_steps=32", "--hp", "batch_size=64"]
@@ -88,10 +88,12 @@ def test_train_stacks_frames_and_the_saved_model_stacks_them_again(tmp_path: Pat
     # The comparison tool's sb3: policy plays it from raw observations; the episode loop resets
     # its stacks, so the same seeds replay the same episodes with the same policy object.
     sb3_policy = load_sb3_policy(tmp_path / "model.zip")
-    batch = make_vec_env(AVOID_ID, 3, seed=0, num_threads=1, max_steps=60)._batch
+    batch = make_vec_env(LATEST["avoid"], 3, seed=0, num_threads=1, max_steps=60)._batch
     first, second = (run_episodes(batch, sb3_policy, 7) for _ in range(2))
     assert [s["return"] for s in first] == [s["return"] for s in second]
-    comparison = compare(AVOID_ID, [f"sb3:{tmp_path / 'model.zip'}"], episodes=3, progress=False)
+    comparison = compare(
+        LATEST["avoid"], [f"sb3:{tmp_path / 'model.zip'}"], episodes=3, progress=False
+    )
     assert [len(results) for results in comparison.results.values()] == [3]
 
     # The export reads the stack from run.json's model and writes a program that keeps it; its
@@ -103,7 +105,7 @@ def test_train_stacks_frames_and_the_saved_model_stacks_them_again(tmp_path: Pat
 
 
 def test_a_bad_frame_stack_is_a_config_error(tmp_path: Path) -> None:
-    arguments = ["train", "--env", AVOID_ID, "--timesteps", "64", "--out", str(tmp_path)]
+    arguments = ["train", "--env", LATEST["avoid"], "--timesteps", "64", "--out", str(tmp_path)]
     arguments += ["--no-progress", "--verbose", "0", "--hp"]
     for bad in ("0", "2.5", "true"):
         with pytest.raises(SystemExit, match="frame_stack must be an integer >= 1"):

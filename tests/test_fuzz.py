@@ -46,7 +46,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
+from conftest import LATEST
 from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -84,14 +84,9 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 # --- helpers ----------------------------------------------------------------------------------
 
-ENV_IDS = (NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID)
-TASKS = {
-    NAV_ID: "nav",
-    AVOID_ID: "avoid",
-    FORMATION_ID: "formation",
-    TRACK_ID: "track",
-    PATHFOLLOW_ID: "pathfollow",
-}
+#: The latest id of every task with a Gymnasium env, from the registry, and each one's task.
+ENV_IDS = tuple(LATEST.values())
+TASKS = {env_id: task for task, env_id in LATEST.items()}
 #: Worlds of the vector envs and batches under test.
 N_VECTOR = 4
 N_BATCH = 3
@@ -1364,7 +1359,7 @@ def test_bug_non_numeric_action_raises_action_error(action: Any) -> None:
 
 @pytest.mark.parametrize("vector", [False, True], ids=["single", "vector"])
 def test_bug_seed_beyond_u64_works_or_raises_khepera_error(vector: bool) -> None:
-    env = gym.make_vec(NAV_ID, num_envs=2) if vector else gym.make(NAV_ID)
+    env = gym.make_vec(LATEST["nav"], num_envs=2) if vector else gym.make(LATEST["nav"])
     with contextlib.suppress(KheperaError):
         env.reset(seed=2**64)  # was: OverflowError: int too big to convert
     env.close()
@@ -1378,7 +1373,7 @@ def test_bug_seed_beyond_u64_works_or_raises_khepera_error(vector: bool) -> None
 def test_bug_vector_reset_with_a_bad_seed_raises_khepera_error_naming_seed(seed: Any) -> None:
     # Was: TypeError ('float' object is not iterable), ValueError (int('a')), a ConfigError
     # about "a sequence of 1", OverflowError, or floats/strings silently truncated/parsed.
-    envs = gym.make_vec(NAV_ID, num_envs=4)
+    envs = gym.make_vec(LATEST["nav"], num_envs=4)
     with pytest.raises(KheperaError, match="seed") as raised:
         envs.reset(seed=seed)
     assert "sequence of 1" not in str(raised.value)
@@ -1398,7 +1393,7 @@ def test_bug_huge_arena_is_rejected_or_gives_finite_observations() -> None:
 
 def test_bug_non_str_key_in_override_table_raises_config_error() -> None:
     with pytest.raises(ConfigError):
-        gym.make(NAV_ID, robot={1: 0.1})  # was: TypeError: config keys must be str
+        gym.make(LATEST["nav"], robot={1: 0.1})  # was: TypeError: config keys must be str
 
 
 @pytest.mark.parametrize(

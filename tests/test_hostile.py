@@ -20,7 +20,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import DRONE_ID, FORMATION_ID, LATEST, NAV_ID, TRACK_ID
+from conftest import LATEST
 
 import khepera_gym
 from khepera_gym.errors import ConfigError
@@ -60,18 +60,18 @@ def _run_limited(code: str, memory: int) -> subprocess.CompletedProcess[str]:
     [
         # A 1,000 m arena with one fixed circle: a spawn grid of 2.5e9 cells once aborted.
         (
-            f'gym.make("{NAV_ID}", width=1000.0, height=1000.0, '
+            f'gym.make("{LATEST["nav"]}", width=1000.0, height=1000.0, '
             'obstacles={"fixed": [{"kind": "circle", "center": [0.0, 0.0], "radius": 0.5}]})',
             r"ConfigError.*arena\.width.*reachability map.*MB",
         ),
         # 10**6 worlds of about 30 KiB: once OOM-killed; past 16 GiB it is refused.
         (
-            f'gym.make_vec("{NAV_ID}", num_envs=10**6)',
+            f'gym.make_vec("{LATEST["nav"]}", num_envs=10**6)',
             r"ConfigError.*num_envs.*GiB",
         ),
         # Within the 16 GiB limit but beyond what this process may map: MemoryError.
         (
-            f'gym.make_vec("{NAV_ID}", num_envs=200_000)',
+            f'gym.make_vec("{LATEST["nav"]}", num_envs=200_000)',
             r"MemoryError.*200000 worlds",
         ),
     ],
@@ -96,30 +96,30 @@ def test_sizes_taken_from_input_are_refused_before_allocating(call: str, expecte
 
 #: (id, overrides, the key the ConfigError names): values the campaign saw accepted.
 OUT_OF_DOMAIN = [
-    (NAV_ID, {"wall_reflectance": math.nan}, "arena.wall_reflectance"),
-    (NAV_ID, {"wall_reflectance": -1.0}, "arena.wall_reflectance"),
+    (LATEST["nav"], {"wall_reflectance": math.nan}, "arena.wall_reflectance"),
+    (LATEST["nav"], {"wall_reflectance": -1.0}, "arena.wall_reflectance"),
     # Unused in that scenario (no image, not a custom shape): checked all the same.
-    (NAV_ID, {"image_scale": math.nan}, "floor.image_scale"),
-    (FORMATION_ID, {"offsets": [[math.nan, 0.0]]}, "formation.offsets[0][0]"),
+    (LATEST["nav"], {"image_scale": math.nan}, "floor.image_scale"),
+    (LATEST["formation"], {"offsets": [[math.nan, 0.0]]}, "formation.offsets[0][0]"),
     # Finite values whose rewards became infinite.
-    (DRONE_ID, {"speed_max": 1e20}, "drone.speed_max"),
-    (DRONE_ID, {"speed_max": 1e10}, "drone.speed_max"),
-    (FORMATION_ID, {"error_weight": 3.4e38}, "formation.error_weight"),
-    (TRACK_ID, {"heading_weight": 3.4e38}, "track.heading_weight"),
+    (LATEST["dronefollow"], {"speed_max": 1e20}, "drone.speed_max"),
+    (LATEST["dronefollow"], {"speed_max": 1e10}, "drone.speed_max"),
+    (LATEST["formation"], {"error_weight": 3.4e38}, "formation.error_weight"),
+    (LATEST["track"], {"heading_weight": 3.4e38}, "track.heading_weight"),
     # A positive axle so thin that wheel speeds became infinite turn rates (NaN poses), found by
     # the 10^5-case run: body dimensions are at least a millimetre.
-    (FORMATION_ID, {"axle_length": 1e-30}, "robot.axle_length"),
-    (NAV_ID, {"robot": {"axle_length": [1e-45, 0.1]}}, "robot.axle_length"),
+    (LATEST["formation"], {"axle_length": 1e-30}, "robot.axle_length"),
+    (LATEST["nav"], {"robot": {"axle_length": [1e-45, 0.1]}}, "robot.axle_length"),
     # Fixed-length arrays with extra entries, once silently truncated.
-    (NAV_ID, {"us_enabled": [True] * 6}, "sensors.us_enabled"),
-    (NAV_ID, {"led_color": [0.0, 0.5, 0.5, 0.5]}, "robot.led_color"),
-    (NAV_ID, {"image_origin": [0.0, 0.0, 0.0]}, "floor.image_origin"),
+    (LATEST["nav"], {"us_enabled": [True] * 6}, "sensors.us_enabled"),
+    (LATEST["nav"], {"led_color": [0.0, 0.5, 0.5, 0.5]}, "robot.led_color"),
+    (LATEST["nav"], {"image_origin": [0.0, 0.0, 0.0]}, "floor.image_origin"),
     (
-        NAV_ID,
+        LATEST["nav"],
         {"floor": {"lines": [{"a": [0.0, 0.0], "b": [1.0, 0.0, 2.0], "width": 0.02}]}},
         "floor.lines[0].b",
     ),
-    (FORMATION_ID, {"offsets": [[0.5, 0.0, 1.0]]}, "formation.offsets[0]"),
+    (LATEST["formation"], {"offsets": [[0.5, 0.0, 1.0]]}, "formation.offsets[0]"),
 ]
 
 
@@ -158,9 +158,9 @@ def test_a_value_outside_its_keys_domain_is_a_config_error_as_keyword_and_in_a_f
 @pytest.mark.parametrize(
     ("env_id", "key"),
     [
-        (DRONE_ID, "speed_max"),
-        (FORMATION_ID, "error_weight"),
-        (TRACK_ID, "heading_weight"),
+        (LATEST["dronefollow"], "speed_max"),
+        (LATEST["formation"], "error_weight"),
+        (LATEST["track"], "heading_weight"),
     ],
 )
 def test_rewards_stay_finite_at_a_keys_documented_maximum(env_id: str, key: str) -> None:
@@ -217,21 +217,21 @@ def test_pettingzoo_table_keywords_take_a_table(module: Any, keywords: dict[str,
 )
 def test_vector_env_arguments_are_config_errors(arguments: dict[str, Any]) -> None:
     with pytest.raises(ConfigError):
-        gym.make_vec(NAV_ID, **arguments)
+        gym.make_vec(LATEST["nav"], **arguments)
 
 
 def _task_table_entry_points() -> dict[str, Any]:
     """Every public constructor that takes scenario keywords, as (kwargs) -> env."""
     entries: dict[str, Any] = {
-        "gym.make": lambda **kw: gym.make(NAV_ID, **kw),
-        "gym.make_vec": lambda **kw: gym.make_vec(NAV_ID, num_envs=2, **kw),
+        "gym.make": lambda **kw: gym.make(LATEST["nav"], **kw),
+        "gym.make_vec": lambda **kw: gym.make_vec(LATEST["nav"], num_envs=2, **kw),
         "array_env": lambda **kw: multinav_v1.array_env(2, **kw),
         "parallel_env": lambda **kw: multinav_v1.parallel_env(**kw),
     }
     try:
         from khepera_gym.sb3 import make_vec_env
 
-        entries["sb3"] = lambda **kw: make_vec_env(NAV_ID, 2, **kw)
+        entries["sb3"] = lambda **kw: make_vec_env(LATEST["nav"], 2, **kw)
     except ImportError:
         pass
     try:
@@ -258,7 +258,7 @@ def test_the_task_section_as_a_table_reaches_the_scenario_everywhere(entry: str)
 
 @pytest.mark.parametrize("index", [-1, 2, 1.5, "1", np.float64(1.0), True])
 def test_scene_takes_a_world_index(index: Any) -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=2)
+    envs = gym.make_vec(LATEST["nav"], num_envs=2)
     with pytest.raises(ConfigError, match=r"scene\(\)"):
         envs.scene(index)
     assert envs.scene(np.int64(1)) == envs.scene(1)
@@ -267,14 +267,14 @@ def test_scene_takes_a_world_index(index: Any) -> None:
 
 @pytest.mark.parametrize("seed", [-1, 2**64, 1.0, "0", [0]])
 def test_a_single_env_refuses_a_bad_seed_with_a_config_error(seed: Any) -> None:
-    env = gym.make(NAV_ID)
+    env = gym.make(LATEST["nav"])
     with pytest.raises(ConfigError, match="seed"):
         env.reset(seed=seed)
     env.close()
 
 
 def test_reset_options_must_be_a_dict() -> None:
-    env = gym.make(NAV_ID)
+    env = gym.make(LATEST["nav"])
     with pytest.raises(ConfigError, match="options"):
         env.reset(options=[1])
     env.reset(options={})

@@ -7,7 +7,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID
+from conftest import LATEST
 
 from khepera_gym.errors import ConfigError
 
@@ -15,14 +15,14 @@ IMU = {"carry": ["ir", "us", "gyro", "imu"], "observe": ["ir", "us", "imu"]}
 
 
 def test_the_imu_is_carried_only_on_request() -> None:
-    env = gym.make(NAV_ID)
+    env = gym.make(LATEST["nav"])
     env.reset(seed=0)
     assert "accel_g" not in env.unwrapped.sensor_readings()
     assert "imu" not in env.unwrapped.obs_layout()
 
 
 def test_at_rest_the_block_and_readings_show_gravity_on_z() -> None:
-    env = gym.make(NAV_ID, **IMU)
+    env = gym.make(LATEST["nav"], **IMU)
     obs, _ = env.reset(seed=1)
     block = env.unwrapped.obs_layout()["imu"]
     assert block.stop - block.start == 6
@@ -48,7 +48,7 @@ def _trace(env: gym.Env, steps: int) -> list[bytes]:
 
 
 def test_same_seed_same_readings_and_a_restored_state_continues_bit_for_bit() -> None:
-    a, b = gym.make(NAV_ID, **IMU), gym.make(NAV_ID, **IMU)
+    a, b = gym.make(LATEST["nav"], **IMU), gym.make(LATEST["nav"], **IMU)
     a.reset(seed=3)
     b.reset(seed=3)
     assert _trace(a, 30) == _trace(b, 30)
@@ -59,8 +59,8 @@ def test_same_seed_same_readings_and_a_restored_state_continues_bit_for_bit() ->
 
 
 def test_a_vector_world_reads_like_the_single_env_of_its_seed() -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=2, **IMU)
-    single = gym.make(NAV_ID, **IMU)
+    envs = gym.make_vec(LATEST["nav"], num_envs=2, **IMU)
+    single = gym.make(LATEST["nav"], **IMU)
     envs.reset(seed=10)
     single.reset(seed=11)
     for _ in range(20):
@@ -73,4 +73,4 @@ def test_a_vector_world_reads_like_the_single_env_of_its_seed() -> None:
 @pytest.mark.parametrize("key", ["imu_accel_noise_sigma", "imu_gyro_noise_sigma"])
 def test_a_negative_noise_is_a_config_error_naming_the_key(key: str) -> None:
     with pytest.raises(ConfigError, match=rf"sensors\.{key}"):
-        gym.make(NAV_ID, **IMU, **{key: -1.0})
+        gym.make(LATEST["nav"], **IMU, **{key: -1.0})

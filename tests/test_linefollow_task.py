@@ -11,7 +11,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import LINEFOLLOW_ID, NAV_ID
+from conftest import LATEST
 
 from khepera_gym.baselines import LineProportional
 from khepera_gym.envs import linefollow_heuristic
@@ -28,7 +28,7 @@ def _episode(env: gym.Env, seed: int, policy) -> dict:
 
 @pytest.mark.parametrize("track", ["circle", "spline"])
 def test_the_followers_lap_and_a_random_policy_does_not(track: str) -> None:
-    env = gym.make(LINEFOLLOW_ID, track=track)
+    env = gym.make(LATEST["linefollow"], track=track)
     rng = np.random.default_rng(0)
     for seed in range(3):
         for policy in (linefollow_heuristic, LineProportional()):
@@ -41,7 +41,7 @@ def test_the_followers_lap_and_a_random_policy_does_not(track: str) -> None:
 
 
 def test_ground_readings_are_raw_counts_that_see_the_line() -> None:
-    env = gym.make(LINEFOLLOW_ID)
+    env = gym.make(LATEST["linefollow"])
     obs, _ = env.reset(seed=1)
     raw = env.unwrapped.sensor_readings()["ground_raw"][0]
     layout = env.unwrapped.obs_layout()
@@ -62,7 +62,10 @@ def _trace(env: gym.Env, seed: int, steps: int) -> list[bytes]:
 
 
 def test_seeds_reproduce_and_a_saved_state_continues_bit_for_bit() -> None:
-    a, b = gym.make(LINEFOLLOW_ID, track="spline"), gym.make(LINEFOLLOW_ID, track="spline")
+    a, b = (
+        gym.make(LATEST["linefollow"], track="spline"),
+        gym.make(LATEST["linefollow"], track="spline"),
+    )
     a.reset(seed=5)
     b.reset(seed=5)
     assert _trace(a, 1, 150) == _trace(b, 1, 150)
@@ -73,8 +76,8 @@ def test_seeds_reproduce_and_a_saved_state_continues_bit_for_bit() -> None:
 
 
 def test_a_vector_world_matches_the_single_env_of_its_seed() -> None:
-    envs = gym.make_vec(LINEFOLLOW_ID, num_envs=3, track="spline")
-    single = gym.make(LINEFOLLOW_ID, track="spline")
+    envs = gym.make_vec(LATEST["linefollow"], num_envs=3, track="spline")
+    single = gym.make(LATEST["linefollow"], track="spline")
     obs, _ = envs.reset(seed=30)
     single_obs, _ = single.reset(seed=32)
     for _ in range(60):
@@ -84,9 +87,9 @@ def test_a_vector_world_matches_the_single_env_of_its_seed() -> None:
 
 
 def test_frames_draw_the_floor() -> None:
-    plain = gym.make(NAV_ID, render_mode="rgb_array", frame_size=(200, 200))
+    plain = gym.make(LATEST["nav"], render_mode="rgb_array", frame_size=(200, 200))
     drawn = gym.make(
-        NAV_ID,
+        LATEST["nav"],
         render_mode="rgb_array",
         frame_size=(200, 200),
         lines=[{"a": [-0.9, -0.5], "b": [0.9, -0.5], "width": 0.05}],
@@ -100,8 +103,8 @@ def test_frames_draw_the_floor() -> None:
 
 def test_a_bad_floor_image_is_a_config_error_naming_it(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"floor\.image"):
-        gym.make(NAV_ID, image=str(tmp_path / "missing.png"))
+        gym.make(LATEST["nav"], image=str(tmp_path / "missing.png"))
     text = tmp_path / "floor.png"
     text.write_text("not a picture")
     with pytest.raises(ConfigError, match=r"floor\.image.*not a PNG"):
-        gym.make(NAV_ID, image=str(text))
+        gym.make(LATEST["nav"], image=str(text))

@@ -17,14 +17,39 @@ import pytest
 import khepera_gym
 import khepera_gym.pettingzoo
 from khepera_gym import _core
+from khepera_gym.envs import ENV_CLASSES
+from khepera_gym.registration import registered_ids
+from khepera_gym.vector import VECTOR_ENV_CLASSES
 
 PACKAGE = Path(khepera_gym.__file__).parent
+ROOT = PACKAGE.parent
 #: The core's task names, from its registry.
 TASKS = [name for name, _, _ in _core.tasks()]
 #: The core's controller names, from its registry.
 CONTROLLERS = [name for name, _ in _core.controllers()]
-#: The registries whose names a docstring or comment may list: what → its names.
-REGISTRIES = {"task": TASKS, "controller": CONTROLLERS}
+#: The tasks' env classes (``NavEnv``) and their vector env classes (``NavVectorEnv``).
+ENV_CLASS_NAMES = [cls.__name__ for cls in ENV_CLASSES.values()]
+VECTOR_CLASS_NAMES = [cls.__name__ for cls in VECTOR_ENV_CLASSES.values()]
+#: The tasks' Gymnasium ids without their version (``KheperaIV-Nav``).
+ENV_IDS = [ids[0].rsplit("-v", 1)[0] for ids in registered_ids().values()]
+#: The PettingZoo families (``formation``), whose modules are ``<family>_vN``.
+FAMILIES = list(khepera_gym.pettingzoo.FAMILIES)
+#: The registries whose names a docstring, comment or literal may list: what → its names.
+REGISTRIES = {
+    "task": TASKS,
+    "controller": CONTROLLERS,
+    "env class": ENV_CLASS_NAMES,
+    "vector env class": VECTOR_CLASS_NAMES,
+    "id": ENV_IDS,
+    "PettingZoo family": FAMILIES,
+}
+#: Where the lists a reader meets are: the package, the tests and the examples.
+SOURCES = [
+    path
+    for folder in ("khepera_gym", "tests", "examples")
+    for path in sorted((ROOT / folder).rglob("*.py*"))
+    if path.suffix in (".py", ".pyi")
+]
 
 
 def _stub() -> ast.Module:
@@ -72,8 +97,16 @@ def test_pettingzoo_package_exports_and_describes_every_module() -> None:
         assert f"``{stem}_vN``" in doc, f"the package docstring does not describe {stem}"
 
 
-def _quoted(names: list[str], line: str) -> set[str]:
-    return {name for name in names if re.search(rf"[\"'`]{name}[\"'`]", line)}
+def _named(registry: str, text: str) -> set[str]:
+    """The entries of a registry a line of prose names: a task or controller quoted
+    (``"nav"``), a class by its name, an id with or without its version, a family as its
+    module (``formation_v3``, ``formation_vN``)."""
+    names = REGISTRIES[registry]
+    if registry in ("task", "controller"):
+        return {name for name in names if re.search(rf"[\"'`]{name}[\"'`]", text)}
+    if registry == "PettingZoo family":
+        return {name for name in names if re.search(rf"\b{name}_v(\d+|N)\b", text)}
+    return {name for name in names if re.search(rf"(?<![\w-]){re.escape(name)}(?![\w])", text)}
 
 
 def _prose(path: Path) -> list[tuple[int, str]]:
@@ -116,16 +149,84 @@ def test_a_docstring_that_lists_a_registry_names_all_of_it(module: str) -> None:
 
 @pytest.mark.parametrize("registry", list(REGISTRIES))
 def test_no_docstring_lists_some_names_of_a_registry_as_if_they_were_all(registry: str) -> None:
-    """A line of a docstring or comment naming three or more tasks (or controllers) is a list a
-    reader takes for the whole: it names them all, or it is marked as examples ("...")."""
+    """A line of a docstring or comment naming three or more tasks (or controllers, env classes,
+    ids, PettingZoo families) is a list a reader takes for the whole: it names them all, or it
+    is marked as examples ("...")."""
     names = REGISTRIES[registry]
     stale = []
-    checked = {PACKAGE.parent / (name.replace(".", "/") + "/__init__.py") for name in CHECKED_LISTS}
-    for path in sorted(PACKAGE.rglob("*.py*")):
+    checked = {ROOT / (name.replace(".", "/") + "/__init__.py") for name in CHECKED_LISTS}
+    for path in SOURCES:
         if path in checked:
             continue
         for number, line in _prose(path):
-            named = _quoted(names, line)
+            named = _named(registry, line)
             if len(named) >= 3 and "..." not in line and named != set(names):
-                stale.append(f"{path.relative_to(PACKAGE.parent)}:{number}: {line.strip()}")
+                stale.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
+    assert not stale, "\n".join(stale)
+
+
+def _literal_entries(node: ast.AST) -> list[ast.AST]:
+    """The elements of a list, tuple or set display, or the keys of a dict one."""
+    if isinstance(node, (ast.List, ast.Tuple, ast.Set)):
+        return list(node.elts)
+    if isinstance(node, ast.Dict):
+        return [key for key in node.keys if key is not None]
+    return []
+
+
+def _entry_name(registry: str, node: ast.AST) -> str | None:
+    """The registry entry one element of a literal is, if it is one: a string naming a task,
+    an id or a module (``"KheperaIV-Nav-v3"``, ``"multinav_v1"``), a class by its name, or the
+    tests' ``LATEST["nav"]`` (the latest id of a task)."""
+    names = REGISTRIES[registry]
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        text = node.value
+        candidates = {
+            "task": text,
+            "id": text.rsplit("-v", 1)[0],
+            "PettingZoo family": text.rpartition("_v")[0],
+        }
+        name = candidates.get(registry)
+        return name if name in names else None
+    if isinstance(node, ast.Name) and registry.endswith("class"):
+        return node.id if node.id in names else None
+    is_latest = (
+        isinstance(node, ast.Subscript)
+        and isinstance(node.value, ast.Name)
+        and node.value.id == "LATEST"
+        and isinstance(node.slice, ast.Constant)
+    )
+    if registry == "task" and is_latest:
+        return node.slice.value if node.slice.value in names else None  # type: ignore[union-attr]
+    return None
+
+
+#: Literals that name part of a registry on purpose: "path:line" → why. Each is data about those
+#: entries (not a list of them all), and says so.
+PARTIAL_ON_PURPOSE: dict[str, str] = {
+    "tests/test_torchrl.py:44": "smaller scenes for the multi-robot tasks; others run as they are",
+    "examples/compare_baselines.py:157": "the three tasks of the KH4VREP paper, beside its scenes",
+}
+
+
+@pytest.mark.parametrize("registry", [r for r in REGISTRIES if r != "controller"])
+def test_no_literal_in_the_code_lists_some_entries_of_a_registry(registry: str) -> None:
+    """A list, tuple or set written in the code whose elements are three or more tasks, ids,
+    env classes or PettingZoo families (or a dict keyed by them), but not all of them, is a list
+    kept by hand: the next task is missing from it. It is built from the registry instead, or
+    marked in :data:`PARTIAL_ON_PURPOSE` with the reason it names only some. (A controller
+    belongs to some tasks, so lists of controllers are the tasks' data, not checked here.)"""
+    names = set(REGISTRIES[registry])
+    stale = []
+    for path in SOURCES:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            entries = _literal_entries(node)
+            named = [_entry_name(registry, entry) for entry in entries]
+            if len(entries) < 3 or None in named:
+                continue
+            where = f"{path.relative_to(ROOT)}:{node.lineno}"
+            if set(named) != names and where not in PARTIAL_ON_PURPOSE:
+                stale.append(
+                    f"{where}: names {sorted(set(named))}, not {sorted(names - set(named))}"
+                )
     assert not stale, "\n".join(stale)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID, NAV_V0_ID
+from conftest import LATEST, NAV_V0_ID
 
 from khepera_gym import obs_layout
 from khepera_gym.envs import NavEnv, nav_heuristic
@@ -124,7 +124,7 @@ def test_reward_is_progress_minus_time_cost_and_positive_toward_goal() -> None:
 
 
 def test_reward_is_negative_when_driving_away_from_goal() -> None:
-    env = gym.make(NAV_ID, collision_penalty=0.0)
+    env = gym.make(LATEST["nav"], collision_penalty=0.0)
     observation, _ = env.reset(seed=12)
     # Turn until the goal is behind, then drive straight on: the goal distance grows.
     for _ in range(200):

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from conftest import AVOID_ID, FORMATION_ID, SEEK_ID
+from conftest import LATEST
 
 from khepera_gym.baselines import VFH, BlobServo, BlobVFH, Braitenberg, LeaderFollower
 from khepera_gym.envs import seek_heuristic
@@ -39,9 +39,9 @@ def _one_episode_per_world(env_id: str, policy, n: int, seed: int, **kwargs) -> 
 
 def test_braitenberg_and_vfh_reach_the_fig6_target_in_every_seed() -> None:
     braitenberg = _one_episode_per_world(
-        AVOID_ID, Braitenberg(), FIGURE_SEEDS, seed=0, config="paper_fig6"
+        LATEST["avoid"], Braitenberg(), FIGURE_SEEDS, seed=0, config="paper_fig6"
     )
-    vfh = _one_episode_per_world(AVOID_ID, VFH(), FIGURE_SEEDS, seed=0, config="paper_fig6")
+    vfh = _one_episode_per_world(LATEST["avoid"], VFH(), FIGURE_SEEDS, seed=0, config="paper_fig6")
     assert braitenberg["success"].all(), braitenberg["success"]
     assert vfh["success"].all(), vfh["success"]
     # VFH+'s enlargement keeps the robot clear of the wall's end and of the box: no contact.
@@ -58,8 +58,8 @@ def test_braitenberg_reaches_the_fig6_target_faster_and_more_directly_than_vfh()
     # more direct and smoothed way [...] in less time. In the case of VFH, the robot moves with
     # a zigzag path". Directness as the robot's total turning.
     for seed in range(5):
-        braitenberg = record_rollout(AVOID_ID, Braitenberg(), seed=seed, config="paper_fig6")
-        vfh = record_rollout(AVOID_ID, VFH(), seed=seed, config="paper_fig6")
+        braitenberg = record_rollout(LATEST["avoid"], Braitenberg(), seed=seed, config="paper_fig6")
+        vfh = record_rollout(LATEST["avoid"], VFH(), seed=seed, config="paper_fig6")
         assert braitenberg.stats["success"] and vfh.stats["success"]
         assert braitenberg.stats["length"] < vfh.stats["length"], seed
         assert _turning(braitenberg) < _turning(vfh), (seed, _turning(braitenberg), _turning(vfh))
@@ -68,21 +68,21 @@ def test_braitenberg_reaches_the_fig6_target_faster_and_more_directly_than_vfh()
 def test_vfh_reaches_three_quarters_of_avoid_goals_among_random_obstacles() -> None:
     # 83% over 1,000 seeds (docs/notes/controllers-v2.md); 75% is three binomial standard errors
     # of 200 episodes below it. The paper's VFH reached 34% here: it grazed obstacles.
-    stats = _one_episode_per_world(AVOID_ID, VFH(), 200, seed=1000)
+    stats = _one_episode_per_world(LATEST["avoid"], VFH(), 200, seed=1000)
     assert stats["success"].mean() >= 0.75, stats["success"].mean()
 
 
 def test_seek_heuristic_reaches_most_targets_among_obstacles() -> None:
     # Seek's 10 random obstacles: circles, boxes and thin walls between the robot and the pillar.
     assert isinstance(SEEK_POLICY, BlobVFH)
-    camera_vfh = _one_episode_per_world(SEEK_ID, seek_heuristic, 200, seed=1000)
-    blob_servo = _one_episode_per_world(SEEK_ID, BlobServo(), 200, seed=1000)
+    camera_vfh = _one_episode_per_world(LATEST["seek"], seek_heuristic, 200, seed=1000)
+    blob_servo = _one_episode_per_world(LATEST["seek"], BlobServo(), 200, seed=1000)
     assert camera_vfh["success"].mean() >= 0.5, camera_vfh["success"].mean()
     assert camera_vfh["success"].mean() > blob_servo["success"].mean()
 
 
 def test_fig7_cross_loses_its_shape_at_the_obstacles_and_recovers() -> None:
-    env = gym.make(FORMATION_ID, config="paper_fig7")
+    env = gym.make(LATEST["formation"], config="paper_fig7")
     policy = LeaderFollower.for_env(env)
     stop_radius = dict((n, d) for n, d, _ in LeaderFollower.PARAMETERS)["stop_radius"]
     for seed in range(5):

@@ -11,7 +11,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import PATHFOLLOW_ID
+from conftest import LATEST
 
 from khepera_gym.baselines import PurePursuit, Samson, WaypointSwitching
 from khepera_gym.envs import pathfollow_heuristic
@@ -53,7 +53,7 @@ def _first_episodes(envs: gym.vector.VectorEnv, policy) -> dict[str, np.ndarray]
 @pytest.mark.parametrize("path", ["circle", "lemniscate", "square", "spline"])
 @pytest.mark.parametrize("name", list(POLICIES))
 def test_every_follower_laps_every_path_without_leaving_it(path: str, name: str) -> None:
-    envs = gym.make_vec(PATHFOLLOW_ID, num_envs=12, path=path)
+    envs = gym.make_vec(LATEST["pathfollow"], num_envs=12, path=path)
     stats = _first_episodes(envs, POLICIES[name])
     assert stats["success"].all(), stats["success"]
     assert (stats["worst"] < LOST_DISTANCE).all()
@@ -63,7 +63,7 @@ def test_every_follower_laps_every_path_without_leaving_it(path: str, name: str)
 def test_samson_stays_within_its_lyapunov_bound() -> None:
     # V = d² + θ̃²/k_d never grows under Samson's law (kinematic model): |d| ≤ √V(0).
     bound = math.sqrt(START_OFFSET**2 + START_HEADING_OFFSET**2 / KD)
-    envs = gym.make_vec(PATHFOLLOW_ID, num_envs=16, path="lemniscate")
+    envs = gym.make_vec(LATEST["pathfollow"], num_envs=16, path="lemniscate")
     stats = _first_episodes(envs, pathfollow_heuristic)
     assert (stats["worst"] <= bound).all(), stats["worst"]
     assert np.isfinite(stats["path_converge_time"]).all()
@@ -85,7 +85,7 @@ def test_waypoint_switching_settles_within_its_chords_and_laps_slower() -> None:
 
 def test_a_lap_is_a_success_and_the_return_counts_progress() -> None:
     # Without the speed term (tests/pathfollow.rs tests it), the return counts progress.
-    env = gym.make(PATHFOLLOW_ID, speed_weight=0.0)
+    env = gym.make(LATEST["pathfollow"], speed_weight=0.0)
     obs, _ = env.reset(seed=3)
     total, steps = 0.0, 0
     while True:
@@ -106,7 +106,7 @@ def test_a_lap_is_a_success_and_the_return_counts_progress() -> None:
 @pytest.mark.parametrize(("direction", "sign"), [("ccw", 1.0), ("cw", -1.0)])
 def test_cross_track_error_is_positive_left_of_the_path(direction: str, sign: float) -> None:
     # The inside of a counter-clockwise circle is on its left: d = R − r; clockwise, r − R.
-    env = gym.make(PATHFOLLOW_ID, direction=direction)
+    env = gym.make(LATEST["pathfollow"], direction=direction)
     for seed in range(8):
         obs, _ = env.reset(seed=seed)
         r = float(np.linalg.norm(env.unwrapped.poses()[0, :2]))
@@ -131,21 +131,21 @@ def test_cross_track_error_is_positive_left_of_the_path(direction: str, sign: fl
 )
 def test_bad_paths_raise_config_errors_naming_the_key(overrides: dict, key: str) -> None:
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")) as raised:
-        gym.make(PATHFOLLOW_ID, **overrides)
+        gym.make(LATEST["pathfollow"], **overrides)
     assert isinstance(raised.value, KheperaError)
 
 
 def test_pathfollow_has_no_version_zero() -> None:
     assert "KheperaIV-PathFollow-v0" not in gym.registry
-    assert resolve_env_id("KheperaIV-PathFollow") == PATHFOLLOW_ID
+    assert resolve_env_id("KheperaIV-PathFollow") == LATEST["pathfollow"]
     with pytest.raises(ConfigError, match="version"):
-        gym.make(PATHFOLLOW_ID, version=0)
+        gym.make(LATEST["pathfollow"], version=0)
 
 
 def test_a_frame_draws_the_path() -> None:
     frames = []
     for path in ("circle", "square"):
-        env = gym.make(PATHFOLLOW_ID, path=path, random_start=False, render_mode="rgb_array")
+        env = gym.make(LATEST["pathfollow"], path=path, random_start=False, render_mode="rgb_array")
         env.reset(seed=0)
         frames.append(env.render())
         env.close()

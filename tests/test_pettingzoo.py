@@ -15,14 +15,7 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import (
-    FORMATION,
-    FORMATION_ID,
-    MULTINAV,
-    PETTINGZOO_MODULES,
-    latest_module,
-    module_name,
-)
+from conftest import FORMATION, LATEST, MULTINAV, PETTINGZOO_MODULES, latest_module, module_name
 from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, seed_test
 
@@ -178,7 +171,7 @@ def test_spaces_are_cached_and_followers_share_one_space() -> None:
 
 def test_observations_are_slices_of_the_state_and_match_the_gymnasium_env() -> None:
     parallel = FORMATION.parallel_env(config="paper_fig7")
-    single = gym.make(FORMATION_ID, config="paper_fig7")
+    single = gym.make(LATEST["formation"], config="paper_fig7")
     observations, _ = parallel.reset(seed=9)
     joint, _ = single.reset(seed=9)
     np.testing.assert_array_equal(parallel.state(), joint)

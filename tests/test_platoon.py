@@ -19,7 +19,7 @@ import pytest
 import khepera_gym
 from khepera_gym.baselines import Kanayama
 from khepera_gym.errors import ConfigError
-from khepera_gym.pettingzoo import platoon_v1
+from khepera_gym.pettingzoo import platoon, platoon_v1
 
 #: Scenario defaults the bounds use (configs/platoon.toml; docs/task-design.md §3).
 ROBOTS = 3  # platoon.robots
@@ -189,7 +189,8 @@ def test_robots_and_time_gap_arguments_reach_the_scenario() -> None:
 
 
 def test_manual_has_its_sections_a_table_matching_the_layout_and_running_examples() -> None:
-    manual = platoon_v1.PlatoonParallelEnv.__doc__ or ""
+    # The manual is the family's class (every platoon_vN module's env subclasses it).
+    manual = platoon.PlatoonParallelEnv.__doc__ or ""
     sections = [
         "Description",
         "Agents",
@@ -208,5 +209,5 @@ def test_manual_has_its_sections_a_table_matching_the_layout_and_running_example
     rows = re.findall(r"^\s*\| (\d+)-(\d+)\s*\| (\w+)", manual, re.M)
     assert {name: slice(int(a), int(b) + 1) for a, b, name in rows} == layout
     assert "v1: Initial version" in manual
-    results = doctest.testmod(platoon_v1, optionflags=doctest.ELLIPSIS)
+    results = doctest.testmod(platoon, optionflags=doctest.ELLIPSIS)
     assert results.attempted >= 4 and results.failed == 0

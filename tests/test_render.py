@@ -11,7 +11,7 @@ import sys
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID
+from conftest import LATEST
 
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.render import mosaic, save_video
@@ -25,7 +25,7 @@ def _robot_centre(frame: np.ndarray) -> np.ndarray:
     return np.array([xs.mean(), ys.mean()])
 
 
-@pytest.mark.parametrize("env_id", [NAV_ID, AVOID_ID, FORMATION_ID])
+@pytest.mark.parametrize("env_id", list(LATEST.values()))
 def test_rgb_array_frames_have_the_documented_shape(env_id: str) -> None:
     env = gym.make(env_id, render_mode="rgb_array", frame_size=(320, 240))
     env.reset(seed=0)
@@ -36,7 +36,7 @@ def test_rgb_array_frames_have_the_documented_shape(env_id: str) -> None:
 
 
 def test_robot_pixels_move_with_the_robot_and_renders_repeat() -> None:
-    env = gym.make(NAV_ID, render_mode="rgb_array", config="paper_fig6")
+    env = gym.make(LATEST["nav"], render_mode="rgb_array", config="paper_fig6")
     env.reset(seed=0)
     first = env.render()
     np.testing.assert_array_equal(first, env.render())
@@ -65,7 +65,7 @@ def test_rendering_needs_no_display() -> None:
 
 
 def test_vector_env_renders_a_mosaic_of_the_first_worlds() -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=6, render_mode="rgb_array", frame_size=(100, 100))
+    envs = gym.make_vec(LATEST["nav"], num_envs=6, render_mode="rgb_array", frame_size=(100, 100))
     envs.reset(seed=0)
     image = envs.render()
     # 4 worlds by default in a 2 x 2 grid with 4-pixel gaps.
@@ -74,7 +74,7 @@ def test_vector_env_renders_a_mosaic_of_the_first_worlds() -> None:
 
 
 def test_human_window_runs_and_closes_without_a_display() -> None:
-    env = gym.make(NAV_ID, render_mode="human")
+    env = gym.make(LATEST["nav"], render_mode="human")
     env.reset(seed=0)
     for _ in range(3):
         assert env.step(np.zeros(2, np.float32))[0].shape == (18,)
@@ -85,7 +85,7 @@ def test_human_window_runs_and_closes_without_a_display() -> None:
 
 def test_bad_frame_sizes_and_videos_raise_clear_errors(tmp_path) -> None:
     with pytest.raises(ConfigError, match="frame_size"):
-        gym.make(NAV_ID, render_mode="rgb_array", frame_size=(8, 8))
+        gym.make(LATEST["nav"], render_mode="rgb_array", frame_size=(8, 8))
     with pytest.raises(KheperaError, match="no frames"):
         save_video([], tmp_path / "x.gif")
     with pytest.raises(KheperaError, match=r"\.avi"):
@@ -93,7 +93,7 @@ def test_bad_frame_sizes_and_videos_raise_clear_errors(tmp_path) -> None:
 
 
 def test_gif_of_a_rollout_is_written(tmp_path) -> None:
-    env = gym.make(AVOID_ID, render_mode="rgb_array", frame_size=(96, 96))
+    env = gym.make(LATEST["avoid"], render_mode="rgb_array", frame_size=(96, 96))
     env.reset(seed=0)
     frames = [env.render()]
     for _ in range(5):
@@ -122,7 +122,7 @@ def test_render_command_records_a_baseline_episode(tmp_path) -> None:
     from khepera_gym.cli import main
 
     out = tmp_path / "fig6.gif"
-    argv = ["render", "--env", AVOID_ID, "--config", "paper_fig6", "--policy", "braitenberg"]
+    argv = ["render", "--env", LATEST["avoid"], "--config", "paper_fig6", "--policy", "braitenberg"]
     assert main([*argv, "--size", "64", "64", "--steps", "12", "--out", str(out)]) == 0
     from PIL import Image
 
@@ -134,7 +134,9 @@ def test_a_recorded_rollout_replays_from_its_file_without_simulating(tmp_path) -
     from khepera_gym.baselines import Braitenberg
     from khepera_gym.plot import Rollout, plot_rollouts, record_rollout
 
-    rollout = record_rollout(AVOID_ID, Braitenberg(), seed=3, max_steps=60, label="braitenberg")
+    rollout = record_rollout(
+        LATEST["avoid"], Braitenberg(), seed=3, max_steps=60, label="braitenberg"
+    )
     path = rollout.save(tmp_path / "run.npz")
     again = Rollout.load(path)
     for name in ("poses", "goals", "actions", "rewards", "ir_raw", "us_cm"):
@@ -143,7 +145,7 @@ def test_a_recorded_rollout_replays_from_its_file_without_simulating(tmp_path) -
     assert again.poses.shape == (steps + 1, 1, 3) and again.ir_raw.shape == (steps + 1, 1, 8)
     assert again.stats == rollout.stats
     assert again.scene == json.loads(json.dumps(rollout.scene))  # tuples come back as lists
-    assert again.env_id == AVOID_ID and "[obstacles]" in again.config and again.seed == 3
+    assert again.env_id == LATEST["avoid"] and "[obstacles]" in again.config and again.seed == 3
     # The file is all a plot needs.
     figure = plot_rollouts([again])
     figure.savefig(tmp_path / "replay.png")
@@ -154,7 +156,7 @@ def test_gymnasium_record_video_writes_an_mp4(tmp_path) -> None:
     from gymnasium.wrappers import RecordVideo
 
     env = RecordVideo(
-        gym.make(NAV_ID, render_mode="rgb_array", frame_size=(96, 96)),
+        gym.make(LATEST["nav"], render_mode="rgb_array", frame_size=(96, 96)),
         str(tmp_path / "videos"),
         episode_trigger=lambda episode: True,
         disable_logger=True,

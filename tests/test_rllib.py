@@ -541,3 +541,27 @@ def test_missing_extra_names_the_pip_command() -> None:
     assert completed.returncode != 0
     assert "train --backend rllib needs Ray RLlib" in completed.stderr
     assert "pip install 'khepera-gym[rllib]'" in completed.stderr
+
+
+def test_every_rllib_env_runs_the_version_in_its_name() -> None:
+    """The RLlib adapters, like every other entry point (tests/test_module_versions.py): each
+    registered name reports the behaviour version in it and resolves that version's scenario."""
+    from khepera_gym import _core
+    from khepera_gym.registration import task_and_version
+
+    for name, module in rllib.creators.MULTI_AGENT_ENVS.items():
+        task, version = task_and_version(name.removeprefix(rllib.creators.ENV_PREFIX))
+        env = rllib.creators.make_multi_agent_env(name, {})
+        assert env.behaviour_version == version, name
+        expected = _core.Batch(task, 1, version=version, num_threads=1).config_toml()
+        assert env.config_toml() == expected, name
+        assert module.parallel_env().behaviour_version == version
+    for name in rllib.creators.env_names():
+        if name in rllib.creators.MULTI_AGENT_ENVS:
+            continue
+        version = rllib.creators.FOLLOWERS_ENVS.get(name)
+        if version is None:
+            version = task_and_version(name.removeprefix(rllib.creators.ENV_PREFIX))[1]
+        env = rllib.creators.VectorEnvCreator(name)({"num_envs": 4, "num_threads": 1})
+        assert env.unwrapped.behaviour_version == version, name
+        env.close()

@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 import torch
-from conftest import NAV_ID
+from conftest import LATEST
 from stable_baselines3 import PPO
 
 from khepera_gym import cli
@@ -28,7 +28,7 @@ SIGMA = 0.2
 @pytest.fixture(scope="module")
 def model_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An untrained PPO model on Nav whose Gaussian has σ = SIGMA on both wheels."""
-    env = make_vec_env(NAV_ID, 2, seed=0, num_threads=1)
+    env = make_vec_env(LATEST["nav"], 2, seed=0, num_threads=1)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, seed=0, device="cpu")
     with torch.no_grad():
         model.policy.log_std.fill_(float(np.log(SIGMA)))
@@ -44,7 +44,7 @@ def test_sampled_actions_spread_around_the_mean_with_the_models_sigma(model_path
     a reset reseeds, so the same calls give the same draws."""
     deterministic = load_sb3_policy(model_path)
     sampled = load_sb3_policy(model_path, sample_seed=7)
-    env = make_vec_env(NAV_ID, 4, seed=0, num_threads=1)
+    env = make_vec_env(LATEST["nav"], 4, seed=0, num_threads=1)
     observations = np.repeat(env.reset(), 500, axis=0)  # 2,000 rows, 4 distinct
     env.close()
     mean = deterministic(observations)
@@ -67,7 +67,7 @@ def test_compare_samples_actions_reproducibly_and_says_so(model_path: Path, tmp_
     name = f"sb3:{model_path}"
     runs = [
         compare(
-            NAV_ID,
+            LATEST["nav"],
             [name],
             episodes=3,
             progress=False,
@@ -78,7 +78,12 @@ def test_compare_samples_actions_reproducibly_and_says_so(model_path: Path, tmp_
         for _ in range(2)
     ]
     plain = compare(
-        NAV_ID, [name], episodes=3, progress=False, overrides={"max_steps": 60}, record_worlds=0
+        LATEST["nav"],
+        [name],
+        episodes=3,
+        progress=False,
+        overrides={"max_steps": 60},
+        record_worlds=0,
     )
     assert list(runs[0].results) == [f"{name} (sampled)"]
     assert list(plain.results) == [name]
@@ -93,7 +98,7 @@ def test_compare_samples_actions_reproducibly_and_says_so(model_path: Path, tmp_
         [
             "compare",
             "--env",
-            NAV_ID,
+            LATEST["nav"],
             "--policy",
             name,
             "--sample-actions",
@@ -118,13 +123,15 @@ def test_sampling_without_a_model_to_sample_is_refused(tmp_path: Path) -> None:
     from khepera_gym.errors import ConfigError
 
     with pytest.raises(ConfigError, match=r"sample-actions.*sb3: models"):
-        compare(NAV_ID, ["position_control"], episodes=2, progress=False, sample_actions=True)
+        compare(
+            LATEST["nav"], ["position_control"], episodes=2, progress=False, sample_actions=True
+        )
     with pytest.raises(SystemExit, match="sample-actions"):
         cli.main(
             [
                 "compare",
                 "--env",
-                NAV_ID,
+                LATEST["nav"],
                 "--policy",
                 "position_control",
                 "--sample-actions",

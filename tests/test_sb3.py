@@ -18,15 +18,7 @@ pytest.importorskip(
     "stable_baselines3", reason="needs the sb3 extra: pip install 'khepera-gym[sb3]'"
 )
 
-from conftest import (
-    AVOID_ID,
-    CONSENSUS,
-    FORMATION_ID,
-    NAV_ID,
-    PATHFOLLOW_ID,
-    TRACK_ID,
-    random_actions,
-)
+from conftest import CONSENSUS, LATEST, random_actions
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import EvalCallback
 from stable_baselines3.common.env_checker import check_env
@@ -34,6 +26,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
 from khepera_gym import cli
+from khepera_gym.config import tomllib
 from khepera_gym.envs import formation_heuristic, nav_heuristic
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.sb3 import (
@@ -47,7 +40,13 @@ from khepera_gym.sb3 import (
     make_vec_env,
     resolve_env_id,
 )
-from khepera_gym.train import ALGORITHMS, build_model, load_hyperparams, parse_override
+from khepera_gym.train import (
+    ALGORITHMS,
+    HYPERPARAMS_DIR,
+    build_model,
+    load_hyperparams,
+    parse_override,
+)
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
@@ -64,7 +63,7 @@ class HeuristicPolicy:
         return self.heuristic(observation), None
 
 
-@pytest.mark.parametrize("env_id", [NAV_ID, AVOID_ID, FORMATION_ID])
+@pytest.mark.parametrize("env_id", list(LATEST.values()))
 def test_sb3_check_env_passes_on_each_single_env(env_id: str) -> None:
     env = gym.make(env_id)
     check_env(env)
@@ -73,17 +72,17 @@ def test_sb3_check_env_passes_on_each_single_env(env_id: str) -> None:
 
 
 def test_make_vec_env_resolves_the_unversioned_id_without_a_warning() -> None:
-    assert resolve_env_id("KheperaIV-Nav") == NAV_ID
-    assert resolve_env_id(AVOID_ID) == AVOID_ID
+    assert resolve_env_id("KheperaIV-Nav") == LATEST["nav"]
+    assert resolve_env_id(LATEST["avoid"]) == LATEST["avoid"]
     with pytest.raises(ConfigError, match="KheperaIV-Nav-v1"):
         make_vec_env("KheperaIV-Swim", 2)
 
 
 def test_vec_env_reset_and_step_have_sb3_shapes_and_dtypes() -> None:
-    env = make_vec_env(NAV_ID, 4, seed=0, num_threads=2)
+    env = make_vec_env(LATEST["nav"], 4, seed=0, num_threads=2)
     assert isinstance(env, KheperaSB3VecEnv)
     assert env.num_envs == 4
-    assert env.observation_space == gym.make(NAV_ID).observation_space
+    assert env.observation_space == gym.make(LATEST["nav"]).observation_space
     assert env.action_space == gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
     observations = env.reset()
     assert observations.shape == (4, 18) and observations.dtype == np.float32
@@ -105,8 +104,8 @@ def test_vec_env_rows_replay_single_envs_seeded_seed_plus_index_with_terminal_ob
     """Row i ≡ gym.make(id) reset with seed s + i, then reset() after each episode; at an
     episode's end the row is reset at once and infos carry the true last observation."""
     n, seed, max_steps = 4, 7, 60
-    vec_env = make_vec_env(NAV_ID, n, seed=seed, max_steps=max_steps)
-    singles = [gym.make(NAV_ID, max_steps=max_steps) for _ in range(n)]
+    vec_env = make_vec_env(LATEST["nav"], n, seed=seed, max_steps=max_steps)
+    singles = [gym.make(LATEST["nav"], max_steps=max_steps) for _ in range(n)]
     observations = vec_env.reset()
     single_observations = [env.reset(seed=seed + i)[0] for i, env in enumerate(singles)]
     np.testing.assert_array_equal(observations, np.stack(single_observations))
@@ -135,7 +134,7 @@ def test_same_seed_gives_the_same_trajectory_whatever_the_thread_count() -> None
     actions = random_actions(3, 120, (6, 2))
 
     def rollout(seed: int, num_threads: int) -> list[npt.NDArray[np.float32]]:
-        env = make_vec_env(AVOID_ID, 6, seed=seed, num_threads=num_threads, max_steps=40)
+        env = make_vec_env(LATEST["avoid"], 6, seed=seed, num_threads=num_threads, max_steps=40)
         trajectory = [env.reset()]
         for action in actions:
             observations, rewards, dones, infos = env.step(action)
@@ -151,7 +150,7 @@ def test_same_seed_gives_the_same_trajectory_whatever_the_thread_count() -> None
 
 
 def test_seed_acts_at_the_next_reset_only_and_reset_without_seed_continues_the_streams() -> None:
-    env = make_vec_env(NAV_ID, 3)
+    env = make_vec_env(LATEST["nav"], 3)
     assert env.seed(11) == [11, 12, 13]
     seeded = env.reset()
     continued = env.reset()
@@ -159,14 +158,14 @@ def test_seed_acts_at_the_next_reset_only_and_reset_without_seed_continues_the_s
     env.seed(11)
     np.testing.assert_array_equal(env.reset(), seeded)
     np.testing.assert_array_equal(env.reset(), continued)
-    single = gym.make(NAV_ID)
+    single = gym.make(LATEST["nav"])
     np.testing.assert_array_equal(single.reset(seed=12)[0], seeded[1])
     np.testing.assert_array_equal(single.reset()[0], continued[1])
 
 
 def test_vec_env_works_under_vec_monitor_and_vec_normalize() -> None:
     max_steps = 30
-    env = VecNormalize(VecMonitor(make_vec_env(NAV_ID, 4, seed=0, max_steps=max_steps)))
+    env = VecNormalize(VecMonitor(make_vec_env(LATEST["nav"], 4, seed=0, max_steps=max_steps)))
     observations = env.reset()
     episodes = 0
     for actions in random_actions(1, 2 * max_steps, (4, 2)):
@@ -183,7 +182,7 @@ def test_vec_env_works_under_vec_monitor_and_vec_normalize() -> None:
 
 
 def test_get_attr_env_method_set_attr_env_is_wrapped_and_render() -> None:
-    env = make_vec_env(FORMATION_ID, 3, seed=2, n_followers=2)
+    env = make_vec_env(LATEST["formation"], 3, seed=2, n_followers=2)
     env.reset()
     assert env.get_attr("render_mode") == [None, None, None]
     assert env.get_attr("max_episode_steps", indices=[0]) == [800]
@@ -191,7 +190,7 @@ def test_get_attr_env_method_set_attr_env_is_wrapped_and_render() -> None:
     with pytest.raises(AttributeError):
         env.get_attr("no_such_thing")
     np.testing.assert_array_equal(env.env_method("poses", indices=1)[0], env.poses()[1])
-    single = gym.make(FORMATION_ID, n_followers=2)
+    single = gym.make(LATEST["formation"], n_followers=2)
     single.reset(seed=4)
     np.testing.assert_array_equal(env.env_method("poses", indices=[2])[0], single.unwrapped.poses())
     np.testing.assert_array_equal(
@@ -213,7 +212,7 @@ def test_rgb_array_render_tiles_one_frame_per_world() -> None:
     env = make_formation_vec_env(3, seed=0, n_followers=2, render_mode="rgb_array")
     assert env.render_mode == "rgb_array" and env.get_attr("render_mode", 0) == ["rgb_array"]
     env.reset()
-    frames = make_vec_env(NAV_ID, 2, seed=0, render_mode="rgb_array", frame_size=(64, 48))
+    frames = make_vec_env(LATEST["nav"], 2, seed=0, render_mode="rgb_array", frame_size=(64, 48))
     frames.reset()
     images = frames.get_images()
     assert [image.shape for image in images] == [(48, 64, 3), (48, 64, 3)]
@@ -222,11 +221,11 @@ def test_rgb_array_render_tiles_one_frame_per_world() -> None:
     assert mosaic.ndim == 3 and mosaic.shape[0] >= 48 and mosaic.shape[1] >= 2 * 64
     assert len(env.get_images()) == 3  # one per world, not per follower row
     with pytest.raises(ConfigError, match="rgb_array"):
-        make_vec_env(NAV_ID, 1, render_mode="human")
+        make_vec_env(LATEST["nav"], 1, render_mode="human")
 
 
 def test_wrong_actions_raise_action_error_and_step_needs_reset() -> None:
-    env = make_vec_env(NAV_ID, 2, seed=0)
+    env = make_vec_env(LATEST["nav"], 2, seed=0)
     with pytest.raises(KheperaError, match="reset"):
         env.step(np.zeros((2, 2), np.float32))
     env.reset()
@@ -245,7 +244,9 @@ def test_formation_rows_are_world_follower_pairs_with_their_own_rewards() -> Non
     assert env.observation_space.shape == (23,)
     assert env.action_space.shape == (2,)
     assert env.follower_names == ["follower_0", "follower_1", "follower_2"]
-    singles = [gym.make(FORMATION_ID, n_followers=followers, max_steps=max_steps) for _ in "ab"]
+    singles = [
+        gym.make(LATEST["formation"], n_followers=followers, max_steps=max_steps) for _ in "ab"
+    ]
     rows = env.reset()
     joint = np.stack([s.reset(seed=seed + w)[0] for w, s in enumerate(singles)])
     np.testing.assert_array_equal(rows, joint.reshape(n_worlds * followers, 23))
@@ -314,9 +315,9 @@ def test_shared_agents_rows_are_a_consensus_worlds_robots() -> None:
 
 
 def test_evaluate_episodes_plays_the_episodes_seeded_seed_plus_index() -> None:
-    env = make_vec_env(AVOID_ID, 5, max_steps=150)
+    env = make_vec_env(LATEST["avoid"], 5, max_steps=150)
     result = evaluate_episodes(HeuristicPolicy(nav_heuristic), env, seed=20)
-    single = gym.make(AVOID_ID, max_steps=150)
+    single = gym.make(LATEST["avoid"], max_steps=150)
     successes, returns = [], []
     for seed in range(20, 25):
         observation, _ = single.reset(seed=seed)
@@ -332,8 +333,8 @@ def test_evaluate_episodes_plays_the_episodes_seeded_seed_plus_index() -> None:
 
 
 def test_sb3_eval_callback_records_success_rates_on_the_batch(tmp_path: Path) -> None:
-    env = VecMonitor(make_vec_env(NAV_ID, 4, seed=0, max_steps=20))
-    eval_env = VecMonitor(make_vec_env(NAV_ID, 2, seed=100, max_steps=20))
+    env = VecMonitor(make_vec_env(LATEST["nav"], 4, seed=0, max_steps=20))
+    eval_env = VecMonitor(make_vec_env(LATEST["nav"], 2, seed=100, max_steps=20))
     callback = EvalCallback(eval_env, n_eval_episodes=4, eval_freq=32, log_path=tmp_path)
     model = PPO("MlpPolicy", env, n_steps=32, batch_size=64, n_epochs=1, device="cpu", seed=0)
     model.learn(256, callback=callback)
@@ -344,15 +345,16 @@ def test_sb3_eval_callback_records_success_rates_on_the_batch(tmp_path: Path) ->
 
 
 def test_hyperparameter_files_build_every_algorithm_they_list() -> None:
-    env = make_vec_env(NAV_ID, 2, seed=0)
-    for algo, env_ids in {
-        "ppo": [NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID],
-        "sac": [NAV_ID, AVOID_ID],
-    }.items():
-        for env_id in env_ids:
+    env = make_vec_env(LATEST["nav"], 2, seed=0)
+    for algo in ALGORITHMS:
+        file = HYPERPARAMS_DIR / f"{algo}.toml"
+        if not file.is_file():
+            continue
+        # Every table of the file, as the id (or follower env) it serves.
+        for env_id in tomllib.loads(file.read_text(encoding="utf-8")):
             hyperparams = load_hyperparams(algo, env_id)
             assert hyperparams["n_envs"] >= 1 and hyperparams["n_timesteps"] >= 1
-            if env_id == NAV_ID:
+            if env_id == LATEST["nav"].rsplit("-v", 1)[0]:
                 model = build_model(algo, env, hyperparams, seed=0)
                 assert type(model).__name__ == ALGORITHMS[algo]
     assert load_hyperparams("ppo", "formation_v1-followers")["n_envs"] >= 1
@@ -399,7 +401,7 @@ def test_khepera_gym_train_runs_ppo_end_to_end_and_the_zip_loads_and_predicts(
         path.name for path in out.iterdir()
     }
     run = json.loads((out / "run.json").read_text())
-    assert run["env_id"] == NAV_ID and run["timesteps"] == 2048 and run["n_envs"] == 8
+    assert run["env_id"] == LATEST["nav"] and run["timesteps"] == 2048 and run["n_envs"] == 8
     assert run["hyperparams"]["n_steps"] == 64
     assert [evaluation["timesteps"] for evaluation in run["history"]] == [1024, 2048]
     assert run["final"]["episodes"] == 8 and 0.0 <= run["final"]["success_rate"] <= 1.0
@@ -410,7 +412,7 @@ def test_khepera_gym_train_runs_ppo_end_to_end_and_the_zip_loads_and_predicts(
 
     model = load_policy(out / "model.zip")
     assert isinstance(model, PPO)
-    env = gym.make(NAV_ID)
+    env = gym.make(LATEST["nav"])
     assert model.observation_space == env.observation_space
     assert model.action_space == env.action_space
     observation, _ = env.reset(seed=0)
@@ -426,7 +428,7 @@ def test_khepera_gym_train_runs_ppo_end_to_end_and_the_zip_loads_and_predicts(
 def test_training_with_vec_normalize_saves_statistics_that_load_policy_applies(
     tmp_path: Path,
 ) -> None:
-    arguments = ["train", "--env", AVOID_ID, "--timesteps", "256", "--n-envs", "4"]
+    arguments = ["train", "--env", LATEST["avoid"], "--timesteps", "256", "--n-envs", "4"]
     arguments += ["--out", str(tmp_path), "--eval-freq", "0", "--eval-episodes", "2"]
     arguments += ["--no-progress", "--verbose", "0", "--hp", "normalize=true"]
     arguments += ["--hp", "n_steps=64", "--hp", "batch_size=64"]
@@ -435,7 +437,7 @@ def test_training_with_vec_normalize_saves_statistics_that_load_policy_applies(
     policy = load_policy(tmp_path / "model.zip")
     assert isinstance(policy, NormalizedPolicy)
     assert policy.normalizer.obs_rms.count > 256
-    observation, _ = gym.make(AVOID_ID).reset(seed=1)
+    observation, _ = gym.make(LATEST["avoid"]).reset(seed=1)
     raw = PPO.load(tmp_path / "model.zip", device="cpu")
     expected, _ = raw.predict(policy.normalizer.normalize_obs(observation), deterministic=True)
     action, _ = policy.predict(observation, deterministic=True)
@@ -443,7 +445,7 @@ def test_training_with_vec_normalize_saves_statistics_that_load_policy_applies(
 
 
 def test_khepera_gym_train_runs_sac(tmp_path: Path) -> None:
-    arguments = ["train", "--env", NAV_ID, "--algo", "sac", "--timesteps", "200"]
+    arguments = ["train", "--env", LATEST["nav"], "--algo", "sac", "--timesteps", "200"]
     arguments += ["--n-envs", "2", "--out", str(tmp_path), "--eval-freq", "0"]
     arguments += ["--eval-episodes", "2", "--no-progress", "--verbose", "0"]
     arguments += ["--hp", "learning_starts=100", "--hp", "batch_size=32"]
@@ -453,7 +455,7 @@ def test_khepera_gym_train_runs_sac(tmp_path: Path) -> None:
 
 def test_vec_env_pickles_mid_episode_and_continues_like_the_original() -> None:
     # SB3 saves and copies VecEnvs (VecNormalize.save, subprocess wrappers) by pickling.
-    venv = make_vec_env(NAV_ID, n_envs=4)
+    venv = make_vec_env(LATEST["nav"], n_envs=4)
     venv.seed(3)
     venv.reset()
     actions = np.random.default_rng(0).uniform(-1, 1, (60, 4, 2)).astype(np.float32)
@@ -471,7 +473,7 @@ def test_a_sampled_evaluation_repeats_and_differs_from_the_deterministic_one() -
     episodes, and the seed makes them repeat."""
     from khepera_gym.sb3.evaluate import evaluate_episodes
 
-    env = make_vec_env(NAV_ID, 4, seed=0, num_threads=1, max_steps=50)
+    env = make_vec_env(LATEST["nav"], 4, seed=0, num_threads=1, max_steps=50)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, seed=0, device="cpu")
     figures = [
         dataclasses.replace(evaluate_episodes(model, env, 7, sample_seed=seed), seconds=0.0)

@@ -11,7 +11,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID
+from conftest import LATEST
 
 from khepera_gym import _core
 from khepera_gym.config import builtin_config_names
@@ -37,15 +37,15 @@ def test_builtin_scenarios_are_listed() -> None:
 @pytest.mark.parametrize(
     ("env_id", "config"),
     [
-        (NAV_ID, None),
-        (NAV_ID, "nav"),
-        (AVOID_ID, None),
-        (AVOID_ID, "avoid"),
-        (FORMATION_ID, None),
-        (FORMATION_ID, "formation"),
-        (AVOID_ID, "paper_fig6"),
-        (NAV_ID, "paper_fig6"),
-        (FORMATION_ID, "paper_fig7"),
+        (LATEST["nav"], None),
+        (LATEST["nav"], "nav"),
+        (LATEST["avoid"], None),
+        (LATEST["avoid"], "avoid"),
+        (LATEST["formation"], None),
+        (LATEST["formation"], "formation"),
+        (LATEST["avoid"], "paper_fig6"),
+        (LATEST["nav"], "paper_fig6"),
+        (LATEST["formation"], "paper_fig7"),
     ],
 )
 def test_builtin_scenario_loads_and_steps_100_steps(env_id: str, config: str | None) -> None:
@@ -74,7 +74,7 @@ def test_multinav_default_scenario_loads_and_steps_100_steps() -> None:
 
 
 def test_task_defaults_by_name_equal_no_config() -> None:
-    for env_id, name in ((AVOID_ID, "avoid"), (FORMATION_ID, "formation")):
+    for env_id, name in ((LATEST["avoid"], "avoid"), (LATEST["formation"], "formation")):
         by_name = gym.make(env_id, config=name)
         default = gym.make(env_id)
         assert by_name.unwrapped.config_toml() == default.unwrapped.config_toml()
@@ -89,20 +89,20 @@ def test_the_config_files_list_each_tasks_defaults(task: str) -> None:
     must be the scenario the core builds, comments included."""
     path = Path(__file__).resolve().parent.parent / "configs" / f"{task}.toml"
     assert path.read_text(encoding="utf-8") == _core.default_config(task), (
-        f"{path.name} is stale: rewrite it from khepera_gym._core.default_config({task!r})"
+        f"{path.name} is stale: `make configs` writes it from the core"
     )
 
 
 def test_builtin_scene_by_name_by_path_and_with_overrides(tmp_path: Path) -> None:
     fig6_file = tmp_path / "fig6.toml"
     fig6_file.write_text(_core.default_config("paper_fig6"))
-    by_name = gym.make(AVOID_ID, config="paper_fig6")
-    by_path = gym.make(AVOID_ID, config=fig6_file)
+    by_name = gym.make(LATEST["avoid"], config="paper_fig6")
+    by_path = gym.make(LATEST["avoid"], config=fig6_file)
     assert by_name.unwrapped.config_toml() == by_path.unwrapped.config_toml()
     np.testing.assert_array_equal(by_name.reset(seed=1)[0], by_path.reset(seed=1)[0])
     assert by_name.unwrapped.max_episode_steps == FIG6["task"]["max_steps"]
 
-    overridden = gym.make(AVOID_ID, config="paper_fig6", max_steps=123, goal_radius=0.1)
+    overridden = gym.make(LATEST["avoid"], config="paper_fig6", max_steps=123, goal_radius=0.1)
     overridden.reset(seed=1)
     assert overridden.unwrapped.max_episode_steps == 123
     assert overridden.unwrapped.scene()["goal_radius"] == pytest.approx(0.1)
@@ -115,7 +115,7 @@ def test_builtin_scene_by_name_by_path_and_with_overrides(tmp_path: Path) -> Non
 
 
 def test_paper_fig6_has_the_wall_the_obstacle_the_start_and_the_goal() -> None:
-    env = gym.make(AVOID_ID, config="paper_fig6")
+    env = gym.make(LATEST["avoid"], config="paper_fig6")
     for seed in (0, 1):
         env.reset(seed=seed)
         scene = env.unwrapped.scene()
@@ -132,7 +132,7 @@ def test_paper_fig6_has_the_wall_the_obstacle_the_start_and_the_goal() -> None:
 
 
 def test_paper_fig6_plot_is_rendered(tmp_path: Path) -> None:
-    env = gym.make(AVOID_ID, config="paper_fig6", version=0)  # the paper's Fig. 6 dynamics
+    env = gym.make(LATEST["avoid"], config="paper_fig6", version=0)  # the paper's Fig. 6 dynamics
     observation, _ = env.reset(seed=0)
     path = [env.unwrapped.poses()[0]]
     while True:
@@ -183,10 +183,10 @@ def test_malformed_avoid_file_names_the_file_and_the_key(tmp_path: Path, case: s
     scenario = tmp_path / f"{case}.toml"
     scenario.write_text(text)
     with pytest.raises(ConfigError, match=key) as raised:
-        gym.make(AVOID_ID, config=scenario)
+        gym.make(LATEST["avoid"], config=scenario)
     assert f"{case}.toml" in str(raised.value)
     with pytest.raises(ConfigError, match=key):
-        gym.make_vec(AVOID_ID, num_envs=2, config=str(scenario))
+        gym.make_vec(LATEST["avoid"], num_envs=2, config=str(scenario))
 
 
 @pytest.mark.parametrize(
@@ -206,7 +206,7 @@ def test_malformed_formation_file_names_the_file_and_the_key(
     scenario = tmp_path / "team.toml"
     scenario.write_text(text)
     with pytest.raises(ConfigError, match=key) as raised:
-        gym.make(FORMATION_ID, config=scenario)
+        gym.make(LATEST["formation"], config=scenario)
     assert "team.toml" in str(raised.value)
 
 
@@ -214,14 +214,36 @@ def test_formation_table_is_an_error_outside_the_formation_task(tmp_path: Path) 
     scenario = tmp_path / "nav_team.toml"
     scenario.write_text("[formation]\nn_followers = 2\n")
     with pytest.raises(ConfigError, match="formation") as raised:
-        gym.make(AVOID_ID, config=scenario)
+        gym.make(LATEST["avoid"], config=scenario)
     assert "nav_team.toml" in str(raised.value)
     with pytest.raises(ConfigError, match="formation"):
-        gym.make(AVOID_ID, config="paper_fig7")
+        gym.make(LATEST["avoid"], config="paper_fig7")
 
 
 def test_bad_keyword_overrides_on_top_of_a_file_name_the_key() -> None:
     with pytest.raises(ConfigError, match=r"obstacles\.count|count"):
-        gym.make(AVOID_ID, config="paper_fig6", count=-1)
+        gym.make(LATEST["avoid"], config="paper_fig6", count=-1)
     with pytest.raises(ConfigError, match="n_followerz"):
-        gym.make(FORMATION_ID, config="paper_fig7", n_followerz=3)
+        gym.make(LATEST["formation"], config="paper_fig7", n_followerz=3)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "[task]\nmax_steps = 10\ngoal_radus = 0.1\n",
+            r"task\.goal_radus: unknown key \(line 3\); did you mean `goal_radius`\?",
+        ),
+        (
+            "# two letters swapped\n\n[taks]\ngoal_radius = 0.1\n",
+            r"taks: unknown key \(line 3\); did you mean `task`\?",
+        ),
+    ],
+)
+def test_a_misspelt_key_in_a_file_gets_its_line_and_a_suggestion(
+    text: str, message: str, tmp_path: Path
+) -> None:
+    path = tmp_path / "mine.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=rf"mine\.toml: {message}"):
+        gym.make(LATEST["nav"], config=path)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID, SEEK_ID
+from conftest import LATEST
 
 from khepera_gym.envs import seek_heuristic
 from khepera_gym.errors import ConfigError
@@ -29,14 +29,14 @@ def _successes(env: gym.Env, policy, seeds: range) -> int:
 def test_blob_servoing_finds_the_pillar_and_a_random_policy_does_not() -> None:
     # In an empty arena the pillar is always in sight once the robot turns to it: servoing must
     # reach it in every episode; a random policy in 30 s essentially never ends 5 cm from it.
-    env = gym.make(SEEK_ID, count=0)
+    env = gym.make(LATEST["seek"], count=0)
     rng = np.random.default_rng(0)
     assert _successes(env, seek_heuristic, range(10)) == 10
     assert _successes(env, lambda _: rng.uniform(-1, 1, 2).astype(np.float32), range(10)) == 0
 
 
 def test_the_camera_block_is_the_raw_scanline() -> None:
-    env = gym.make(SEEK_ID)
+    env = gym.make(LATEST["seek"])
     obs, _ = env.reset(seed=2)
     readings = env.unwrapped.sensor_readings()
     rgb = readings["camera_rgb"][0].reshape(32, 3)
@@ -58,7 +58,7 @@ def _trace(env: gym.Env, seed: int, steps: int) -> list[bytes]:
 
 
 def test_seeds_reproduce_and_a_saved_state_continues_bit_for_bit() -> None:
-    a, b = gym.make(SEEK_ID, distractors=2), gym.make(SEEK_ID, distractors=2)
+    a, b = gym.make(LATEST["seek"], distractors=2), gym.make(LATEST["seek"], distractors=2)
     a.reset(seed=9)
     b.reset(seed=9)
     assert _trace(a, 1, 100) == _trace(b, 1, 100)
@@ -69,8 +69,8 @@ def test_seeds_reproduce_and_a_saved_state_continues_bit_for_bit() -> None:
 
 
 def test_a_vector_world_matches_the_single_env_of_its_seed() -> None:
-    envs = gym.make_vec(SEEK_ID, num_envs=3)
-    single = gym.make(SEEK_ID)
+    envs = gym.make_vec(LATEST["seek"], num_envs=3)
+    single = gym.make(LATEST["seek"])
     obs, _ = envs.reset(seed=40)
     single_obs, _ = single.reset(seed=42)
     for _ in range(40):
@@ -87,6 +87,6 @@ def test_a_vector_world_matches_the_single_env_of_its_seed() -> None:
     ],
 )
 def test_a_bad_colour_is_a_config_error_naming_it(key: str, value: list, name: str) -> None:
-    env_id = SEEK_ID if key == "pillar_color" else NAV_ID
+    env_id = LATEST["seek"] if key == "pillar_color" else LATEST["nav"]
     with pytest.raises(ConfigError, match=name):
         gym.make(env_id, **{key: value})

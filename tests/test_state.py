@@ -11,7 +11,7 @@ import pickle
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import ALL_IDS, AVOID_ID, FORMATION_ID, NAV_ID, PETTINGZOO_MODULES
+from conftest import ALL_IDS, LATEST, PETTINGZOO_MODULES
 
 from khepera_gym.errors import StateError
 
@@ -99,7 +99,7 @@ def test_pickled_vector_env_keeps_its_config_and_state(tmp_path) -> None:
     # A scenario file that no longer exists when unpickling: the pickle holds the resolved scenario.
     scenario = tmp_path / "narrow.toml"
     scenario.write_text("[arena]\nwidth = 2.2\nheight = 1.6\n[task]\ngoal_radius = 0.1\n")
-    envs = gym.make_vec(AVOID_ID, num_envs=4, config=scenario)
+    envs = gym.make_vec(LATEST["avoid"], num_envs=4, config=scenario)
     envs.reset(seed=1)
     data = pickle.dumps(envs)
     scenario.unlink()
@@ -139,7 +139,7 @@ def test_pettingzoo_env_pickles_mid_episode(name: str) -> None:
 def test_state_restores_in_a_spawned_process() -> None:
     # AsyncVectorEnv pickles its env factories into fresh interpreters ("spawn"): a factory that
     # returns a pre-built, mid-episode env must carry its state there.
-    env = gym.make(NAV_ID)
+    env = gym.make(LATEST["nav"])
     env.reset(seed=21)
     _single_trace(env, _forward_actions(7, 15, (2,)))
     clone = copy.deepcopy(env)
@@ -157,7 +157,7 @@ def test_state_restores_in_a_spawned_process() -> None:
 
 
 def test_state_survives_a_file_round_trip(tmp_path) -> None:
-    envs = gym.make_vec(FORMATION_ID, num_envs=3)
+    envs = gym.make_vec(LATEST["formation"], num_envs=3)
     envs.reset(seed=9)
     path = tmp_path / "state.bin"
     path.write_bytes(envs.get_state())
@@ -175,10 +175,10 @@ def _refused(env, state, match: str) -> None:
 
 
 def test_bad_states_raise_state_error_and_change_nothing() -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=4)
+    envs = gym.make_vec(LATEST["nav"], num_envs=4)
     envs.reset(seed=3)
     state = envs.get_state()
-    target = gym.make_vec(NAV_ID, num_envs=4)
+    target = gym.make_vec(LATEST["nav"], num_envs=4)
     target.reset(seed=5)
     _refused(target, b"not a state", "not a khepera_gym state")
     _refused(target, "text", "bytes")
@@ -187,7 +187,7 @@ def test_bad_states_raise_state_error_and_change_nothing() -> None:
     flipped = bytearray(state)
     flipped[-3] ^= 1
     _refused(target, bytes(flipped), "checksum")
-    _refused(gym.make_vec(NAV_ID, num_envs=2), state, "4 worlds")
-    _refused(gym.make_vec(AVOID_ID, num_envs=4), state, '"nav"')
-    _refused(gym.make_vec(NAV_ID, num_envs=4, goal_radius=0.2), state, "goal_radius")
+    _refused(gym.make_vec(LATEST["nav"], num_envs=2), state, "4 worlds")
+    _refused(gym.make_vec(LATEST["avoid"], num_envs=4), state, '"nav"')
+    _refused(gym.make_vec(LATEST["nav"], num_envs=4, goal_radius=0.2), state, "goal_radius")
     assert issubclass(StateError, ValueError)

@@ -9,7 +9,7 @@ from unittest import mock
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID, PATHFOLLOW_ID, TRACK_ID
+from conftest import LATEST
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
@@ -21,7 +21,7 @@ from khepera_gym.registration import latest_ids, registered_ids
 
 
 def test_plot_trajectories_draws_paths_and_saves_png(tmp_path: Path) -> None:
-    env = gym.make(NAV_ID)
+    env = gym.make(LATEST["nav"])
     env.reset(seed=0)
     path = [env.unwrapped.poses()[0]]
     for _ in range(20):
@@ -76,7 +76,7 @@ def test_plot_trajectories_accepts_scene_segments_with_a_and_b_and_open_floors()
 
 
 def test_plot_trajectories_draws_a_formation_with_its_leader_and_targets(tmp_path: Path) -> None:
-    env = gym.make(FORMATION_ID, config="paper_fig7")
+    env = gym.make(LATEST["formation"], config="paper_fig7")
     observation, _ = env.reset(seed=0)
     poses, targets = [env.unwrapped.poses()], [env.unwrapped.formation_targets()]
     for _ in range(60):
@@ -119,8 +119,8 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
     # The paper's Fig. 6 and Fig. 7 scenes, then every registered task on its latest id.
     assert output.count("2 episodes per policy") == len(DEMO_RUNS) == 2 + len(latest_ids())
     assert {run[1] for run in DEMO_RUNS} == set(latest_ids().values())
-    for task in (NAV_ID, AVOID_ID, FORMATION_ID, TRACK_ID, PATHFOLLOW_ID):
-        assert task in output
+    for env_id in LATEST.values():
+        assert env_id in output
     for policy in ("position_control", "braitenberg", "vfh", "leader_follower", "random"):
         assert policy in output
     assert "kanayama" in output and "position_chase" in output
@@ -152,7 +152,7 @@ def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixtu
     labels += [label for label, _ in bench.CAMERA_ROWS]
     assert {"Avoid", "Formation", "Track", "PathFollow", "LineFollow", "Seek"} <= set(labels)
     every_task = {ids[-1].rsplit("-v", 1)[0] for ids in registered_ids().values()}
-    assert {NAV_ID.rsplit("-v", 1)[0], *bench.OTHER_TASKS} == every_task
+    assert {LATEST["nav"].rsplit("-v", 1)[0], *bench.OTHER_TASKS} == every_task
     assert [m.num_envs for m in measurements] == [2, 2] + [3] * (2 * len(labels)) + [1]
     assert [m.label for m in measurements][2:-1] == [
         f"{label} make_vec n=3" for label in labels for _ in range(2)

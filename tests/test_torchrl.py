@@ -19,8 +19,9 @@ import pytest
 pytest.importorskip("torchrl", reason="needs the torchrl extra: pip install 'khepera-gym[torchrl]'")
 
 import torch
-from conftest import FORMATION, FORMATION_ID, MULTINAV, NAV_ID, random_actions
+from conftest import FORMATION, LATEST, MULTINAV, random_actions
 
+from khepera_gym import _core
 from khepera_gym.baselines import PositionControl
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.torchrl import (
@@ -39,15 +40,16 @@ with torchrl_import_warnings_ignored():
 
 from khepera_gym.benchmarl import KheperaTask, default_task_config
 
-#: Every kind of env: (task, scenario overrides).
-ENV_KINDS = [
-    ("nav", {}),
-    ("avoid", {}),
-    ("formation", {}),
+#: Smaller scenarios for the multi-robot tasks, to keep the checks quick.
+SMALL = {
+    "multinav": {"n_robots": 3},
+    "platoon": {"robots": 2},
+    "consensus": {"n_robots": 3, "trigger": "event"},
+}
+#: Every kind of env: every task of the core (from the registry), then the variants that change
+#: the agents (an agent leader, LED actions): (task, scenario overrides).
+ENV_KINDS = [(task, SMALL.get(task, {})) for task, _, _ in _core.tasks()] + [
     ("formation", {"leader": "agent", "n_followers": 3, "shape": "wedge"}),
-    ("multinav", {"n_robots": 3}),
-    ("platoon", {"robots": 2}),
-    ("consensus", {"n_robots": 3, "trigger": "event"}),
     ("multinav", {"n_robots": 2, "led_action": True}),
 ]
 
@@ -185,7 +187,7 @@ def test_nav_rollout_equals_single_envs_across_episodes() -> None:
         records.append(stepped)
     episodes_ended = 0
     for world in range(worlds):
-        single = gym.make(NAV_ID, max_steps=25)
+        single = gym.make(LATEST["nav"], max_steps=25)
         observation, _ = single.reset(seed=seed + world)
         for step, record in enumerate(records):
             assert np.array_equal(record["observation"][world].numpy(), observation)
@@ -202,7 +204,7 @@ def test_nav_rollout_equals_single_envs_across_episodes() -> None:
 
 def test_first_episode_equals_the_native_vector_env() -> None:
     worlds, steps = 6, 40
-    for env_id, task in ((NAV_ID, "nav"), (FORMATION_ID, "formation")):
+    for env_id, task in ((LATEST["nav"], "nav"), (LATEST["formation"], "formation")):
         native = gym.make_vec(env_id, num_envs=worlds)
         env = KheperaTorchEnv(task, worlds, seed=3)
         native_obs, _ = native.reset(seed=3)
@@ -331,13 +333,13 @@ def test_partial_reset_after_set_seed_seeds_world_i_with_seed_plus_i() -> None:
     tensordict["_reset"] = torch.tensor([[True], [False], [False], [True]])
     after = env.reset(tensordict)
     for world in (0, 3):
-        single = gym.make(FORMATION_ID)
+        single = gym.make(LATEST["formation"])
         observation, _ = single.reset(seed=500 + world)
         assert np.array_equal(after["state"][world].numpy(), observation)
     assert torch.equal(after["state"][1:3], tensordict["state"][1:3])
     # The seed was used up: the next full reset continues every stream.
     again = env.reset()
-    single = gym.make(FORMATION_ID)
+    single = gym.make(LATEST["formation"])
     single.reset(seed=500)
     assert np.array_equal(again["state"][0].numpy(), single.reset()[0])
 
@@ -377,7 +379,7 @@ def test_ground_truth_and_episode_stats_are_the_vector_envs() -> None:
     vector env's info["episode_stats"] of the step where worlds ended."""
     worlds, seed = 4, 8
     env = KheperaTorchEnv("formation", worlds, max_steps=30, seed=seed)
-    native = gym.make_vec(FORMATION_ID, num_envs=worlds, max_episode_steps=30)
+    native = gym.make_vec(LATEST["formation"], num_envs=worlds, max_episode_steps=30)
     native.reset(seed=seed)
     tensordict = env.reset()
     assert not any(env.episode_stats()["_return"])
@@ -597,7 +599,10 @@ def test_benchmarl_task_builds_a_batched_env(task: KheperaTask) -> None:
 
 def test_benchmarl_tasks_are_the_cores_multi_agent_tasks() -> None:
     assert [task.name.lower() for task in KheperaTask] == multi_agent_tasks()
-    assert multi_agent_tasks() == ["formation", "multinav", "platoon", "consensus"]
+    # Multi-agent: more than one agent in the task's default scenario (a scripted leader or
+    # Khepera is no agent: DroneFollow has one by default).
+    assert {"formation", "multinav"} <= set(multi_agent_tasks())
+    assert not {"nav", "dronefollow"} & set(multi_agent_tasks())
     # The default config is the built-in scenario's: an env built from it is the default env.
     for task in KheperaTask:
         name = task.name.lower()

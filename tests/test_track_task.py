@@ -10,7 +10,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import TRACK_ID
+from conftest import LATEST
 
 from khepera_gym.baselines import Kanayama, PositionChase
 from khepera_gym.envs import track_heuristic
@@ -64,7 +64,7 @@ def _first_episodes(envs: gym.vector.VectorEnv, policy, seed: int) -> dict[str, 
 
 @pytest.mark.parametrize("reference", ["circle", "lemniscate"])
 def test_kanayama_converges_within_its_linearised_envelope(reference: str) -> None:
-    envs = gym.make_vec(TRACK_ID, num_envs=32, reference=reference)
+    envs = gym.make_vec(LATEST["track"], num_envs=32, reference=reference)
     stats = _first_episodes(envs, Kanayama(), seed=50)
     envs.close()
     assert not stats["terminated"].any()
@@ -75,7 +75,7 @@ def test_kanayama_converges_within_its_linearised_envelope(reference: str) -> No
 
 
 def test_position_chase_lags_by_speed_over_bandwidth() -> None:
-    env = gym.make(TRACK_ID, start_offset=0.0, start_heading_offset=0.0, direction="ccw")
+    env = gym.make(LATEST["track"], start_offset=0.0, start_heading_offset=0.0, direction="ccw")
     obs, _ = env.reset(seed=2)
     policy = PositionChase()
     errors = []
@@ -92,7 +92,7 @@ def test_position_chase_lags_by_speed_over_bandwidth() -> None:
 
 
 def test_episode_lasts_one_period_plus_the_margin() -> None:
-    env = gym.make(TRACK_ID)
+    env = gym.make(LATEST["track"])
     obs, _ = env.reset(seed=0)
     steps, truncated, terminated = 0, False, False
     while not (terminated or truncated):
@@ -104,7 +104,7 @@ def test_episode_lasts_one_period_plus_the_margin() -> None:
 
 
 def test_standing_still_is_lost_and_terminates() -> None:
-    env = gym.make(TRACK_ID)
+    env = gym.make(LATEST["track"])
     env.reset(seed=1)
     for _ in range(200):
         _, reward, terminated, truncated, info = env.step(np.zeros(2, np.float32))
@@ -132,7 +132,7 @@ def test_standing_still_is_lost_and_terminates() -> None:
 )
 def test_bad_references_raise_config_error_naming_the_key(overrides: dict, key: str) -> None:
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
-        gym.make(TRACK_ID, **overrides)
+        gym.make(LATEST["track"], **overrides)
 
 
 def test_baselines_refuse_observations_without_their_blocks() -> None:
@@ -145,7 +145,7 @@ def test_baselines_refuse_observations_without_their_blocks() -> None:
 def test_frame_draws_the_reference_curve() -> None:
     frames = []
     for reference in ("circle", "square"):
-        env = gym.make(TRACK_ID, reference=reference, render_mode="rgb_array")
+        env = gym.make(LATEST["track"], reference=reference, render_mode="rgb_array")
         env.reset(seed=0)
         frames.append(env.render())
         env.close()
@@ -160,7 +160,7 @@ def test_waypoints_from_a_scenario_file_are_tracked(tmp_path) -> None:
     rows = ", ".join(f"[{t}, {x:.6f}, {y:.6f}]" for t, x, y in points)
     path = tmp_path / "loop.toml"
     path.write_text(f'[track]\nreference = "waypoints"\nwaypoints = [{rows}]\n')
-    env = gym.make(TRACK_ID, config=str(path), random_phase=False, direction="ccw")
+    env = gym.make(LATEST["track"], config=str(path), random_phase=False, direction="ccw")
     obs, _ = env.reset(seed=0)
     np.testing.assert_allclose(env.unwrapped.goals()[0], [0.5, 0.0], atol=1e-6)
     truncated = terminated = False
@@ -176,4 +176,4 @@ def test_waypoints_from_a_scenario_file_are_tracked(tmp_path) -> None:
 def test_non_increasing_waypoint_times_raise_config_error() -> None:
     points = [[0, 0.3, 0], [5, 0, 0.3], [4, -0.3, 0], [15, 0, -0.3], [20, 0.3, 0]]
     with pytest.raises(ConfigError, match=r"track\.waypoints.*increasing"):
-        gym.make(TRACK_ID, reference="waypoints", waypoints=points)
+        gym.make(LATEST["track"], reference="waypoints", waypoints=points)

@@ -17,7 +17,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import ALL_IDS, NAV_ID, random_actions
+from conftest import ALL_IDS, LATEST, random_actions
 from gymnasium.vector import AutoresetMode
 
 from khepera_gym.envs import NavEnv
@@ -55,7 +55,11 @@ def _world_seed(seed: Any, world: int) -> int | None:
 
 def _disabled_env(num_envs: int = 4, **kwargs: Any) -> gym.vector.VectorEnv:
     return gym.make_vec(
-        NAV_ID, num_envs=num_envs, num_threads=2, autoreset_mode=AutoresetMode.DISABLED, **kwargs
+        LATEST["nav"],
+        num_envs=num_envs,
+        num_threads=2,
+        autoreset_mode=AutoresetMode.DISABLED,
+        **kwargs,
     )
 
 
@@ -90,7 +94,7 @@ def test_unsupported_autoreset_mode_raises_config_error_listing_the_modes(bad_mo
 
 def test_same_step_error_points_to_gymnasiums_sync_vector_env() -> None:
     with pytest.raises(ConfigError, match="vectorization_mode='sync'"):
-        gym.make_vec(NAV_ID, num_envs=2, autoreset_mode=AutoresetMode.SAME_STEP)
+        gym.make_vec(LATEST["nav"], num_envs=2, autoreset_mode=AutoresetMode.SAME_STEP)
 
 
 def test_disabled_mode_survives_pickling_and_deepcopy() -> None:
@@ -137,7 +141,7 @@ def test_stepping_a_finished_world_in_disabled_mode_raises_and_steps_nothing() -
 
 
 def test_next_step_mode_still_autoresets_finished_worlds() -> None:
-    envs = gym.make_vec(NAV_ID, num_envs=2, max_steps=2)
+    envs = gym.make_vec(LATEST["nav"], num_envs=2, max_steps=2)
     first, _ = envs.reset(seed=8)
     zeros = np.zeros((2, 2), np.float32)
     envs.step(zeros)
@@ -270,9 +274,11 @@ def test_masked_resets_match_gymnasiums_sync_vector_env(mode: AutoresetMode) -> 
     """The same masked resets and actions on Gymnasium's SyncVectorEnv over the single env give
     bit for bit the same results, including the rows a masked reset leaves alone."""
     num_envs, seed, steps = NUM_WORLDS, 77, 70
-    native = gym.make_vec(NAV_ID, num_envs=num_envs, max_steps=SHORT_EPISODE, autoreset_mode=mode)
+    native = gym.make_vec(
+        LATEST["nav"], num_envs=num_envs, max_steps=SHORT_EPISODE, autoreset_mode=mode
+    )
     sync = gym.make_vec(
-        NAV_ID,
+        LATEST["nav"],
         num_envs=num_envs,
         vectorization_mode="sync",
         vector_kwargs={"autoreset_mode": mode},

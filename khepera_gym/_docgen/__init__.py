@@ -53,24 +53,29 @@ def write_all(docs_dir: str | Path) -> list[Path]:
 
 
 def readme_env_table() -> str:
-    """The README's table of every env: its ids and modules, what it is, its manual's source
-    file (the README must read on its own, without the built site)."""
+    """The README's table of every env: its id and PettingZoo modules (from which version),
+    what it is, its manual's source file (the README must read on its own, without the built
+    site)."""
     from khepera_gym._docgen.envs import baselines, env_pages
     from khepera_gym._docgen.markdown import code, escape_cell, table
 
     rows = []
     for page in env_pages():
         source = page.manual_module.replace(".", "/") + ".py"
-        names = [code(i) for i in page.ids] + [code(m.name) for m in page.modules]
+        # Version-free, so that a new version leaves the README as it is: the id without its
+        # version (the latest) and the module family, with the task's first version.
+        names = [code(page.ids[0].rsplit("-v", 1)[0])] if page.ids else []
+        names += [code(f"{family}_vN") for family in dict.fromkeys(m.family for m in page.modules)]
+        first = (page.ids or [m.name for m in page.modules])[0].rsplit("v", 1)[1]
         rows.append(
             [
                 f"[{page.title}]({source})",
-                ", ".join(names),
+                ", ".join(names) + f" (v{first} to the latest)",
                 escape_cell(page.summary),
                 ", ".join(code(cls.__name__) for cls in baselines(page.task)) or "–",
             ]
         )
-    return table(["Env (manual)", "Ids and PettingZoo modules", "What", "Baselines"], rows)
+    return table(["Env (manual)", "Id and PettingZoo modules", "What", "Baselines"], rows)
 
 
 __all__ = ["GENERATED", "readme_env_table", "write_all"]

@@ -1,11 +1,14 @@
 """``python -m khepera_gym._docgen [DOCS_DIR]`` writes the generated pages without Sphinx;
-``--readme`` rewrites the README's env table from the registries instead."""
+``--readme`` rewrites the README's env table from the registries instead, and ``--configs DIR``
+writes every task's default scenario file (``configs/<task>.toml``) from the core (``make
+configs``)."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
+from khepera_gym import _core
 from khepera_gym._docgen import readme_env_table, write_all
 
 #: The markers around the README's env table.
@@ -17,7 +20,14 @@ def main() -> int:
     parser = argparse.ArgumentParser(prog="python -m khepera_gym._docgen")
     parser.add_argument("docs", nargs="?", type=Path, default=Path("docs"))
     parser.add_argument("--readme", type=Path, nargs="?", const=Path("README.md"), default=None)
+    parser.add_argument("--configs", type=Path, default=None)
     args = parser.parse_args()
+    if args.configs is not None:
+        for task, _, _ in _core.tasks():
+            path = args.configs / f"{task}.toml"
+            path.write_text(_core.default_config(task), encoding="utf-8")
+            print(f"wrote {path}")
+        return 0
     if args.readme is None:
         for path in write_all(args.docs):
             print(f"wrote {path}")

@@ -9,7 +9,6 @@ both also holds the PettingZoo module's manual. Nothing lists tasks here.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import importlib
 import json
 from pathlib import Path
@@ -23,8 +22,6 @@ from khepera_gym._docgen.markdown import code, docstring_markdown, escape_cell, 
 from khepera_gym._docgen.scenario import SOURCE_TAGS, key_histories
 from khepera_gym.baselines import BaselinePolicy
 from khepera_gym.envs import ENV_CLASSES
-from khepera_gym.errors import ConfigError
-from khepera_gym.layout import layout_dict
 from khepera_gym.registration import registered_ids
 from khepera_gym.vector import VECTOR_ENV_CLASSES
 
@@ -134,26 +131,12 @@ def env_pages() -> list[EnvPage]:
     return pages
 
 
-@functools.cache
 def baselines(task: str) -> tuple[type[BaselinePolicy], ...]:
-    """The baseline classes that act on an agent of the task's default scenario: those that
-    find every observation block they read in its first agent's layout, in the core's
-    controller order."""
-    order = [name for name, _ in _core.controllers()]
-    layout = layout_dict(_core.Batch(task, 1).agents()[0][4])
-    classes: list[type[BaselinePolicy]] = []
-    pending = list(BaselinePolicy.__subclasses__())
-    while pending:
-        cls = pending.pop(0)
-        pending += cls.__subclasses__()
-        if not cls.CONTROLLER or cls in classes:
-            continue
-        try:
-            cls(layout=layout)
-        except ConfigError:
-            continue
-        classes.append(cls)
-    return tuple(sorted(classes, key=lambda cls: order.index(cls.CONTROLLER)))
+    """The baseline classes that act on an agent of the task's default scenario
+    (:func:`khepera_gym.baselines.for_task`)."""
+    from khepera_gym.baselines import for_task
+
+    return for_task(task)
 
 
 def _page_link(pages: list[EnvPage]) -> dict[str, str]:
@@ -339,6 +322,24 @@ def _make_env(page: EnvPage) -> tuple[Any, _core.Batch]:
     return env, env.unwrapped._batch
 
 
+def _solved(task: str) -> str:
+    """The task's entry of the learning benchmark: when it is solved, and with what."""
+    from khepera_gym.benchmark.suite import load_suite
+
+    entry = load_suite().get(task)
+    if entry is None:
+        return "## Learning benchmark\n\nThe benchmark's suite has no entry for this task yet."
+    conditions = " and ".join(code(c.describe()) for c in entry.criterion)
+    return (
+        "## Learning benchmark\n\n"
+        f"Solved when {conditions} over 200 held-out episodes ({entry.why}); trained with "
+        f"{', '.join(code(n) for n in entry.learners)} beside the baselines "
+        f"{', '.join(code(n) for n in entry.baselines)}. "
+        f"{code(f'khepera-gym benchmark --tasks {task}')} runs it; the recorded results are on "
+        "the [results page](../../results.md#learned-per-task)."
+    )
+
+
 def env_page(page: EnvPage, pages: list[EnvPage], docs_dir: Path) -> str:
     """The Markdown of one task's page."""
     links = _page_link(pages)
@@ -348,9 +349,17 @@ def env_page(page: EnvPage, pages: list[EnvPage], docs_dir: Path) -> str:
     parts = [f"(env-{page.slug})=\n# {page.title}", intro]
     record = animation(page.task, docs_dir)
     if record is not None:
+        caption = record["caption"]
+        latest = _core.task_versions(page.task)[-1]
+        if record.get("version") != latest:
+            # An animation made before the latest version says so under the page of the latest.
+            caption += (
+                f" Recorded on v{record.get('version', '?')}, before v{latest}: "
+                "`python -m khepera_gym._docgen.pictures` records it again."
+            )
         parts.append(
             f"```{{figure}} ../../{ANIMATIONS.as_posix()}/{record['file']}\n:alt: {page.title}\n\n"
-            f"{record['caption']}\n```"
+            f"{caption}\n```"
         )
     parts.append(_facts(page, env, docs_dir))
     for name in MANUAL_ORDER:
@@ -370,6 +379,7 @@ def env_page(page: EnvPage, pages: list[EnvPage], docs_dir: Path) -> str:
     parts.append(
         "## Scenario file\n\n" + (scenario + "\n\n" if scenario else "") + scenario_table(page.task)
     )
+    parts.append(_solved(page.task))
     history = manual_sections.get("Version History", "")
     parts.append(
         "## Version History\n\n"

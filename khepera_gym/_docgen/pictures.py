@@ -168,6 +168,7 @@ def make_animation(page: EnvPage, docs_dir: Path) -> dict[str, Any]:
     return {
         "file": name,
         "env": _label(page),
+        "version": _version_of(page),
         "policy": cls.__name__,
         "seed": seed,
         "steps": steps,

@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import shlex
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from khepera_gym import catalog
+from khepera_gym import _core, catalog
 from khepera_gym._docgen.markdown import code, escape_cell, table
 from khepera_gym.compare.policies import SAMPLED_SUFFIX, SB3_PREFIX
 from khepera_gym.compare.report import table_notes, table_rows
@@ -63,6 +64,20 @@ def kind(document: Any) -> str:
     return "unknown"
 
 
+#: The package's command line run from a source tree (``python <tree>/khepera_gym/cli.py``, or
+#: ``python -m khepera_gym.cli``): a user types it ``khepera-gym``.
+_CLI = re.compile(r"^python3? (?:\S*/)?khepera_gym/cli\.py\b|^python3? -m khepera_gym\.cli\b")
+#: A script of the repository run by its absolute path: a user types it from the checkout.
+_SCRIPT = re.compile(r"^(python3?) \S*/((?:examples|tests)/\S+\.py)\b")
+
+
+def as_typed(command: str) -> str:
+    """A recorded command as a user types it in a checkout: ``khepera-gym train ...`` for the
+    package's command line however it was started, ``python examples/x.py ...`` for a script."""
+    command = _CLI.sub("khepera-gym", command)
+    return _SCRIPT.sub(r"\1 \2", command)
+
+
 def provenance_line(meta: dict[str, Any] | None) -> str:
     """Where a table's figures come from, in one sentence."""
     if not meta:
@@ -77,7 +92,7 @@ def provenance_line(meta: dict[str, Any] | None) -> str:
     load_text = f", load average {load_average[0]}" if load_average else ""
     return (
         f"Measured {meta.get('date', '?')[:10]} at {where} on {machine.get('cpu', '?')} "
-        f"({machine.get('cpus', '?')} CPUs{load_text}): {code(meta.get('command', '?'))}."
+        f"({machine.get('cpus', '?')} CPUs{load_text}): {code(as_typed(meta.get('command', '?')))}."
     )
 
 
@@ -275,9 +290,16 @@ def bench_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
             for row in document["rows"]
         ]
         memory = document.get("memory_per_world_bytes")
-        memory_text = (
-            f"\n\nMemory per Nav world: {memory / 1024:.1f} KiB." if memory is not None else ""
-        )
+        if memory is None:
+            memory_text = ""
+        elif document.get("memory_process") == "fresh":
+            memory_text = f"\n\nMemory per Nav world: {memory / 1024:.1f} KiB."
+        else:
+            memory_text = (
+                "\n\nMemory per Nav world: not valid in this run (measured in the benchmark's "
+                "own process, where memory the earlier measurements freed was reused; "
+                "`khepera-gym bench` now measures it in a fresh process)."
+            )
         parts.append(
             f"Version {document['version']}, {document['duration']:g} s per configuration. "
             + provenance_line(document.get("meta"))
@@ -371,6 +393,49 @@ FRAGMENTS: dict[str, Callable[[list[tuple[Path, dict[str, Any]]]], str]] = {
 }
 
 
+#: The learning benchmark's folder under docs/results/ (``khepera-gym benchmark --out``).
+BENCHMARK_DIR = "benchmark"
+
+
+def benchmark_fragment(folder: Path) -> str:
+    """The learning benchmark's tables (:mod:`khepera_gym.benchmark.tables`), one a task, from
+    ``docs/results/benchmark/``, with where each was measured and how to run it again."""
+    from khepera_gym.benchmark.command import reproduce
+    from khepera_gym.benchmark.tables import load_records, markdown, task_rows
+
+    baselines, runs = load_records(folder)
+    if not runs:
+        return _missing(f"khepera-gym benchmark --out docs/results/{BENCHMARK_DIR}")
+    tasks = [name for name, _, _ in _core.tasks()]
+    parts = []
+    for task in tasks:
+        table = task_rows(task, baselines, runs)
+        if not table["learners"]:
+            parts.append(f"**{task}**: no learned run recorded yet.")
+            continue
+        mine = [r for r in runs if r["key"]["task"] == task]
+        dates = sorted({r["meta"]["date"][:10] for r in mine})
+        commits = sorted(
+            {
+                (r["meta"].get("commit") or {}).get("id", "?")[:10]
+                + (" with local changes" if (r["meta"].get("commit") or {}).get("dirty") else "")
+                for r in mine
+            }
+        )
+        parts.append(
+            markdown(table)
+            + f"\n\nMeasured {', '.join(dates)} at commit {', '.join(f'`{c}`' for c in commits)}"
+            + f" on {mine[0]['meta']['machine'].get('cpu', '?')} "
+            + f"({mine[0]['meta']['machine'].get('cpus', '?')} CPUs); rows again: "
+            + "; ".join(
+                f"{code(reproduce(task, row['learner'], row['seeds'], row['version']))}"
+                for row in table["learners"]
+            )
+            + "."
+        )
+    return "\n\n".join(parts)
+
+
 def fragments(results_dir: Path) -> dict[str, str]:
     """Every results fragment (``results-<name>.md``) from the folder's files.
 
@@ -381,7 +446,9 @@ def fragments(results_dir: Path) -> dict[str, str]:
     for path, document in files:
         if kind(document) == "unknown":
             raise ValueError(f"{path}: not a results file of compare, train, bench or a campaign")
-    return {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
+    rendered = {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
+    rendered["benchmark"] = benchmark_fragment(results_dir / BENCHMARK_DIR) + "\n"
+    return rendered
 
 
 def target_name(document: dict[str, Any]) -> str:

@@ -38,6 +38,9 @@ and returns a fresh float32 array. Policies are immutable and hold no state betw
 instance may serve several environments (``predict`` returns ``state`` unchanged).
 """
 
+import functools
+
+from khepera_gym import _core
 from khepera_gym.baselines.base import (
     BRAITENBERG_WEIGHT_SETS,
     FORMATION_SHAPES,
@@ -55,6 +58,37 @@ from khepera_gym.baselines.paths import PurePursuit, Samson, WaypointSwitching
 from khepera_gym.baselines.quadcopter import DronePursuit
 from khepera_gym.baselines.tracking import Kanayama, PositionChase
 from khepera_gym.baselines.vision import BlobServo, BlobVFH
+from khepera_gym.errors import ConfigError
+
+
+@functools.cache
+def for_task(task: str) -> tuple[type[BaselinePolicy], ...]:
+    """The baselines that act on an agent of ``task``'s default scenario: those whose
+    controller finds every observation block it reads in the first agent's layout (the core
+    decides), in the core's controller order. A new task gets the baselines that fit it without
+    a list to update.
+
+    Raises:
+        ConfigError: ``task`` is not a task of the core.
+    """
+    from khepera_gym.layout import layout_dict
+
+    order = [name for name, _ in _core.controllers()]
+    layout = layout_dict(_core.Batch(task, 1, num_threads=1).agents()[0][4])
+    classes: list[type[BaselinePolicy]] = []
+    pending = list(BaselinePolicy.__subclasses__())
+    while pending:
+        cls = pending.pop(0)
+        pending += cls.__subclasses__()
+        if not cls.CONTROLLER or cls in classes:
+            continue
+        try:
+            cls(layout=layout)
+        except ConfigError:
+            continue
+        classes.append(cls)
+    return tuple(sorted(classes, key=lambda cls: order.index(cls.CONTROLLER)))
+
 
 __all__ = [
     "BRAITENBERG_WEIGHT_SETS",
@@ -78,6 +112,7 @@ __all__ = [
     "Samson",
     "WaypointSwitching",
     "braitenberg_weights",
+    "for_task",
     "formation_offsets",
     "parameters",
     "with_leds",

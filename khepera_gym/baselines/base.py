@@ -62,6 +62,10 @@ def _layout_triples(layout: Layout | None) -> list[tuple[str, int, int]] | None:
     return triples
 
 
+#: Names a policy never reads as one of its parameters.
+_CLASS_ATTRIBUTES = ("params", "PARAMETERS", "CONTROLLER", "COMPARABLE")
+
+
 class BaselinePolicy:
     """Base of the baselines: a ``_core.Policy`` applied to observations of any batch shape.
 
@@ -85,6 +89,10 @@ class BaselinePolicy:
     #: Whether ``khepera-gym compare`` offers it by name on the Gymnasium envs (False for a
     #: controller of a PettingZoo-only task).
     COMPARABLE: ClassVar[bool] = True
+    #: The tasks (core task names) whose comparison runs it when no policy is named
+    #: (``khepera-gym compare --task seek``): a task's default policies are the baselines that
+    #: name it, in the order they are defined, each followed by its named variants
+    #: (:data:`khepera_gym.compare.policies.VARIANTS`), then uniform random actions.
     #: Its parameters: (name, default, comment), from the Rust core.
     PARAMETERS: ClassVar[list[tuple[str, Any, str]]] = []
     _policy: _core.Policy
@@ -147,7 +155,7 @@ class BaselinePolicy:
 
     def __getattr__(self, name: str) -> Any:
         # Parameters read as attributes (policy.vmax); only called for missing attributes.
-        if name.startswith("_") or name in ("params", "PARAMETERS", "CONTROLLER", "COMPARABLE"):
+        if name.startswith("_") or name in _CLASS_ATTRIBUTES:
             raise AttributeError(name)
         values = self.params
         if name in values:

@@ -53,8 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="+",
         action="extend",
         metavar="NAME",
-        help=f"policies to compare: {', '.join(POLICY_NAMES)} or sb3:path/to/model.zip "
-        "(default: those that fit the task)",
+        help=f"policies to compare: {', '.join(POLICY_NAMES)}, sb3:path/to/model.zip or your "
+        "own function as module:function or file.py:function (default: those that fit the task)",
     )
     parser.add_argument("--algo", help="stable-baselines3 algorithm of sb3: models (PPO, SAC, ...)")
     parser.add_argument(

@@ -1,5 +1,5 @@
 """``khepera-gym compare --task consensus``: the consensus law under a range of message triggers,
-error against messages (issue 16, item 3).
+error against messages.
 
 Each setting runs ``episodes`` seeded worlds of ``consensus_v1`` (world i seeded ``seed + i``,
 the same worlds for every setting) with :class:`khepera_gym.baselines.ConsensusLaw` on every

@@ -1,10 +1,11 @@
 """What the comparison measures on each task: one small table, one entry a task.
 
 Every task is scored by the common episode statistics (``success``, ``length``,
-``path_length``, ``collisions``); a task named in :data:`TASK_METRICS` adds what its own
-statistics and its meaning of success ask for. A task scored by an error to a reference
-(trajectory tracking, path following) names the prefix of its four extra statistics, and the
-comparison summarises them without further code:
+``path_length``, ``collisions``), and adds what its own statistics and its meaning of success
+ask for: each task declares that in the core, beside its code (the ``scoring`` of its
+``TaskInfo`` in ``src/tasks/``), and :data:`TASK_METRICS` reads it for every task of the core.
+A task scored by an error to a reference (trajectory tracking, path following) names the
+prefix of its four extra statistics, and the comparison summarises them without further code:
 
 * ``<prefix>_error_rms`` (m): mean over the episodes of each episode's RMS error (after the
   task's transient; over the whole episode if it ended sooner);
@@ -22,8 +23,8 @@ over the successful episodes for a task with success, over all episodes otherwis
 single-robot tasks. ``length · dt`` of successful episodes is the task's time column: "time to
 goal" for Nav, "lap time" for path following.
 
-Adding a task: one entry, e.g. ``"pathfollow": TaskMetrics(success="lap", time="lap time",
-error_prefix="path", error="cross-track error", termination="lost")``.
+Adding a task: its ``TaskInfo`` says how it is scored (``Scoring::GOAL`` for a task of goals
+reached); nothing here changes.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 
+from khepera_gym import _core
 from khepera_gym.compare.stats import (
     Estimate,
     bootstrap_interval,
@@ -84,49 +86,28 @@ class TaskMetrics:
             raise ValueError("this task has no error statistics")
         return f"{self.error_prefix}_{suffix}"
 
+    @classmethod
+    def of_task(cls, task: str) -> TaskMetrics:
+        """A task's entry, as the task declares its scoring in the core
+        (``_core.task_scoring``)."""
+        scoring = _core.task_scoring(task)
+        columns = tuple(
+            (stat, header, float(scale), int(digits))
+            for stat, header, scale, digits in scoring.pop("columns")
+        )
+        return cls(**scoring, columns=columns)
 
-#: The tasks' entries; a task not listed gets ``TaskMetrics()`` (success, time to goal, speed).
+
+#: Every task's entry, from the core's task registry (each task declares its scoring beside its
+#: code: the ``scoring`` of its ``TaskInfo``).
 TASK_METRICS: dict[str, TaskMetrics] = {
-    "formation": TaskMetrics(speed=False),
-    "multinav": TaskMetrics(speed=False),
-    "track": TaskMetrics(
-        success=None,
-        error_prefix="track",
-        error="tracking error",
-        termination="lost",
-        moving_reference=True,
-    ),
-    "pathfollow": TaskMetrics(
-        success="lap",
-        time="lap time",
-        error_prefix="path",
-        error="cross-track error",
-        termination="lost",
-        path_trace=True,
-    ),
-    "linefollow": TaskMetrics(
-        success="lap",
-        time="lap time",
-        termination="lost",
-        columns=(
-            ("on_line_share", "on line %", 100, 1),
-            ("line_offset_rms", "offset RMS mm", 1000, 1),
-        ),
-    ),
-    "dronefollow": TaskMetrics(
-        success=None,
-        termination="lost",
-        speed=False,
-        columns=(
-            ("in_view_share", "in view %", 100, 1),
-            ("horizontal_error_rms", "horizontal RMS cm", 100, 2),
-        ),
-    ),
+    name: TaskMetrics.of_task(name) for name, _, _ in _core.tasks()
 }
 
 
 def task_metrics(task: str | None) -> TaskMetrics:
-    """The entry of a task (core task name, e.g. "track"), or the default one."""
+    """The entry of a task (core task name, e.g. "track"), or the default one (success, time to
+    goal, speed) for None or a name that is not a task."""
     return TASK_METRICS.get(task or "", TaskMetrics())
 
 

@@ -4,6 +4,11 @@ actions, and stable-baselines3 models (``sb3:path.zip``).
 
 from __future__ import annotations
 
+import difflib
+import importlib
+import importlib.util
+import re
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -12,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from khepera_gym import baselines
+from khepera_gym import _core, baselines
 from khepera_gym.errors import ConfigError, KheperaError
 
 #: The baselines by their controller's name (``position_control``, ...: every controller of the
@@ -22,7 +27,8 @@ BASELINES: dict[str, type[baselines.BaselinePolicy]] = {
     for cls in baselines.BaselinePolicy.__subclasses__()
     if cls.CONTROLLER and cls.COMPARABLE
 }
-#: Named variants of the baselines: parameters other than the defaults.
+#: Named variants of the baselines: parameters other than the defaults, and the tasks whose
+#: comparison runs the variant by default (after its baseline; see ``BaselinePolicy.TASKS``).
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "braitenberg_kteam": ("braitenberg", {"weights": "kteam"}),
     # At K-Team's demo cruise speed, 200 speed units = 0.136 m/s (its braitenbergAvoidance's
@@ -33,25 +39,46 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     # An agent leader (formation.leader = "agent") drives like the scripted one.
     "leader_follower": ("leader_follower", {"leader": baselines.Braitenberg()}),
 }
+#: The tasks each variant is a default policy of (a variant named as its baseline replaces it).
+VARIANT_TASKS: dict[str, tuple[str, ...]] = {
+    "braitenberg_kteam": ("avoid",),
+    "leader_follower": ("formation",),
+}
 #: Every policy name (besides ``sb3:path.zip``).
 POLICY_NAMES = tuple(dict.fromkeys((*BASELINES, *VARIANTS, "random")))
+#: A user's own policy function: ``module:function`` or ``path/to/file.py:function``.
+USER_POLICY = re.compile(r"(?P<where>[\w./\\~-]+):(?P<attribute>[A-Za-z_]\w*)")
 #: Prefix of a stable-baselines3 model file among the policies.
 SB3_PREFIX = "sb3:"
 #: What an ``sb3:`` model's name gets in the results when it samples its actions.
 SAMPLED_SUFFIX = " (sampled)"
 #: stable-baselines3 algorithms tried in turn to load a model without ``--algo``.
 SB3_ALGORITHMS = ("PPO", "SAC", "TD3", "A2C", "DQN")
-#: Policies compared when none is given.
-DEFAULT_POLICIES = {
-    "nav": ("position_control", "braitenberg", "vfh", "random"),
-    "avoid": ("position_control", "braitenberg", "braitenberg_kteam", "vfh", "random"),
-    "formation": ("leader_follower", "random"),
-    "track": ("kanayama", "position_chase", "random"),
-    "pathfollow": ("samson", "pure_pursuit", "waypoint_switching", "random"),
-    "linefollow": ("line_threshold", "line_proportional", "random"),
-    "dronefollow": ("drone_pursuit", "random"),
-    "seek": ("blob_vfh", "blob_servo", "random"),
-}
+
+
+def _default_policies() -> dict[str, tuple[str, ...]]:
+    """Each task's default policies: the comparable baselines that fit it
+    (:func:`khepera_gym.baselines.for_task`), each followed by the variants declared for the
+    task, then ``random``."""
+    defaults: dict[str, tuple[str, ...]] = {}
+    for task, _, _ in _core.tasks():
+        names: list[str] = []
+        for cls in baselines.for_task(task):
+            if cls.CONTROLLER not in BASELINES:
+                continue  # not offered on the Gymnasium envs (a PettingZoo-only task's law)
+            names.append(cls.CONTROLLER)
+            names += [
+                name
+                for name, (base, _) in VARIANTS.items()
+                if base == cls.CONTROLLER and task in VARIANT_TASKS.get(name, ())
+            ]
+        defaults[task] = (*dict.fromkeys(names), "random")
+    return defaults
+
+
+#: Policies compared when none is given, for every task: the baselines that fit it (and the
+#: variants declared for it), then ``random``.
+DEFAULT_POLICIES: dict[str, tuple[str, ...]] = _default_policies()
 
 Policy = Callable[[npt.NDArray[np.float32]], npt.ArrayLike]
 
@@ -185,6 +212,60 @@ def load_sb3_policy(
     raise ValueError(f"cannot load {path} as a stable-baselines3 model: " + "; ".join(failures))
 
 
+class UserPolicy:
+    """A user's own function as a policy: ``module:function`` or ``path/to/file.py:function``.
+
+    The function takes a batch of observations (N, D) and returns actions (N, A) (anything
+    ``np.asarray`` turns into that shape); a class is instantiated without arguments first.
+    """
+
+    def __init__(self, spec: str, act_dim: int) -> None:
+        self.name = spec
+        self.act_dim = int(act_dim)
+        where, _, attribute = spec.rpartition(":")
+        try:
+            if where.endswith(".py"):
+                path = Path(where).expanduser()
+                if not path.is_file():
+                    raise ConfigError(f"policy {spec!r}: no file {path}")
+                module_spec = importlib.util.spec_from_file_location(path.stem, path)
+                if module_spec is None or module_spec.loader is None:
+                    raise ConfigError(f"policy {spec!r}: {path} is not a Python module")
+                module = importlib.util.module_from_spec(module_spec)
+                module_spec.loader.exec_module(module)
+            else:
+                # As `python -m` would find it: the working directory first.
+                sys.path.insert(0, str(Path.cwd()))
+                try:
+                    module = importlib.import_module(where)
+                finally:
+                    sys.path.remove(str(Path.cwd()))
+        except ImportError as error:
+            raise ConfigError(f"policy {spec!r}: cannot import {where!r}: {error}") from error
+        found = getattr(module, attribute, None)
+        if found is None:
+            raise ConfigError(f"policy {spec!r}: {where!r} has no {attribute!r}")
+        function = found() if isinstance(found, type) else found
+        if not callable(function):
+            raise ConfigError(f"policy {spec!r}: {attribute!r} is not callable")
+        self._function = function
+
+    def __call__(self, observations: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        actions = np.asarray(self._function(observations), dtype=np.float32)
+        expected = (*np.shape(observations)[:-1], self.act_dim)
+        if actions.shape != expected:
+            raise ConfigError(
+                f"policy {self.name!r} returned actions of shape {actions.shape} for observations "
+                f"of shape {np.shape(observations)}; expected {expected}"
+            )
+        return actions
+
+
+def is_user_policy(name: str) -> bool:
+    """Whether ``name`` names a user's function (``module:function``, ``file.py:function``)."""
+    return USER_POLICY.fullmatch(name) is not None and not name.startswith(SB3_PREFIX)
+
+
 def make_policy(
     name: str,
     env: gym.vector.VectorEnv,
@@ -195,7 +276,8 @@ def make_policy(
     """The policy of a name for an environment (see the module docstring for the names).
 
     Args:
-        name: A policy name or ``sb3:path.zip``.
+        name: A policy name, ``sb3:path.zip``, or a function of one's own as
+            ``module:function`` or ``path/to/file.py:function`` (:class:`UserPolicy`).
         env: The (vector) environment it will drive: its task decides which names fit, a
             formation's shape is read from its scenario, the random policy's action length
             from its action space.
@@ -215,9 +297,14 @@ def make_policy(
     task = getattr(env.unwrapped, "task", None)
     if name.startswith(SB3_PREFIX):
         return load_sb3_policy(name[len(SB3_PREFIX) :], algo, seed if sample_actions else None)
+    if is_user_policy(name):
+        return UserPolicy(name, env.single_action_space.shape[0])
     if name not in POLICY_NAMES:
+        near = difflib.get_close_matches(name, POLICY_NAMES, n=1, cutoff=0.6)
+        hint = f"did you mean {near[0]!r}? " if near else ""
         raise ConfigError(
-            f"unknown policy {name!r}; known: {', '.join(POLICY_NAMES)} or sb3:path/to/model.zip"
+            f"unknown policy {name!r}; {hint}known: {', '.join(POLICY_NAMES)}, "
+            "sb3:path/to/model.zip or your own function as module:function"
         )
     if name == "random":
         return RandomPolicy(env.single_action_space.shape[0], seed)
@@ -242,6 +329,8 @@ __all__ = [
     "Policy",
     "RandomPolicy",
     "SB3Policy",
+    "UserPolicy",
+    "is_user_policy",
     "load_sb3_policy",
     "make_policy",
 ]

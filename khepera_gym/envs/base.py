@@ -27,6 +27,7 @@ from khepera_gym.config import VERSION_KEY, ConfigArg, make_batch
 from khepera_gym.errors import ConfigError
 from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.render import Renderer
+from khepera_gym.versions import with_history
 
 #: The single-world env class of each task, by the Rust core's task name (filled by subclasses).
 ENV_CLASSES: dict[str, type[KheperaEnv]] = {}
@@ -63,7 +64,9 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
         if cls.TASK:
             if "VERSIONS" not in cls.__dict__:
                 cls.VERSIONS = {v: {VERSION_KEY: v} for v in _core.task_versions(cls.TASK)}
-            ENV_CLASSES.setdefault(cls.TASK, cls)
+            if "TASK" in cls.__dict__ and ENV_CLASSES.setdefault(cls.TASK, cls) is cls:
+                # The task's manual: its Version History comes from the core's versions.
+                cls.__doc__ = with_history(cls.__doc__, cls.TASK)
 
     def __init__(
         self,
@@ -73,6 +76,12 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
         frame_size: tuple[int, int] | None = None,
         **overrides: Any,
     ) -> None:
+        if "num_envs" in overrides:
+            raise ConfigError(
+                f"num_envs={overrides['num_envs']!r}: gym.make builds one world; for N worlds "
+                "stepped together in Rust use gym.make_vec(env_id, num_envs=N) (or "
+                "khepera_gym.sb3.make_vec_env(env_id, N) for stable-baselines3)"
+            )
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.action_type = action_type

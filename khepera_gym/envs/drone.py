@@ -39,17 +39,17 @@ class DroneFollowEnv(KheperaEnv):
     :func:`dronefollow_heuristic` (PD pursuit, :class:`khepera_gym.baselines.DronePursuit`)
     keeps the robot in view on every route (tests/drone.rs).
 
-    With `drone.driver = "agent"` the Khepera is a second agent, `robot`, instead of the script
-    (the paper's "or an agent"): its action is a wheel command as in :class:`NavEnv`
-    (`action_type` applies to it), its observation Nav's blocks toward its current waypoint
-    (its observed sensors, `goal_distance`, `goal_bearing_sin`, `goal_bearing_cos`,
-    `wheel_speeds`, after the drone's 8 numbers), its reward Nav's toward that waypoint
-    (progress, time cost, collision penalty) plus `task.success_bonus` at each waypoint
-    reached. Its episode ends with the drone's. The joint env then takes (4,) actions (the
-    drone's, then the robot's) and returns the mean of the two rewards; the PettingZoo form
+    With `drone.driver = "agent"` the Khepera is a second agent, `robot`, instead of the script (the
+    paper's "or an agent"; the key came within v1, its default keeping v1's behaviour): its action
+    is a wheel command as in :class:`NavEnv` (`action_type` applies to it), its observation Nav's
+    blocks toward its current waypoint (its observed sensors, `goal_distance`, `goal_bearing_sin`,
+    `goal_bearing_cos`, `wheel_speeds`, after the drone's 8 numbers), its reward Nav's toward that
+    waypoint (progress, time cost, collision penalty) plus `task.success_bonus` at each waypoint
+    reached. Its episode ends with the drone's. The joint env then takes (4,) actions (the drone's,
+    then the robot's) and returns the mean of the two rewards; the PettingZoo form
     (`drone_follow_v1.parallel_env(driver="agent")`) keeps them apart. An agent applying the
-    script's own law (:class:`khepera_gym.baselines.Braitenberg` with `vmax=0.15, wmax=1.0,
-    kr=0.15, stop_radius=0`) reaches the same waypoints as the script (tests).
+    script's own law (:class:`khepera_gym.baselines.Braitenberg` with `vmax=0.15, wmax=1.0, kr=0.15,
+    stop_radius=0`) reaches the same waypoints as the script (tests).
 
     ## Action Space
 
@@ -153,16 +153,6 @@ class DroneFollowEnv(KheperaEnv):
     altitude, a search altitude below the tracking one, a start offset that would leave the robot
     out of view, or fewer than 2 or more than 32 route points raise
     `khepera_gym.errors.ConfigError` naming the key.
-
-    ## Version History
-
-    * v1: Initial version (issue 16), on the v1 dynamics. There is no v0. `drone.driver`
-      (default `"scripted"`, the behaviour unchanged) was added later within v1.
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "dronefollow"

@@ -150,8 +150,8 @@ class FormationEnv(KheperaEnv):
     ## Robot model
 
     As :class:`NavEnv`, for each of the K + 1 robots: Khepera IV discs (radius 0.0704 m, wheels
-    0.1054 m apart, ±0.813 m/s) as dynamic rapier2d bodies; contacts between robots are resolved
-    like any other.
+    0.1054 m apart, ±0.813 m/s) as rigid discs; contacts between robots are resolved by rapier2d,
+    those with walls and obstacles as for one robot.
 
     ## Sensors
 
@@ -171,19 +171,6 @@ class FormationEnv(KheperaEnv):
     ±90° (left, right alternately); "wedge" at ±135°; "circle" evenly at r. Robots in formation
     closer than a diameter + 1 cm raise `khepera_gym.errors.ConfigError` (`formation.spacing`
     or `formation.offsets`).
-
-    ## Version History
-
-    * v0: Initial version, on the KH4VREP paper's V-REP-like dynamics (kinematic drive,
-      frictionless contacts, wheels at their command within a step); `KheperaIV-Formation-v0`.
-    * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
-      gyroscope, sonar timing and acceptance cone (the Version History of :class:`NavEnv` has the
-      details).
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "formation"

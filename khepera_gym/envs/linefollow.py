@@ -20,8 +20,8 @@ class LineFollowEnv(KheperaEnv):
 
     ## Description
 
-    Line following with the four ground IR sensors under the robot's front (issue 15;
-    docs/task-design.md §5.2), K-Team's classic demo. A black line `linefollow.width` = 2.7 cm
+    Line following with the four ground IR sensors under the robot's front
+    (docs/task-design.md §5.2), K-Team's classic demo. A black line `linefollow.width` = 2.7 cm
     wide (K-Team's demo needs at least that) is drawn on the white floor of the 2 m × 2 m
     arena along a closed curve (`linefollow.track`): `"circle"` (radius `linefollow.size` =
     0.6 m, a 3.77 m lap), `"lemniscate"` (a figure eight that crosses itself), `"spline"` (a
@@ -140,15 +140,6 @@ class LineFollowEnv(KheperaEnv):
     A size that leaves the arena, a width outside [5 mm, 20 cm], waypoints that are fewer than 4,
     not closed, closer than 1 mm or whose line leaves the arena, or a scenario that does not carry
     the ground sensors raise `khepera_gym.errors.ConfigError` naming the key.
-
-    ## Version History
-
-    * v1: Initial version (issue 15), on the v1 dynamics. There is no v0.
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "linefollow"

@@ -26,9 +26,9 @@ class NavEnv(KheperaEnv):
     in an empty 2 m × 2 m walled arena and must bring its centre within 5 cm of a random goal
     point at least 0.5 m away, as in the position-control exercise of the KH4VREP paper (Farias
     et al., IFAC 2017, §3.3). The goal's distance and bearing are observed directly (as from
-    odometry with a known goal); the infrared and ultrasonic readings show the walls. Physics
-    (rapier2d) stops the robot at the walls: from v1 on the shell rubs on them with friction, so
-    a robot pushing into a wall turns toward it and stalls (in v0 it slid along it).
+    odometry with a known goal); the infrared and ultrasonic readings show the walls. The walls
+    stop the robot: from v1 on the shell rubs on them with friction, so a robot pushing into a
+    wall turns toward it and stalls (in v0 it slid along it).
     :func:`nav_heuristic`, the paper's position controller (eqs. 1-4), solves most episodes.
 
     ## Action Space
@@ -149,9 +149,12 @@ class NavEnv(KheperaEnv):
 
     Khepera IV: a disc of radius 0.0704 m, wheels of radius 0.021 m, 0.1054 m apart; each wheel
     speed limited to ±0.813 m/s; commands below 3 mm/s give 0 (the real controller's floor). The
-    wheels follow K-Team's default speed profile, 0.203 m/s² (`robot.wheel_accel_limit`; v0:
-    none, the command within a step). A dynamic rapier2d body driven by its tyres' bounded grip
-    (`physics.drive = "traction"`; v0: its velocity imposed); contacts stop, turn or stall it.
+    wheels follow K-Team's speed profile as the firmware computes it, at Acc_Inc 40 (2.71 m/s²,
+    `[motors]`; v1: a plain 0.203 m/s² ramp; v0: the command within a step), which the program
+    `khepera-gym export` writes sets on the robot. A rigid disc driven by its tyres' bounded grip
+    (`physics.drive = "traction"`; v0: its velocity imposed); contacts stop, turn or stall it:
+    with walls and obstacles solved as a disc's with Coulomb friction (`physics.scene_solver =
+    "disc"`; v2 and earlier: rapier2d's step), with other robots by rapier2d.
     Control step `physics.dt` = 0.05 s (V-REP's default) with `physics.substeps` = 2 physics
     substeps (v0: 4). Ground truth: `env.unwrapped.poses()` (n_robots, 3) x, y, θ in the world
     frame (x right, y up, arena centred at the origin); `env.unwrapped.goals()` (n_goals, 2).
@@ -181,38 +184,6 @@ class NavEnv(KheperaEnv):
     `[low, high]` ranges, drawn anew at every reset (domain randomisation). Built-in scenes
     (`khepera_gym.scenes()`, e.g. `config="paper_fig6"`) overlay their keys the same way.
     `env.unwrapped.config_toml()` returns the resolved scenario.
-
-    ## Version History
-
-    * v0: Initial version: the KH4VREP paper's V-REP-like dynamics. The body's velocity is imposed
-      (kinematic drive), contacts are frictionless (robots slide along walls and shove each other),
-      wheels reach their command within a step, the sonars refresh every step and echo from any
-      angle. Registered as `KheperaIV-Nav-v0` with these defaults, so published v0 numbers
-      reproduce.
-    * v1: Dynamics of the real robot (issue 13). Tyres with bounded grip drive the body
-      (`physics.drive = "traction"`), contacts have friction (0.7), the wheels follow K-Team's
-      default speed profile (0.203 m/s²), the robot carries a gyroscope, the sonars refresh every
-      100 ms and do not echo beyond 22.5° from a surface's normal. Pushed into a wall a robot
-      slows, turns toward it and stalls; a stopped robot resists being shoved. New keys: IR
-      reflectances, `task.localization` with `[odometry]`, action and observation delays.
-    * v2: One robot in the simulator and on the bench (issue 32). The wheels follow K-Team's speed
-      profile as the firmware computes it (`[motors]`: `mode = "profile"`, Acc_Inc 40 speed
-      units per 10 ms = 2.71 m/s², orders under Min_Speed_Acc = 20 units raised to it), which the
-      program `khepera-gym export` writes sets on the robot with `kh4_SetSpeedProfile` (v1's
-      0.203 m/s² ramp was not what that program set). With it the paper's reactive controllers
-      work at the paper's speeds. Also: rapier makes contacts ahead of two robots closing at full
-      speed, a slipping robot that can touch nothing is moved by its tyres without rapier, and
-      a world split by robot rolls each robot substep by substep. Contacts, sensors and rewards
-      are v1's. `motors.preset` names the drives real programs set (`khepera_gym.motor_presets()`).
-    * v3: Contacts with the scene without rapier (issue 32). In a substep where a robot can touch
-      a wall or an obstacle but no robot can touch another, each robot is moved by its tyres and
-      then as a rigid disc against the shapes within its reach (`physics.scene_solver = "disc"`):
-      normal impulses without restitution, Coulomb friction at the shell (0.7), the contacts of a
-      corner solved together. Contacts between robots still go to rapier. The contact tests of
-      v1 and v2 (the impact's slowdown, the 75° stall, sliding on a frictionless wall,
-      convergence as substeps grow) hold on v3; a trajectory that touches the scene differs from
-      v2's within them, one that touches nothing is v2's. It makes steps with wall contacts,
-      about half of the work under random actions, several times cheaper.
     """
 
     TASK: ClassVar[str] = "nav"
@@ -329,7 +300,7 @@ class AvoidEnv(KheperaEnv):
     ## Robot model
 
     As :class:`NavEnv`: a Khepera IV disc (radius 0.0704 m, wheels 0.1054 m apart, ±0.813 m/s),
-    a dynamic rapier2d body that obstacles stop or deflect. From v1 on, `physics.friction` = 0.7
+    a rigid disc that obstacles stop or deflect. From v1 on, `physics.friction` = 0.7
     holds it against what it touches (it turns toward a wall it pushes and stalls); in v0
     (`physics.friction` = 0) it slid along walls and obstacles.
 
@@ -353,19 +324,6 @@ class AvoidEnv(KheperaEnv):
     key: an obstacle with a size ≤ 0 or outside the arena (`obstacles.fixed[i]`), random
     obstacles that cannot fit (`obstacles.count`), a gap too small to pass
     (`obstacles.min_gap`, at least the robot's diameter + 1 cm).
-
-    ## Version History
-
-    * v0: Initial version, on the KH4VREP paper's V-REP-like dynamics (kinematic drive,
-      frictionless contacts, wheels at their command within a step); `KheperaIV-Avoid-v0`.
-    * v1: The real robot's dynamics: tyre grip, contact friction, K-Team's speed profile, the
-      gyroscope, sonar timing and acceptance cone (the Version History of `NavEnv` has the
-      details).
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "avoid"

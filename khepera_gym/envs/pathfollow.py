@@ -184,17 +184,6 @@ class PathFollowEnv(KheperaEnv):
     than 4 points, or points given with another path); too many obstacles for the lap names
     `pathfollow.obstacle_count`; a preview or waypoint spacing longer than the path names its
     key.
-
-    ## Version History
-
-    * v1: Initial version, on the v1 dynamics (the real robot's: tyre grip, contact friction,
-      K-Team's speed profile). There is no v0: v0 means the paper's older V-REP-like dynamics,
-      and the task is newer than them.
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "pathfollow"

@@ -20,7 +20,7 @@ class SeekEnv(KheperaEnv):
 
     ## Description
 
-    A camera task (issue 15; docs/task-design.md §6.3): Avoid's 2 m × 2 m arena with 10 random
+    A camera task (docs/task-design.md §6.3): Avoid's 2 m × 2 m arena with 10 random
     grey obstacles, and one red pillar (radius `seek.pillar_radius` = 5 cm) standing on the goal,
     optionally with `seek.distractors` pillars of other colours. The goal's distance and bearing
     are not observed: only the IR ring, the camera's scanline and the wheel speeds.
@@ -120,15 +120,6 @@ class SeekEnv(KheperaEnv):
     A colour outside [0, 1] (`seek.pillar_color`, `arena.wall_color`, `robot.led_color`, an
     obstacle's `color`), a goal radius the robot could never reach, or a scenario that does not
     carry the camera raise `khepera_gym.errors.ConfigError` naming the key.
-
-    ## Version History
-
-    * v1: Initial version (issue 15), on the v1 dynamics. There is no v0.
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
     TASK: ClassVar[str] = "seek"

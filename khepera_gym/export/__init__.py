@@ -21,6 +21,8 @@ module:
   ``khepera_gym/export/templates/``);
 * :mod:`~khepera_gym.export.checks`: the exported files against the Python policy and the
   simulator on seeded rollouts (:func:`khepera_gym.rollout.run_episodes`);
+* :mod:`~khepera_gym.export.toolchain`: where the C is built and run: here, or for the robot's
+  ARM processor with K-Team's flags, under emulation;
 * :mod:`~khepera_gym.export.exporter`: :func:`export_policy`, the whole job;
 * :mod:`~khepera_gym.export.command`: the ``khepera-gym export`` command line.
 
@@ -72,6 +74,7 @@ from khepera_gym.export.onnx_writer import (
     onnx_inputs,
 )
 from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
+from khepera_gym.export.toolchain import Target, arm_target, host_target
 
 __all__ = [
     "ACTIVATIONS",
@@ -99,11 +102,14 @@ __all__ = [
     "Recording",
     "ReferencePolicy",
     "RobotInterface",
+    "Target",
     "add_arguments",
+    "arm_target",
     "build_onnx",
     "compile_check_program",
     "describe_policy",
     "export_policy",
+    "host_target",
     "input_row",
     "load_model",
     "motor_setting",

@@ -7,7 +7,8 @@ seeded random actions, and records at every step the policy's observation and wh
 robot would have measured then (its raw readings, pose and goal: a row of the C
 ``observation_inputs``). :func:`check_export` compares, on those rows, the ONNX file's actions
 (onnxruntime) and the C code's actions and observations (``export_check`` compiled with the
-system C compiler) with the reference, against :data:`PARITY_TOLERANCE` and
+system C compiler, and on request for the robot's ARM processor and run under emulation:
+:mod:`~khepera_gym.export.toolchain`) with the reference, against :data:`PARITY_TOLERANCE` and
 :data:`OBSERVATION_TOLERANCE`.
 
 Threading: the batch steps its worlds with the GIL released; the compiler and ``export_check``
@@ -33,6 +34,7 @@ from khepera_gym.export.c_writer import C_SOURCES
 from khepera_gym.export.network import PolicyNetwork
 from khepera_gym.export.onnx_writer import ONNX_FILE, onnx_actions, onnx_inputs
 from khepera_gym.export.robot import RobotInterface
+from khepera_gym.export.toolchain import Target, host_target
 from khepera_gym.rollout import run_episodes
 
 #: Largest absolute difference between an exported policy's action and the Python policy's that
@@ -47,9 +49,13 @@ C_FLAGS = ("-O2", "-std=c99", "-Wall")
 
 
 def compile_check_program(
-    out_dir: str | Path, compiler: str = "cc", flags: Sequence[str] = C_FLAGS
+    out_dir: str | Path,
+    compiler: str = "cc",
+    flags: Sequence[str] = C_FLAGS,
+    link_flags: Sequence[str] = (),
 ) -> Path:
-    """Compiles ``export_check`` from the exported sources with the system C compiler.
+    """Compiles ``export_check`` from the exported sources with the system C compiler (or
+    another: a cross compiler with its ``flags`` and ``link_flags``).
 
     Raises:
         KheperaError: The compiler is missing or the sources do not compile (its output).
@@ -62,6 +68,7 @@ def compile_check_program(
         "-o",
         str(binary),
         *(str(out / name) for name in ("export_check.c", *C_SOURCES)),
+        *link_flags,
         "-lm",
     ]
     try:
@@ -73,9 +80,12 @@ def compile_check_program(
     return binary
 
 
-def run_check_program(binary: str | Path, mode: str, rows: npt.ArrayLike) -> npt.NDArray[Any]:
-    """Feeds rows to ``export_check MODE`` and parses its output rows: float32 (the C values
-    exactly) for "policy", "sequence" and "observation", integers for "wheels".
+def run_check_program(
+    binary: str | Path, mode: str, rows: npt.ArrayLike, runner: Sequence[str] = ()
+) -> npt.NDArray[Any]:
+    """Feeds rows to ``export_check MODE`` (run by ``runner``, e.g. an emulator, if given) and
+    parses its output rows: float32 (the C values exactly) for "policy", "sequence" and
+    "observation", integers for "wheels".
 
     Raises:
         KheperaError: The program failed or printed something else than rows of numbers.
@@ -83,7 +93,7 @@ def run_check_program(binary: str | Path, mode: str, rows: npt.ArrayLike) -> npt
     values = np.atleast_2d(np.asarray(rows, np.float64))
     text = "\n".join(" ".join(f"{v:.9g}" for v in row) for row in values) + "\n"
     result = subprocess.run(
-        [str(binary), mode], input=text, capture_output=True, text=True, check=False
+        [*runner, str(binary), mode], input=text, capture_output=True, text=True, check=False
     )
     if result.returncode != 0:
         raise KheperaError(f"{binary} {mode} exited with {result.returncode}: {result.stderr}")
@@ -154,7 +164,8 @@ def record_rollouts(
     Args:
         env: A single env (one world) of khepera_gym, as :func:`robot_interface` read it.
         robot: The export's robot side (which agent's block, which inputs).
-        act: Maps the policy's observations (M, obs_dim) to actions (M, 2). In a multi-robot
+        act: Maps the policy's observations (M, obs_dim) to actions (M, 2), or (M, 5) for a
+            policy that also sets the LEDs (``robot.led_action``). In a multi-robot
             env it drives every agent whose block has the policy's width (a shared policy);
             other agents stand still. It sees every observation, in order (even where a random
             action replaces its own), and its ``reset()``, if it has one, is called before each
@@ -168,9 +179,10 @@ def record_rollouts(
     batch = unwrapped._batch
     width = robot.obs_dim
     # (block start, first action column) of every agent the policy drives: agent i's action is
-    # joint columns 2i, 2i + 1.
+    # joint columns k i to k i + k - 1, k its action's width (its wheels, then its LEDs').
+    per_agent = 5 if robot.led_action else 2
     driven = [
-        (int(start), 2 * i)
+        (int(start), per_agent * i)
         for i, (_, _, start, stop, _) in enumerate(batch.agents())
         if stop - start == width
     ]
@@ -196,12 +208,12 @@ def record_rollouts(
 
     def policy(joint: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
         blocks = np.stack([joint[0, start : start + width] for start, _ in driven])
-        agent_actions = np.asarray(act(blocks), np.float32).reshape(len(driven), 2)
+        agent_actions = np.asarray(act(blocks), np.float32).reshape(len(driven), per_agent)
         if rng.random() < random_fraction:
             return rng.uniform(-1.0, 1.0, (1, batch.act_dim)).astype(np.float32)
         actions = np.zeros((1, batch.act_dim), np.float32)
         for (_, column), action in zip(driven, agent_actions, strict=True):
-            actions[0, column : column + 2] = action
+            actions[0, column : column + per_agent] = action
         return actions
 
     def on_step(
@@ -222,6 +234,27 @@ def record_rollouts(
     )
 
 
+def _c_figures(
+    target: Target, out: Path, recording: Recording, expected: npt.NDArray[np.float64]
+) -> dict[str, float]:
+    """The C actions' and observations' largest differences from ``expected`` and from the
+    simulator, with ``export_check`` built and run on ``target``."""
+    with tempfile.TemporaryDirectory() as build:
+        for name in ("export_check.c", *C_SOURCES):
+            shutil.copy(out / name, build)
+        for name in out.glob("*.h"):
+            shutil.copy(name, build)
+        flags = (*target.flags, *C_FLAGS)
+        binary = compile_check_program(build, target.compiler, flags, target.link_flags)
+        rows = np.column_stack([recording.starts.astype(np.float64), recording.observations])
+        got = run_check_program(binary, "sequence", rows, target.runner)
+        built = run_check_program(binary, "observation", recording.input_rows, target.runner)
+    return {
+        "c_max_abs_error": float(np.max(np.abs(got - expected))),
+        "observation_max_abs_error": float(np.max(np.abs(built - recording.observations))),
+    }
+
+
 def check_export(
     reference: Callable[[npt.NDArray[np.float32]], npt.ArrayLike],
     network: PolicyNetwork,
@@ -230,6 +263,7 @@ def check_export(
     out: Path,
     formats: Sequence[str],
     compiler: str,
+    cross: Sequence[Target] = (),
 ) -> tuple[dict[str, Any], list[str]]:
     """Measures the exported files in ``out`` against ``reference`` (the Python policy's
     deterministic actions: a :class:`~khepera_gym.export.describe.ReferencePolicy`, or any
@@ -237,12 +271,16 @@ def check_export(
 
     The C policy runs ``policy_step`` over the recorded episodes in order, starting a fresh
     ``policy_state`` at each episode's start; the ONNX graph gets each step's frame stack
-    (:func:`~khepera_gym.export.onnx_writer.onnx_inputs`).
+    (:func:`~khepera_gym.export.onnx_writer.onnx_inputs`). The C is built with ``compiler``
+    and run here, then for each target of ``cross`` (the robot's ARM:
+    :func:`~khepera_gym.export.toolchain.arm_target`) built and run there.
 
     Returns:
         (figures, failures): "observations" (rows checked), "onnx_max_abs_error",
-        "c_max_abs_error", "observation_max_abs_error" or "c_skipped" (no compiler); and what
-        exceeds its tolerance ("C actions", ...).
+        "c_max_abs_error", "observation_max_abs_error" or "c_skipped" (no compiler), and the
+        same C figures of each cross target with its name ("c_arm_max_abs_error",
+        "observation_arm_max_abs_error" or "c_arm_skipped"); and what exceeds its tolerance
+        ("C actions", "C actions on arm", ...).
 
     Raises:
         KheperaError: The C code does not compile or ``export_check`` fails.
@@ -262,26 +300,21 @@ def check_export(
         if checks["onnx_max_abs_error"] > PARITY_TOLERANCE:
             failures.append("ONNX actions")
     if "c" in formats:
-        if shutil.which(compiler) is None:
-            checks["c_skipped"] = f"no C compiler {compiler!r} on PATH"
-        else:
-            with tempfile.TemporaryDirectory() as build:
-                for name in ("export_check.c", *C_SOURCES):
-                    shutil.copy(out / name, build)
-                for name in out.glob("*.h"):
-                    shutil.copy(name, build)
-                binary = compile_check_program(build, compiler)
-                rows = np.column_stack([starts.astype(np.float64), recording.observations])
-                got = run_check_program(binary, "sequence", rows)
-                built = run_check_program(binary, "observation", recording.input_rows)
-            checks["c_max_abs_error"] = float(np.max(np.abs(got - expected)))
-            checks["observation_max_abs_error"] = float(
-                np.max(np.abs(built - recording.observations))
-            )
-            if checks["c_max_abs_error"] > PARITY_TOLERANCE:
-                failures.append("C actions")
-            if checks["observation_max_abs_error"] > OBSERVATION_TOLERANCE:
-                failures.append("C observations")
+        for target in (host_target(compiler, ()), *cross):
+            host = target.name == "host"
+            infix, where = ("", "") if host else (f"_{target.name}", f" on {target.name}")
+            reason = target.missing()
+            if reason is not None:
+                checks[f"c{infix}_skipped"] = reason
+                continue
+            figures = _c_figures(target, out, recording, expected)
+            actions, observations = figures["c_max_abs_error"], figures["observation_max_abs_error"]
+            checks[f"c{infix}_max_abs_error"] = actions
+            checks[f"observation{infix}_max_abs_error"] = observations
+            if actions > PARITY_TOLERANCE:
+                failures.append(f"C actions{where}")
+            if observations > OBSERVATION_TOLERANCE:
+                failures.append(f"C observations{where}")
     return checks, failures
 
 

@@ -5,6 +5,7 @@ Examples::
     khepera-gym export runs/ppo_nav/model.zip                 # C, beside the model in export/
     khepera-gym export runs/ppo_nav/model.zip --format c onnx --out robot/
     khepera-gym export checkpoint_dir --env KheperaIV-Nav-v0 --set ir_floor_value=110
+    khepera-gym export runs/ppo_nav/model.zip --check-arm     # the check on the robot's ARM too
 
 It prints the files written, the scenario constants given as ranges (their midpoint is baked
 in) and the check figures. Threading: the calling thread.
@@ -57,6 +58,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--cc", default="cc", help="C compiler of the check (cc)")
     parser.add_argument(
+        "--check-arm",
+        action="store_true",
+        help="also build the check for the robot's ARM processor (arm-linux-gnueabihf-gcc with "
+        "K-Team's flags) and run it under qemu-arm",
+    )
+    parser.add_argument(
         "--drive",
         choices=DRIVE_CHOICES,
         default="trained",
@@ -94,6 +101,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         action_type=args.action_type,
         check=not args.no_check,
         compiler=args.cc,
+        check_arm=args.check_arm,
         drive=args.drive,
         sample_seed=sample_seed,
         **overrides,
@@ -123,11 +131,18 @@ def run_from_args(args: argparse.Namespace) -> int:
     checks = result.checks
     if "observations" in checks:
         print(f"checked on {checks['observations']} observations of seeded rollouts:")
-    for key in ("onnx_max_abs_error", "c_max_abs_error", "observation_max_abs_error"):
+    for key in (
+        "onnx_max_abs_error",
+        "c_max_abs_error",
+        "observation_max_abs_error",
+        "c_arm_max_abs_error",
+        "observation_arm_max_abs_error",
+    ):
         if key in checks:
             print(f"  {key.replace('_', ' ')}: {checks[key]:.3g}")
-    if "c_skipped" in checks:
-        print(f"  C check skipped: {checks['c_skipped']}")
+    for key, what in (("c_skipped", "C check"), ("c_arm_skipped", "C check on ARM")):
+        if key in checks:
+            print(f"  {what} skipped: {checks[key]}")
     return 0
 
 

@@ -32,6 +32,7 @@ from khepera_gym.export.motors import MotorSetting, motor_setting
 from khepera_gym.export.network import PolicyNetwork
 from khepera_gym.export.onnx_writer import ONNX_FILE, build_onnx, import_onnx
 from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
+from khepera_gym.export.toolchain import arm_target
 from khepera_gym.registration import resolve_env_id
 
 #: Output formats of :func:`export_policy`.
@@ -98,6 +99,7 @@ def export_policy(
     normalizer: Any = None,
     check: bool = True,
     compiler: str = "cc",
+    check_arm: bool = False,
     drive: str = "trained",
     sample_seed: int | None = None,
     **overrides: Any,
@@ -122,6 +124,10 @@ def export_policy(
         check: Measure the exported files against the Python policy on recorded observations
             (ONNX with onnxruntime; C compiled with ``compiler``, skipped if there is none).
         compiler: The C compiler of the check.
+        check_arm: Also build the check for the robot's processor (ARMv7-A, hard float, NEON:
+            K-Team's flags, :func:`~khepera_gym.export.toolchain.arm_target`) and run it
+            under ``qemu-arm`` (skipped, with the reason in the figures, when the cross
+            compiler or the emulator is missing).
         drive: "trained": the program sets the motor controller exactly as the scenario's
             ``[motors]`` drove the simulated robot (an error if the robot cannot be set so:
             v0's and v1's ramp, or a randomised profile); "nominal": its nearest firmware
@@ -185,7 +191,10 @@ def export_policy(
         failures: list[str] = []
         if check:
             reference = reference_actions(model, normalizer)
-            checks, failures = check_export(reference, network, env, robot, out, formats, compiler)
+            cross = (arm_target(),) if check_arm else ()
+            checks, failures = check_export(
+                reference, network, env, robot, out, formats, compiler, cross
+            )
         manifest = {
             "khepera_gym_version": khepera_gym.__version__,
             "model": provenance,

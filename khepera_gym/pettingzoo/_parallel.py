@@ -13,6 +13,7 @@ agent's is a slice of that step's joint observation, never reused by a later ste
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -21,16 +22,22 @@ import numpy as np
 import numpy.typing as npt
 from pettingzoo import ParallelEnv
 
+from khepera_gym import _core
 from khepera_gym._inputs import as_action_array, check_options, check_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
 from khepera_gym.face import WORLD_STATS_KEY, BatchFace, check_render_mode, first_seed
 from khepera_gym.layout import layout_dict
 from khepera_gym.render import Renderer
+from khepera_gym.versions import with_history
 
 #: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
 #: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
 ACTION_DIM = 2
+
+#: The family classes by family name (``"formation"`` → ``FormationParallelEnv``), filled by the
+#: classes that set ``FAMILY``.
+FAMILIES: dict[str, type[KheperaParallelEnv]] = {}
 
 AgentObs = npt.NDArray[np.float32]
 AgentAction = npt.NDArray[np.float32]
@@ -85,7 +92,26 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
     TASK: ClassVar[str] = ""
     #: Behaviour version whose defaults apply (the module's ``_v<n>``); None: the latest.
     VERSION: ClassVar[int | None] = None
+    #: The family's name, set by the class that defines a family (``"formation"``): the package
+    #: makes its module ``<family>_v<n>`` for every version of :attr:`TASK`.
+    FAMILY: ClassVar[str] = ""
+    #: Whether the family's modules offer ``array_env`` (every agent's data in one array).
+    ARRAY_ENV: ClassVar[bool] = False
     _WORLD: ClassVar[int | None] = 0
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "FAMILY" not in cls.__dict__ or FAMILIES.setdefault(cls.FAMILY, cls) is not cls:
+            return
+        latest = _core.task_versions(cls.TASK)[-1]
+        cls.metadata = {**cls.metadata, "name": f"{cls.FAMILY}_v{latest}"}
+        # The family's manual (its class docstring, or else its module's) gets its Version
+        # History from the core's versions.
+        if "## Description" in (cls.__doc__ or ""):
+            cls.__doc__ = with_history(cls.__doc__, cls.TASK)
+        else:
+            module = sys.modules[cls.__module__]
+            module.__doc__ = with_history(module.__doc__, cls.TASK, indent="")
 
     def __init__(
         self,

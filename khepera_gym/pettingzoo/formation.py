@@ -1,12 +1,12 @@
 """Leader-follower formation (paper §3.5, Fig. 7), one PettingZoo agent per robot: the manual of
-``formation_v1`` (and ``formation_v0``, the same with the v0 dynamics).
+the ``formation_vN`` modules (one a behaviour version, the same env on that version's dynamics).
 
-The scenario of ``KheperaIV-Formation-v1`` (:class:`khepera_gym.envs.FormationEnv`, whose manual
+The scenario of ``KheperaIV-Formation`` (:class:`khepera_gym.envs.FormationEnv`, whose manual
 details the observation, reward and scenario keys) with one agent per follower::
 
-    from khepera_gym.pettingzoo import formation_v1
+    from khepera_gym.pettingzoo import formation_v3
 
-    env = formation_v1.parallel_env(n_followers=4, shape="cross")
+    env = formation_v3.parallel_env(n_followers=4, shape="cross")
     observations, infos = env.reset(seed=0)
     while env.agents:
         actions = {agent: env.action_space(agent).sample() for agent in env.agents}
@@ -64,13 +64,8 @@ class FormationParallelEnv(KheperaParallelEnv):
             keys say.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "name": "formation_v1",
-        "render_modes": ["rgb_array", "human"],
-        "render_fps": 20,
-        "is_parallelizable": True,
-    }
     TASK: ClassVar[str] = "formation"
+    FAMILY: ClassVar[str] = "formation"
 
     def __init__(
         self,

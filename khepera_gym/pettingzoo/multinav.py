@@ -1,5 +1,5 @@
 """Several Khepera IV robots, each driving to its own goal, as PettingZoo agents: the manual of
-``multinav_v1`` (and ``multinav_v0``, the same with the v0 dynamics).
+the ``multinav_vN`` modules (one a behaviour version, the same env on that version's dynamics).
 
 Every robot is an agent (``robot_0`` .. ``robot_{N-1}``) with the Nav observation (18 values:
 IR, ultrasonic, goal distance and bearing, wheel speeds; the table of
@@ -7,9 +7,9 @@ IR, ultrasonic, goal distance and bearing, wheel speeds; the table of
 and the Nav reward for its own goal. The robots are obstacles to one another: their discs block
 each other's sensor rays and rapier resolves their contacts::
 
-    from khepera_gym.pettingzoo import multinav_v1
+    from khepera_gym.pettingzoo import multinav_v3
 
-    env = multinav_v1.parallel_env(n_robots=4)
+    env = multinav_v3.parallel_env(n_robots=4)
     observations, infos = env.reset(seed=0)
     while env.agents:
         actions = {agent: env.action_space(agent).sample() for agent in env.agents}
@@ -27,7 +27,9 @@ keys with Avoid's defaults for
 plus ``[multinav] n_robots`` (4, 1 to 1024 as the arena fits); ``spawn.start`` then lists N poses
 ``[x, y, heading, ...]`` and ``spawn.goal`` N points ``[x, y, ...]``.
 
-``env(**kwargs)`` is the AEC version (``parallel_to_aec`` with its order-enforcing wrapper).
+``env(**kwargs)`` is the AEC version (``parallel_to_aec`` with its order-enforcing wrapper), and
+``array_env(num_envs, **kwargs)`` steps ``num_envs`` worlds with every agent's data in one array
+(:class:`khepera_gym.pettingzoo.arrays.MultiAgentArrayEnv`, for swarms).
 """
 
 from __future__ import annotations
@@ -49,13 +51,9 @@ class MultiNavParallelEnv(KheperaParallelEnv):
         **kwargs: Further scenario overrides (e.g. ``count=5`` random obstacles), ``action_type``.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "name": "multinav_v1",
-        "render_modes": ["rgb_array", "human"],
-        "render_fps": 20,
-        "is_parallelizable": True,
-    }
     TASK: ClassVar[str] = "multinav"
+    FAMILY: ClassVar[str] = "multinav"
+    ARRAY_ENV: ClassVar[bool] = True
 
     def __init__(
         self,

@@ -22,11 +22,11 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices
 
 from khepera_gym._inputs import SEED_LIMIT, as_action_array, check_seed, check_world_index
-from khepera_gym.config import ConfigArg, make_batch
+from khepera_gym.config import VERSION_KEY, ConfigArg, make_batch
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.face import WORLD_STATS_KEY, BatchFace, first_seed
 from khepera_gym.layout import layout_dict
-from khepera_gym.registration import resolve_env_id, task_of
+from khepera_gym.registration import resolve_env_id, task_and_version, task_of
 from khepera_gym.render import TRAIL_LENGTH, check_frame_size, default_frame_size, mosaic
 
 
@@ -508,23 +508,35 @@ def make_vec_env(
     """An SB3 ``VecEnv`` of ``n_envs`` worlds of a khepera_gym env, stepped by the Rust batch.
 
     Args:
-        env_id: ``"KheperaIV-Nav-v1"``, ``"KheperaIV-Avoid-v1"``, ``"KheperaIV-Formation-v1"``
-            (an unversioned id picks the latest version).
-        n_envs: Number of worlds (rows).
+        env_id: A Gymnasium id (``"KheperaIV-Nav-v1"``; an unversioned id picks the latest
+            version): one row per world. Or a PettingZoo module's name (``"multinav_v3"``): one
+            row per agent of every world (:class:`SharedAgentsVecEnv`, parameter sharing), for
+            a family whose agents observe blocks of one length.
+        n_envs: Number of worlds.
         seed: World i is seeded with ``seed + i`` at the first ``reset()``; None draws a seed.
         num_threads: Threads of the batch's pool; None uses all cores.
         **config: ``config=`` (scenario name or TOML path), ``action_type=``,
             ``max_episode_steps=`` and scenario overrides, as for ``gym.make``.
 
     Returns:
-        A :class:`KheperaSB3VecEnv`; wrap it in ``VecMonitor`` for SB3's episode logging.
+        A :class:`KheperaSB3VecEnv` running the behaviour version of ``env_id``; wrap it in
+        ``VecMonitor`` for SB3's episode logging.
+
+    Raises:
+        ConfigError: An unknown id or module (the message names the nearest), or a scenario
+            error.
 
     Example:
         >>> from stable_baselines3 import PPO
         >>> envs = make_vec_env("KheperaIV-Nav-v1", n_envs=16, seed=0)
         >>> model = PPO("MlpPolicy", envs)  # doctest: +SKIP
     """
-    return KheperaSB3VecEnv(task_of(env_id), n_envs, seed=seed, num_threads=num_threads, **config)
+    from khepera_gym.pettingzoo import modules
+
+    task, version = task_and_version(env_id)
+    config.setdefault(VERSION_KEY, version)
+    cls = SharedAgentsVecEnv if env_id in modules() else KheperaSB3VecEnv
+    return cls(task, n_envs, seed=seed, num_threads=num_threads, **config)
 
 
 def make_formation_vec_env(

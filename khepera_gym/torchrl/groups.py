@@ -27,7 +27,7 @@ from torchrl.envs.utils import MarlGroupMapType
 
 from khepera_gym import _core
 from khepera_gym.errors import ConfigError
-from khepera_gym.registration import latest_ids, task_of, version_of
+from khepera_gym.registration import latest_ids, task_and_version
 
 #: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
 #: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
@@ -49,30 +49,30 @@ def tasks() -> list[str]:
 
 
 def resolve_task(task: Any) -> str:
-    """The core's task name of ``task``: a task name, or a khepera_gym Gymnasium id with or
-    without its version ("KheperaIV-Nav-v0", "KheperaIV-Nav").
+    """The core's task name of ``task``: a task name, a khepera_gym Gymnasium id with or
+    without its version ("KheperaIV-Nav-v0", "KheperaIV-Nav") or a PettingZoo module's name
+    ("multinav_v1").
 
     Raises:
-        ConfigError: ``task`` is neither.
+        ConfigError: ``task`` is none of these.
     """
     known = tasks()
     if isinstance(task, str):
-        if task in known:
-            return task
         try:
-            return task_of(task)
+            return task_and_version(task)[0]
         except ConfigError:
             pass
     raise ConfigError(
         f"unknown task {task!r} for KheperaTorchEnv; tasks: {known}, or the Gymnasium ids "
-        f"{sorted(latest_ids().values())}"
+        f"{sorted(latest_ids().values())} (any version), or a PettingZoo module's name"
     )
 
 
 def resolve_version(task: str) -> int | None:
     """The behaviour version a task argument asks for: a Gymnasium id's own ("KheperaIV-Nav-v0"
-    → 0, "KheperaIV-Nav" → the latest), None (the latest) for a core task name."""
-    return None if task in tasks() else version_of(task)
+    → 0, "KheperaIV-Nav" → the latest), a PettingZoo module's ("multinav_v1" → 1), None (the
+    latest) for a core task name."""
+    return None if task in tasks() else task_and_version(task)[1]
 
 
 @functools.cache

@@ -20,7 +20,7 @@ mod text;
 
 pub use domain::{Domain, Field};
 pub use text::{
-    did_you_mean, error_key, expand_overrides, nearest_key, overlay, parse, render_section,
+    did_you_mean, error_key, expand_overrides, line_of, nearest_key, overlay, parse, render_section,
 };
 
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
@@ -390,5 +390,18 @@ mod tests {
         let over = parse("zzzzzz = 1\n", "kw").expect("toml");
         let e = expand_overrides(&base, &over).unwrap_err().to_string();
         assert!(!e.contains("did you mean"), "{e}");
+    }
+
+    #[test]
+    fn two_swapped_letters_are_one_edit_and_a_key_is_found_on_its_line() {
+        // "taks" is "task" with two neighbours swapped: one edit, suggested for a 4-letter key.
+        assert_eq!(nearest_key("taks", ["task", "spawn"]), Some("task"));
+        assert_eq!(nearest_key("lenhgt", ["length"]), Some("length"));
+        assert_eq!(nearest_key("xyz", ["task"]), None);
+        let text = "# a scenario\n[task]\nmax_steps = 10\ngoal_radus = 0.1\n\n[taks]\n\"robot.mass\" = 1\nrobot.radius = 0.1\n";
+        assert_eq!(line_of(text, "task.goal_radus"), Some(4));
+        assert_eq!(line_of(text, "taks"), Some(6));
+        assert_eq!(line_of(text, "taks.robot.radius"), Some(8));
+        assert_eq!(line_of(text, "task.nothing"), None);
     }
 }

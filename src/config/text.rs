@@ -97,22 +97,64 @@ pub fn nearest_key<'a>(
         .map(|(_, c)| c)
 }
 
-/// Levenshtein distance between `a` and `b`, in characters.
+/// Edit distance between `a` and `b`, in characters: insertions, deletions, substitutions and
+/// swaps of two neighbours (`taks` is one edit from `task`), each counting one (the optimal
+/// string alignment distance).
 fn edit_distance(a: &str, b: &str) -> usize {
+    let a: Vec<char> = a.chars().collect();
     let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut diagonal = row[0];
-        row[0] = i + 1;
-        for (j, &cb) in b.iter().enumerate() {
-            let above = row[j + 1];
-            row[j + 1] = (above + 1)
-                .min(row[j] + 1)
-                .min(diagonal + usize::from(ca != cb));
-            diagonal = above;
+    // Rows i - 2, i - 1 and i of the table of distances between prefixes.
+    let mut older: Vec<usize> = vec![0; b.len() + 1];
+    let mut previous: Vec<usize> = (0..=b.len()).collect();
+    for i in 1..=a.len() {
+        let mut row = vec![i; b.len() + 1];
+        for j in 1..=b.len() {
+            let substitution = previous[j - 1] + usize::from(a[i - 1] != b[j - 1]);
+            row[j] = (previous[j] + 1).min(row[j - 1] + 1).min(substitution);
+            if i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] {
+                row[j] = row[j].min(older[j - 2] + 1);
+            }
+        }
+        older = std::mem::replace(&mut previous, row);
+    }
+    previous[b.len()]
+}
+
+/// The line (counted from 1) of a scenario file's `text` that sets the dotted `key`
+/// (`task.goal_radius` under `[task]`, or written `task.goal_radius = ...` or as a `[task]`
+/// header itself), for messages about a key; None when it is not found so.
+pub fn line_of(text: &str, key: &str) -> Option<usize> {
+    let mut section = String::new();
+    for (number, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.starts_with('[') && line.ends_with(']') {
+            section = line
+                .trim_matches(|c| c == '[' || c == ']')
+                .trim()
+                .to_string();
+            if section == key {
+                return Some(number + 1);
+            }
+            continue;
+        }
+        let Some((name, _)) = line.split_once('=') else {
+            continue;
+        };
+        let name: String = name
+            .split('.')
+            .map(|part| part.trim().trim_matches('"'))
+            .collect::<Vec<_>>()
+            .join(".");
+        let dotted = if section.is_empty() {
+            name
+        } else {
+            format!("{section}.{name}")
+        };
+        if dotted == key || key.starts_with(&format!("{dotted}.")) {
+            return Some(number + 1);
         }
     }
-    row[b.len()]
+    None
 }
 
 /// What an unknown key's message suggests: "; did you mean `name`?" for the nearest of

@@ -28,7 +28,7 @@ crate::config_table! {
         tolerance: f32 = 0.3,
         /// k, gain on the centroid's offset [E]
         k: f32 = 1.0,
-        /// m/s, v_max [E: as the paper's position control, 0.3 m/s would brake too late; tasks.md §6.3]
+        /// m/s, v_max [E: as the paper's position control, 0.3 m/s would brake too late; task-design.md §6.3]
         vmax: f32 = 0.2,
         /// rad/s, omega_max [E]
         wmax: f32 = 2.0,

@@ -19,7 +19,7 @@ use crate::obs::ObsLayout;
 crate::config_table! {
     /// Parameters of the drone's PD pursuit.
     pub struct DronePursuitParams {
-        /// k_p (1/s^2), gain on the offset [D/E: omega_n^2 with omega_n = 2 rad/s, tasks.md §7]
+        /// k_p (1/s^2), gain on the offset [D/E: omega_n^2 with omega_n = 2 rad/s, task-design.md §7]
         kp: f32 = 4.0,
         /// k_d (1/s), gain on the offset's rate [D/E: 2 zeta omega_n with zeta = 1]
         kd: f32 = 4.0,

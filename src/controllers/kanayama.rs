@@ -23,7 +23,7 @@ use crate::obs::ObsLayout;
 crate::config_table! {
     /// Parameters of Kanayama's tracking controller.
     pub struct KanayamaParams {
-        /// K_x (1/s), gain on the along-track error e_x [tasks.md §3: 1, the longitudinal loop as fast as the lateral]
+        /// K_x (1/s), gain on the along-track error e_x [task-design.md §3: 1, the longitudinal loop as fast as the lateral]
         kx: f32 = 1.0,
         /// K_y (1/m^2), gain on the cross-track error e_y [D: (omega_n / v_r)^2 = (1 / 0.15)^2]
         ky: f32 = 44.44,

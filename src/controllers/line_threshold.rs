@@ -21,7 +21,7 @@ pub const SPEED_UNIT: f32 = 0.000678;
 crate::config_table! {
     /// Parameters of K-Team's threshold line follower.
     pub struct LineThresholdParams {
-        /// raw ground count below which a sensor is over black [C: K-Team's demo, 700-800, spec §4]
+        /// raw ground count below which a sensor is over black [C: K-Team's demo, 700-800, robot.md §4]
         threshold: f32 = 800.0,
         /// m/s, speed on the line [C: the demo's 90 units x 0.678 mm/s]
         speed: f32 = 0.06102,

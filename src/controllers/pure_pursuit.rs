@@ -24,7 +24,7 @@ use crate::obs::ObsLayout;
 crate::config_table! {
     /// Parameters of pure pursuit.
     pub struct PurePursuitParams {
-        /// look-ahead distance L_d (m) [tasks.md §4: 0.15 m at Khepera scale, E]
+        /// look-ahead distance L_d (m) [task-design.md §4: 0.15 m at Khepera scale, E]
         lookahead: f32 = 0.15,
         /// wheel separation (m) turning (v, omega) into wheel speeds
         axle_length: f32 = 0.1054,

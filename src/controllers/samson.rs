@@ -26,9 +26,9 @@ pub const MIN_DENOMINATOR: f32 = 0.1;
 crate::config_table! {
     /// Parameters of Samson's path follower.
     pub struct SamsonParams {
-        /// k_d (1/m^2), gain on the cross-track error [D: (omega_n / v)^2 = (1 / 0.15)^2, tasks.md §4]
+        /// k_d (1/m^2), gain on the cross-track error [D: (omega_n / v)^2 = (1 / 0.15)^2, task-design.md §4]
         kd: f32 = 44.44,
-        /// k_theta (1/m), gain on the heading error [D: 2 zeta omega_n / v = 2 * 0.7 / 0.15, tasks.md §4]
+        /// k_theta (1/m), gain on the heading error [D: 2 zeta omega_n / v = 2 * 0.7 / 0.15, task-design.md §4]
         ktheta: f32 = 9.33,
         /// wheel separation (m) turning (v, omega) into wheel speeds
         axle_length: f32 = 0.1054,

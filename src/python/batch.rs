@@ -1,7 +1,7 @@
 //! The `Batch` class: N seeded worlds of one task in the Rust core, as Python sees them: its
 //! construction, the simulation (reset, step, render, saved states and pickling) and small
 //! accessors; the dicts of sensor readings, scene geometry and episode statistics are built in
-//! `views.rs`.
+//! `views.rs`, saved states and pickling in `state.rs`.
 //!
 //! Units: actions normalised to [-1, 1] (two per agent), observations as the layout says,
 //! poses and goals in metres and radians in the world frame (arena centred at the origin).
@@ -16,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 
 use super::convert::{describe, dict_to_table, layout_slices, task_kind};
-use super::errors::{guard, raise, to_py};
+use super::errors::{guard, to_py};
 use super::views;
 use crate::batch::Batch as CoreBatch;
 use crate::config::OVERRIDE_ORIGIN;
@@ -27,13 +27,15 @@ use crate::scenario::Source;
 /// N independent seeded Khepera IV worlds of one task, stepped in parallel.
 #[pyclass(module = "khepera_gym._core")]
 pub struct Batch {
-    inner: CoreBatch,
+    pub(super) inner: CoreBatch,
     actions: Vec<f32>,
-    /// Construction arguments not held by the core, for pickling.
-    action_type: String,
-    requested_threads: Option<usize>,
-    autoreset: bool,
-    trail_length: usize,
+    /// Construction arguments not held by the core, for pickling (`state.rs`).
+    pub(super) action_type: String,
+    pub(super) requested_threads: Option<usize>,
+    pub(super) autoreset: bool,
+    pub(super) trail_length: usize,
+    /// The behaviour version whose defaults the scenario started from.
+    pub(super) version: u32,
 }
 
 #[pymethods]
@@ -41,7 +43,7 @@ impl Batch {
     #[new]
     #[pyo3(signature = (task, num_worlds, config_text=None, config_name="<built-in>", overrides=None, action_type="wheels", num_threads=None, autoreset=true, version=None))]
     #[allow(clippy::too_many_arguments)]
-    fn new(
+    pub(super) fn new(
         py: Python<'_>,
         task: &str,
         num_worlds: i64,
@@ -115,8 +117,16 @@ impl Batch {
                 requested_threads: num_threads,
                 autoreset,
                 trail_length: 0,
+                version: version.unwrap_or(crate::scenario::LATEST_VERSION),
             })
         })
+    }
+
+    /// The behaviour version whose defaults the scenario started from (`version`, or the
+    /// latest).
+    #[getter]
+    fn version(&self) -> u32 {
+        self.version
     }
 
     /// Number of worlds.
@@ -440,7 +450,7 @@ impl Batch {
     }
 
     /// Keeps the last `length` positions of every robot for the trails of `render` (0: off).
-    fn set_trail_length(&mut self, length: usize) {
+    pub(super) fn set_trail_length(&mut self, length: usize) {
         self.trail_length = length.min(100_000);
         self.inner.set_trail_length(self.trail_length);
     }
@@ -458,11 +468,7 @@ impl Batch {
     /// The state of every world (poses, velocities, contacts, random streams, step counters,
     /// task state) and of the last outputs, as bytes for `set_state`.
     fn get_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
-        guard(py, || {
-            let inner = &self.inner;
-            let bytes = py.detach(|| inner.save_state()).map_err(|e| to_py(py, e))?;
-            Ok(PyBytes::new(py, &bytes))
-        })
+        self.state_bytes(py)
     }
 
     /// Pickling: the resolved scenario, the construction arguments and the state; unpickling
@@ -470,44 +476,12 @@ impl Batch {
     fn __reduce__<'py>(
         slf: &Bound<'py, Self>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
-        let py = slf.py();
-        let this = slf.borrow();
-        let state = this.get_state(py)?;
-        let rebuild = py
-            .import("khepera_gym._core")?
-            .getattr("_batch_from_state")?;
-        let args = (
-            this.inner.envs()[0].kind().name(),
-            this.inner.len(),
-            this.inner.scenario().to_toml(),
-            this.action_type.clone(),
-            this.requested_threads,
-            this.autoreset,
-            this.trail_length,
-            state,
-        )
-            .into_pyobject(py)?;
-        Ok((rebuild, args))
+        Self::reduce(slf)
     }
 
     /// Restores a state from `get_state` of a batch of the same task, scenario and size.
     fn set_state(&mut self, py: Python<'_>, state: &Bound<'_, PyAny>) -> PyResult<()> {
-        guard(py, || {
-            let bytes: Vec<u8> = match state.cast::<PyBytes>() {
-                Ok(b) => b.as_bytes().to_vec(),
-                Err(_) => {
-                    let kind = state.get_type().name()?;
-                    return Err(raise(
-                        py,
-                        "StateError",
-                        format!("a state is the bytes get_state() returned, got {kind}"),
-                    ));
-                }
-            };
-            let inner = &mut self.inner;
-            py.detach(|| inner.load_state(&bytes))
-                .map_err(|e| to_py(py, e))
-        })
+        self.restore_state(py, state)
     }
 }
 
@@ -558,35 +532,4 @@ impl Batch {
             PyArray1::from_vec(py, truncated),
         ))
     }
-}
-
-/// Unpickles a `Batch` (see `Batch.__reduce__`).
-#[pyfunction]
-#[allow(clippy::too_many_arguments)]
-pub fn _batch_from_state(
-    py: Python<'_>,
-    task: &str,
-    num_worlds: i64,
-    config_text: String,
-    action_type: &str,
-    num_threads: Option<i64>,
-    autoreset: bool,
-    trail_length: usize,
-    state: &Bound<'_, PyAny>,
-) -> PyResult<Batch> {
-    let mut batch = Batch::new(
-        py,
-        task,
-        num_worlds,
-        Some(config_text),
-        "<pickled>",
-        None,
-        action_type,
-        num_threads,
-        autoreset,
-        None,
-    )?;
-    batch.set_trail_length(trail_length);
-    batch.set_state(py, state)?;
-    Ok(batch)
 }

@@ -8,6 +8,7 @@
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use super::convert::{layout_slices, task_kind, toml_to_py};
 use super::errors::{guard, to_py};
@@ -33,6 +34,40 @@ pub fn tasks() -> Vec<(&'static str, Option<&'static str>, Vec<&'static str>)> {
 pub fn task_versions(py: Python<'_>, name: &str) -> PyResult<Vec<u32>> {
     let kind = task_kind(py, name)?;
     Ok((kind.info().schema.since..=scenario::LATEST_VERSION).collect())
+}
+
+/// How task `name` is scored (its `Scoring`), as a dict: success, time, error_prefix, error,
+/// termination (str or None), speed, moving_reference, path_trace (bool), and columns, a list
+/// of (statistic, header, scale, digits).
+#[pyfunction]
+pub fn task_scoring<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyDict>> {
+    let scoring = task_kind(py, name)?.info().scoring;
+    let dict = PyDict::new(py);
+    dict.set_item("success", scoring.success)?;
+    dict.set_item("time", scoring.time)?;
+    dict.set_item("error_prefix", scoring.error_prefix)?;
+    dict.set_item("error", scoring.error)?;
+    dict.set_item("termination", scoring.termination)?;
+    dict.set_item("speed", scoring.speed)?;
+    dict.set_item("moving_reference", scoring.moving_reference)?;
+    dict.set_item("path_trace", scoring.path_trace)?;
+    let columns: Vec<(&str, &str, f64, u32)> = scoring
+        .columns
+        .iter()
+        .map(|c| (c.stat, c.header, c.scale, c.digits))
+        .collect();
+    dict.set_item("columns", columns)?;
+    Ok(dict)
+}
+
+/// The behaviour versions, oldest first: (number, title, summary of what changed and why, the
+/// previous version's values of the keys it changed as TOML).
+#[pyfunction]
+pub fn versions() -> Vec<(u32, &'static str, &'static str, &'static str)> {
+    scenario::VERSIONS
+        .iter()
+        .map(|v| (v.number, v.title, v.summary, v.before.trim()))
+        .collect()
 }
 
 /// The named drives (`motors.preset`): (name, the `[drive]` keys it sets as TOML, who sets it on

@@ -1,8 +1,9 @@
 //! The `khepera_gym._core` Python module: the `Batch` and `Policy` classes and the functions
 //! the Python package builds on. The only place pyo3 appears; each file has one job:
 //! `errors` (exceptions and the panic guard), `convert` (Python values into the core's),
-//! `batch` (the Batch class), `views` (the core's data as Python dicts of arrays, for the
-//! Batch's inspection methods), `policy` (the Policy class), `functions` (module functions).
+//! `batch` (the Batch class), `state` (its saved states and pickling), `views` (the core's data
+//! as Python dicts of arrays, for the Batch's inspection methods), `policy` (the Policy class),
+//! `functions` (module functions).
 //!
 //! Threading and copies: every call checks its inputs while holding the GIL, copies them into
 //! Rust-owned buffers, releases the GIL (`py.detach`) for the simulation, then copies results
@@ -13,6 +14,7 @@ mod convert;
 mod errors;
 mod functions;
 mod policy;
+mod state;
 mod views;
 
 use pyo3::prelude::*;
@@ -22,9 +24,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<batch::Batch>()?;
     m.add_class::<policy::PyPolicy>()?;
-    m.add_function(wrap_pyfunction!(batch::_batch_from_state, m)?)?;
+    m.add_function(wrap_pyfunction!(state::_batch_from_state, m)?)?;
     m.add_function(wrap_pyfunction!(functions::tasks, m)?)?;
     m.add_function(wrap_pyfunction!(functions::task_versions, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::versions, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::task_scoring, m)?)?;
     m.add_function(wrap_pyfunction!(functions::motor_presets, m)?)?;
     m.add_function(wrap_pyfunction!(functions::controllers, m)?)?;
     m.add_function(wrap_pyfunction!(functions::controller_params, m)?)?;

@@ -19,11 +19,11 @@ use super::errors::to_py;
 use crate::batch::Batch as CoreBatch;
 use crate::draw::Mark;
 use crate::error::Error;
+use crate::geometry::scene::Geometry;
 use crate::render::{render_view, View};
 use crate::robot::PULSES_PER_WHEEL_TURN;
 use crate::sensors::{ChannelValues, Readout};
 use crate::tasks::{AgentStats, Env, EpisodeStats};
-use crate::world::scene::Geometry;
 
 /// Statistics of the episodes that ended on the last step, one array entry per world (valid
 /// where an episode ended): "return", "length", "success", "path_length" (m), "collisions",

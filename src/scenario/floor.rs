@@ -1,8 +1,8 @@
 //! `[floor]`: what the ground sensors see, as plain data: a background grey level, an optional
 //! grey-scale image (a path), and marks drawn over it (lines, arcs and polylines with a width
 //! and a grey level). [`FloorConfig::check`] checks what the keys' domains cannot; the world
-//! builds the floor from it (`world::floor::Floor::build`: marks as segments, image decoded),
-//! once per batch. Grey levels run from 0 (black) to 1 (white paper).
+//! builds the floor from it (`world::scenery::floor`: marks as segments, image decoded), once
+//! per batch. Grey levels run from 0 (black) to 1 (white paper).
 //!
 //! Units: metres, radians; world frame (x right, y up).
 
@@ -10,15 +10,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::{limits, Domain, Field};
 use crate::error::{Error, Result};
+use crate::geometry::floor::{arc_chords, MAX_MARK_POINTS, SEGMENT_BYTES};
 
-/// Most points of a `floor.tracks` polyline, and most chords of a `floor.arcs` arc.
-pub const MAX_MARK_POINTS: usize = 100_000;
 /// Most segments of a scenario's floor marks (lines, arcs' chords and polylines' sides
 /// together): [`SEGMENT_BYTES`] each, 24 MB at most, shared by every world.
 pub const MAX_FLOOR_SEGMENTS: usize = 1_000_000;
-/// Bytes of one segment of a mark as the world stores it (`world::floor::Segment`; a test there
-/// ties the two).
-pub const SEGMENT_BYTES: usize = 24;
 /// Widest mark (m).
 const MAX_MARK_WIDTH: f64 = 10.0;
 /// A floor coordinate or angle: finite and within [`limits::LENGTH`].
@@ -52,8 +48,6 @@ const TRACK_FIELDS: &[Field] = &[
     Field::new("width", "f32", WIDTH),
     Field::new("grey", "f32", Domain::UNIT),
 ];
-/// Largest sagitta (m) between an arc and the chords that stand for it.
-const ARC_SAGITTA: f32 = 0.001;
 
 /// A straight mark.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -125,15 +119,6 @@ crate::config_table! {
     }
 }
 
-/// Chords (at least 2, at most [`MAX_MARK_POINTS`]) that stand for an arc within
-/// [`ARC_SAGITTA`].
-pub fn arc_chords(arc: &ArcMark) -> usize {
-    let sweep = (arc.end - arc.start).min(std::f32::consts::TAU);
-    // A chord of angle φ lies r(1 − cos(φ/2)) ≈ rφ²/8 from its arc.
-    let step = (8.0 * ARC_SAGITTA / arc.radius).sqrt().min(0.5);
-    ((sweep / step).ceil() as usize).clamp(2, MAX_MARK_POINTS)
-}
-
 impl FloorConfig {
     /// Checks what the keys' domains cannot: an arc's direction, and the number of segments
     /// all marks make together. Errors name `origin` and the key.
@@ -148,7 +133,13 @@ impl FloorConfig {
         }
         let counts = [
             ("floor.lines", self.lines.len()),
-            ("floor.arcs", self.arcs.iter().map(arc_chords).sum()),
+            (
+                "floor.arcs",
+                self.arcs
+                    .iter()
+                    .map(|arc| arc_chords(arc.radius, arc.start, arc.end))
+                    .sum(),
+            ),
             (
                 "floor.tracks",
                 self.tracks.iter().map(|t| t.points.len()).sum(),

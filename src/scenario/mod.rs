@@ -37,7 +37,7 @@ pub use sections::{
     PhysicsConfig, Placement, SceneSolver, SlipSolver, SpawnConfig, TaskConfig, MAX_DELAY_STEPS,
     MAX_RANDOM_OBSTACLES,
 };
-pub use versions::VERSION_DEFAULTS;
+pub use versions::{overlays_down_to, Version, LATEST_VERSION, VERSIONS};
 
 /// What a task adds to the shared schema: its own defaults and its own table.
 #[derive(Debug, Clone, Copy)]
@@ -102,9 +102,6 @@ pub struct Source<'a> {
     pub version: Option<u32>,
 }
 
-/// The behaviour version of the current defaults (the `-v3` environments).
-pub const LATEST_VERSION: u32 = 3;
-
 /// Largest arena side (m): positions are float32 metres, which keep millimetre precision well
 /// beyond this; far larger arenas overflow distances to infinity.
 pub const MAX_ARENA_SIDE: f32 = crate::config::limits::LENGTH as f32;
@@ -162,11 +159,10 @@ impl TaskSchema {
                 ),
             ));
         }
-        for (v, text) in VERSION_DEFAULTS.iter().rev() {
-            if *v >= version {
-                let origin = format!("<built-in:v{v}>");
-                config::overlay(&mut table, &config::parse(text, &origin)?, "", &origin)?;
-            }
+        for v in overlays_down_to(VERSIONS, version) {
+            // The origin names the version whose values these are.
+            let origin = format!("<built-in:v{}>", v.number - 1);
+            config::overlay(&mut table, &config::parse(v.before, &origin)?, "", &origin)?;
         }
         Ok(table)
     }
@@ -196,7 +192,7 @@ impl TaskSchema {
         let mut scenario = Scenario::from_table(&table, &defaults, self, &origin)?;
         if let Some((text, name)) = source.file {
             let file = config::parse(text, name)?;
-            config::overlay(&mut table, &file, "", name)?;
+            config::overlay(&mut table, &file, "", name).map_err(|e| at_line(e, text))?;
             scenario = Scenario::from_table(&table, &defaults, self, name)?;
         }
         if !source.overrides.is_empty() {
@@ -214,6 +210,30 @@ impl TaskSchema {
             .and_then(|path| path.parent())
             .map(std::path::Path::to_path_buf);
         Ok(scenario)
+    }
+}
+
+/// An unknown key's error from a scenario file, with the line of `text` that sets it.
+fn at_line(error: Error, text: &str) -> Error {
+    match error {
+        Error::Config {
+            origin,
+            key,
+            message,
+        } if message.starts_with("unknown key") => {
+            let message = match config::line_of(text, &key) {
+                Some(line) => {
+                    message.replacen("unknown key", &format!("unknown key (line {line})"), 1)
+                }
+                None => message,
+            };
+            Error::Config {
+                origin,
+                key,
+                message,
+            }
+        }
+        other => other,
     }
 }
 

@@ -3,8 +3,7 @@
 //! default, units, comment), and the checks of `[obstacles]`. The other shared sections are
 //! declared by their owners (`[robot]` in `robot.rs`, `[sensors]` by each sensor in `sensors/`);
 //! the checks that relate several sections are in `scenario/mod.rs`. They are plain data: the
-//! world turns `[arena]` and `obstacles.fixed` into its types (`Scene::of_arena`,
-//! `SceneShape::of_obstacle` in `world/scene.rs`).
+//! world turns `[arena]` and `obstacles.fixed` into geometry (`world/scenery.rs`).
 //!
 //! Units: metres, seconds, radians, m/s. Frame: the world frame, origin at the arena's centre,
 //! x right, y up, angles CCW from +x.
@@ -272,7 +271,7 @@ crate::config_table! {
         action_delay: u32 = 0 => Domain::range(0.0, MAX_DELAY_STEPS as f64),
         /// control steps between the world and the observation showing it (0 = none)
         observation_delay: u32 = 0 => Domain::range(0.0, MAX_DELAY_STEPS as f64),
-        /// whether each agent also sets its robot's top LEDs: three more action values (red, green, blue in [-1, 1], to 0..63 per colour, the real LEDs' 6 bits, spec §6) after its two wheel values; the camera sees the colour from the next observation on
+        /// whether each agent also sets its robot's top LEDs: three more action values (red, green, blue in [-1, 1], to 0..63 per colour, the real LEDs' 6 bits, robot.md §6) after its two wheel values; the camera sees the colour from the next observation on
         led_action: bool = false,
     }
 }

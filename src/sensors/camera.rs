@@ -25,8 +25,8 @@ use rapier2d::math::Vector;
 use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
 use crate::config::Domain;
 use crate::draw::Mark;
+use crate::geometry::scene::Target;
 use crate::obs::Block;
-use crate::world::scene::Target;
 
 /// Most pixels of a scanline.
 pub const MAX_CAMERA_PIXELS: u32 = 256;
@@ -142,7 +142,7 @@ impl Sensor for Camera {
         reading.depth.clear();
         for &bearing in &self.bearings {
             // The nearest surface any of the pixel's rays meets.
-            let mut nearest: Option<crate::world::scene::Hit> = None;
+            let mut nearest: Option<crate::geometry::scene::Hit> = None;
             for &offset in &self.sub_rays {
                 let dir = rotate(unit(bearing + offset), c, s);
                 let hit = ctx.scene.cast_hit(

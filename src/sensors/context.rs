@@ -7,8 +7,8 @@
 
 use rapier2d::math::Vector;
 
-use crate::world::floor::{Floor, FloorMarks};
-use crate::world::scene::Scene;
+use crate::geometry::floor::{Floor, FloorMarks};
+use crate::geometry::scene::Scene;
 
 /// What a sensor sees of its world when one robot reads it.
 pub struct SenseContext<'a> {

@@ -42,7 +42,7 @@ pub const KTEAM_BLACK_THRESHOLD: i32 = 800;
 crate::config_table! {
     /// The ground sensors' keys in `[sensors]`.
     pub struct GroundConfig {
-        /// raw count over white paper [S: Webots ground lookup table at 4.5 mm, spec §4]
+        /// raw count over white paper [S: Webots ground lookup table at 4.5 mm, robot.md §4]
         ground_white: f32 = 954.0 => Domain::range(0.0, GROUND_MAX as f64),
         /// raw count over black tape [E]
         ground_black: f32 = 300.0 => Domain::range(0.0, GROUND_MAX as f64),

@@ -52,7 +52,7 @@ pub const CURVE_RAW: [f32; 16] = [
 ];
 
 crate::config_table! {
-    /// The IR ring's keys in `[sensors]` (spec §2–3).
+    /// The IR ring's keys in `[sensors]` (robot.md §2–3).
     pub struct IrConfig {
         /// m, beyond this the IR reads the floor value
         ir_range: f32 = 0.25 => Domain::above(0.2).at_most(1.0),
@@ -60,7 +60,7 @@ crate::config_table! {
         ir_floor_value: Param = 100.0 => Domain::range(0.0, IR_MAX_RAW as f64),
         /// raw counts, Gaussian, per reading [E]; may be a range
         ir_noise_sigma: Param = 10.0 => Domain::range(0.0, IR_MAX_RAW as f64),
-        /// raw counts on white paper at 0, 10, 20, 30, 35, 40, 45, 50, 60, 70, 80, 90, 100, 120, 150 and 200 mm from the sensor, interpolated linearly; non-increasing (K-Team manual fig. 10, spec §3; khepera-gym calibrate measures a robot's own)
+        /// raw counts on white paper at 0, 10, 20, 30, 35, 40, 45, 50, 60, 70, 80, 90, 100, 120, 150 and 200 mm from the sensor, interpolated linearly; non-increasing (K-Team manual fig. 10, robot.md §3; khepera-gym calibrate measures a robot's own)
         ir_curve: [f32; 16] = [1018.0, 1012.0, 1002.0, 979.0, 889.0, 764.0, 597.0, 492.0, 380.0, 319.0, 254.0, 228.0, 199.0, 163.0, 133.0, 111.0] => Domain::range(0.0, IR_MAX_RAW as f64),
     }
 }

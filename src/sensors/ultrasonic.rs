@@ -37,7 +37,7 @@ pub const US_NOTHING: i32 = 1000;
 pub const US_DISABLED: i32 = 2000;
 
 crate::config_table! {
-    /// The ultrasonic sensors' keys in `[sensors]` (spec §5).
+    /// The ultrasonic sensors' keys in `[sensors]` (robot.md §5).
     pub struct UsConfig {
         /// m, closer objects read code 0 ("too close")
         us_min_range: f32 = 0.25 => Domain::POSITIVE.at_most(limits::LENGTH),

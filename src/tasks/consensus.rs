@@ -43,7 +43,7 @@
 use std::collections::VecDeque;
 
 use super::nav;
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
@@ -86,6 +86,7 @@ collision_penalty = 0.1      # per step in contact
             check: config::check_section,
         }),
     },
+    scoring: Scoring::GOAL,
 };
 
 /// One broadcast: the sender's estimate and when it was sent.

@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
 use super::nav;
-use super::{Agent, Body, Driver, Task, TaskInfo};
+use super::{Agent, Body, Column, Driver, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -64,6 +64,26 @@ max_steps = 800              # 40 s (docs/task-design.md §7)
             keys: DroneConfig::KEYS,
             check: check_section,
         }),
+    },
+    scoring: Scoring {
+        success: None,
+        termination: Some("lost"),
+        speed: false,
+        columns: &[
+            Column {
+                stat: "in_view_share",
+                header: "in view %",
+                scale: 100.0,
+                digits: 1,
+            },
+            Column {
+                stat: "horizontal_error_rms",
+                header: "horizontal RMS cm",
+                scale: 100.0,
+                digits: 2,
+            },
+        ],
+        ..Scoring::GOAL
     },
 };
 

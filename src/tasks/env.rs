@@ -20,10 +20,10 @@ use rapier2d::math::Vector;
 use super::{action_width, led_color, Body, TaskKind, TaskState, MAX_EXTRA_STATS, WHEEL_ACTIONS};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::geometry::floor::FloorMarks;
 use crate::obs::ObsWriter;
 use crate::robot::ActionType;
 use crate::scenario::Scenario;
-use crate::world::floor::FloorMarks;
 use crate::world::layout::Spawner;
 use crate::world::World;
 
@@ -389,7 +389,9 @@ impl Env {
             let robot = match *body {
                 Body::Robot(i) => i,
                 Body::Vehicle(v) => {
-                    self.task.act(v, wheels);
+                    // Clipped to the action space like a robot's wheels (robot.rs): out-of-range
+                    // values act as the nearest ones in [-1, 1].
+                    self.task.act(v, wheels.map(|a| a.clamp(-1.0, 1.0)));
                     continue;
                 }
             };

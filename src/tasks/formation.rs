@@ -27,7 +27,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Body, Driver, Task, TaskInfo};
+use super::{Agent, Body, Driver, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -63,6 +63,10 @@ max_steps = 800              # 40 s
             keys: FormationConfig::KEYS,
             check: check_section,
         }),
+    },
+    scoring: Scoring {
+        speed: false,
+        ..Scoring::GOAL
     },
 };
 

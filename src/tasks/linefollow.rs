@@ -30,15 +30,15 @@ use toml::Table;
 use super::pathfollow::geometry::Path;
 use super::reference::{random_spline, Curve, Shape};
 use super::track::Direction;
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Column, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::geometry::floor::{polyline, Segment};
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::robot::wrap_angle;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::sensors::ground::KTEAM_BLACK_THRESHOLD;
-use crate::world::floor::{polyline, Segment};
 use crate::world::layout::{Layout, Spawn};
 use crate::world::World;
 
@@ -67,6 +67,26 @@ max_steps = 4000             # cap; truncation is truncation_factor laps at refe
             check: check_section,
         }),
     },
+    scoring: Scoring {
+        success: Some("lap"),
+        time: "lap time",
+        termination: Some("lost"),
+        columns: &[
+            Column {
+                stat: "on_line_share",
+                header: "on line %",
+                scale: 100.0,
+                digits: 1,
+            },
+            Column {
+                stat: "line_offset_rms",
+                header: "offset RMS mm",
+                scale: 1000.0,
+                digits: 1,
+            },
+        ],
+        ..Scoring::GOAL
+    },
 };
 
 /// Most points of a scenario's own line (`linefollow.points`).
@@ -79,7 +99,7 @@ crate::config_table! {
         track: Shape = "circle",
         /// m: radius, half-width, half-side, or the spline's largest radius
         size: f32 = 0.6 => Domain::at_least(0.1).at_most(limits::LENGTH),
-        /// m, the line's width [C: K-Team's demo needs at least 2.7 cm, spec §4]
+        /// m, the line's width [C: K-Team's demo needs at least 2.7 cm, robot.md §4]
         width: f32 = 0.027 => Domain::range(0.005, 0.2),
         /// grey level of the line, 0 black .. 1 white (black tape)
         grey: f32 = 0.0 => Domain::UNIT,

@@ -53,6 +53,65 @@ pub struct TaskInfo {
     pub summary: &'static str,
     /// Its name, defaults and own table.
     pub schema: TaskSchema,
+    /// How its episodes are scored: what a comparison or a benchmark reports of it.
+    pub scoring: Scoring,
+}
+
+/// How a task's episodes are scored (`khepera_gym.compare`'s table and plots, the learning
+/// benchmark): every task has the common statistics (success, length, path, contacts), and
+/// says here what its success means and which of its own statistics matter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scoring {
+    /// What a success is, as a table's header says it ("success", "lap"); None for a task
+    /// without success.
+    pub success: Option<&'static str>,
+    /// Header of an episode's duration over the successful ones ("time to goal", "lap time").
+    pub time: &'static str,
+    /// Prefix of the task's four error statistics (`track` for `track_error_rms`,
+    /// `track_error_max`, `track_iae`, `track_converge_time`), if it is scored by an error to a
+    /// reference.
+    pub error_prefix: Option<&'static str>,
+    /// What that error is ("tracking error").
+    pub error: &'static str,
+    /// Header word of the share of episodes that terminated, when terminating is a failure
+    /// ("lost"); None not to report it.
+    pub termination: Option<&'static str>,
+    /// Report the mean speed (a single robot's path over its time).
+    pub speed: bool,
+    /// The goal moves along a reference during an episode (plots draw it).
+    pub moving_reference: bool,
+    /// `targets()[0]` is the path's point closest to the robot (plots draw its trace).
+    pub path_trace: bool,
+    /// Further statistics reported as their mean over the episodes.
+    pub columns: &'static [Column],
+}
+
+/// A statistic of a task reported as its mean over the episodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Column {
+    /// The episode statistic (one of the task's `EXTRA_STATS`).
+    pub stat: &'static str,
+    /// The table's header, with its unit ("on line %").
+    pub header: &'static str,
+    /// Factor from the statistic's unit to the header's (100 for a share in %).
+    pub scale: f64,
+    /// Decimals shown.
+    pub digits: u32,
+}
+
+impl Scoring {
+    /// A task of goals reached: success, time to goal, speed.
+    pub const GOAL: Scoring = Scoring {
+        success: Some("success"),
+        time: "time to goal",
+        error_prefix: None,
+        error: "error",
+        termination: None,
+        speed: true,
+        moving_reference: false,
+        path_trace: false,
+        columns: &[],
+    };
 }
 
 /// What an agent drives.
@@ -436,7 +495,7 @@ impl TaskKind {
         let header = format!(
             "{title}: {}.\nEvery key the scenario has, with its default; a scenario file or keyword \
              override may change any of them and may not add others.\nUnits: metres, seconds, \
-             radians, m/s. [E] marks an estimate (spec §11).",
+             radians, m/s. [E] marks an estimate (the tags of robot.md).",
             info.summary
         );
         info.schema.render_defaults(&header, version)

@@ -12,7 +12,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -52,6 +52,10 @@ collision_penalty = 0.5      # contacts (with walls and other robots) cost as in
             keys: MultiNavConfig::KEYS,
             check: check_section,
         }),
+    },
+    scoring: Scoring {
+        speed: false,
+        ..Scoring::GOAL
     },
 };
 

@@ -13,7 +13,7 @@
 
 use rapier2d::math::Vector;
 
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::draw::Mark;
 use crate::error::Result;
 use crate::obs::{Block, ObsLayout, ObsWriter};
@@ -31,6 +31,7 @@ pub const NAV: TaskInfo = TaskInfo {
         defaults: "",
         section: None,
     },
+    scoring: Scoring::GOAL,
 };
 
 /// KheperaIV-Avoid: Nav among random obstacles, new ones every episode.
@@ -55,6 +56,7 @@ collision_penalty = 0.5      # contacts cost more than in Nav
 "#,
         section: None,
     },
+    scoring: Scoring::GOAL,
 };
 
 /// Per-world state of the Nav/Avoid task.

@@ -43,15 +43,15 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Shape};
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
+use crate::geometry::scene::SceneShape;
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::robot::wrap_angle;
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
-use crate::world::scene::SceneShape;
 use crate::world::World;
 use config::{check_section, START_CLEARANCE};
 pub use config::{PathFollowConfig, MAX_PREVIEW_POINTS};
@@ -81,6 +81,15 @@ max_steps = 4000             # cap only: the episode is truncated after pathfoll
             keys: PathFollowConfig::KEYS,
             check: check_section,
         }),
+    },
+    scoring: Scoring {
+        success: Some("lap"),
+        time: "lap time",
+        error_prefix: Some("path"),
+        error: "cross-track error",
+        termination: Some("lost"),
+        path_trace: true,
+        ..Scoring::GOAL
     },
 };
 

@@ -41,7 +41,7 @@ use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::Reference;
 use super::track::{draw_reference, Track};
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
 use crate::obs::ObsWriter;
@@ -75,6 +75,7 @@ max_steps = 4000             # cap only: the episode is truncated after one peri
             check: config::check_section,
         }),
     },
+    scoring: Scoring::GOAL,
 };
 
 /// One robot's tracking: its reference posture now, error and statistics.

@@ -18,14 +18,14 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
+use crate::geometry::scene::SceneShape;
 use crate::obs::{Block, ObsLayout, ObsWriter};
 use crate::scenario::{Scenario, Section, TaskSchema};
 use crate::world::layout::{Layout, Spawn};
-use crate::world::scene::SceneShape;
 use crate::world::World;
 
 /// Colours of the distractor pillars, in turn: blue, yellow, magenta, cyan.
@@ -68,6 +68,7 @@ collision_penalty = 0.5      # as Avoid
             check: check_section,
         }),
     },
+    scoring: Scoring::GOAL,
 };
 
 crate::config_table! {

@@ -31,7 +31,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Posture, Reference, Shape};
-use super::{Agent, Body, Task, TaskInfo};
+use super::{Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
@@ -60,6 +60,14 @@ max_steps = 4000             # cap only: the episode is truncated after one peri
             keys: TrackConfig::KEYS,
             check: check_section,
         }),
+    },
+    scoring: Scoring {
+        success: None,
+        error_prefix: Some("track"),
+        error: "tracking error",
+        termination: Some("lost"),
+        moving_reference: true,
+        ..Scoring::GOAL
     },
 };
 

@@ -9,9 +9,9 @@
 use rapier2d::math::Vector;
 use rayon::prelude::*;
 
-use super::grid::Grid;
 use super::motion::{CONTACT_TOLERANCE, MIN_CELL};
 use super::{Robot, World, MIN_ROBOTS_PER_TASK};
+use crate::geometry::grid::Grid;
 
 /// Farthest a robot may move from the centre the contact grid holds for it before the grid is
 /// built anew (m; about a control step's travel at full speed): a wider drift widens every

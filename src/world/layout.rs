@@ -2,8 +2,8 @@
 //! random stream, and always feasible.
 //!
 //! Feasibility by construction: fixed obstacles are rasterised once into a 2 cm grid of the
-//! positions a robot centre can take, labelled into connected components (`reach.rs`); a start
-//! and its goal are drawn in the same component. Random obstacles keep a free gap of at least `min_gap`
+//! positions a robot centre can take, labelled into connected components (`geometry/reach.rs`);
+//! a start and its goal are drawn in the same component. Random obstacles keep a free gap of at least `min_gap`
 //! (validated ≥ the robot's diameter + 1 cm) from the walls, the fixed obstacles and each
 //! other, and stay clear of every start and goal; a convex obstacle whose robot-inflated shape
 //! touches nothing else cannot disconnect the free space, so the goal stays reachable.
@@ -13,10 +13,11 @@
 use rand::Rng;
 use rapier2d::math::Vector;
 
-use super::floor::{Floor, Segment, SharedFloor};
-use super::reach::Grid;
-use super::scene::{Scene, SceneShape};
+use super::scenery;
 use crate::error::{Error, Result};
+use crate::geometry::floor::{Segment, SharedFloor};
+use crate::geometry::reach::Grid;
+use crate::geometry::scene::{Scene, SceneShape};
 use crate::scenario::{ObstacleKind, Placement, Scenario};
 
 /// Whole-layout attempts before keeping the best one.
@@ -88,10 +89,14 @@ impl Spawner {
     /// fixed parts are feasible and that its random obstacles fit; errors name `origin` and the
     /// key.
     pub fn new(cfg: &Scenario, spawn: Spawn, origin: &str) -> Result<Self> {
-        let floor = SharedFloor::new(Floor::build(&cfg.floor, cfg.floor_dir.as_deref(), origin)?);
-        let mut base = Scene::of_arena(&cfg.arena);
+        let floor = SharedFloor::new(scenery::floor(
+            &cfg.floor,
+            cfg.floor_dir.as_deref(),
+            origin,
+        )?);
+        let mut base = scenery::arena(&cfg.arena);
         for (i, spec) in cfg.obstacles.fixed.iter().enumerate() {
-            let shape = SceneShape::of_obstacle(spec);
+            let shape = scenery::obstacle(spec);
             if shape.wall_gap(cfg.arena.width, cfg.arena.height) < 0.0 {
                 return Err(Error::config(
                     origin,

@@ -26,15 +26,11 @@ macro_rules! surroundings {
 }
 
 mod contacts;
-pub mod floor;
-pub mod grid;
 pub mod layout;
 mod motion;
 pub mod physics;
-pub mod rays;
-mod reach;
-pub mod scene;
 pub mod scene_contacts;
+pub mod scenery;
 mod split;
 mod swarm;
 
@@ -42,15 +38,15 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
+use crate::geometry::floor::{FloorMarks, SharedFloor};
+use crate::geometry::grid::Grid;
+use crate::geometry::scene::Scene;
 use crate::odometry::Odometry;
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario, SceneSolver, SlipSolver};
 use crate::sensors::{Readings, SenseContext, Suite};
-use floor::{FloorMarks, SharedFloor};
-use grid::Grid;
 pub use motion::integrate_arc;
 use physics::{BodyState, Physics, PhysicsParams, TractionBody};
-pub use scene::{Scene, SceneShape};
 
 /// State of one robot.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]

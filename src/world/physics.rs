@@ -23,7 +23,7 @@ use rapier2d::prelude::{
 };
 use rayon::prelude::*;
 
-use super::scene::{Geometry, Scene};
+use crate::geometry::scene::{Geometry, Scene};
 
 /// Rapier state of one world. It serialises whole (bodies, colliders, broad phase, contact
 /// manifolds with their warm-start impulses), so a restored world steps bit for bit as the

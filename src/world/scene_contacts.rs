@@ -35,8 +35,8 @@ use rayon::prelude::*;
 
 use super::motion::{roll_arc, speed_bound, CONTACT_MARGIN};
 use super::physics::{tyre_impulses, Grip, TractionBody, GRAVITY};
-use super::scene::Scene;
 use super::{Robot, World, MIN_ROBOTS_PER_TASK};
+use crate::geometry::scene::Scene;
 use crate::robot::wrap_angle;
 
 // The four constants below are numerical choices of this solver, not properties of the robot
@@ -315,7 +315,7 @@ impl World {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::scene::SceneShape;
+    use crate::geometry::scene::SceneShape;
 
     const MASS: f32 = 0.54;
     const RADIUS: f32 = 0.0704;

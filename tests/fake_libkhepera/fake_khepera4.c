@@ -4,6 +4,11 @@
  * sleeps, so that a run of minutes takes a fraction of a second. Linked with the programs' own
  * clock instead (`make robot` against libkhepera.a of this file), the robot stands still.
  *
+ * The calls keep K-Team's conventions (khepera/khepera.h says which): 0 on success, the positive
+ * KB_ERROR_KH4KBNOTINIT (58) for a NULL device, the buffers' byte layouts, the 16 bits of a speed
+ * that reach the motor controller, the 6 bits of an LED level, ultrasonic sensors left out of
+ * kh4_activate_us's mask reading KH4_US_DISABLED_SENSOR.
+ *
  * Its "own settings" are the FAKE_* macros below (the tests pass -D to change them):
  *   the wheels: radius, axle, a first-order lag behind the motor controller's order, which
  *     follows kh4_SetSpeedProfile's profile in whole speed units every 10 ms (the firmware's
@@ -16,9 +21,16 @@
  *   the ultrasonic sensors: every 100 ms the distance plus FAKE_US_OFFSET and Gaussian noise, in
  *     cm, for a surface within 22.5 degrees of facing the beam (codes 0, 1000);
  *   the scene: a straight wall across x = FAKE_WALL_X (m) in the start frame (x forward).
- * With the environment variable FAKE_TRACE=path, every kh4_get_position call also appends the
- * true time (s), x, y (m), heading (rad) and the gap to the wall (m) to that file, so that a test
- * can measure the final gap the user would measure.
+ * Environment variables:
+ *   FAKE_TRACE=path      every kh4_get_position call also appends the true time (s), x, y (m),
+ *                        heading (rad) and the gap to the wall (m) to that file, so that a test
+ *                        can measure the final gap the user would measure;
+ *   FAKE_FAIL=call:code[:n]  the libkhepera call named (e.g. kh4_measure_us) fails from its n-th
+ *                        call on (1 if absent), returning code (e.g. 58, 55, -1) and leaving
+ *                        junk in its outputs, as a failing bus does; knet_open then returns
+ *                        NULL (its code is not used);
+ *   FAKE_EXIT_STATE=path at the program's exit, the motor controller's state is written there:
+ *                        "mode M target L R leds l0 .. l8 calls N" (N: libkhepera calls made).
  * Units: SI inside; K-Team's units at the calls.
  */
 #define _POSIX_C_SOURCE 200809L
@@ -93,10 +105,14 @@ static const double CURVE_RAW[16] = {1018, 1012, 1002, 979, 889, 764, 597, 492, 
 static const double IR_BEARINGS_DEG[8] = {135, 90, 45, 0, -45, -90, -135, 180};
 static const double US_BEARINGS_DEG[5] = {90, 45, 0, -45, -90};
 
-static int device;
+/* The dsPIC's handle knet_open gives. */
+static knet_dev_t device = {NULL, 0, 0, 0, "Khepera4:dsPic", 1, NULL, NULL};
 static struct {
     long time_ms;         /* the simulated time, in whole ms (no rounding drift) */
     int mode;
+    int us_mask;          /* kh4_activate_us's: bit i on, sensor i pings */
+    int leds[9];          /* kh4_SetRGBLeds' levels, 6 bits each */
+    long calls;           /* libkhepera calls made */
     int acc_inc, acc_div, min_acc;
     int periods;          /* firmware ticks since the last profile increment */
     int target[2];        /* the set point (units) */
@@ -141,6 +157,23 @@ static double interpolate(const double *xs, const double *ys, int n, double x)
     return ys[n - 1] + (x - xs[n - 1]) / (xs[n - 1] - xs[n - 2]) * (ys[n - 1] - ys[n - 2]);
 }
 
+/* FAKE_EXIT_STATE: the motor controller's state when the program ends. */
+static void write_exit_state(void)
+{
+    const char *path = getenv("FAKE_EXIT_STATE");
+    FILE *file;
+    int i;
+    if (path == NULL || (file = fopen(path, "w")) == NULL) {
+        return;
+    }
+    fprintf(file, "mode %d target %d %d leds", robot.mode, robot.target[0], robot.target[1]);
+    for (i = 0; i < 9; ++i) {
+        fprintf(file, " %d", robot.leds[i]);
+    }
+    fprintf(file, " calls %ld\n", robot.calls);
+    fclose(file);
+}
+
 static void start(void)
 {
     int i;
@@ -148,6 +181,8 @@ static void start(void)
         return;
     }
     robot.rng = 0x9E3779B97F4A7C15ull ^ (uint64_t)FAKE_SEED;
+    robot.us_mask = 31; /* the firmware starts with every ultrasonic sensor on */
+    atexit(write_exit_state);
     robot.acc_inc = 3;
     robot.min_acc = 20;
     for (i = 0; i < 16; ++i) {
@@ -238,7 +273,9 @@ static void ultrasonic_sweep(void)
         const double bearing = US_BEARINGS_DEG[i] * PI / 180.0;
         const double d = ray_to_wall(bearing);
         const double incidence = fabs(remainder(robot.heading + bearing, 2.0 * PI));
-        if (d < 0.0 || incidence > 22.5 * PI / 180.0) {
+        if ((robot.us_mask & (1 << i)) == 0) {
+            robot.us[i] = KH4_US_DISABLED_SENSOR;
+        } else if (d < 0.0 || incidence > 22.5 * PI / 180.0) {
             robot.us[i] = 1000;
         } else {
             const double cm = floor((d + FAKE_US_OFFSET + FAKE_US_NOISE * gaussian()) * 100.0 + 0.5);
@@ -290,62 +327,154 @@ static void put_u16(char *buffer, int index, int value)
     buffer[2 * index + 1] = (char)((value >> 8) & 0xff);
 }
 
+/* What a failing bus leaves in a read's buffer. */
+static void junk(char *buffer, int size)
+{
+    memset(buffer, 0xA5, (size_t)size);
+}
+
+/* FAKE_FAIL: whether this call of `call` fails, and with which code. Every libkhepera call of
+ * the program passes here once (it also counts them). */
+static int fails(const char *call, int *code)
+{
+    static long counts[32];
+    static const char *names[32];
+    const char *spec = getenv("FAKE_FAIL");
+    const size_t length = strlen(call);
+    long from = 1;
+    long count = 0;
+    int slot;
+    char *end;
+    start();
+    robot.calls += 1;
+    for (slot = 0; slot < 32 && names[slot] != NULL && strcmp(names[slot], call) != 0; ++slot) {
+    }
+    if (slot < 32) {
+        names[slot] = call;
+        count = ++counts[slot];
+    }
+    if (spec == NULL || strncmp(spec, call, length) != 0 || spec[length] != ':') {
+        return 0;
+    }
+    *code = (int)strtol(spec + length + 1, &end, 10);
+    if (*end == ':') {
+        from = strtol(end + 1, NULL, 10);
+    }
+    return count >= from;
+}
+
+/* The return of a call on `d` that did not fail: K-Team's 58 for a NULL device, else 0. */
+static int on_device(const knet_dev_t *d)
+{
+    return d == NULL ? KB_ERROR_KH4KBNOTINIT : 0;
+}
+
 int kh4_init(int argc, char *argv[])
 {
+    int code;
     (void)argc;
     (void)argv;
-    start();
-    return 0;
+    return fails("kh4_init", &code) ? code : 0;
 }
 
 knet_dev_t *knet_open(const char *name, int bus, int argc, char *argv[])
 {
-    (void)name;
-    (void)bus;
+    int code;
     (void)argc;
     (void)argv;
-    return (knet_dev_t *)&device;
+    if (fails("knet_open", &code) || strcmp(name, "Khepera4:dsPic") != 0 || bus != KNET_BUS_I2C) {
+        return NULL;
+    }
+    return &device;
+}
+
+int kh4_revision(char *buffer, knet_dev_t *d)
+{
+    int code;
+    if (fails("kh4_revision", &code)) {
+        junk(buffer, 1);
+        return code;
+    }
+    if (d != NULL) {
+        buffer[0] = (char)0x23; /* version C, revision 3 */
+    }
+    return on_device(d);
 }
 
 int kh4_SetMode(int mode, knet_dev_t *d)
 {
-    (void)d;
-    robot.mode = mode;
-    return 0;
+    int code;
+    if (fails("kh4_SetMode", &code)) {
+        return code;
+    }
+    if (d != NULL) {
+        robot.mode = mode;
+    }
+    return on_device(d);
 }
 
-int kh4_SetSpeedProfile(char accinc, char accdiv, char mindacc, char mindec, int max_speed,
-                        knet_dev_t *d)
+int kh4_SetSpeedProfile(char acc_inc, char acc_div, char min_speed_acc, char min_speed_dec,
+                        int max_speed, knet_dev_t *d)
 {
-    (void)mindec;
+    int code;
+    (void)min_speed_dec;
     (void)max_speed;
-    (void)d;
-    robot.acc_inc = (unsigned char)accinc;
-    robot.acc_div = (unsigned char)accdiv;
-    robot.min_acc = (unsigned char)mindacc;
-    return 0;
+    if (fails("kh4_SetSpeedProfile", &code)) {
+        return code;
+    }
+    if (d != NULL) {
+        robot.acc_inc = (unsigned char)acc_inc;
+        robot.acc_div = (unsigned char)acc_div;
+        robot.min_acc = (unsigned char)min_speed_acc;
+    }
+    return on_device(d);
+}
+
+/* The set point the motor controller receives: the low 16 bits of a speed, signed. */
+static int low16(int value)
+{
+    const unsigned int bits = (unsigned int)value & 0xffffu;
+    return bits >= 0x8000u ? (int)bits - 0x10000 : (int)bits;
 }
 
 int kh4_set_speed(int left, int right, knet_dev_t *d)
 {
-    (void)d;
-    robot.target[0] = left;
-    robot.target[1] = right;
-    return 0;
+    int code;
+    if (fails("kh4_set_speed", &code)) {
+        return code;
+    }
+    if (d != NULL) {
+        robot.target[0] = low16(left);
+        robot.target[1] = low16(right);
+    }
+    return on_device(d);
 }
 
 int kh4_get_speed(int *left, int *right, knet_dev_t *d)
 {
-    (void)d;
-    *left = (int)lround(robot.wheel[0] + FAKE_SPEED_NOISE * gaussian());
-    *right = (int)lround(robot.wheel[1] + FAKE_SPEED_NOISE * gaussian());
-    return 0;
+    int code;
+    if (fails("kh4_get_speed", &code)) {
+        *left = *right = -23131; /* junk */
+        return code;
+    }
+    if (d != NULL) {
+        *left = (int)lround(robot.wheel[0] + FAKE_SPEED_NOISE * gaussian());
+        *right = (int)lround(robot.wheel[1] + FAKE_SPEED_NOISE * gaussian());
+    }
+    return on_device(d);
 }
 
 int kh4_get_position(int *left, int *right, knet_dev_t *d)
 {
     const char *trace = getenv("FAKE_TRACE");
-    (void)d;
+    int code;
+    if (fails("kh4_get_position", &code)) {
+        *left = *right = -1515870811; /* junk: 0xA5A5A5A5 */
+        return code;
+    }
+    if (d == NULL) {
+        return KB_ERROR_KH4KBNOTINIT;
+    }
     if (trace != NULL) {
         FILE *file = fopen(trace, "a");
         if (file != NULL) {
@@ -361,16 +490,28 @@ int kh4_get_position(int *left, int *right, knet_dev_t *d)
 
 int kh4_ResetEncoders(knet_dev_t *d)
 {
-    (void)d;
-    robot.offset[0] = robot.pulses[0];
-    robot.offset[1] = robot.pulses[1];
-    return 0;
+    int code;
+    if (fails("kh4_ResetEncoders", &code)) {
+        return code;
+    }
+    if (d != NULL) {
+        robot.offset[0] = robot.pulses[0];
+        robot.offset[1] = robot.pulses[1];
+    }
+    return on_device(d);
 }
 
 int kh4_proximity_ir(char *buffer, knet_dev_t *d)
 {
+    int code;
     int i;
-    (void)d;
+    if (fails("kh4_proximity_ir", &code)) {
+        junk(buffer, 24);
+        return code;
+    }
+    if (d == NULL) {
+        return KB_ERROR_KH4KBNOTINIT;
+    }
     for (i = 0; i < 8; ++i) {
         const double distance = ray_to_wall(IR_BEARINGS_DEG[i] * PI / 180.0);
         double mean = FAKE_IR_FLOOR;
@@ -387,57 +528,87 @@ int kh4_proximity_ir(char *buffer, knet_dev_t *d)
     for (i = 8; i < 12; ++i) {
         put_u16(buffer, i, 950);
     }
-    return 24;
+    return 0;
 }
 
 int kh4_measure_us(char *buffer, knet_dev_t *d)
 {
+    int code;
     int i;
-    (void)d;
+    if (fails("kh4_measure_us", &code)) {
+        junk(buffer, 10);
+        return code;
+    }
+    if (d == NULL) {
+        return KB_ERROR_KH4KBNOTINIT;
+    }
     for (i = 0; i < 5; ++i) {
         put_u16(buffer, i, robot.us[i]);
     }
-    return 10;
+    return 0;
 }
 
 int kh4_activate_us(char mask, knet_dev_t *d)
 {
-    (void)mask;
-    (void)d;
+    int code;
+    if (fails("kh4_activate_us", &code)) {
+        return code;
+    }
+    if (d != NULL) {
+        int i;
+        robot.us_mask = (unsigned char)mask & 31;
+        for (i = 0; i < 5; ++i) { /* off at once; on from the next sweep */
+            if ((robot.us_mask & (1 << i)) == 0) {
+                robot.us[i] = KH4_US_DISABLED_SENSOR;
+            }
+        }
+    }
+    return on_device(d);
+}
+
+/* The 10 samples of x, then y, then z, of an IMU channel. */
+static int imu_read(const char *call, const int16_t *samples, char *buffer, knet_dev_t *d)
+{
+    int code;
+    int i;
+    if (fails(call, &code)) {
+        junk(buffer, 60);
+        return code;
+    }
+    if (d == NULL) {
+        return KB_ERROR_KH4KBNOTINIT;
+    }
+    for (i = 0; i < 30; ++i) {
+        put_u16(buffer, i, samples[i]);
+    }
     return 0;
 }
 
 int kh4_measure_acc(char *buffer, knet_dev_t *d)
 {
-    int i;
-    (void)d;
-    for (i = 0; i < 30; ++i) {
-        put_u16(buffer, i, robot.acc[i]);
-    }
-    return 60;
+    return imu_read("kh4_measure_acc", robot.acc, buffer, d);
 }
 
 int kh4_measure_gyro(char *buffer, knet_dev_t *d)
 {
+    return imu_read("kh4_measure_gyro", robot.gyro, buffer, d);
+}
+
+int kh4_SetRGBLeds(char left_red, char left_green, char left_blue, char right_red,
+                   char right_green, char right_blue, char back_red, char back_green,
+                   char back_blue, knet_dev_t *d)
+{
+    const char levels[9] = {left_red, left_green, left_blue, right_red, right_green, right_blue,
+                            back_red, back_green, back_blue};
+    int code;
     int i;
-    (void)d;
-    for (i = 0; i < 30; ++i) {
-        put_u16(buffer, i, robot.gyro[i]);
+    if (fails("kh4_SetRGBLeds", &code)) {
+        return code;
     }
-    return 60;
-}
-
-int kh4_revision(char *buffer, knet_dev_t *d)
-{
-    (void)d;
-    buffer[0] = (char)0x23; /* version C, revision 3 */
-    return 0;
-}
-
-int kh4_SetRGBLeds(char lr, char lg, char lb, char rr, char rg, char rb, char br, char bg, char bb,
-                   knet_dev_t *d)
-{
-    (void)lr; (void)lg; (void)lb; (void)rr; (void)rg; (void)rb; (void)br; (void)bg; (void)bb;
-    (void)d;
-    return 0;
+    if (d != NULL) {
+        for (i = 0; i < 9; ++i) {
+            robot.leds[i] = (unsigned char)levels[i] & 0x3F;
+        }
+    }
+    return on_device(d);
 }

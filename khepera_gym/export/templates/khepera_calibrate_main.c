@@ -12,7 +12,9 @@
  * 0.8 m free behind it. The robot approaches the wall slowly, stops a few centimetres from it
  * (then it asks for the gap you measure, in mm: Enter alone if you do not), goes back, spins in
  * place two and a half turns (it then faces away from the wall), and makes steps and turns at
- * several speeds. Ctrl-C stops it; the log written so far stays readable.
+ * several speeds. Ctrl-C stops it; the log written so far stays readable. A libkhepera call that
+ * fails (any non-zero return: khepera_sensors.h) stops it too: it stops the motors, says which
+ * call failed, notes it in the log and closes the log, and exits with status 1.
  *
  * Usage on the robot:  ./khepera_calibrate WALL_DISTANCE_M LOG.csv
  */
@@ -35,6 +37,27 @@ static void on_signal(int signal_number)
 {
     (void)signal_number;
     stop_requested = 1;
+}
+
+/* The end of a run stopped by a failing libkhepera call (`failure`): the motors stopped when
+ * there is a device, the failure said and noted in the log, the log closed. Returns the exit
+ * status, 1. */
+static int stop_on_failure(knet_dev_t *ds_pic, const khepera_status *failure, khepera_log *log)
+{
+    char text[160];
+    khepera_describe(failure, text, sizeof text);
+    fprintf(stderr, "libkhepera: %s: stopping\n", text);
+    khepera_log_note(log, "libkhepera_error", text);
+    if (ds_pic != NULL) {
+        khepera_status stop = {NULL, 0};
+        if (khepera_stop_motors(ds_pic, &stop) != 0) {
+            khepera_describe(&stop, text, sizeof text);
+            fprintf(stderr, "libkhepera: %s while stopping the motors\n", text);
+            khepera_log_note(log, "libkhepera_error", text);
+        }
+    }
+    khepera_log_close(log);
+    return 1;
 }
 
 /* The state of the manoeuvre: the same state machine as khepera_gym's PhaseRunner
@@ -188,8 +211,9 @@ int main(int argc, char *argv[])
     manoeuvre state;
     khepera_readings readings;
     khepera_log_header header;
-    khepera_log log;
-    char firmware[32];
+    khepera_log log = {NULL, 0, 0, 0};
+    khepera_status status = {NULL, 0};
+    char firmware[32] = "unknown";
     double start_time;
     double next_tick;
     knet_dev_t *ds_pic;
@@ -208,29 +232,12 @@ int main(int argc, char *argv[])
     }
     memset(&readings, 0, sizeof readings);
 
-    if (kh4_init(0, NULL) != 0) {
-        fprintf(stderr, "cannot initialise libkhepera\n");
-        return 1;
+    /* The link to the dsPIC and its firmware's revision; the log is opened even when these
+     * failed, to record which. */
+    ds_pic = khepera_open(&status);
+    if (ds_pic != NULL) {
+        khepera_firmware(ds_pic, firmware, sizeof firmware, &status);
     }
-    ds_pic = knet_open("Khepera4:dsPic", KNET_BUS_I2C, 0, NULL);
-    if (ds_pic == NULL) {
-        fprintf(stderr, "cannot open the dsPIC (Khepera4:dsPic)\n");
-        return 1;
-    }
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
-    kh4_SetMode(kh4RegIdle, ds_pic);
-    kh4_ResetEncoders(ds_pic);
-    kh4_activate_us(31, ds_pic); /* all five ultrasonic sensors */
-#if CALIBRATE_MOTOR_PROFILE
-    kh4_SetSpeedProfile(CALIBRATE_ACC_INC, CALIBRATE_ACC_DIV, CALIBRATE_MIN_SPEED_ACC,
-                        CALIBRATE_MIN_SPEED_DEC, CALIBRATE_PROFILE_MAX_SPEED, ds_pic);
-    kh4_SetMode(kh4RegSpeedProfile, ds_pic);
-#else
-    kh4_SetMode(kh4RegSpeed, ds_pic);
-#endif
-
-    khepera_firmware(ds_pic, firmware, sizeof firmware);
     header.program = "calibrate";
     header.khepera_gym = CALIBRATE_KHEPERA_GYM_VERSION;
     header.env_id = NULL;
@@ -247,8 +254,32 @@ int main(int argc, char *argv[])
     header.wall_distance = state.wall_distance;
     if (khepera_log_open(&log, argv[2], &header, 0, 0) != 0) {
         fprintf(stderr, "cannot write the log %s\n", argv[2]);
-        kh4_SetMode(kh4RegIdle, ds_pic);
+        if (ds_pic != NULL) {
+            khepera_stop_motors(ds_pic, &status);
+        }
         return 1;
+    }
+    if (status.call != NULL) {
+        return stop_on_failure(ds_pic, &status, &log);
+    }
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    /* Idle, the encoders at 0, all five ultrasonic sensors on, the drive. */
+    if (khepera_check(&status, "kh4_SetMode", kh4_SetMode(kh4RegIdle, ds_pic)) != 0
+        || khepera_check(&status, "kh4_ResetEncoders", kh4_ResetEncoders(ds_pic)) != 0
+        || khepera_check(&status, "kh4_activate_us", kh4_activate_us(31, ds_pic)) != 0
+#if CALIBRATE_MOTOR_PROFILE
+        || khepera_check(&status, "kh4_SetSpeedProfile",
+                         kh4_SetSpeedProfile(CALIBRATE_ACC_INC, CALIBRATE_ACC_DIV,
+                                             CALIBRATE_MIN_SPEED_ACC, CALIBRATE_MIN_SPEED_DEC,
+                                             CALIBRATE_PROFILE_MAX_SPEED, ds_pic))
+            != 0
+        || khepera_check(&status, "kh4_SetMode", kh4_SetMode(kh4RegSpeedProfile, ds_pic)) != 0
+#else
+        || khepera_check(&status, "kh4_SetMode", kh4_SetMode(kh4RegSpeed, ds_pic)) != 0
+#endif
+    ) {
+        return stop_on_failure(ds_pic, &status, &log);
     }
     fprintf(stderr, "motors: %s; logging to %s\n", CALIBRATE_MOTOR_NOTE, argv[2]);
 
@@ -258,20 +289,26 @@ int main(int argc, char *argv[])
         const double elapsed = khepera_clock_now() - start_time;
         const calibration_phase *phase;
         int command[2];
-        khepera_read_all(ds_pic, &readings, CALIBRATE_IMU_SAMPLES);
+        if (khepera_read_all(ds_pic, &readings, CALIBRATE_IMU_SAMPLES, &status) != 0) {
+            return stop_on_failure(ds_pic, &status, &log);
+        }
         phase = next_command(&state, &readings, &log, &next_tick);
         if (phase == NULL) {
             break;
         }
         command[0] = phase->left;
         command[1] = phase->right;
-        kh4_set_speed(command[0], command[1], ds_pic);
+        if (khepera_check(&status, "kh4_set_speed", kh4_set_speed(command[0], command[1], ds_pic))
+            != 0) {
+            return stop_on_failure(ds_pic, &status, &log);
+        }
         khepera_log_row(&log, elapsed, phase->name, command, &readings, NULL, NULL);
         next_tick += CALIBRATE_CONTROL_PERIOD_S;
         khepera_clock_sleep_until(next_tick);
     }
-    kh4_set_speed(0, 0, ds_pic);
-    kh4_SetMode(kh4RegIdle, ds_pic);
+    if (khepera_stop_motors(ds_pic, &status) != 0) {
+        return stop_on_failure(ds_pic, &status, &log);
+    }
     khepera_log_close(&log);
     fprintf(stderr, "done: %ld rows in %s\n", log.rows, argv[2]);
     return 0;

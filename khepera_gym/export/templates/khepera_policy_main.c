@@ -18,7 +18,9 @@
  *      clipped to the robot's limit (wheel_command.c); with KHEPERA_LED_ACTION (a policy trained
  *      with task.led_action) it also sets the three top LEDs with kh4_SetRGBLeds, 0..63 a colour.
  * It stops the motors on Ctrl-C, at the goal (estimated by odometry, which drifts), after
- * MAX_STEPS steps, or when the policy gives a non-finite action.
+ * MAX_STEPS steps, or when the policy gives a non-finite action. A libkhepera call that fails
+ * (any non-zero return: khepera_sensors.h) stops it too: it stops the motors, says which call
+ * failed, notes it in the log and closes the log, and exits with status 1.
  *
  * Usage on the robot:  ./khepera_policy GOAL_X GOAL_Y [MAX_STEPS] [--log FILE]
  *   GOAL_X, GOAL_Y  goal in metres in the robot's frame at start (ignored if the observation has
@@ -85,13 +87,61 @@ static void odometry_update(odometry *pose, int left_pulses, int right_pulses)
     pose->last_right = right_pulses;
 }
 
-static void stop_motors(knet_dev_t *ds_pic)
+/* Stops the wheels (and puts the policy's LEDs out); every call is tried. Returns 0, or -1 with
+ * the failing call in `status`. */
+static int stop_motors(knet_dev_t *ds_pic, khepera_status *status)
 {
-    kh4_set_speed(0, 0, ds_pic);
-    kh4_SetMode(kh4RegIdle, ds_pic);
+    int failed = khepera_stop_motors(ds_pic, status);
 #if KHEPERA_LED_ACTION
-    kh4_SetRGBLeds(0, 0, 0, 0, 0, 0, 0, 0, 0, ds_pic); /* the policy's LEDs off */
+    failed |= khepera_check(status, "kh4_SetRGBLeds",
+                            kh4_SetRGBLeds(0, 0, 0, 0, 0, 0, 0, 0, 0, ds_pic));
 #endif
+    return failed;
+}
+
+/* The motor controller as the policy was trained (khepera_policy_config.h): K-Team's speed
+ * profile, whose ramp the simulator follows exactly, or the speed mode. */
+static int set_drive(knet_dev_t *ds_pic, khepera_status *status)
+{
+#if KHEPERA_MOTOR_PROFILE
+    if (khepera_check(status, "kh4_SetSpeedProfile",
+                      kh4_SetSpeedProfile(KHEPERA_ACC_INC, KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC,
+                                          KHEPERA_MIN_SPEED_DEC, KHEPERA_PROFILE_MAX_SPEED,
+                                          ds_pic))
+            != 0
+        || khepera_check(status, "kh4_SetMode", kh4_SetMode(kh4RegSpeedProfile, ds_pic)) != 0) {
+        return -1;
+    }
+    fprintf(stderr, "motors: speed profile, acc_inc %d, acc_div %d, min_speed_acc %d\n",
+            KHEPERA_ACC_INC, KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC);
+#else
+    if (khepera_check(status, "kh4_SetMode", kh4_SetMode(kh4RegSpeed, ds_pic)) != 0) {
+        return -1;
+    }
+    fprintf(stderr, "motors: speed mode\n");
+#endif
+    return 0;
+}
+
+/* The end of a run stopped by a failing libkhepera call (`failure`): the motors stopped when
+ * there is a device, the failure said and noted in the log, the log closed. Returns the exit
+ * status, 1. */
+static int stop_on_failure(knet_dev_t *ds_pic, const khepera_status *failure, khepera_log *log)
+{
+    char text[160];
+    khepera_describe(failure, text, sizeof text);
+    fprintf(stderr, "libkhepera: %s: stopping\n", text);
+    khepera_log_note(log, "libkhepera_error", text);
+    if (ds_pic != NULL) {
+        khepera_status stop = {NULL, 0};
+        if (stop_motors(ds_pic, &stop) != 0) {
+            khepera_describe(&stop, text, sizeof text);
+            fprintf(stderr, "libkhepera: %s while stopping the motors\n", text);
+            khepera_log_note(log, "libkhepera_error", text);
+        }
+    }
+    khepera_log_close(log);
+    return 1;
 }
 
 int main(int argc, char *argv[])
@@ -113,7 +163,9 @@ int main(int argc, char *argv[])
     int leds[3];
 #endif
     const char *log_path = NULL;
-    khepera_log log;
+    khepera_log log = {NULL, 0, 0, 0}; /* closed: notes and closing do nothing without --log */
+    khepera_status status = {NULL, 0};
+    char firmware[32] = "unknown";
     double start_time;
     double next_tick;
     knet_dev_t *ds_pic;
@@ -135,38 +187,15 @@ int main(int argc, char *argv[])
     }
     memset(&readings, 0, sizeof readings);
 
-    /* Open the link to the dsPIC that runs the motors and sensors (libkhepera). */
-    if (kh4_init(0, NULL) != 0) {
-        fprintf(stderr, "cannot initialise libkhepera\n");
-        return 1;
+    /* Open the link to the dsPIC that runs the motors and sensors (libkhepera), read its
+     * firmware's revision, then open the log (also when one of these failed: it then records
+     * which). */
+    ds_pic = khepera_open(&status);
+    if (ds_pic != NULL) {
+        khepera_firmware(ds_pic, firmware, sizeof firmware, &status);
     }
-    ds_pic = knet_open("Khepera4:dsPic", KNET_BUS_I2C, 0, NULL);
-    if (ds_pic == NULL) {
-        fprintf(stderr, "cannot open the dsPIC (Khepera4:dsPic)\n");
-        return 1;
-    }
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
-    kh4_SetMode(kh4RegIdle, ds_pic);
-    kh4_ResetEncoders(ds_pic);
-    kh4_activate_us(KHEPERA_US_MASK, ds_pic); /* those enabled and observed (0: all off) */
-    /* The motor controller as the policy was trained (khepera_policy_config.h): K-Team's speed
-     * profile, whose ramp the simulator follows exactly, or the speed mode. */
-#if KHEPERA_MOTOR_PROFILE
-    kh4_SetSpeedProfile(KHEPERA_ACC_INC, KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC,
-                        KHEPERA_MIN_SPEED_DEC, KHEPERA_PROFILE_MAX_SPEED, ds_pic);
-    kh4_SetMode(kh4RegSpeedProfile, ds_pic);
-    fprintf(stderr, "motors: speed profile, acc_inc %d, acc_div %d, min_speed_acc %d\n",
-            KHEPERA_ACC_INC, KHEPERA_ACC_DIV, KHEPERA_MIN_SPEED_ACC);
-#else
-    kh4_SetMode(kh4RegSpeed, ds_pic);
-    fprintf(stderr, "motors: speed mode\n");
-#endif
-    kh4_get_position(&pose.last_left, &pose.last_right, ds_pic);
     if (log_path != NULL) {
-        char firmware[32];
         khepera_log_header header;
-        khepera_firmware(ds_pic, firmware, sizeof firmware);
         header.program = "policy";
         header.khepera_gym = KHEPERA_GYM_VERSION;
         header.env_id = KHEPERA_ENV_ID;
@@ -183,9 +212,27 @@ int main(int argc, char *argv[])
         header.wall_distance = -1.0;
         if (khepera_log_open(&log, log_path, &header, OBSERVATION_DIM, POLICY_ACTION_DIM) != 0) {
             fprintf(stderr, "cannot write the log %s\n", log_path);
-            stop_motors(ds_pic);
+            if (ds_pic != NULL) {
+                stop_motors(ds_pic, &status);
+            }
             return 1;
         }
+    }
+    if (status.call != NULL) {
+        return stop_on_failure(ds_pic, &status, &log);
+    }
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
+    /* Idle, the encoders at 0, the ultrasonic sensors the policy observes on (0: all off), the
+     * drive, the start pose. */
+    if (khepera_check(&status, "kh4_SetMode", kh4_SetMode(kh4RegIdle, ds_pic)) != 0
+        || khepera_check(&status, "kh4_ResetEncoders", kh4_ResetEncoders(ds_pic)) != 0
+        || khepera_check(&status, "kh4_activate_us", kh4_activate_us(KHEPERA_US_MASK, ds_pic)) != 0
+        || set_drive(ds_pic, &status) != 0
+        || khepera_check(&status, "kh4_get_position",
+                         kh4_get_position(&pose.last_left, &pose.last_right, ds_pic))
+            != 0) {
+        return stop_on_failure(ds_pic, &status, &log);
     }
 
     policy_reset(&memory); /* the episode starts: nothing observed yet */
@@ -204,15 +251,18 @@ int main(int argc, char *argv[])
         /* 1. Sensors, in K-Team's units: those the observation needs, or all of them for the
          * log. */
         if (log_path != NULL) {
-            khepera_read_all(ds_pic, &readings, KHEPERA_IMU_SAMPLES);
+            khepera_read_all(ds_pic, &readings, KHEPERA_IMU_SAMPLES, &status);
         } else {
 #if OBSERVATION_HAS_IR
-            khepera_read_ir(ds_pic, &readings);
+            khepera_read_ir(ds_pic, &readings, &status);
 #endif
 #if OBSERVATION_HAS_US
-            khepera_read_us(ds_pic, &readings);
+            khepera_read_us(ds_pic, &readings, &status);
 #endif
-            khepera_read_motion(ds_pic, &readings);
+            khepera_read_motion(ds_pic, &readings, &status);
+        }
+        if (status.call != NULL) {
+            return stop_on_failure(ds_pic, &status, &log);
         }
 #if OBSERVATION_HAS_IR
         for (int i = 0; i < 8; ++i) {
@@ -262,7 +312,10 @@ int main(int argc, char *argv[])
             break;
         }
         wheel_command_units(action, units);
-        kh4_set_speed(units[0], units[1], ds_pic);
+        if (khepera_check(&status, "kh4_set_speed", kh4_set_speed(units[0], units[1], ds_pic))
+            != 0) {
+            return stop_on_failure(ds_pic, &status, &log);
+        }
         if (log_path != NULL) {
             khepera_log_row(&log, elapsed, "policy", units, &readings, observation, action);
         }
@@ -271,19 +324,25 @@ int main(int argc, char *argv[])
 #if KHEPERA_LED_ACTION
         /* The three top LEDs (front left, front right, back) in the colour the policy asks. */
         led_command_levels(action + 2, leds);
-        kh4_SetRGBLeds((char)leds[0], (char)leds[1], (char)leds[2], (char)leds[0],
-                       (char)leds[1], (char)leds[2], (char)leds[0], (char)leds[1],
-                       (char)leds[2], ds_pic);
         printf(" %d %d %d", leds[0], leds[1], leds[2]);
 #endif
         printf("\n");
+#if KHEPERA_LED_ACTION
+        if (khepera_check(&status, "kh4_SetRGBLeds",
+                          kh4_SetRGBLeds((char)leds[0], (char)leds[1], (char)leds[2],
+                                         (char)leds[0], (char)leds[1], (char)leds[2],
+                                         (char)leds[0], (char)leds[1], (char)leds[2], ds_pic))
+            != 0) {
+            return stop_on_failure(ds_pic, &status, &log);
+        }
+#endif
 
         next_tick += KHEPERA_CONTROL_PERIOD_S;
         khepera_clock_sleep_until(next_tick);
     }
-    stop_motors(ds_pic);
-    if (log_path != NULL) {
-        khepera_log_close(&log);
+    if (stop_motors(ds_pic, &status) != 0) {
+        return stop_on_failure(ds_pic, &status, &log);
     }
+    khepera_log_close(&log);
     return 0;
 }

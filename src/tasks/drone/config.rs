@@ -16,7 +16,7 @@ pub const MAX_ROUTE_POINTS: u32 = 32;
 crate::config_table! {
     /// `[drone]`: the quadcopter, its camera and the robot's route.
     pub struct DroneConfig {
-        /// rad, largest tilt: a_max = g tan(tilt_max) = 2.63 m/s^2 [D/E: 15 deg, research/tasks.md §7; VMAS resets beyond 30 deg]
+        /// rad, largest tilt: a_max = g tan(tilt_max) = 2.63 m/s^2 [D/E: 15 deg, task-design.md §7; VMAS resets beyond 30 deg]
         tilt_max: f32 = 0.2618 => Domain::POSITIVE.below(1.2),
         /// m/s, terminal horizontal speed (drag c = a_max / speed_max) [E]
         speed_max: f32 = 1.0 => Domain::POSITIVE.at_most(limits::SPEED),
@@ -28,9 +28,9 @@ crate::config_table! {
         search_altitude: f32 = 1.5 => Domain::POSITIVE.at_most(limits::LENGTH),
         /// s out of view before the autopilot climbs to search [E]
         search_delay: f32 = 0.5 => Domain::NON_NEGATIVE.at_most(limits::TIME),
-        /// rad, full angle of the downward camera's cone [D/E: 60 deg, research/tasks.md §7]
+        /// rad, full angle of the downward camera's cone [D/E: 60 deg, task-design.md §7]
         fov: f32 = 1.0472 => Domain::POSITIVE.below(3.0),
-        /// s out of view before the episode ends (lost) [E: research/tasks.md §7]
+        /// s out of view before the episode ends (lost) [E: task-design.md §7]
         lost_time: f32 = 3.0 => Domain::POSITIVE.at_most(limits::TIME),
         /// reward subtracted per step out of view
         unseen_penalty: f32 = 0.5 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),

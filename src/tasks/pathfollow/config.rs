@@ -31,39 +31,39 @@ crate::config_table! {
     pub struct PathFollowConfig {
         /// circle, lemniscate (Gerono's figure eight), square (corners: the limit of smooth controllers), spline (a random smooth closed curve from the world's stream) or waypoints (the scenario's own, pathfollow.points)
         path: Shape = "circle",
-        /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [tasks.md §3-4: R = 0.6 m]
+        /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [task-design.md §3-4: R = 0.6 m]
         size: f32 = 0.6 => Domain::POSITIVE.at_most(limits::LENGTH),
-        /// m/s, desired speed v_d along the path, observed as desired_speed [tasks.md §4: 0.15 m/s]
+        /// m/s, desired speed v_d along the path, observed as desired_speed [task-design.md §4: 0.15 m/s]
         speed: f32 = 0.15 => Domain::POSITIVE.at_most(limits::SPEED),
-        /// "random" (drawn each reset), "ccw" (the curve's own direction) or "cw" [tasks.md §3]
+        /// "random" (drawn each reset), "ccw" (the curve's own direction) or "cw" [task-design.md §3]
         direction: Direction = "random",
-        /// start at a uniformly drawn point of the path; false: at phase 0 [tasks.md §3]
+        /// start at a uniformly drawn point of the path; false: at phase 0 [task-design.md §3]
         random_start: bool = true,
         /// m, largest start cross-track offset from the path, drawn uniformly on either side [E]
         start_offset: f32 = 0.1 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
-        /// rad, largest start heading error from the path tangent (45 degrees), drawn uniformly [tasks.md §3]
+        /// rad, largest start heading error from the path tangent (45 degrees), drawn uniformly [task-design.md §3]
         start_heading_offset: f32 = 0.7853982 => Domain::range(0.0, std::f64::consts::PI),
         /// spline: sum of the harmonics' relative amplitudes (k = 2, 3, 4), in [0, 0.5] [E]
         spline_irregularity: f32 = 0.3 => Domain::range(0.0, 0.5),
         /// at the desired speed the path's curvature asks the wheels for at most this fraction of robot.max_wheel_speed, speed * (1 + max|kappa| * axle / 2) [E]
         max_wheel_fraction: f32 = 0.5 => Domain::POSITIVE.at_most(1.0),
-        /// m, terminated as lost beyond this cross-track error [tasks.md §4]
+        /// m, terminated as lost beyond this cross-track error [task-design.md §4]
         lost_distance: f32 = 0.3 => Domain::POSITIVE.at_most(limits::LENGTH),
-        /// truncated after this many times the lap time at the desired speed, length / speed [tasks.md §4: 2]
+        /// truncated after this many times the lap time at the desired speed, length / speed [task-design.md §4: 2]
         truncation_factor: f32 = 2.0 => Domain::POSITIVE.at_most(1.0e6),
-        /// path points previewed ahead of the closest point (0..16), with their curvature [tasks.md §4: 3]
+        /// path points previewed ahead of the closest point (0..16), with their curvature [task-design.md §4: 3]
         preview_points: u32 = 3 => Domain::range(0.0, MAX_PREVIEW_POINTS as f64),
-        /// m of arc between previewed points [tasks.md §4: 0.1 m]
+        /// m of arc between previewed points [task-design.md §4: 0.1 m]
         preview_spacing: f32 = 0.1 => Domain::POSITIVE.at_most(limits::LENGTH),
-        /// reward per metre of progress along the path [tasks.md §4]
+        /// reward per metre of progress along the path [task-design.md §4]
         progress_weight: f32 = 10.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
-        /// reward per metre of cross-track error, every step [tasks.md §4]
+        /// reward per metre of cross-track error, every step [task-design.md §4]
         error_weight: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
-        /// reward lost every step [tasks.md §4]
+        /// reward lost every step [task-design.md §4]
         time_penalty: f32 = 0.01 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
         /// reward lost per unit of relative speed above the desired one along the path, max(0, ds/dt - speed) / speed, every step: over a lap the progress reward is fixed, so any weight above time_penalty makes the desired speed the fastest worth driving (without it PPO laps at twice the speed; at 0.1 it did not learn to lap in 500k steps) [E]
         speed_weight: f32 = 0.02 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
-        /// s, start-up excluded from the RMS and maximum error statistics [tasks.md §3]
+        /// s, start-up excluded from the RMS and maximum error statistics [task-design.md §3]
         transient: f32 = 5.0 => Domain::NON_NEGATIVE.at_most(limits::TIME),
         /// m, converged once the cross-track error stays below this [issue 14]
         converge_radius: f32 = 0.02 => Domain::POSITIVE.at_most(limits::LENGTH),

@@ -52,17 +52,17 @@ crate::config_table! {
     pub struct TrackConfig {
         /// circle, lemniscate (Gerono's figure eight), square (corners: the limit of smooth controllers), spline (a random smooth closed curve from the world's stream) or waypoints (the waypoints key)
         reference: Shape = "circle",
-        /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [tasks.md §3: R = 0.6 m]
+        /// m: circle radius, lemniscate half-width A, square half-side, spline's largest possible radius [task-design.md §3: R = 0.6 m]
         size: f32 = 0.6 => Domain::POSITIVE.at_most(limits::LENGTH),
-        /// m/s, mean speed along the reference; period = length / speed [tasks.md §3: 0.15 m/s, so omega_r = 0.25 rad/s on the circle]
+        /// m/s, mean speed along the reference; period = length / speed [task-design.md §3: 0.15 m/s, so omega_r = 0.25 rad/s on the circle]
         speed: f32 = 0.15 => Domain::POSITIVE.at_most(limits::SPEED),
-        /// "random" (drawn each reset), "ccw" (the curve's own direction) or "cw" [tasks.md §3]
+        /// "random" (drawn each reset), "ccw" (the curve's own direction) or "cw" [task-design.md §3]
         direction: Direction = "random",
-        /// draw the starting phase uniformly at each reset; false: start at phase 0 [tasks.md §3]
+        /// draw the starting phase uniformly at each reset; false: start at phase 0 [task-design.md §3]
         random_phase: bool = true,
-        /// m, largest start distance from the reference point, drawn uniformly [tasks.md §3]
+        /// m, largest start distance from the reference point, drawn uniformly [task-design.md §3]
         start_offset: f32 = 0.2 => Domain::NON_NEGATIVE.at_most(limits::LENGTH),
-        /// rad, largest start heading error (45 degrees), drawn uniformly [tasks.md §3]
+        /// rad, largest start heading error (45 degrees), drawn uniformly [task-design.md §3]
         start_heading_offset: f32 = 0.7853982 => Domain::range(0.0, std::f64::consts::PI),
         /// spline: sum of the harmonics' relative amplitudes (k = 2, 3, 4), in [0, 0.5] [E]
         spline_irregularity: f32 = 0.3 => Domain::range(0.0, 0.5),
@@ -70,19 +70,19 @@ crate::config_table! {
         max_wheel_fraction: f32 = 0.5 => Domain::POSITIVE.at_most(1.0),
         /// the reference's wheel accelerations stay within this fraction of the drive's acceleration (square corners excepted) [E]
         max_accel_fraction: f32 = 0.5 => Domain::POSITIVE.at_most(1.0),
-        /// m, terminated as lost beyond this position error [tasks.md §3]
+        /// m, terminated as lost beyond this position error [task-design.md §3]
         lost_distance: f32 = 0.5 => Domain::POSITIVE.at_most(limits::LENGTH),
-        /// s, truncated after one period plus this [tasks.md §3]
+        /// s, truncated after one period plus this [task-design.md §3]
         truncation_margin: f32 = 2.0 => Domain::NON_NEGATIVE.at_most(limits::TIME),
-        /// reference points previewed (0..16) [tasks.md §3]
+        /// reference points previewed (0..16) [task-design.md §3]
         preview_points: u32 = 4 => Domain::range(0.0, MAX_PREVIEW_POINTS as f64),
-        /// s between previewed points [tasks.md §3]
+        /// s between previewed points [task-design.md §3]
         preview_step: f32 = 0.25 => Domain::POSITIVE.at_most(limits::TIME),
-        /// reward per metre of position error [tasks.md §3]
+        /// reward per metre of position error [task-design.md §3]
         error_weight: f32 = 1.0 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
-        /// reward per unit of 1 - cos(heading error) [tasks.md §3]
+        /// reward per unit of 1 - cos(heading error) [task-design.md §3]
         heading_weight: f32 = 0.1 => Domain::NON_NEGATIVE.at_most(limits::WEIGHT),
-        /// s, start-up excluded from the RMS and maximum error statistics [tasks.md §3]
+        /// s, start-up excluded from the RMS and maximum error statistics [task-design.md §3]
         transient: f32 = 5.0 => Domain::NON_NEGATIVE.at_most(limits::TIME),
         /// m, converged once the error stays below this [issue 14]
         converge_radius: f32 = 0.02 => Domain::POSITIVE.at_most(limits::LENGTH),

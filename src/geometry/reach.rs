@@ -22,7 +22,7 @@ const GRID_CELL_BYTES: usize = 13;
 pub const MAX_GRID_WORK: usize = 1 << 28;
 /// Components of the free space left by the walls and fixed obstacles.
 #[derive(Debug, Clone)]
-pub(super) struct Grid {
+pub struct Grid {
     nx: usize,
     ny: usize,
     origin: Vector,
@@ -37,7 +37,7 @@ impl Grid {
 
     /// Checks that the map of `scene` stays within [`MAX_GRID_CELLS`] and [`MAX_GRID_WORK`]
     /// before anything is allocated; errors name `origin` and the key to change.
-    pub(super) fn check_size(scene: &Scene, origin: &str) -> Result<()> {
+    pub fn check_size(scene: &Scene, origin: &str) -> Result<()> {
         let (nx, ny) = Self::cells(scene.arena.0, scene.arena.1);
         let cells = nx.saturating_mul(ny);
         if cells > MAX_GRID_CELLS {
@@ -72,7 +72,9 @@ impl Grid {
         Ok(())
     }
 
-    pub(super) fn new(scene: &Scene, radius: f32) -> Self {
+    /// The map of `scene` for a robot of `radius` (m): the cells whose centre is clear of the
+    /// walls and obstacles by `radius` + 5 mm, labelled into 4-connected components.
+    pub fn new(scene: &Scene, radius: f32) -> Self {
         let (w, h) = scene.arena;
         let (nx, ny) = Self::cells(w, h);
         let origin = Vector::new(-0.5 * w, -0.5 * h);
@@ -123,7 +125,7 @@ impl Grid {
     }
 
     /// Component of the cell holding `p` (0: blocked or outside).
-    pub(super) fn label(&self, p: Vector) -> u32 {
+    pub fn label(&self, p: Vector) -> u32 {
         let q = (p - self.origin) / CELL;
         if q.x < 0.0 || q.y < 0.0 {
             return 0;

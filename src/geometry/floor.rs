@@ -2,12 +2,13 @@
 //! and marks drawn over it (lines, arcs and polylines with a width and a grey level), such as
 //! the black tape of a line-following track. Grey levels run from 0 (black) to 1 (white paper).
 //!
-//! A scenario's `[floor]` (this module's [`FloorConfig`]) is built once into a [`Floor`], shared
-//! by every world of a batch; a task may add marks of its own per episode ([`FloorMarks`], part
+//! Built from plain values (segments, an image file, a grey level): the world builds a
+//! scenario's `[floor]` into a [`Floor`] once, shared by every world of a batch
+//! (`world::scenery`); a task may add marks of its own per episode ([`FloorMarks`], part
 //! of the world's state: a line-following track drawn from the world's seed). Marks are painted
 //! in order (scenario marks, then the task's), each over the image, the image over the
 //! background. Every mark is stored as segments of a polyline (arcs as chords within 1 mm of the
-//! arc), found near a point through a uniform grid.
+//! arc, [`arc_points`]), found near a point through a uniform grid.
 //!
 //! Image: a PNG file (grey, grey + alpha, RGB or RGBA, 8 or 16 bits; colours become luminance,
 //! ITU-R BT.709), `image_scale` metres per pixel, its lower-left corner at `image_origin`; row 0
@@ -22,8 +23,13 @@ use rapier2d::math::Vector;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-pub use crate::scenario::floor::{arc_chords, ArcMark, FloorConfig, LineMark, TrackMark};
 
+/// Most points of a polyline mark, and most chords of an arc.
+pub const MAX_MARK_POINTS: usize = 100_000;
+/// Bytes of one [`Segment`] (a test ties the two): what a scenario's check counts its marks in.
+pub const SEGMENT_BYTES: usize = 24;
+/// Largest sagitta (m) between an arc and the chords that stand for it.
+const ARC_SAGITTA: f32 = 0.001;
 /// Largest image side (pixels): a 4096 x 4096 image costs 64 MiB while it is decoded (RGBA,
 /// 8 bits a channel) and 64 MiB of grey levels (f32) once built, shared by every world.
 pub const MAX_IMAGE_SIDE: u32 = 4096;
@@ -343,51 +349,27 @@ pub fn polyline(points: &[Vector], closed: bool, width: f32, grey: f32) -> Vec<S
     out
 }
 
-impl Floor {
-    /// The floor a scenario's `[floor]` describes (its marks as segments, its image decoded);
-    /// `dir` is the scenario file's folder (relative image paths start there). The marks were
-    /// checked with the scenario ([`FloorConfig::check`]); errors (an image that cannot be
-    /// read) name `origin` and the key.
-    pub fn build(cfg: &FloorConfig, dir: Option<&Path>, origin: &str) -> Result<Floor> {
-        cfg.check(origin)?;
-        let mut segments = Vec::new();
-        for l in &cfg.lines {
-            let (a, b) = (Vector::from(l.a), Vector::from(l.b));
-            segments.extend(polyline(&[a, b], false, l.width, l.grey));
-        }
-        for arc in &cfg.arcs {
-            let sweep = (arc.end - arc.start).min(std::f32::consts::TAU);
-            let n = arc_chords(arc);
-            let c = Vector::from(arc.center);
-            let points: Vec<Vector> = (0..=n)
-                .map(|k| {
-                    let a = arc.start + sweep * k as f32 / n as f32;
-                    c + Vector::new(a.cos(), a.sin()) * arc.radius
-                })
-                .collect();
-            segments.extend(polyline(&points, false, arc.width, arc.grey));
-        }
-        for t in &cfg.tracks {
-            let points: Vec<Vector> = t.points.iter().map(|p| Vector::from(*p)).collect();
-            segments.extend(polyline(&points, t.closed, t.width, t.grey));
-        }
-        let image = if cfg.image.is_empty() {
-            None
-        } else {
-            let path = Path::new(&cfg.image);
-            let path = match dir {
-                Some(dir) if path.is_relative() => dir.join(path),
-                _ => path.to_path_buf(),
-            };
-            let origin_m = Vector::from(cfg.image_origin);
-            Some(FloorImage::load(&path, cfg.image_scale, origin_m, origin)?)
-        };
-        Ok(Floor {
-            background: cfg.background,
-            image,
-            marks: FloorMarks::new(segments),
+/// Chords (at least 2, at most [`MAX_MARK_POINTS`]) that stand within [`ARC_SAGITTA`] for an
+/// arc of `radius` (m), counter-clockwise from `start` to `end` (rad).
+pub fn arc_chords(radius: f32, start: f32, end: f32) -> usize {
+    let sweep = (end - start).min(std::f32::consts::TAU);
+    // A chord of angle φ lies r(1 − cos(φ/2)) ≈ rφ²/8 from its arc.
+    let step = (8.0 * ARC_SAGITTA / radius).sqrt().min(0.5);
+    ((sweep / step).ceil() as usize).clamp(2, MAX_MARK_POINTS)
+}
+
+/// The ends of the [`arc_chords`] chords that stand for an arc of `radius` (m) around `center`,
+/// counter-clockwise from `start` to `end` (rad); `end − start` of 2π or more is the whole
+/// circle.
+pub fn arc_points(center: Vector, radius: f32, start: f32, end: f32) -> Vec<Vector> {
+    let sweep = (end - start).min(std::f32::consts::TAU);
+    let n = arc_chords(radius, start, end);
+    (0..=n)
+        .map(|k| {
+            let a = start + sweep * k as f32 / n as f32;
+            center + Vector::new(a.cos(), a.sin()) * radius
         })
-    }
+        .collect()
 }
 
 #[cfg(test)]
@@ -396,35 +378,6 @@ mod tests {
 
     #[test]
     fn a_segment_costs_what_the_scenario_check_counts() {
-        assert_eq!(
-            std::mem::size_of::<Segment>(),
-            crate::scenario::floor::SEGMENT_BYTES
-        );
-    }
-
-    #[test]
-    fn a_line_covers_exactly_its_width_and_later_marks_paint_over() {
-        let cfg = FloorConfig {
-            lines: vec![
-                LineMark {
-                    a: [-1.0, 0.0],
-                    b: [1.0, 0.0],
-                    width: 0.027,
-                    grey: 0.0,
-                },
-                LineMark {
-                    a: [0.5, -1.0],
-                    b: [0.5, 1.0],
-                    width: 0.1,
-                    grey: 0.5,
-                },
-            ],
-            ..FloorConfig::default()
-        };
-        let floor = Floor::build(&cfg, None, "t").expect("floor");
-        let none = FloorMarks::default();
-        assert_eq!(floor.grey_at(Vector::new(0.0, 0.0134), &none), 0.0);
-        assert_eq!(floor.grey_at(Vector::new(0.0, 0.0136), &none), 1.0);
-        assert_eq!(floor.grey_at(Vector::new(0.5, 0.0), &none), 0.5);
+        assert_eq!(std::mem::size_of::<Segment>(), SEGMENT_BYTES);
     }
 }

@@ -1,23 +1,19 @@
-"""``platoon_v1``: a platoon of Khepera IV robots tracking time-shifted copies of one reference
+"""The ``platoon_vN`` modules (one a behaviour version, the same env on that version's
+dynamics): a platoon of Khepera IV robots tracking time-shifted copies of one reference
 trajectory, one PettingZoo agent per robot. The manual is :class:`PlatoonParallelEnv`'s
 docstring. Units are SI (m, s, rad); robot frame x forward, y left::
 
-    from khepera_gym.pettingzoo import platoon_v1
+    from khepera_gym.pettingzoo import platoon_v3
 
-    env = platoon_v1.parallel_env(robots=3)
+    env = platoon_v3.parallel_env(robots=3)
 """
 
 from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from pettingzoo import AECEnv
-from pettingzoo.utils.conversions import parallel_to_aec
-
 from khepera_gym.config import ConfigArg
 from khepera_gym.pettingzoo._parallel import (
-    AgentAction,
-    AgentObs,
     KheperaParallelEnv,
     merge_table_keywords,
 )
@@ -28,8 +24,8 @@ class PlatoonParallelEnv(KheperaParallelEnv):
 
     ## Description
 
-    The multi-robot form of trajectory tracking (:class:`khepera_gym.envs.TrackEnv`; issue 14,
-    item 5). One reference point p_r(t) moves on a closed curve centred in the 2 m × 2 m walled
+    The multi-robot form of trajectory tracking (:class:`khepera_gym.envs.TrackEnv`). One
+    reference point p_r(t) moves on a closed curve centred in the 2 m × 2 m walled
     arena (`platoon.reference`: circle, lemniscate, square, spline or waypoints, as Track's
     `track.reference`); robot k must be at p_r(t − k·τ) at time t, heading along the curve, with
     τ = `platoon.time_gap` (2 s). Its reference is robot k − 1's, τ seconds later: the robots
@@ -127,9 +123,9 @@ class PlatoonParallelEnv(KheperaParallelEnv):
     ## Arguments
 
     ```python
-    >>> from khepera_gym.pettingzoo import platoon_v1
+    >>> from khepera_gym.pettingzoo import platoon_v3
     >>> from khepera_gym.baselines import Kanayama
-    >>> env = platoon_v1.parallel_env(robots=4, reference="lemniscate")
+    >>> env = platoon_v3.parallel_env(robots=4, reference="lemniscate")
     >>> env.possible_agents
     ['robot_0', 'robot_1', 'robot_2', 'robot_3']
     >>> observations, infos = env.reset(seed=0)
@@ -161,26 +157,10 @@ class PlatoonParallelEnv(KheperaParallelEnv):
     itself; checked on the mean circle for splines, which are drawn at reset); `spawn.start` or
     `spawn.goal` is given (the platoon places its robots); or Track's checks fail
     (`platoon.size`, `platoon.speed`, `platoon.waypoints`, ...).
-
-    ## Version History
-
-    * v1: Initial version, on the v1 dynamics (tyre grip, contact friction, K-Team's speed
-      profile), like :class:`khepera_gym.envs.TrackEnv`; there is no v0.
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "name": "platoon_v1",
-        "render_modes": ["rgb_array", "human"],
-        "render_fps": 20,
-        "is_parallelizable": True,
-    }
     TASK: ClassVar[str] = "platoon"
-    VERSION: ClassVar[int | None] = 1
+    FAMILY: ClassVar[str] = "platoon"
 
     def __init__(
         self,
@@ -194,15 +174,4 @@ class PlatoonParallelEnv(KheperaParallelEnv):
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
 
-def parallel_env(**kwargs: Any) -> PlatoonParallelEnv:
-    """The platoon as a PettingZoo ``ParallelEnv``; see :class:`PlatoonParallelEnv`."""
-    return PlatoonParallelEnv(**kwargs)
-
-
-def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """The platoon as a PettingZoo AEC env (agents act in turn, the world steps once all have
-    acted); takes the arguments of :func:`parallel_env`."""
-    return parallel_to_aec(parallel_env(**kwargs))
-
-
-__all__ = ["PlatoonParallelEnv", "env", "parallel_env"]
+__all__ = ["PlatoonParallelEnv"]

@@ -1,24 +1,20 @@
-"""``consensus_v1``: Khepera IV robots on a communication graph reaching a rendezvous or a
+"""The ``consensus_vN`` modules (one a behaviour version, the same env on that version's
+dynamics): Khepera IV robots on a communication graph reaching a rendezvous or a
 formation from what their neighbours broadcast, one PettingZoo agent per robot. The manual is
 :class:`ConsensusParallelEnv`'s docstring. Units are SI (m, s, rad); robot frame x forward,
 y left::
 
-    from khepera_gym.pettingzoo import consensus_v1
+    from khepera_gym.pettingzoo import consensus_v3
 
-    env = consensus_v1.parallel_env(n_robots=6, graph="ring", trigger="event")
+    env = consensus_v3.parallel_env(n_robots=6, graph="ring", trigger="event")
 """
 
 from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from pettingzoo import AECEnv
-from pettingzoo.utils.conversions import parallel_to_aec
-
 from khepera_gym.config import ConfigArg
 from khepera_gym.pettingzoo._parallel import (
-    AgentAction,
-    AgentObs,
     KheperaParallelEnv,
     merge_table_keywords,
 )
@@ -30,7 +26,7 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     ## Description
 
     The KH4VREP paper's future work (§6): multi-agent consensus with event-based communication
-    (issue 16, item 3; docs/task-design.md §8). N robots start at random in the 2 m × 2 m walled
+    (docs/task-design.md §8). N robots start at random in the 2 m × 2 m walled
     arena. Robot i has an offset c_i: 0 for `consensus.objective = "rendezvous"`, the vertex i
     of a regular polygon of radius `consensus.formation_radius` (0.3 m) for `"formation"` (the
     default). They agree when the displacements z_i = x_i − c_i are equal (a displacement-based
@@ -119,9 +115,9 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     ## Arguments
 
     ```python
-    >>> from khepera_gym.pettingzoo import consensus_v1
+    >>> from khepera_gym.pettingzoo import consensus_v3
     >>> from khepera_gym.baselines import ConsensusLaw
-    >>> env = consensus_v1.parallel_env(n_robots=5, trigger="event", threshold=0.02)
+    >>> env = consensus_v3.parallel_env(n_robots=5, trigger="event", threshold=0.02)
     >>> env.possible_agents
     ['robot_0', 'robot_1', 'robot_2', 'robot_3', 'robot_4']
     >>> policy = ConsensusLaw.for_env(env)
@@ -156,24 +152,10 @@ class ConsensusParallelEnv(KheperaParallelEnv):
     arena; `drop` is outside [0, 1); `delay_steps` is above 100; `period`, `range` or
     `tolerance` is not positive; `threshold` is negative; `spawn.start` or `spawn.goal` is
     given.
-
-    ## Version History
-
-    * v1: Initial version, on the v1 dynamics (tyre grip, contact friction, K-Team's speed
-      profile); there is no v0.
-    * v2: K-Team's speed profile at Acc_Inc 40 (2.71 m/s²), which the exported program sets on
-      the robot (the Version History of `NavEnv` has the details).
-    * v3: A robot's contacts with walls and obstacles are solved directly, as a rigid disc's with
-      Coulomb friction, instead of by rapier's step of the whole world: the same contact model at
-      a fraction of the cost (the Version History of `NavEnv` has the details).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        **KheperaParallelEnv.metadata,
-        "name": "consensus_v1",
-    }
     TASK: ClassVar[str] = "consensus"
-    VERSION: ClassVar[int | None] = 1
+    FAMILY: ClassVar[str] = "consensus"
     #: Keyword arguments that set `[consensus]` keys of the same name.
     KEYS: ClassVar[tuple[str, ...]] = (
         "n_robots",
@@ -194,15 +176,4 @@ class ConsensusParallelEnv(KheperaParallelEnv):
         super().__init__(config=config, max_cycles=max_cycles, **kwargs)
 
 
-def parallel_env(**kwargs: Any) -> ConsensusParallelEnv:
-    """Consensus as a PettingZoo ``ParallelEnv``; see :class:`ConsensusParallelEnv`."""
-    return ConsensusParallelEnv(**kwargs)
-
-
-def env(**kwargs: Any) -> AECEnv[str, AgentObs, AgentAction]:
-    """Consensus as a PettingZoo AEC env (agents act in turn, the world steps once all have
-    acted); takes the arguments of :func:`parallel_env`."""
-    return parallel_to_aec(parallel_env(**kwargs))
-
-
-__all__ = ["ConsensusParallelEnv", "env", "parallel_env"]
+__all__ = ["ConsensusParallelEnv"]

@@ -1,7 +1,9 @@
 //! Static scene geometry (arena walls and obstacles) and the exact queries on it: ray casts for
 //! the range sensors and point distances for contact checks. Shapes are parry2d shapes (rapier's
 //! geometry crate), queried one by one in their local frames after a cheap bounding-circle test;
-//! for scenes of a few dozen shapes that is several times faster than a query pipeline.
+//! for scenes of a few dozen shapes that is several times faster than a query pipeline. Built
+//! from plain sizes and shapes: the world turns a scenario's `[arena]` and `obstacles.fixed`
+//! into them (`world/scenery.rs`).
 //!
 //! Frame: world frame, metres, the arena's centre at the origin, angles CCW in radians.
 
@@ -10,7 +12,6 @@ use rapier2d::parry::query::{PointQuery, Ray, RayCast};
 use rapier2d::parry::shape::{Ball, Cuboid, Segment, Shape};
 
 use super::rays::{may_hit, ray_disc};
-use crate::scenario::sections::{ArenaConfig, ObstacleSpec};
 
 /// One of the scene's shapes, as parry2d knows it, in its local frame.
 #[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
@@ -53,41 +54,6 @@ pub const OBSTACLE_GREY: [f32; 3] = [0.5, 0.5, 0.5];
 pub const WALL_GREY: [f32; 3] = [0.8, 0.8, 0.8];
 
 impl SceneShape {
-    /// A scenario's fixed obstacle (an `obstacles.fixed` entry) as a scene shape.
-    pub fn of_obstacle(spec: &ObstacleSpec) -> Self {
-        let v = |p: [f32; 2]| Vector::new(p[0], p[1]);
-        let (shape, reflectance, color) = match *spec {
-            ObstacleSpec::Circle {
-                center,
-                radius,
-                reflectance,
-                color,
-            } => (SceneShape::circle(v(center), radius), reflectance, color),
-            ObstacleSpec::Box {
-                center,
-                half_extents,
-                angle,
-                reflectance,
-                color,
-            } => (
-                SceneShape::rect(v(center), v(half_extents), angle),
-                reflectance,
-                color,
-            ),
-            ObstacleSpec::Segment {
-                a,
-                b,
-                reflectance,
-                color,
-            } => (SceneShape::segment(v(a), v(b)), reflectance, color),
-        };
-        let shape = shape.with_reflectance(reflectance);
-        match color {
-            Some(color) => shape.with_color(color),
-            None => shape,
-        }
-    }
-
     /// Places `geometry` at `center`, rotated by `angle`.
     pub fn new(geometry: Geometry, center: Vector, angle: f32) -> Self {
         let bound_radius = match geometry {
@@ -283,16 +249,6 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The empty arena a scenario's `[arena]` table describes.
-    pub fn of_arena(arena: &ArenaConfig) -> Self {
-        Self {
-            walled: arena.walls,
-            wall_reflectance: arena.wall_reflectance,
-            wall_color: arena.wall_color,
-            ..Scene::arena(arena.width, arena.height, arena.wall_thickness)
-        }
-    }
-
     /// An empty arena of inner size `width` × `height`, walled by slabs `thickness` thick.
     pub fn arena(width: f32, height: f32, thickness: f32) -> Self {
         Self {

@@ -1,0 +1,247 @@
+"""The learning benchmark's wiring (``khepera-gym benchmark``), on tiny budgets: training runs are
+benchmarks, not tests. Checked here: the shipped suite covers every task and is valid, a wrong
+suite or argument is an error naming the valid choices, the criterion is judged against the
+baselines' held-out means, a run writes its results file with provenance and the table, an
+interrupted benchmark resumes without training again, and results of other code are refused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+pytest.importorskip(
+    "stable_baselines3", reason="needs the sb3 extra: pip install 'khepera-gym[sb3]'"
+)
+
+from khepera_gym import _core, cli
+from khepera_gym.benchmark import learners, load_suite
+from khepera_gym.benchmark.runner import FORMAT, judge, means
+from khepera_gym.benchmark.suite import Condition
+from khepera_gym.errors import ConfigError
+
+#: The smallest benchmark that runs every step: one seed, a few updates, a few episodes.
+TINY = [
+    "--seeds",
+    "1",
+    "--timesteps",
+    "2048",
+    "--episodes",
+    "6",
+    "--eval-episodes",
+    "4",
+    "--no-progress",
+    "--hp",
+    "n_envs=8",
+    "--hp",
+    "n_steps=128",
+]
+
+
+def _run(argv: list[str]) -> None:
+    assert cli.main(["benchmark", *argv]) == 0
+
+
+def test_the_shipped_suite_has_a_valid_entry_for_every_task() -> None:
+    suite = load_suite()
+    assert list(suite) == [name for name, _, _ in _core.tasks()]
+    for entry in suite.values():
+        assert entry.criterion and entry.learners and entry.why, entry.task
+        for name in entry.learners:
+            # Every learner of the suite applies to its task and has a recipe for it.
+            learner = learners.learner(name)
+            version = _core.task_versions(entry.task)[-1]
+            learner.env_name(entry.task, version)
+            if name != "mappo" and name != "ippo":
+                assert learner.recipe(entry.task, version, {})["n_timesteps"] > 0
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (
+            "[walk]\nlearners = ['ppo']\ncriterion = [{metric = 'success', at_least = 0.9}]",
+            r"\[walk\] is not a task of the core",
+        ),
+        (
+            "[nav]\nlearners = ['ppo0']\ncriterion = [{metric = 'success', at_least = 0.9}]",
+            "unknown learner 'ppo0'; did you mean 'ppo'",
+        ),
+        (
+            "[nav]\nlearners = ['ppo']\ncriterion = [{metric = 'sucess', at_least = 0.9}]",
+            "nav has no statistic 'sucess'; did you mean 'success'",
+        ),
+        (
+            "[track]\nlearners = ['ppo']\nbaselines = ['kanayama']\n"
+            "criterion = [{metric = 'track_error_rms', at_most = 'samson'}]",
+            "'samson' is not a baseline of the entry",
+        ),
+        (
+            "[nav]\nlearners = ['ppo']\ncriterion = [{metric = 'success'}]",
+            "exactly one of at_least and at_most",
+        ),
+        (
+            "[nav]\nlearners = ['ppo']\ncriterion = [{metric = 'success', at_least = nan}]",
+            "finite number",
+        ),
+        (
+            "[nav]\nlearners = ['ppo']\nbaselines = ['vhf']\n"
+            "criterion = [{metric = 'success', at_least = 0.9}]",
+            "unknown baseline 'vhf'; did you mean 'vfh'",
+        ),
+        ("[nav]\nlearner = ['ppo']", "unknown key 'learner'; did you mean 'learners'"),
+    ],
+)
+def test_a_wrong_suite_is_an_error_naming_the_choices(
+    text: str, message: str, tmp_path: Path
+) -> None:
+    path = tmp_path / "suite.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_suite(path)
+
+
+def test_a_condition_holds_against_a_number_or_a_baselines_held_out_mean() -> None:
+    at_least = Condition("success", "at_least", reference="vfh")
+    at_most = Condition("track_error_rms", "at_most", value=0.02)
+    baselines = {"vfh": {"success": 0.86}}
+    assert at_least.threshold(baselines) == pytest.approx(0.86)
+    assert at_least.holds(0.9, 0.86) and not at_least.holds(0.85, 0.86)
+    assert at_most.holds(0.01, 0.02) and not at_most.holds(0.03, 0.02)
+    assert not at_least.holds(math.nan, 0.0)  # no data is not a success
+    assert at_least.describe() == "success ≥ vfh" and at_most.describe() == "track_error_rms ≤ 0.02"
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--tasks", "walk"], "unknown task 'walk'"),
+        (["--tasks", "nav", "--learners", "dqn"], "unknown learner 'dqn'; known: ppo"),
+        (["--tasks", "nav", "--learners", "mappo"], "learner 'mappo' is in no chosen task"),
+        (["--tasks", "nav", "--device", "cuda"], "no CUDA device"),
+        (["--tasks", "nav", "--device", "abacus"], "not a torch device"),
+        (["--tasks", "nav", "--version", "9"], "nav has no behaviour version 9"),
+        (["--tasks", "nav", "--episodes", "0"], "--episodes must be >= 1"),
+    ],
+)
+def test_bad_arguments_are_refused_before_anything_runs(
+    argv: list[str], message: str, tmp_path: Path
+) -> None:
+    if "cuda" in argv:
+        import torch
+
+        if torch.cuda.is_available():
+            pytest.skip("this machine has CUDA")
+    with pytest.raises(SystemExit) as caught:
+        cli.main(["benchmark", "--out", str(tmp_path), *argv])
+    assert message in str(caught.value)
+    assert not (tmp_path / "runs").exists()
+
+
+def test_a_learner_that_does_not_fit_the_task_says_why() -> None:
+    with pytest.raises(ConfigError, match="'multinav' is a PettingZoo task"):
+        learners.learner("ppo").env_name("multinav", 3)
+    with pytest.raises(ConfigError, match="'nav' is not one"):
+        learners.learner("shared_ppo").env_name("nav", 3)
+
+
+def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    out = tmp_path / "bench"
+    _run(["--tasks", "nav", "--out", str(out), *TINY])
+    printed = capsys.readouterr().out
+    run_file = out / "runs" / f"nav-v{_core.LATEST_VERSION}_ppo_seed0.json"
+    record = json.loads(run_file.read_text())
+    assert record["format"] == FORMAT and record["meta"]["commit"] is not None
+    assert record["key"]["episodes"] == 6 and record["timesteps"] >= 2048
+    assert record["history"] and record["history"][-1]["steps"] == record["timesteps"]
+    assert set(record["final"]) >= {"success", "return", "collisions"}
+    assert record["final"]["success"]["n"] == 6
+    baselines = json.loads((out / "baselines" / f"nav-v{_core.LATEST_VERSION}.json").read_text())
+    assert set(baselines["summaries"]) == {"position_control", "braitenberg", "vfh"}
+    # The criterion is judged on the held-out means against the baselines.
+    assert record["solved"] == judge(load_suite()["nav"], means(record["final"]), baselines)
+    assert "| ppo (KheperaIV-Nav-v" in printed and "braitenberg (baseline)" in printed
+    assert (
+        "reproduce ppo: khepera-gym benchmark --tasks nav --learners ppo --seed-list 0" in printed
+    )
+    summary = json.loads((out / "benchmark.json").read_text())
+    assert summary["tables"][0]["learners"][0]["seeds"] == [0]
+
+    # Resumed: a finished run is not trained again.
+    def no_training(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("a finished run was trained again")
+
+    monkeypatch.setattr(learners.SB3Learner, "train", no_training)
+    _run(["--tasks", "nav", "--out", str(out), *TINY])
+    assert json.loads(run_file.read_text())["meta"] == record["meta"]
+
+    # A file written by other code is refused, never mixed in.
+    record["meta"]["commit"] = {"id": "0" * 40, "dirty": False}
+    run_file.write_text(json.dumps(record))
+    with pytest.raises(SystemExit, match="comes from commit 000000000000"):
+        cli.main(["benchmark", "--tasks", "nav", "--out", str(out), *TINY])
+
+
+def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Path) -> None:
+    out = tmp_path / "bench"
+    tiny = ["--seeds", "1", "--timesteps", "1024", "--episodes", "4", "--eval-episodes", "2"]
+    recipe = ["--hp", "n_envs=2", "--hp", "n_steps=64", "--hp", "batch_size=64"]
+    _run(
+        [
+            "--tasks",
+            "consensus",
+            "--learners",
+            "shared_ppo",
+            "--out",
+            str(out),
+            "--no-progress",
+            *tiny,
+            *recipe,
+        ]
+    )
+    record = json.loads(next((out / "runs").glob("consensus-*_shared_ppo_seed0.json")).read_text())
+    assert record["key"]["env"].startswith("consensus_v")
+    assert "consensus_error_final" in record["final"]
+
+
+# torchrl's own deprecation notices inside BenchMARL, and its notice of an iteration where no
+# episode ended (a few frames of a long episode), are theirs.
+@pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
+@pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
+def test_mappo_trains_through_benchmarl(tmp_path: Path) -> None:
+    pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    out = tmp_path / "bench"
+    _run(
+        [
+            "--tasks",
+            "formation",
+            "--learners",
+            "mappo",
+            "--out",
+            str(out),
+            "--seeds",
+            "1",
+            "--timesteps",
+            "1024",
+            "--episodes",
+            "4",
+            "--eval-episodes",
+            "2",
+            "--no-progress",
+            "--hp",
+            "frames_per_batch=512",
+            "--hp",
+            "minibatch_size=256",
+            "--hp",
+            "n_envs=4",
+        ]
+    )
+    record = json.loads(next((out / "runs").glob("formation-*_mappo_seed0.json")).read_text())
+    assert record["timesteps"] >= 1024 and "formation_error_mean" in record["final"]
+    assert Path(record["files"]["policy"]).is_file()
