@@ -15,13 +15,22 @@ compares a log with the simulator driven by the same commands. One job a module:
 * :mod:`~khepera_gym.calibrate.program`: the calibration program as C
   (``khepera-gym robot-program calibrate``);
 * :mod:`~khepera_gym.calibrate.replay`: replays of a log through the simulator, by its commands
-  or along its encoders' path, and the divergence of a replay;
+  or along its encoders' path, on the log's times (:mod:`~khepera_gym.calibrate.timing`), and
+  the divergence of a replay (:mod:`~khepera_gym.calibrate.divergence`);
 * :mod:`~khepera_gym.calibrate.synthetic`: logs made by the simulator with known parameters (the
-  tests' robot);
-* :mod:`~khepera_gym.calibrate.fit`: the fit (scipy.optimize.least_squares), with
-  uncertainties: its two stages in :mod:`~khepera_gym.calibrate.geometry` (geometry and
-  sensors) and :mod:`~khepera_gym.calibrate.drive_fit` (the drive), on the shared machinery of
-  :mod:`~khepera_gym.calibrate.solver`;
+  tests' robot), and the real robots' spread;
+* :mod:`~khepera_gym.calibrate.independent`: logs of a second model of the robot, written from
+  K-Team's manual and sharing no code with the simulator, with the program's state machine
+  transcribed from the C (:mod:`~khepera_gym.calibrate.independent_program`);
+  :mod:`~khepera_gym.calibrate.study` fits many of them and tabulates how the fit does;
+* :mod:`~khepera_gym.calibrate.fit`: the fit (scipy.optimize.least_squares): its two stages in
+  :mod:`~khepera_gym.calibrate.geometry` (geometry and sensors, with the infrared curve of
+  :mod:`~khepera_gym.calibrate.ir_curve`; results in :mod:`~khepera_gym.calibrate.
+  geometry_result`) and :mod:`~khepera_gym.calibrate.drive_fit` (the drive), on the shared
+  machinery of :mod:`~khepera_gym.calibrate.solver`; each channel's noise where nothing changes
+  (:mod:`~khepera_gym.calibrate.noise`), the uncertainties' statistical and systematic parts
+  (:mod:`~khepera_gym.calibrate.uncertainty`) and whether the fit explains the logs
+  (:mod:`~khepera_gym.calibrate.goodness`);
 * :mod:`~khepera_gym.calibrate.scenario`: the calibrated scenario as TOML;
 * :mod:`~khepera_gym.calibrate.report`: the plots and numbers;
 * :mod:`~khepera_gym.calibrate.command`: the command lines.

@@ -2,6 +2,14 @@
 the simulator is driven by the logged commands (:class:`DriveFit`; see
 :mod:`~khepera_gym.calibrate.fit` for the method).
 
+The lag fitted is the **simulator's effective lag at its step**: the ``robot.motor_time_constant``
+with which the simulator, stepping ``physics.dt / physics.substeps``, follows the logged wheel
+speeds best. It holds the motors' own lag and what the simulator does not model: the firmware's
+10 ms tick (a set point waits for it), the read latency, the speed measured over the last
+10 ms, and the simulator's own step. It is therefore tied to that step: a scenario that
+changes ``physics.dt`` or ``physics.substeps`` needs the fit made again (the scenario and the
+report say so).
+
 Units: SI for the values; speed units for the residuals. Threading: the calling thread.
 """
 
@@ -16,21 +24,31 @@ import numpy as np
 import numpy.typing as npt
 
 import khepera_gym.calibrate.replay as rp
+from khepera_gym.calibrate.goodness import OUTLIER_SHARE
 from khepera_gym.calibrate.logformat import RobotLog
-from khepera_gym.calibrate.solver import (
-    Estimate,
-    Progress,
-    fit_covariance,
-    residual_noise,
-    solve_scaled,
+from khepera_gym.calibrate.noise import (
+    OUTLIER_SIGMA,
+    RESOLUTION,
+    Noise,
+    expected_sigma,
+    plateau_rows,
+    robust_noise,
 )
+from khepera_gym.calibrate.solver import Estimate, Progress, solve_scaled
+from khepera_gym.calibrate.timing import row_intervals
+from khepera_gym.calibrate.uncertainty import blocks, uncertainty
+from khepera_gym.config import tomllib
 
 #: Where the speed mode's fit starts (m/s²): the simulator's estimate (motors.speed_accel).
 SPEED_MODE_ACCEL = 2.74
-
-
-# --------------------------------------------------------------------------------------------
-# Stage 2: the drive.
+#: The lag's scale (s) for the optimiser, and its bounds.
+_TAU_SCALE = 0.02
+_TAU_BOUNDS = (0.0, 0.5)
+#: Where the lag's fit starts (s).
+_TAU_START = 0.03
+#: A step's speed is taken as reached this long after the profile's ramp (s): five times the
+#: real robots' largest lag (synthetic.SPREAD, 60 ms) and a period of margin.
+_SETTLE_S = 0.35
 
 
 @dataclasses.dataclass
@@ -44,35 +62,33 @@ class DriveResult:
     motor_time_constant: Estimate
     #: Per log: the command replay with the drive written.
     replays: list[rp.Replay]
-    #: Wheel speed residuals (speed units) of that replay.
+    #: Wheel speed residuals (speed units) of that replay, and their expected noise.
     residuals: npt.NDArray[np.float64]
-    #: The measured speeds' noise (speed units), from the residuals less their rounding.
-    speed_noise: float
+    expected: npt.NDArray[np.float64]
+    #: The measured speeds' noise on the steps' plateaus.
+    noise: Noise
+    #: Readings set aside as outliers.
+    outliers: int
     chi2: float
     #: Profile mode: the acc_inc the wheels follow best (a whole value's neighbourhood, the
     #: vertex of the chi-square's parabola) and its uncertainty; NaN in speed mode.
     fitted_acc_inc: tuple[float, float]
     #: Profile mode: the chi-square of each whole acc_inc tried (each with its best lag).
     profile: dict[int, float]
-
-
-#: The lag's scale (s) for the optimiser, and its bounds.
-_TAU_SCALE = 0.02
-_TAU_BOUNDS = (0.0, 0.5)
-#: Where the lag's fit starts (s).
-_TAU_START = 0.03
+    #: The simulator's step (s) the lag was fitted at, and its dt and substeps.
+    step: float
+    dt: float
+    substeps: int
 
 
 class DriveFit:
-    """Stage 2 on the calibration logs, with the fitted wheel radius.
+    """Stage 2 on the calibration logs, with the fitted wheel radius (``speed_noise``: the
+    measured speeds' noise to weight by, in place of the plateaus', for studies).
 
     The simulator is replayed as it is used: a command of u speed units drives its wheel at
     u times the speed unit of the fitted wheel radius (the ground speed the robot's wheel has),
-    and its wheel speeds are compared with the measured ones in the same unit. The simulator's
-    speed profile, though, ramps in the units of 21 mm wheels while the firmware's ramps the
-    wheels' turning: on wheels 1 % larger than 21 mm the real ground acceleration is 1 % higher
-    than the simulated one, and the lag fitted here makes up for part of it (the sim-to-real page
-    notes it). The replays run on an open floor: the drive is measured without contacts.
+    and its wheel speeds are compared with the measured ones in the same unit. The replays run
+    on an open floor: the drive is measured without contacts.
     """
 
     def __init__(
@@ -81,12 +97,12 @@ class DriveFit:
         wheel_radius: float,
         base: Mapping[str, Any],
         progress: Progress,
+        speed_noise: float | None = None,
     ) -> None:
         self.logs = list(logs)
         self.wheel_radius = wheel_radius
         self.base = dict(base)
         self.progress = progress
-        self.sigma = 3.0
         head = self.logs[0].metadata
         self.mode = head["motors"]
         self.profile = {
@@ -101,6 +117,33 @@ class DriveFit:
             "spawn.start": [0.0, 0.0, 0.0],
             "spawn.goal": [-9.0, -9.0],
         }
+        self.noise = self._plateau_noise()
+        if speed_noise is not None:
+            self.noise = dataclasses.replace(self.noise, sigma=speed_noise, source="as given")
+        self.rows = [np.arange(len(log)) > 0 for log in self.logs]
+        self.labels = np.concatenate(
+            [np.repeat(blocks(log, 100000 * k)[1:], 2) for k, log in enumerate(self.logs)]
+        )
+        self.expected = np.ones(len(self.labels))
+        self.step, self.dt, self.substeps = self._step()
+
+    def _plateau_noise(self) -> Noise:
+        """The measured speeds' spread where the command has held long enough for the wheels
+        to reach it (each plateau and wheel its own level)."""
+        values, groups = [], []
+        for k, log in enumerate(self.logs):
+            inc = max(self.profile["acc_inc"], 1) if self.mode == "profile" else 1000
+            ramp = 1200.0 / inc * 0.01 * (self.profile["acc_div"] + 1)
+            settle = max(1, math.ceil((min(ramp, 2.0) + _SETTLE_S) / log.period))
+            rows = plateau_rows(log.commands, log.phases, settle)
+            labels = blocks(log, 100000 * k)
+            for wheel in (0, 1):
+                values.append(log.speeds[rows, wheel])
+                groups.append(labels[rows] * 2 + wheel)
+        noise, _ = robust_noise(
+            np.concatenate(values), np.concatenate(groups), "the wheel speeds on the steps"
+        )
+        return noise
 
     def _overrides(self, accel: float, tau: float) -> dict[str, Any]:
         drive: dict[str, Any] = {"motors.mode": self.mode, "robot.motor_time_constant": tau}
@@ -122,56 +165,102 @@ class DriveFit:
         return found
 
     def channel(self, accel: float, tau: float) -> npt.NDArray[np.float64]:
-        """Unweighted residuals: measured minus simulated wheel speeds (speed units)."""
+        """Unweighted residuals: measured minus simulated wheel speeds (speed units), of the
+        rows chosen (all but the first; outliers set aside)."""
         unit = rp.speed_unit(self.wheel_radius)
         found = []
-        for log, replay in zip(self.logs, self.replays(accel, tau), strict=True):
-            found.append((log.speeds[1:] - replay.wheel_speeds[1:] / unit).ravel())
+        for log, replay, rows in zip(self.logs, self.replays(accel, tau), self.rows, strict=True):
+            found.append((log.speeds[rows] - replay.wheel_speeds[rows] / unit).ravel())
         return np.concatenate(found)
 
-    def _fit_tau(self, accel: float) -> tuple[float, float, float]:
-        """The best lag for an acceleration: (tau, its uncertainty, chi-square)."""
-        low, high = _TAU_BOUNDS
+    def _set_expected(self, accel: float, tau: float) -> None:
+        """Each residual's expected noise: the plateaus' spread and the simulated speed's
+        change over the time the reading cannot be placed to: the firmware's 10 ms in which it
+        was counted and the one the set point waited for, and the simulator's step."""
+        sigma = max(self.noise.sigma, RESOLUTION) if self.noise.count >= 5 else 1.0
+        unit = rp.speed_unit(self.wheel_radius)
+        found, labels = [], []
+        for k, (log, replay) in enumerate(zip(self.logs, self.replays(accel, tau), strict=True)):
+            speeds = replay.wheel_speeds / unit
+            rate = np.gradient(np.nan_to_num(speeds), axis=0) / row_intervals(log)[:, None]
+            rows = self.rows[k]
+            found.append(expected_sigma(sigma, rate[rows], "speed", step=self.step).ravel())
+            labels.append(np.repeat(blocks(log, 100000 * k)[rows], 2))
+        self.expected = np.concatenate(found)
+        self.labels = np.concatenate(labels)
+
+    def _solve(self, accel: float | None) -> tuple[npt.NDArray[np.float64], Any, Any]:
+        """The best (accel, tau) scaled parameters: the lag for a given acceleration (profile)
+        or both (speed mode); returns (values, result, scales)."""
+        if accel is not None:
+            start, scale = np.array([_TAU_START]), np.array([_TAU_SCALE])
+            low, high = np.array([_TAU_BOUNDS[0]]), np.array([_TAU_BOUNDS[1]])
+
+            def unpack(v: npt.NDArray[np.float64]) -> tuple[float, float]:
+                return accel, float(v[0])
+        else:
+            start, scale = np.array([SPEED_MODE_ACCEL, _TAU_START]), np.array([0.5, _TAU_SCALE])
+            low, high = np.array([0.05, _TAU_BOUNDS[0]]), np.array([20.0, _TAU_BOUNDS[1]])
+
+            def unpack(v: npt.NDArray[np.float64]) -> tuple[float, float]:
+                return float(v[0]), float(v[1])
+
         result = solve_scaled(
-            lambda z: self.channel(accel, _TAU_START + z[0] * _TAU_SCALE) / self.sigma,
-            np.zeros(1),
-            np.array([(low - _TAU_START) / _TAU_SCALE]),
-            np.array([(high - _TAU_START) / _TAU_SCALE]),
+            lambda z: self.channel(*unpack(start + z * scale)) / self.expected,
+            np.zeros(len(start)),
+            (low - start) / scale,
+            (high - start) / scale,
         )
-        covariance, _ = fit_covariance(result.jac, result.fun)
-        tau = _TAU_START + float(result.x[0]) * _TAU_SCALE
-        return tau, math.sqrt(float(covariance[0, 0])) * _TAU_SCALE, float(2 * result.cost)
+        values = start + result.x * scale
+        self.progress.replayed(float(2 * result.cost))
+        return values, result, (scale, low, high, unpack)
 
     def fit(self) -> DriveResult:
         profile_chi2: dict[int, float] = {}
         fitted_acc_inc = (math.nan, math.nan)
-        for _ in range(2):
-            if self.mode == "profile":
-                fitted_acc_inc = self._scan_profile(profile_chi2)
-                accel = float(self.profile["acc_inc"])
-                accel_sigma = math.nan
-                tau, tau_sigma, chi2 = self._fit_tau(accel)
-            else:
-                start = np.array([SPEED_MODE_ACCEL, _TAU_START])
-                scale = np.array([0.5, _TAU_SCALE])
-                result = solve_scaled(
-                    lambda z, start=start, scale=scale: (
-                        self.channel(*(start + z * scale)) / self.sigma
-                    ),
-                    np.zeros(2),
-                    (np.array([0.05, _TAU_BOUNDS[0]]) - start) / scale,
-                    (np.array([20.0, _TAU_BOUNDS[1]]) - start) / scale,
-                )
-                accel, tau = (float(v) for v in start + result.x * scale)
-                chi2 = float(2 * result.cost)
-                covariance, _ = fit_covariance(result.jac, result.fun)
-                errors = np.sqrt(np.diag(covariance)) * scale
-                accel_sigma, tau_sigma = float(errors[0]), float(errors[1])
-            self.progress.replayed(chi2)
-            residuals = self.channel(accel, tau)
-            self.sigma = max(float(np.std(residuals)), 0.3)
-        noise, _ = residual_noise(residuals, 1.0 / 12.0)
-        dof = max(len(residuals) - 2, 1)
+        accel = float(self.profile["acc_inc"]) if self.mode == "profile" else SPEED_MODE_ACCEL
+        self._set_expected(accel, _TAU_START)
+        outliers = 0
+        for attempt in range(2):
+            given = float(self.profile["acc_inc"]) if self.mode == "profile" else None
+            values, result, (scale, low, high, unpack) = self._solve(given)
+            accel, tau = unpack(values)
+            self._set_expected(accel, tau)
+            if attempt == 0:
+                outliers = self._drop_outliers(accel, tau)
+        if self.mode == "profile":
+            fitted_acc_inc = self._scan_profile(profile_chi2)
+        residuals = self.channel(accel, tau)
+        weighted = residuals / self.expected
+        spread = uncertainty(result.jac, weighted, self.labels)
+        # The rows at each time after a command changed pull the lag their own way where the
+        # simulator cannot follow the robot's ramp: a jackknife over those times too.
+        after = uncertainty(result.jac, weighted, self._since_change())
+        sigmas = []
+        for j in range(len(values)):
+            stat = float(spread.stat[j]) * scale[j]
+            sys = max(float(spread.sys[j]), float(after.sys[j])) * scale[j]
+            sigmas.append((math.hypot(stat, sys), stat, sys))
+        bounds = [
+            abs(values[j] - low[j]) < 1e-3 * scale[j] or abs(high[j] - values[j]) < 1e-3 * scale[j]
+            for j in range(len(values))
+        ]
+        step, dt, substeps = self.step, self.dt, self.substeps
+        tau_estimate = Estimate(
+            "robot.motor_time_constant",
+            tau,
+            *sigmas[-1][:1],
+            "s",
+            f"the simulator's effective lag at its step of {step * 1000:g} ms (physics.dt "
+            f"{dt:g} s, {substeps} substeps): the logged wheel speeds against the replay of the "
+            "logged commands. It holds the motors' lag and what the simulator leaves out (the "
+            "firmware's 10 ms tick, the read latency, the speed counted over 10 ms, its own "
+            "step): fit again for another physics.dt or physics.substeps",
+            sigmas[-1][1],
+            sigmas[-1][2],
+        )
+        if bounds[-1]:
+            tau_estimate.flags.append("at the search's bound: the logs push it beyond")
         if self.mode == "profile":
             value, sigma = fitted_acc_inc
             accel_estimate = Estimate(
@@ -186,27 +275,68 @@ class DriveFit:
             accel_estimate = Estimate(
                 "motors.speed_accel",
                 accel,
-                accel_sigma,
+                sigmas[0][0],
                 "m/s²",
                 "the measured wheel speeds against the replay (speed mode)",
+                sigmas[0][1],
+                sigmas[0][2],
             )
+            if bounds[0]:
+                accel_estimate.flags.append("at the search's bound: the logs push it beyond")
+        dof = max(len(weighted) - len(values), 1)
         return DriveResult(
             mode=self.mode,
             accel=accel_estimate,
-            motor_time_constant=Estimate(
-                "robot.motor_time_constant",
-                tau,
-                tau_sigma,
-                "s",
-                "the measured wheel speeds against the replay (steps and turns)",
-            ),
+            motor_time_constant=tau_estimate,
             replays=self.replays(accel, tau),
             residuals=residuals,
-            speed_noise=noise,
-            chi2=float(residuals @ residuals) / (self.sigma**2) / dof,
+            expected=self.expected,
+            noise=self.noise,
+            outliers=outliers,
+            chi2=float(weighted @ weighted) / dof,
             fitted_acc_inc=fitted_acc_inc,
             profile=dict(sorted(profile_chi2.items())),
+            step=step,
+            dt=dt,
+            substeps=substeps,
         )
+
+    def _since_change(self) -> npt.NDArray[np.int64]:
+        """Per residual: the rows since its log's command last changed (1 to 8, then 9 for
+        the rest), the labels of the jackknife over the time after a change."""
+        found = []
+        for log, rows in zip(self.logs, self.rows, strict=True):
+            since = np.zeros(len(log), dtype=np.int64)
+            for row in range(1, len(log)):
+                same = np.all(log.commands[row - 1] == log.commands[max(row - 2, 0)])
+                since[row] = since[row - 1] + 1 if same and row > 1 else 1
+            found.append(np.repeat(np.minimum(since, 9)[rows], 2))
+        return np.concatenate(found)
+
+    def _drop_outliers(self, accel: float, tau: float) -> int:
+        """Sets aside the rows whose residual is beyond :data:`OUTLIER_SIGMA` expected widths
+        (either wheel); returns how many readings."""
+        weighted = np.abs(self.channel(accel, tau) / self.expected).reshape(-1, 2)
+        bad = np.any(weighted > OUTLIER_SIGMA, axis=1)
+        if bad.sum() > OUTLIER_SHARE * len(bad):
+            # Too many to be spikes: the model is wrong, which the goodness of fit must see.
+            return 0
+        start = 0
+        for k, rows in enumerate(self.rows):
+            count = int(rows.sum())
+            chosen = np.nonzero(rows)[0]
+            self.rows[k] = rows.copy()
+            self.rows[k][chosen[bad[start : start + count]]] = False
+            start += count
+        self._set_expected(accel, tau)
+        return int(2 * bad.sum())
+
+    def _step(self) -> tuple[float, float, int]:
+        """The simulator's physics step (s), its dt and substeps, as the replays ran."""
+        replay = self.replays(float(self.profile["acc_inc"]) or SPEED_MODE_ACCEL, _TAU_START)[0]
+        physics = tomllib.loads(replay.scenario)["physics"]
+        dt, substeps = float(physics["dt"]), int(physics["substeps"])
+        return dt / substeps, dt, substeps
 
     def _scan_profile(self, chi2s: dict[int, float]) -> tuple[float, float]:
         """The acc_inc the measured speeds follow best: whole values tried from the program's,
@@ -216,7 +346,8 @@ class DriveFit:
 
         def at(units: int) -> float:
             if units not in chi2s:
-                chi2s[units] = self._fit_tau(float(units))[2]
+                _, result, _ = self._solve(float(units))
+                chi2s[units] = float(2 * result.cost)
             return chi2s[units]
 
         best = min(255, max(1, self.profile["acc_inc"]))

@@ -1,38 +1,42 @@
 """The fit of ``khepera-gym calibrate``: the simulator's parameters that make it replay the
-calibration logs as the robot ran them, with their uncertainties.
+calibration logs as the robot ran them, with uncertainties that hold when the simulator is not
+the robot, and a verdict that can say the fit failed.
 
-Two stages, each a nonlinear least-squares problem solved with :func:`scipy.optimize.
-least_squares` on residuals that are replays of the logs through the simulator
-(:mod:`~khepera_gym.calibrate.replay`), weighted by each channel's noise:
+Two stages, each nonlinear least squares (:func:`scipy.optimize.least_squares`) on residuals
+that are replays of the logs through the simulator (:mod:`~khepera_gym.calibrate.replay`, on
+the logged times, :mod:`~khepera_gym.calibrate.timing`):
 
-1. **The geometry and the sensors**, from the path the encoders measured
-   (:func:`~khepera_gym.calibrate.replay.odometry_replay`): the wheel radius, the axle, the
-   gyroscope's bias, the infrared response (K-Team's curve scaled by a gain in value and a factor
-   in distance, and the floor value) and the ultrasonic offset. The gyroscope's yaw rate against
-   the encoders' gives the axle relative to the wheels; the wall, whose gap at the start the
-   user measured, gives the wheel radius: through the gap measured at the end of the approach
-   (if given), the ultrasonic sensor and the infrared curve against the distance the encoders
-   travelled.
-2. **The drive**, from the wheel speeds the robot measured while the simulator is driven by the
-   logged commands (:func:`~khepera_gym.calibrate.replay.command_replay`): the motors' lag
-   (``robot.motor_time_constant``) and the acceleration of the mode the program set. In profile
-   mode the firmware takes whole ``acc_inc`` units: each neighbouring whole value is tried with
-   its best lag, and the best one kept (a profile likelihood); in speed mode
-   ``motors.speed_accel`` is fitted with the lag.
+1. **The geometry and the sensors** (:mod:`~khepera_gym.calibrate.geometry`), along the path
+   the encoders measured (:func:`~khepera_gym.calibrate.replay.odometry_replay`). First the
+   wheel radius, the axle, the gyroscope's bias and the ultrasonic offset: the gyroscope's yaw
+   rate against the encoders' gives the axle relative to the wheels; the wall, whose gap at the
+   start the user measured, gives the wheel radius through the gap measured at the end of the
+   approach and the ultrasonic sensor against the distance the encoders travelled. Then the
+   infrared curve, each of its 16 points free (:mod:`~khepera_gym.calibrate.ir_curve`), and the
+   floor value, read at the distances that geometry gives: a curve of another shape than
+   K-Team's cannot pull the radius, and the radius's uncertainty is carried into the curve.
+2. **The drive** (:mod:`~khepera_gym.calibrate.drive_fit`), from the wheel speeds the robot
+   measured while the simulator is driven by the logged commands
+   (:func:`~khepera_gym.calibrate.replay.command_replay`): the simulator's effective lag at its
+   step (``robot.motor_time_constant``) and, in speed mode, ``motors.speed_accel``; in profile
+   mode the firmware's ``acc_inc`` is the program's, and the one the speeds follow best is shown
+   as a check.
 
-Each stage is solved twice: first with the simulator's default noise as weights, then with each
-channel's noise measured from the first fit's residuals; the noise keys of the scenario
-(``gyro_noise_sigma``, ``ir_noise_sigma``, ``us_noise_sigma``) are those measurements, corrected
-for the logs' and the simulator's rounding to whole counts. The uncertainty of each value is the
-linearised one at the optimum: the covariance ``s² (JᵀJ)⁻¹`` of the weighted residuals'
-Jacobian J, with s² their reduced chi-square; for ``acc_inc`` the curvature of the profile.
+Every residual is weighted by its channel's *expected* noise, measured in the log where nothing
+changes (:mod:`~khepera_gym.calibrate.noise`: the gyroscope at rest, the infrared sensors seeing
+nothing, the ultrasonic sensor at rest, the wheel speeds on the steps' plateaus), plus what the
+sensor's own period leaves unknown; readings beyond five of those widths are set aside and
+counted. The noise keys written are those measurements. Each value's uncertainty has a
+statistical part (that noise carried through the fit) and a systematic part (how far the
+manoeuvre's parts disagree, a jackknife over its blocks: :mod:`~khepera_gym.calibrate.
+uncertainty`); a value the logs cannot tell better than the real robots' spread is "not
+identified" and keeps its nominal value. Each channel's residuals are then compared with their
+expected noise (:mod:`~khepera_gym.calibrate.goodness`).
 
-What is assumed (the sim-to-real page states it too): the wall's gap at the start is exact (a
-ruler, ±1 mm), the final gap is measured to ±1 mm per reading, the gyroscope's scale is exact,
-the infrared curve has K-Team's shape, the wall is flat, white and the only thing within reach.
-
-Stage 1 is :mod:`~khepera_gym.calibrate.geometry`, stage 2 :mod:`~khepera_gym.calibrate.drive_fit`,
-both on :mod:`~khepera_gym.calibrate.solver`; this module runs them in turn (:func:`calibrate`).
+What is assumed (the sim-to-real page states it too): the wall's gap at the start is measured
+with a ruler (±1 mm), the final gap likewise, the gyroscope's scale is exact, all eight
+infrared sensors share one curve, the wall is flat, white and the only thing within reach, the
+wheels do not slip.
 
 Units: SI for every value written; counts, speed units and cm for the residuals.
 Threading: the calling thread; a progress bar (tqdm) on standard error.
@@ -46,8 +50,10 @@ from typing import Any
 
 from khepera_gym.calibrate.drive_fit import DriveFit, DriveResult
 from khepera_gym.calibrate.geometry import RULER_SIGMA, WALL_PHASES, GeometryFit, GeometryResult
+from khepera_gym.calibrate.goodness import Goodness, channel_fit
 from khepera_gym.calibrate.logformat import RobotLog
 from khepera_gym.calibrate.solver import CALIBRATE_EXTRA, Estimate, Progress, scipy_least_squares
+from khepera_gym.calibrate.timing import TimeGap, time_gaps
 from khepera_gym.errors import ConfigError
 
 # --------------------------------------------------------------------------------------------
@@ -64,6 +70,26 @@ class Calibration:
     #: The drive the programs set (from the logs' headers).
     motors: dict[str, Any]
     period: float
+    #: Each channel's residuals against its expected noise.
+    goodness: Goodness
+    #: Per log: the intervals of its time column longer than 1.5 periods.
+    gaps: list[list[TimeGap]]
+
+    def warnings(self) -> list[str]:
+        """What the report must flag: time gaps, outliers, values not identified or at a
+        bound of the search, changes made to write a value."""
+        found = []
+        for log, gaps in zip(self.logs, self.gaps, strict=True):
+            found += [f"{log.name}: time gap at {g.describe(log.period)}" for g in gaps]
+        for channel in self.goodness.channels:
+            if channel.outliers:
+                found.append(
+                    f"{channel.name}: {channel.outliers} reading(s) beyond five times the "
+                    "expected noise set aside (outliers)"
+                )
+        for estimate in self.estimates():
+            found += [f"{estimate.key}: {flag}" for flag in estimate.flags]
+        return found
 
     def estimates(self) -> list[Estimate]:
         """Every value with a scenario key, in the order the TOML lists them."""
@@ -147,7 +173,41 @@ def calibrate(
         "mode": head["motors"],
         **{k: int(head[k]) for k in ("acc_inc", "acc_div", "min_speed_acc", "min_speed_dec")},
     }
-    return Calibration(geometry, drive, list(logs), motors, logs[0].period)
+    return Calibration(
+        geometry,
+        drive,
+        list(logs),
+        motors,
+        logs[0].period,
+        goodness(geometry, drive),
+        [time_gaps(log) for log in logs],
+    )
+
+
+def goodness(geometry: GeometryResult, drive: DriveResult) -> Goodness:
+    """Every channel's residuals against its expected noise."""
+    g = geometry
+    return Goodness(
+        (
+            channel_fit(
+                "gyroscope",
+                g.residuals["gyro"],
+                g.expected["gyro"],
+                "°/s",
+                g.outliers.get("gyro", 0),
+            ),
+            channel_fit(
+                "infrared", g.residuals["ir"], g.expected["ir"], "raw", g.outliers.get("ir", 0)
+            ),
+            channel_fit(
+                "ultrasonic", g.residuals["us"], g.expected["us"], "m", g.outliers.get("us", 0)
+            ),
+            channel_fit("final gap", g.residuals["gap"], g.expected["gap"], "m"),
+            channel_fit(
+                "wheel speeds", drive.residuals, drive.expected, "speed units", drive.outliers
+            ),
+        )
+    )
 
 
 __all__ = [
@@ -163,4 +223,5 @@ __all__ = [
     "Progress",
     "calibrate",
     "check_logs",
+    "goodness",
 ]

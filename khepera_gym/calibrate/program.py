@@ -76,13 +76,17 @@ def _phase_row(phase: schedule.Phase) -> str:
     if phase.kind == "timed":
         what = f"{phase.seconds:g} s"
     elif phase.kind == "approach":
-        what = f"until IR front ≥ {phase.limit:g} or {schedule.APPROACH_MARGIN_M * 1000:g} mm left"
+        what = (
+            f"until IR front ≥ {phase.limit:g} ({schedule.APPROACH_DEBOUNCE} rows) or "
+            f"{schedule.APPROACH_CLEARANCE_M * 1000:g} mm left for wheels "
+            f"{schedule.RADIUS_TOLERANCE:.0%} larger"
+        )
     elif phase.kind == "spin":
         what = f"until {phase.limit / (2 * math.pi):g} turns"
     elif phase.kind == "return":
         what = "until back at the approach's start"
     else:
-        what = "asks for the measured gap (no rows)"
+        what = "asks for the measured gap (one row: the pause)"
     return f"| `{phase.name}` | {phase.kind} | {phase.left}, {phase.right} | {what} |"
 
 
@@ -138,7 +142,15 @@ def write_calibration_program(
         "metres_per_pulse": c_double(metres_per_pulse(wheel_radius)),
         "imu_samples": imu_samples(period),
         "front_ir": schedule.FRONT_IR,
-        "approach_margin": c_double(schedule.APPROACH_MARGIN_M),
+        "front_us": schedule.FRONT_US,
+        "approach_slow_units": schedule.APPROACH_SLOW_UNITS,
+        "approach_slow_ir": schedule.APPROACH_SLOW_IR,
+        "approach_slow_gap": c_double(schedule.APPROACH_SLOW_GAP_M),
+        "approach_debounce": schedule.APPROACH_DEBOUNCE,
+        "approach_clearance": c_double(schedule.APPROACH_CLEARANCE_M),
+        "radius_tolerance": c_double(schedule.RADIUS_TOLERANCE),
+        "us_tolerance": c_double(schedule.US_TOLERANCE_M),
+        "us_min": c_double(schedule.US_MIN_M),
         "max_wall_distance": c_double(MAX_WALL_DISTANCE_M),
         "motor_note": wrap_comment("The motor controller: " + motors.note + ".", ""),
         "motor_text": motors.call().replace('"', "'"),
@@ -164,7 +176,11 @@ def write_calibration_program(
         "period_ms": f"{period * 1000:g}",
         "approach_mm_s": f"{schedule.APPROACH_UNITS * schedule.SPEED_UNIT * 1000:.0f}",
         "stop_ir": schedule.APPROACH_STOP_IR,
-        "margin_mm": f"{schedule.APPROACH_MARGIN_M * 1000:g}",
+        "slow_mm_s": f"{schedule.APPROACH_SLOW_UNITS * schedule.SPEED_UNIT * 1000:.0f}",
+        "debounce": schedule.APPROACH_DEBOUNCE,
+        "clearance_mm": f"{schedule.APPROACH_CLEARANCE_M * 1000:g}",
+        "radius_tolerance": f"{schedule.RADIUS_TOLERANCE:.0%}",
+        "us_tolerance_cm": f"{schedule.US_TOLERANCE_M * 100:g}",
         "spin_turns": f"{schedule.SPIN_TURNS:g}",
         "minutes": f"{math.ceil(seconds / 60)}",
         "phase_table": "\n".join(_phase_row(phase) for phase in phases),

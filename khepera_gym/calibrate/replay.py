@@ -10,9 +10,11 @@
   response curve makes the infrared ring report each ray's distance to the millimetre; the
   gyroscope reports the yaw rate of that path. Used to fit the geometry and the sensors.
 
-Row k of a log holds the readings taken at the start of control step k and the command sent
-then; the simulator's step k takes that command, and its readings after the step belong to row
-k + 1 (row 0's are those of the reset).
+Row k of a log holds the readings taken at the start of a control step and the command sent
+then. Both replays step the simulator on the logged times (:mod:`~khepera_gym.calibrate.
+timing`): row k stands for step n_k, its command is held until the next row's step, and the
+readings after those steps belong to row k + 1 (row 0's are those of the reset); a missing row
+or the user's pause leaves the simulator several steps between two rows.
 
 The calibration scene (:func:`calibration_scene`): an open floor, the robot at the origin facing
 +x, a white wall (a fixed segment of reflectance 1) across its path at the logged gap.
@@ -31,7 +33,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from khepera_gym.calibrate.divergence import (
+    DIVERGENCE_TIMES,
+    Divergence,
+    PhaseDivergence,
+    phase_divergences,
+    time_divergences,
+)
 from khepera_gym.calibrate.logformat import RobotLog
+from khepera_gym.calibrate.timing import row_intervals, row_steps
 from khepera_gym.config import make_batch, tomllib
 from khepera_gym.errors import ConfigError
 
@@ -151,14 +161,17 @@ def _empty(rows: int, width: int | None = None) -> npt.NDArray[np.float64]:
 
 
 def _run(
-    rows: int,
+    steps: npt.NDArray[np.int64],
     overrides: Mapping[str, Any],
-    speeds_of_step: npt.NDArray[np.float64],
+    speeds_of_row: npt.NDArray[np.float64],
     seed: int,
     config: str | None = None,
     task: str = REPLAY_TASK,
 ) -> Replay:
-    """Steps a one-world batch with wheel speeds (m/s) given per step, recording every row."""
+    """Steps a one-world batch with wheel speeds (m/s) given per row, each held from its row's
+    step to the next row's (:func:`~khepera_gym.calibrate.timing.row_steps`), recording every
+    row."""
+    rows = len(steps)
     batch = make_batch(task, 1, config, dict(overrides), autoreset=False, num_threads=1)
     scenario = batch.config_toml()
     max_speed = _max_wheel_speed(scenario)
@@ -175,10 +188,15 @@ def _run(
     batch.reset(seed)
     replay.scene = dict(batch.scene(0))
     action = np.zeros((1, 2), np.float32)
+    ended = False
     for row in range(rows):
         if row > 0:
-            action[0] = speeds_of_step[row - 1] / max_speed
-            _, _, terminated, truncated = batch.step(action)
+            action[0] = speeds_of_row[row - 1] / max_speed
+            for _ in range(int(steps[row] - steps[row - 1])):
+                _, _, terminated, truncated = batch.step(action)
+                ended = bool(terminated[0] or truncated[0])
+                if ended:
+                    break
         readings = batch.sensor_readings()
         replay.poses[row] = batch.poses()[0, 0]
         replay.wheel_speeds[row] = readings["wheel_speeds"][0, 0]
@@ -189,7 +207,7 @@ def _run(
         if "us_cm" in readings:
             replay.us[row] = readings["us_cm"][0, 0]
         replay.rows_replayed = row + 1
-        if row > 0 and (terminated[0] or truncated[0]):
+        if ended:
             break
     return replay
 
@@ -222,9 +240,10 @@ def command_replay(
         task: The task of the scenario.
         carry: The sensors simulated (the others' readings are NaN).
     """
-    settings = {**replay_settings(len(log), log.period, carry), **overrides}
+    steps = row_steps(log)
+    settings = {**replay_settings(int(steps[-1]) + 1, log.period, carry), **overrides}
     speeds = log.commands * speed_unit(wheel_radius)
-    return _run(len(log), settings, speeds, seed, config, task)
+    return _run(steps, settings, speeds, seed, config, task)
 
 
 def probe_curve(range_m: float, slope: float) -> list[float]:
@@ -257,7 +276,8 @@ class PathReplay:
     #: (rows, 8): each infrared ray's distance to what it meets (m), NaN beyond 0.25 m,
     #: to 0.25 mm.
     ir_distance: npt.NDArray[np.float64]
-    #: (rows,): the path's yaw rate over the step before each row, in gyroscope counts
+    #: (rows,): the path's yaw rate over the interval before each row (its logged time), in
+    #: gyroscope counts
     #: (0.066 °/s), unrounded: what a noise-free, unbiased gyroscope reads (the simulated one
     #: rounds it to whole counts); 0 at row 0.
     gyro_z: npt.NDArray[np.float64]
@@ -286,11 +306,12 @@ def odometry_replay(
         wheel_radius: Candidate wheel radius (m).
         axle_length: Candidate axle length (m).
     """
+    steps = row_steps(log)
     travel = np.diff(log.encoders, axis=0) * metres_per_pulse(wheel_radius)
-    speeds = travel / log.period
+    speeds = travel / (np.diff(steps)[:, None] * log.period)
     peak = float(np.max(np.abs(speeds))) if len(speeds) else 0.0
     path = {
-        **replay_settings(len(log), log.period, ("ir", "gyro")),
+        **replay_settings(int(steps[-1]) + 1, log.period, ("ir", "gyro")),
         **overrides,
         "physics.drive": "kinematic",
         "motors.mode": "ramp",
@@ -304,11 +325,11 @@ def odometry_replay(
         "sensors.gyro_bias": 0.0,
         **_probe(*FINE_PROBE),
     }
-    fine = _run(len(log), path, speeds, 0)
+    fine = _run(steps, path, speeds, 0)
     turn = np.diff(np.unwrap(fine.poses[:, 2]), prepend=fine.poses[0, 2])
     return PathReplay(
         ir_distance=probe_distance(fine.ir, *FINE_PROBE),
-        gyro_z=np.degrees(turn / log.period) / GYRO_DEG_S_PER_COUNT,
+        gyro_z=np.degrees(turn / row_intervals(log)) / GYRO_DEG_S_PER_COUNT,
         poses=fine.poses,
     )
 
@@ -404,22 +425,6 @@ def scenario_start(scenario: str) -> tuple[float, float, float]:
     )
 
 
-#: When ``khepera-gym replay`` measures how far the simulated robot has gone from the logged
-#: one (s after the start).
-DIVERGENCE_TIMES = (1.0, 5.0, 10.0)
-
-
-@dataclasses.dataclass(frozen=True)
-class Divergence:
-    """How far the simulated robot is from the logged one ``time`` s after the start: the
-    distance between their positions (m) and the difference of their headings (rad); NaN when
-    the log is shorter."""
-
-    time: float
-    position: float
-    heading: float
-
-
 @dataclasses.dataclass
 class ReplayComparison:
     """A log and its command replay, side by side (``khepera-gym replay``)."""
@@ -429,7 +434,10 @@ class ReplayComparison:
     #: (rows, 3): the logged run's path by odometry (its encoders, the scenario's wheel radius
     #: and axle), in the scenario's world frame from its start pose.
     logged_path: npt.NDArray[np.float64]
+    #: After 1, 5 and 10 s (:data:`DIVERGENCE_TIMES`).
     divergences: list[Divergence]
+    #: Over each moving phase (a calibration log's; empty for a policy's).
+    phase_divergences: list[PhaseDivergence]
     #: The scenario's wheel radius (m): speed units to m/s.
     wheel_radius: float
     #: RMS of the measured minus the simulated wheel speeds (speed units).
@@ -478,15 +486,12 @@ def compare_with_simulator(
     start = scenario_start(probe.config_toml())
     result = command_replay(log, overrides, wheel_radius, seed=seed, config=config, task=task)
     path = to_world(odometry_path(log.encoders, wheel_radius, axle_length), start)
-    divergences = []
-    for time in DIVERGENCE_TIMES:
-        row = round(float(time / log.period))
-        if row >= result.rows_replayed:
-            divergences.append(Divergence(time, math.nan, math.nan))
-            continue
-        gap = float(np.hypot(*(path[row, :2] - result.poses[row, :2])))
-        turn = float(np.angle(np.exp(1j * (path[row, 2] - result.poses[row, 2]))))
-        divergences.append(Divergence(time, gap, turn))
+    divergences = time_divergences(log, path, result.poses, result.rows_replayed)
+    phases = (
+        phase_divergences(log, path, result.poses, result.rows_replayed)
+        if log.program == "calibrate"
+        else []
+    )
     unit = speed_unit(wheel_radius)
     speed_error = log.speeds[1:] - result.wheel_speeds[1:] / unit
     ir_error = log.ir - result.ir
@@ -495,6 +500,7 @@ def compare_with_simulator(
         replay=result,
         logged_path=path,
         divergences=divergences,
+        phase_divergences=phases,
         wheel_radius=wheel_radius,
         wheel_rms=float(np.sqrt(np.nanmean(speed_error**2))),
         ir_rms=float(np.sqrt(np.nanmean(ir_error**2))),
@@ -515,6 +521,7 @@ __all__ = [
     "SPEED_UNIT",
     "Divergence",
     "PathReplay",
+    "PhaseDivergence",
     "Replay",
     "ReplayComparison",
     "calibration_scene",

@@ -9,13 +9,17 @@
 * ``ir.png``: the infrared readings near the wall against their distance (by the encoders), the
   fitted curve and K-Team's, and the residuals against distance;
 * ``us.png``: the front ultrasonic sensor against the wall's distance, with the fitted offset;
-* ``report.json`` and ``report.md``: every value with its uncertainty, each channel's residuals
-  (count, RMS, noise), the fits' reduced chi-square and the profile's scan, with where they come
-  from (date, commit, machine, command).
+* ``report.json`` and ``report.md``: the verdict (a poor fit says so first), every value with
+  its uncertainty and its statistical and systematic parts ("not identified" where the logs
+  cannot tell), each channel's residuals against the noise the log shows where nothing changes
+  (count, RMS, reduced chi-square and where it becomes poor, the runs test and the lag-1
+  autocorrelation of structure, outliers), the step the drive was fitted at, the warnings (time
+  gaps, outliers, values at a bound of the search or not identified, changes made to write a
+  value) and the profile's scan, with where they come from (date, commit, machine, command).
 
 :func:`write_replay_report` writes ``replay.png`` (the trajectory by odometry against the
 simulated one, the wheel speeds and the infrared readings over time) and ``replay.json`` (the
-divergence after 1, 5 and 10 s).
+divergence after 1, 5 and 10 s and, for a calibration log, over each moving phase).
 
 Figures are built with matplotlib's object-oriented API (no display needed). Units: as the
 logs' for readings; m, s, °/s in the plots' axes. Threading: the calling thread.
@@ -33,6 +37,7 @@ from matplotlib.figure import Figure
 
 import khepera_gym.calibrate.replay as rp
 from khepera_gym.calibrate.fit import WALL_PHASES, Calibration, Estimate
+from khepera_gym.calibrate.goodness import ChannelFit
 from khepera_gym.calibrate.scenario import table_rows
 from khepera_gym.plot import plot_trajectories
 from khepera_gym.provenance import provenance
@@ -57,40 +62,77 @@ def _estimate_dict(estimate: Estimate) -> dict[str, Any]:
         "key": estimate.key,
         "value": clean(estimate.value),
         "sigma": clean(estimate.sigma),
+        "sigma_stat": clean(estimate.sigma_stat),
+        "sigma_sys": clean(estimate.sigma_sys),
+        "identified": estimate.identified,
         "unit": estimate.unit,
         "how": estimate.how,
+        "flags": list(estimate.flags),
     }
 
 
-def _channel(residuals: np.ndarray, noise: float | None = None) -> dict[str, Any]:
+def _channel(channel: ChannelFit, residuals: np.ndarray) -> dict[str, Any]:
     residuals = residuals[np.isfinite(residuals)]
     return {
-        "count": len(residuals),
+        "count": channel.count,
         "mean": _finite(float(np.mean(residuals))) if len(residuals) else None,
-        "rms": _finite(float(np.sqrt(np.mean(residuals**2)))) if len(residuals) else None,
-        **({"noise": _finite(noise)} if noise is not None else {}),
+        "rms": _finite(channel.rms),
+        "expected_rms": _finite(channel.expected),
+        "reduced_chi2": _finite(channel.chi2),
+        "poor_above": _finite(channel.limit),
+        "runs_z": _finite(channel.runs_z),
+        "lag1": _finite(channel.lag1),
+        "outliers": channel.outliers,
+        "verdict": channel.verdict(),
     }
+
+
+#: The report's names of the channels, with the residuals each holds.
+CHANNELS = {
+    "gyroscope": "gyro_deg_s",
+    "infrared": "ir_raw",
+    "ultrasonic": "us_m",
+    "final gap": "wall_gap_m",
+    "wheel speeds": "wheel_speed_units",
+}
 
 
 def calibration_numbers(calibration: Calibration) -> dict[str, Any]:
     """The report's numbers (JSON-ready)."""
     g, d = calibration.geometry, calibration.drive
+    residuals = {
+        "gyroscope": g.residuals["gyro"],
+        "infrared": g.residuals["ir"],
+        "ultrasonic": g.residuals["us"],
+        "final gap": g.residuals["gap"],
+        "wheel speeds": d.residuals,
+    }
+    noise = {**g.noise, "speed": d.noise}
     return {
         "meta": provenance(),
         "logs": [
             {"file": log.name, "rows": len(log), "metadata": log.metadata}
             for log in calibration.logs
         ],
+        "verdict": "poor" if calibration.goodness.poor else "good",
+        "summary": calibration.goodness.summary(),
         "parameters": [_estimate_dict(e) for e in calibration.estimates()],
         "derived": [_estimate_dict(g.ir_gain), _estimate_dict(g.ir_scale)],
         "residuals": {
-            "gyro_deg_s": _channel(g.residuals["gyro"], float(g.gyro_noise_sigma.value)),
-            "ir_raw": _channel(g.residuals["ir"], float(g.ir_noise_sigma.value)),
-            "us_m": _channel(g.residuals["us"], float(g.us_noise_sigma.value)),
-            "wall_gap_m": _channel(g.residuals["gap"]),
-            "wheel_speed_units": _channel(d.residuals, d.speed_noise),
+            CHANNELS[c.name]: _channel(c, residuals[c.name]) for c in calibration.goodness.channels
         },
-        "reduced_chi2": {"geometry_and_sensors": g.chi2, "drive": d.chi2},
+        "noise_where_nothing_changes": {
+            name: {
+                "sigma": _finite(n.sigma),
+                "error": _finite(n.error),
+                "count": n.count,
+                "outliers": n.outliers,
+                "source": n.source,
+            }
+            for name, n in noise.items()
+        },
+        "drive_fitted_at": {"physics_dt_s": d.dt, "substeps": d.substeps, "step_s": d.step},
+        "warnings": calibration.warnings(),
         "acc_inc_scan_chi2": {str(k): v for k, v in d.profile.items()},
         "motors_set_by_the_program": calibration.motors,
     }
@@ -103,30 +145,38 @@ def _markdown(calibration: Calibration, numbers: dict[str, Any]) -> str:
         f"Logs: {', '.join(log.name for log in calibration.logs)}; "
         f"{numbers['meta']['date']}, khepera_gym {numbers['meta']['khepera_gym']}.",
         "",
-        "| key | value ± standard uncertainty | from |",
+        f"**{numbers['summary']}.**",
+        "",
+        "| key | value ± standard uncertainty (statistical, systematic) | from |",
         "|-----|------------------------------|------|",
     ]
     lines += [f"| `{key}` | {value} | {how} |" for key, value, how in table_rows(calibration)]
     lines += [
         "",
-        "| residuals | count | mean | RMS | noise written |",
-        "|-----------|-------|------|-----|---------------|",
+        "Each channel's residuals against the noise the log shows where nothing changes:",
+        "",
+        "| channel | count | RMS | expected RMS | reduced chi-square (poor above) | runs z | "
+        "lag-1 | outliers | verdict |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
-    for name, channel in numbers["residuals"].items():
-        cells = [
-            f"{channel[k]:.4g}" if isinstance(channel.get(k), float) else "–"
-            for k in ("mean", "rms", "noise")
-        ]
-        lines.append(f"| {name} | {channel['count']} | " + " | ".join(cells) + " |")
-    chi2 = numbers["reduced_chi2"]
+    for channel in calibration.goodness.channels:
+        lines.append(
+            f"| {channel.name} ({channel.unit}) | {channel.count} | {channel.rms:.4g} | "
+            f"{channel.expected:.4g} | {channel.chi2:.3f} ({channel.limit:.2f}) | "
+            f"{channel.runs_z:+.1f} | {channel.lag1:+.2f} | {channel.outliers} | "
+            f"{channel.verdict()} |"
+        )
+    drive = calibration.drive
     lines += [
         "",
-        f"Reduced chi-square: geometry and sensors {chi2['geometry_and_sensors']:.3f}, drive "
-        f"{chi2['drive']:.3f} (near 1 when the simulator explains the logs down to their noise).",
+        f"The drive's lag is the simulator's effective lag at physics.dt {drive.dt:g} s and "
+        f"{drive.substeps} substeps ({drive.step * 1000:g} ms): fit again for another step.",
     ]
     if numbers["acc_inc_scan_chi2"]:
         scan = ", ".join(f"{k}: {v:.1f}" for k, v in numbers["acc_inc_scan_chi2"].items())
         lines.append(f"Chi-square of each whole acc_inc tried (with its best lag): {scan}.")
+    if numbers["warnings"]:
+        lines += ["", "Warnings:", ""] + [f"- {w}" for w in numbers["warnings"]]
     lines += ["", "![drive](drive.png)", "![gyro](gyro.png)", "![ir](ir.png)", "![us](us.png)"]
     return "\n".join(lines) + "\n"
 
@@ -267,6 +317,17 @@ def replay_numbers(comparison: rp.ReplayComparison) -> dict[str, Any]:
                 "heading_rad": _finite(d.heading),
             }
             for d in comparison.divergences
+        ],
+        "phase_divergence": [
+            {
+                "phase": d.phase,
+                "rows": list(d.rows),
+                "travel_m": d.travel,
+                "turn_rad": d.turn,
+                "position_m": _finite(d.position),
+                "heading_rad": _finite(d.heading),
+            }
+            for d in comparison.phase_divergences
         ],
         "wheel_speed_rms_units": _finite(comparison.wheel_rms),
         "ir_rms_raw": _finite(comparison.ir_rms),

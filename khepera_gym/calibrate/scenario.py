@@ -37,6 +37,8 @@ RANGE_KEYS: Mapping[str, float | None] = {
 }
 #: The task whose defaults the file is checked against (every task shares these sections).
 CHECK_TASK = "nav"
+#: How the header states the step the drive was fitted at (``khepera-gym replay`` reads it).
+FITTED_AT = "Fitted at"
 #: The order of the file's sections.
 SECTIONS = ("robot", "motors", "sensors", "physics")
 
@@ -52,10 +54,22 @@ def _number(value: float, sigma: float) -> str:
 
 
 def _sigma_text(estimate: Estimate) -> str:
+    """ "± total (stat ±, sys ±) unit", or "not identified"."""
     sigma = float(estimate.sigma)  # type: ignore[arg-type]
-    if not math.isfinite(sigma):
-        return "± ? (the logs cannot tell)"
-    return f"± {sigma:.2g} {estimate.unit}".rstrip()
+    if estimate.identified is False or not math.isfinite(sigma):
+        return "not identified"
+    text = f"± {sigma:.2g} {estimate.unit}".rstrip()
+    stat, sys = float(estimate.sigma_stat), float(estimate.sigma_sys)  # type: ignore[arg-type]
+    if math.isfinite(stat) and math.isfinite(sys):
+        systematic = f"systematic ± {sys:.2g}" if sys > 0 else "no systematic part found"
+        text += f" (statistical ± {stat:.2g}, {systematic})"
+    return text
+
+
+def _default(key: str) -> Any:
+    """The simulator's default of a scenario key."""
+    section, _, leaf = key.partition(".")
+    return tomllib.loads(_core.default_config(CHECK_TASK))[section][leaf]
 
 
 def _leaf_sections() -> dict[str, str]:
@@ -125,21 +139,36 @@ def calibrated_toml(
     values: dict[str, tuple[Any, str]] = {}
     for key, value in dotted(base or {}).items():
         values[key] = (value, "as given to the fit (--set)")
-    if calibration.period != 0.05:
-        values["physics.dt"] = (calibration.period, "the programs' control period (the logs')")
+    drive = calibration.drive
+    values["physics.dt"] = (calibration.period, "the programs' control period (the logs')")
+    values["physics.substeps"] = (
+        drive.substeps,
+        f"the step ({drive.step * 1000:g} ms) the drive's lag was fitted at: it is an effective "
+        "lag at that step, fit again if you change physics.dt or physics.substeps",
+    )
     motors = calibration.motors
     values["motors.mode"] = (motors["mode"], f"the mode the program set ({motors['mode']})")
     curve_estimate = calibration.geometry.ir_curve
     curve = [round(v, 1) for v in curve_estimate.value]  # type: ignore[union-attr]
+    # The floor is written with its own digits: the curve's 200 mm point, rounded to 0.1, must
+    # stay at or above it (the simulator requires it).
+    floor = calibration.geometry.ir_floor_value
+    if math.isfinite(float(floor.value)):  # type: ignore[arg-type]
+        written = float(_number(float(floor.value), float(floor.sigma)))  # type: ignore[arg-type]
+        curve[-1] = max(curve[-1], math.ceil(written * 10.0) / 10.0)
+        for i in range(len(curve) - 2, -1, -1):
+            curve[i] = max(curve[i], curve[i + 1])
     for estimate in calibration.estimates():
         key = estimate.key
         if key == "sensors.ir_curve":
-            sigmas = ", ".join(f"{s:.1f}" for s in estimate.sigma)  # type: ignore[union-attr]
-            gain, scale = calibration.geometry.ir_gain, calibration.geometry.ir_scale
+            sigmas = ", ".join(
+                f"{s:.1f}" if known else "n.i."
+                for s, known in zip(estimate.sigma, estimate.identified, strict=True)  # type: ignore[arg-type]
+            )
             values[key] = (
                 curve,
-                f"raw; K-Team's curve x {gain.value:.4f} ± {gain.sigma:.2g} in value, its "
-                f"distances x {scale.value:.4f} ± {scale.sigma:.2g}; ± [{sigmas}]",
+                f"raw, each point fitted near the wall; ± [{sigmas}] (n.i.: not identified, "
+                f"extended along K-Team's shape){_flags(estimate)}",
             )
             continue
         if key == "motors.acc_inc":
@@ -154,12 +183,12 @@ def calibrated_toml(
             continue
         value = float(estimate.value)  # type: ignore[arg-type]
         sigma = float(estimate.sigma)  # type: ignore[arg-type]
-        comment = f"{_sigma_text(estimate)}: {estimate.how}"
-        if key == "sensors.ir_floor_value" and value > curve[-1]:
-            comment += (
-                f" (fitted {value:.4g}, above the curve at 0.2 m: the simulator takes no more)"
-            )
-            value = curve[-1]
+        comment = f"{_sigma_text(estimate)}: {estimate.how}{_flags(estimate)}"
+        if not math.isfinite(value):
+            value = float(_default(key))
+            comment = f"the simulator's default, kept: {comment}"
+        elif estimate.identified is False:
+            comment = f"the nominal value, kept: {comment}"
         text = _number(value, sigma)
         if randomise is not None and key in RANGE_KEYS and math.isfinite(sigma):
             least = RANGE_KEYS[key]
@@ -168,6 +197,7 @@ def calibrated_toml(
                 low = max(low, least)
             if key == "sensors.ir_floor_value":
                 high = min(high, curve[-1])
+                low = min(low, high)
             values[key] = (
                 [float(_number(low, sigma)), float(_number(high, sigma))],
                 f"randomised over ± {randomise:g} sigma around {text}; " + comment,
@@ -192,12 +222,33 @@ def calibrated_toml(
         '# fit and what in the logs determined it. Load with config="<this file>" in any env, or',
         "# copy the sections into your scenario. Only the simulator's own keys are written; the",
         "# rest keeps the env's defaults.",
+        f"# {FITTED_AT} physics.dt = {calibration.period!r} s, physics.substeps = "
+        f"{calibration.drive.substeps}",
+        "# (the drive's lag is the simulator's effective one at that step: fit again for another).",
+        f"# Fit: {calibration.goodness.summary()}.",
     ]
     body = []
     for section in lines:
         if lines[section]:
             body += ["", f"[{section}]", *lines[section]]
     return "\n".join(header + body) + "\n"
+
+
+def _flags(estimate: Estimate) -> str:
+    return "".join(f"; {flag}" for flag in estimate.flags)
+
+
+def fitted_step(text: str) -> tuple[float, int] | None:
+    """(physics.dt, physics.substeps) a calibrated scenario's drive was fitted at, from its
+    header; None if the text has none."""
+    for line in text.splitlines():
+        if line.startswith(f"# {FITTED_AT} physics.dt = "):
+            parts = line.split("=")
+            try:
+                return float(parts[1].split()[0]), int(parts[2].split()[0])
+            except (IndexError, ValueError):
+                return None
+    return None
 
 
 def check_scenario(text: str, origin: str) -> None:
@@ -219,19 +270,32 @@ def table_rows(calibration: Calibration) -> list[tuple[str, str, str]]:
             rows.append((estimate.key, text, estimate.how))
             continue
         if isinstance(estimate.value, list):
-            value = "[" + ", ".join(f"{v:.0f}" for v in estimate.value) + "]"
-            sigma = max(estimate.sigma)  # type: ignore[type-var, arg-type]
-            rows.append((estimate.key, f"{value} (± ≤ {sigma:.2g})", estimate.how))
+            cells = [
+                f"{v:.0f} ± {s:.1f}" if known else f"{v:.0f} (n.i.)"
+                for v, s, known in zip(
+                    estimate.value,
+                    estimate.sigma,
+                    estimate.identified,
+                    strict=True,  # type: ignore[arg-type]
+                )
+            ]
+            rows.append((estimate.key, "[" + ", ".join(cells) + "]", estimate.how))
             continue
-        text = _number(float(estimate.value), float(estimate.sigma))  # type: ignore[arg-type]
+        value = float(estimate.value)  # type: ignore[arg-type]
+        if not math.isfinite(value):
+            rows.append((estimate.key, "not identified", estimate.how))
+            continue
+        text = _number(value, float(estimate.sigma))  # type: ignore[arg-type]
         rows.append((estimate.key, f"{text} {_sigma_text(estimate)}", estimate.how))
     return rows
 
 
 __all__ = [
+    "FITTED_AT",
     "RANGE_KEYS",
     "calibrated_toml",
     "check_scenario",
     "dotted",
+    "fitted_step",
     "table_rows",
 ]

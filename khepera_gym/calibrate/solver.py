@@ -37,9 +37,16 @@ class Estimate:
     Attributes:
         key: The scenario key (``robot.wheel_radius``), or a name of the report's only.
         value: The value (a list for ``sensors.ir_curve``).
-        sigma: Its uncertainty (a list likewise); NaN when the data cannot tell.
+        sigma: Its uncertainty, statistical and systematic together (a list likewise); NaN
+            when the logs cannot tell (then ``identified`` is False).
         unit: Its unit.
         how: What in the logs determined it.
+        sigma_stat: The readings' noise carried through the fit.
+        sigma_sys: What the model's error adds (:mod:`~khepera_gym.calibrate.uncertainty`).
+        identified: Whether the logs determine it (a list for the curve); if not, the value is
+            the nominal one (or, for the curve, extended along K-Team's shape).
+        flags: What the report must say about it (at a bound of the search, changed to be
+            written...).
     """
 
     key: str
@@ -47,6 +54,10 @@ class Estimate:
     sigma: float | list[float]
     unit: str
     how: str
+    sigma_stat: float | list[float] = math.nan
+    sigma_sys: float | list[float] = math.nan
+    identified: bool | list[bool] = True
+    flags: list[str] = dataclasses.field(default_factory=list)
 
 
 class Progress:

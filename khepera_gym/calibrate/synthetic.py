@@ -273,7 +273,10 @@ def synthetic_calibration_log(
         row: dict[str, float | str] = {"time": step * period, **simulated.readings()}
         try:
             phase, left, right = runner.next_command(
-                int(row["enc_left"]), int(row["enc_right"]), int(row[f"ir_{schedule.FRONT_IR}"])
+                int(row["enc_left"]),
+                int(row["enc_right"]),
+                int(row[f"ir_{schedule.FRONT_IR}"]),
+                int(row[f"us_{schedule.FRONT_US}"]),
             )
         except StopIteration:
             break

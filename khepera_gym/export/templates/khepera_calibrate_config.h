@@ -12,7 +12,16 @@
 #define CALIBRATE_METRES_PER_PULSE $metres_per_pulse /* 2 pi robot.wheel_radius / 19456 */
 #define CALIBRATE_IMU_SAMPLES $imu_samples /* newest IMU samples (100 Hz) a row averages */
 #define CALIBRATE_FRONT_IR $front_ir /* the front infrared sensor (K-Team order) */
-#define CALIBRATE_APPROACH_MARGIN_M $approach_margin /* the approach stops this far from the wall by odometry */
+#define CALIBRATE_FRONT_US $front_us /* the front ultrasonic sensor (L, FL, F, FR, R) */
+/* The approach (khepera_gym/calibrate/schedule.py, PhaseRunner): */
+#define CALIBRATE_APPROACH_SLOW_UNITS $approach_slow_units /* speed units near the wall */
+#define CALIBRATE_APPROACH_SLOW_IR $approach_slow_ir /* slower from this front IR reading (raw) */
+#define CALIBRATE_APPROACH_SLOW_GAP_M $approach_slow_gap /* or when the wall may be this near (m) */
+#define CALIBRATE_APPROACH_DEBOUNCE $approach_debounce /* rows in a row a stop condition must hold */
+#define CALIBRATE_APPROACH_CLEARANCE_M $approach_clearance /* stop when the wall may be this near (m) */
+#define CALIBRATE_RADIUS_TOLERANCE $radius_tolerance /* the wheels may be this much larger (fraction) */
+#define CALIBRATE_US_TOLERANCE_M $us_tolerance /* the front ultrasonic reading is good to this (m) */
+#define CALIBRATE_US_MIN_M $us_min /* code 0: nearer than this (m) */
 #define CALIBRATE_MAX_WALL_DISTANCE_M $max_wall_distance /* the phases' time limits allow for this gap */
 
 $motor_note

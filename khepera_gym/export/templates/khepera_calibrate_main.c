@@ -68,6 +68,14 @@ typedef struct {
     int start[2];           /* the encoders when it started */
     double approach_start;  /* the mean encoder when the last approach started */
     double wall_distance;   /* m */
+    /* The approach: the nearest the wall may be (m of travel from its start, for the largest
+     * wheels), rows in a row of each stop condition, and whether it drives slowly. */
+    double wall;
+    int ir_rows;
+    int near_rows;
+    int close_rows;
+    int slow;
+    calibration_phase command; /* the phase with this step's command */
 } manoeuvre;
 
 static long phase_steps(double seconds)
@@ -75,7 +83,40 @@ static long phase_steps(double seconds)
     return (long)floor(seconds / CALIBRATE_CONTROL_PERIOD_S + 0.5);
 }
 
-static int phase_done(const manoeuvre *state, const calibration_phase *phase,
+/* Whether the approach is over after `travel` m by the nominal odometry; sets state->slow. The
+ * same rules as PhaseRunner._approach: the least gap to the wall is the wall's distance (the gap
+ * given, or nearer when the front ultrasonic sensor says so beyond its tolerance) less the
+ * travel for wheels CALIBRATE_RADIUS_TOLERANCE larger than nominal. */
+static int approach_done(manoeuvre *state, const calibration_phase *phase, double travel,
+                         const khepera_readings *readings)
+{
+    const double reach = travel * (1.0 + CALIBRATE_RADIUS_TOLERANCE);
+    const double believed = state->wall - travel;
+    const int us_front = readings->us[CALIBRATE_FRONT_US];
+    const double us_m = (double)us_front / 100.0;
+    const int ir_front = readings->ir[CALIBRATE_FRONT_IR];
+    double least_gap;
+    if (us_front > 0 && us_front < 1000 && us_m + CALIBRATE_US_TOLERANCE_M < believed) {
+        state->near_rows += 1;
+    } else {
+        state->near_rows = 0;
+    }
+    if (state->near_rows >= CALIBRATE_APPROACH_DEBOUNCE
+        && us_m - CALIBRATE_US_TOLERANCE_M + reach < state->wall) {
+        state->wall = us_m - CALIBRATE_US_TOLERANCE_M + reach;
+    }
+    state->close_rows = (us_front == 0 && believed > CALIBRATE_US_MIN_M + CALIBRATE_US_TOLERANCE_M)
+        ? state->close_rows + 1 : 0;
+    state->ir_rows = ir_front >= phase->limit ? state->ir_rows + 1 : 0;
+    least_gap = state->wall - reach;
+    state->slow = ir_front >= CALIBRATE_APPROACH_SLOW_IR
+        || least_gap < CALIBRATE_APPROACH_SLOW_GAP_M;
+    return state->ir_rows >= CALIBRATE_APPROACH_DEBOUNCE
+        || state->close_rows >= CALIBRATE_APPROACH_DEBOUNCE
+        || least_gap <= CALIBRATE_APPROACH_CLEARANCE_M;
+}
+
+static int phase_done(manoeuvre *state, const calibration_phase *phase,
                       const khepera_readings *readings)
 {
     const int timed_out = state->step >= phase_steps(phase->seconds);
@@ -86,8 +127,7 @@ static int phase_done(const manoeuvre *state, const calibration_phase *phase,
     if (phase->kind == PHASE_APPROACH) {
         const double start = 0.5 * ((double)state->start[0] + (double)state->start[1]);
         const double travel = (mean - start) * CALIBRATE_METRES_PER_PULSE;
-        return readings->ir[CALIBRATE_FRONT_IR] >= phase->limit
-            || travel >= state->wall_distance - CALIBRATE_APPROACH_MARGIN_M;
+        return approach_done(state, phase, travel, readings);
     }
     if (phase->kind == PHASE_RETURN) {
         return mean <= state->approach_start;
@@ -137,13 +177,18 @@ static const calibration_phase *next_command(manoeuvre *state, const khepera_rea
             if (phase->kind == PHASE_APPROACH) {
                 state->approach_start =
                     0.5 * ((double)readings->encoder[0] + (double)readings->encoder[1]);
+                state->wall = state->wall_distance;
+                state->ir_rows = state->near_rows = state->close_rows = 0;
             }
         }
         if (phase->kind == PHASE_GAP) {
+            /* This row stands for the pause: its readings were taken before it, and the next
+             * phase starts on the next row, with readings taken after it. */
             ask_wall_gap(log);
             *next_tick = khepera_clock_now();
             state->index += 1;
-            continue;
+            state->command = *phase;
+            return &state->command;
         }
         if (phase_done(state, phase, readings)) {
             state->index += 1;
@@ -151,14 +196,19 @@ static const calibration_phase *next_command(manoeuvre *state, const khepera_rea
             continue;
         }
         state->step += 1;
-        return phase;
+        state->command = *phase;
+        if (phase->kind == PHASE_APPROACH && state->slow) {
+            state->command.left = CALIBRATE_APPROACH_SLOW_UNITS;
+            state->command.right = CALIBRATE_APPROACH_SLOW_UNITS;
+        }
+        return &state->command;
     }
     return NULL;
 }
 
 int main(int argc, char *argv[])
 {
-    manoeuvre state = {0, 0, {0, 0}, 0.0, 0.0};
+    manoeuvre state;
     khepera_readings readings;
     khepera_log_header header;
     khepera_log log = {NULL, 0, 0, 0};
@@ -173,6 +223,7 @@ int main(int argc, char *argv[])
                         "the wall, in metres)\n", argv[0]);
         return 2;
     }
+    memset(&state, 0, sizeof state);
     state.wall_distance = strtod(argv[1], NULL);
     if (!(state.wall_distance > 0.05 && state.wall_distance <= CALIBRATE_MAX_WALL_DISTANCE_M)) {
         fprintf(stderr, "WALL_DISTANCE_M must be in (0.05, %.2f] m, got %s\n",
