@@ -52,7 +52,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID
+from conftest import LATEST
 
 pytest.importorskip(
     "scipy", reason="needs the calibrate extra: pip install 'khepera-gym[calibrate]'"
@@ -598,7 +598,7 @@ def fake_calibration_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[t
     find the final gap the user would measure (the robot's true pose, FAKE_TRACE), then with
     that gap typed in."""
     out = tmp_path_factory.mktemp("calibration_program")
-    written = write_calibration_program(out, env_id=NAV_ID, phases=SHORT_PHASES)
+    written = write_calibration_program(out, env_id=LATEST["nav"], phases=SHORT_PHASES)
     # The fake's wall stands where the user says it is: the gap plus the body's radius ahead
     # of the robot's centre (its default is the policy test's 0.5 m).
     program = _fake_build(
@@ -722,8 +722,8 @@ def test_the_policy_program_logs_every_step_with_its_observation_and_action(tmp_
         layers,
         export.ActionTransform(np.ones(2), np.zeros(2), None, None),
     )
-    with gym.make(NAV_ID) as env:
-        robot = export.robot_interface(env, 18, NAV_ID)
+    with gym.make(LATEST["nav"]) as env:
+        robot = export.robot_interface(env, 18, LATEST["nav"])
     motors = export.motor_setting(export.toml_loads(robot.scenario_toml))
     export.write_c(network, robot, motors, tmp_path, "a test")
     sources = (*export.C_SOURCES, *export.ROBOT_SOURCES)
@@ -737,7 +737,7 @@ def test_the_policy_program_logs_every_step_with_its_observation_and_action(tmp_
     )
     assert len(run.stdout.splitlines()) == 30
     log = read_log(tmp_path / "run.csv")
-    assert log.program == "policy" and log.metadata["env_id"] == NAV_ID
+    assert log.program == "policy" and log.metadata["env_id"] == LATEST["nav"]
     assert log.metadata["motors"] == "profile" and log.metadata["acc_inc"] == "40"
     assert log.period == 0.05 and len(log) == 30
     np.testing.assert_allclose(np.diff(log.time), 0.05, atol=1e-3)
@@ -790,8 +790,8 @@ def test_the_policy_program_logs_every_step_with_its_observation_and_action(tmp_
 
 
 def test_the_policy_program_builds_with_make_robot_and_runs_on_the_fake(tmp_path: Path) -> None:
-    with gym.make(NAV_ID) as env:
-        robot = export.robot_interface(env, 18, NAV_ID)
+    with gym.make(LATEST["nav"]) as env:
+        robot = export.robot_interface(env, 18, LATEST["nav"])
     layer = export.DenseLayer(
         np.zeros((2, 18), np.float32), np.full(2, 0.2, np.float32), "identity", 0.0
     )
@@ -840,8 +840,8 @@ def test_robot_program_command_writes_the_calibration_program(
 
 def test_export_converts_speeds_with_the_calibrated_wheel_radius(tmp_path: Path) -> None:
     # A calibrated wheel of 21.42 mm: a speed unit (a pulse per 10 ms) is 2 % more ground speed.
-    with gym.make(NAV_ID, wheel_radius=0.02142) as env:
-        robot = export.robot_interface(env, 18, NAV_ID)
+    with gym.make(LATEST["nav"], wheel_radius=0.02142) as env:
+        robot = export.robot_interface(env, 18, LATEST["nav"])
     layer = export.DenseLayer(
         np.zeros((2, 18), np.float32), np.zeros(2, np.float32), "identity", 0.0
     )

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import NAV_ID
+from conftest import LATEST
 
 from khepera_gym import export
 from khepera_gym.calibrate import replay as rp
@@ -74,7 +74,7 @@ def _build(
 ) -> Path:
     """The calibration program (``phases``: the approach's by default) on the fake robot (its
     settings ``fake``), with the front infrared sensor stuck at ``stuck`` (raw) if given."""
-    write_calibration_program(out, env_id=NAV_ID, phases=phases or _approach_phases())
+    write_calibration_program(out, env_id=LATEST["nav"], phases=phases or _approach_phases())
     defines = [f"-D{key}={value}" for key, value in fake.items()]
     objects = []
     program_defines = []

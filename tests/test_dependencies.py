@@ -25,7 +25,7 @@ except ModuleNotFoundError:  # Python 3.10: tomli, a dependency there
 
 import numpy as np
 import pytest
-from conftest import NAV_ID
+from conftest import LATEST
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 from packaging.version import Version
@@ -200,7 +200,7 @@ def test_sb3_training_draws_its_progress_bar_with_rich(tmp_path: Path, capsys) -
     from khepera_gym.train import train
 
     train(
-        NAV_ID,
+        LATEST["nav"],
         "ppo",
         timesteps=256,
         n_envs=4,

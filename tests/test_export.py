@@ -32,7 +32,7 @@ pytest.importorskip("onnx", reason="needs the export extra: pip install 'khepera
 
 import onnx
 import torch
-from conftest import AVOID_ID, FORMATION_ID, NAV_ID
+from conftest import LATEST
 from stable_baselines3 import A2C, DQN, PPO, SAC, TD3
 from stable_baselines3.common.vec_env import VecNormalize
 from torch import nn
@@ -224,7 +224,7 @@ def recording_of(
 
 @pytest.fixture(scope="module")
 def nav_recording() -> export.Recording:
-    return recording_of(NAV_ID, nav_heuristic)[0]
+    return recording_of(LATEST["nav"], nav_heuristic)[0]
 
 
 def scale_output_layer(module: nn.Module, factor: float) -> None:
@@ -246,12 +246,12 @@ def nav_models() -> dict[str, Callable[[], tuple[Any, Any]]]:
     """Tiny untrained SB3 models of the supported kinds: name → () -> (model, normalizer)."""
 
     def ppo() -> tuple[Any, Any]:
-        model = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+        model = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
         scale_output_layer(model.policy.action_net, 300.0)
         return model, None
 
     def ppo_vecnormalize() -> tuple[Any, Any]:
-        venv = VecNormalize(make_vec_env(NAV_ID, 4, seed=0))
+        venv = VecNormalize(make_vec_env(LATEST["nav"], 4, seed=0))
         venv.reset()
         rng = np.random.default_rng(0)
         for _ in range(200):  # statistics far from (0, 1), as after training
@@ -263,19 +263,25 @@ def nav_models() -> dict[str, Callable[[], tuple[Any, Any]]]:
 
     def a2c_elu() -> tuple[Any, Any]:
         kwargs = {"net_arch": [32, 16], "activation_fn": nn.ELU}
-        model = A2C("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", policy_kwargs=kwargs)
+        model = A2C(
+            "MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", policy_kwargs=kwargs
+        )
         scale_output_layer(model.policy.action_net, 300.0)
         return model, None
 
     def sac() -> tuple[Any, Any]:
         kwargs = {"net_arch": [64, 64]}
-        model = SAC("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", policy_kwargs=kwargs)
+        model = SAC(
+            "MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", policy_kwargs=kwargs
+        )
         scale_output_layer(model.policy.actor.mu, 300.0)
         return model, None
 
     def td3_leaky_relu() -> tuple[Any, Any]:
         kwargs = {"net_arch": [32, 32], "activation_fn": nn.LeakyReLU}
-        model = TD3("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", policy_kwargs=kwargs)
+        model = TD3(
+            "MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", policy_kwargs=kwargs
+        )
         scale_output_layer(model.policy.actor.mu[-2], 80.0)
         return model, None
 
@@ -300,7 +306,7 @@ def test_c_and_onnx_policies_match_predict_on_recorded_observations(
 
     # With VecNormalize, the model is given as khepera_gym.sb3.load_policy gives it.
     result = export.export_policy(
-        reference, tmp_path, formats=("c", "onnx"), env_id=NAV_ID, check=False
+        reference, tmp_path, formats=("c", "onnx"), env_id=LATEST["nav"], check=False
     )
     assert (result.network.normalization is not None) == (normalizer is not None)
     c_actions = run_check(compile_check(tmp_path), "policy", observations)
@@ -378,8 +384,8 @@ def test_every_activation_exports_to_c_and_onnx(
     onnx_actions = export.onnx_actions(tmp_path / "policy.onnx", observations)
     assert np.max(np.abs(onnx_actions - expected)) < ACTION_TOLERANCE
 
-    with gym.make(NAV_ID) as env:
-        robot = export.robot_interface(env, 18, NAV_ID)
+    with gym.make(LATEST["nav"]) as env:
+        robot = export.robot_interface(env, 18, LATEST["nav"])
     motors = export.motor_setting(export.toml_loads(robot.scenario_toml))
     export.write_c(network, robot, motors, tmp_path, "a test")
     c_actions = run_check(compile_check(tmp_path), "policy", observations)
@@ -389,12 +395,12 @@ def test_every_activation_exports_to_c_and_onnx(
 @pytest.mark.parametrize(
     ("env_id", "heuristic", "config"),
     [
-        (NAV_ID, nav_heuristic, {}),
-        (AVOID_ID, avoid_heuristic, {}),
+        (LATEST["nav"], nav_heuristic, {}),
+        (LATEST["avoid"], avoid_heuristic, {}),
         # Other constants than the defaults must be baked in: the IR floor, the ultrasonic range,
         # the wheel speed limit, the arena (its diagonal caps the goal distance).
         (
-            NAV_ID,
+            LATEST["nav"],
             nav_heuristic,
             {"ir_floor_value": 105.0, "us_max_range": 1.3, "max_wheel_speed": 0.5, "width": 1.5},
         ),
@@ -430,12 +436,12 @@ def test_c_wheel_command_matches_simulator_wheel_speeds(action_type: str, tmp_pa
     # off (a plain ramp of no limit, exported at its nominal setting) the simulator's wheel
     # speeds are the commanded ones.
     no_ramp = {"mode": "ramp", "wheel_accel_limit": float("inf")}
-    env = gym.make(NAV_ID, action_type=action_type, **no_ramp)
+    env = gym.make(LATEST["nav"], action_type=action_type, **no_ramp)
     model = PPO("MlpPolicy", env, seed=0, device="cpu")
     export.export_policy(
         model,
         tmp_path,
-        env_id=NAV_ID,
+        env_id=LATEST["nav"],
         action_type=action_type,
         check=False,
         drive="nominal",
@@ -457,9 +463,9 @@ def test_c_wheel_command_matches_simulator_wheel_speeds(action_type: str, tmp_pa
 
 
 def test_c_led_levels_match_the_simulators_leds(tmp_path: Path) -> None:
-    env = gym.make(NAV_ID, led_action=True)
+    env = gym.make(LATEST["nav"], led_action=True)
     model = PPO("MlpPolicy", env, seed=0, device="cpu", n_steps=64)
-    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False, led_action=True)
+    export.export_policy(model, tmp_path, env_id=LATEST["nav"], check=False, led_action=True)
     assert "#define KHEPERA_LED_ACTION 1" in (tmp_path / "khepera_policy_config.h").read_text()
     rng = np.random.default_rng(1)
     actions = rng.uniform(-1.3, 1.3, (200, 5)).astype(np.float32)
@@ -481,12 +487,14 @@ def test_c_led_levels_match_the_simulators_leds(tmp_path: Path) -> None:
 
 
 def test_the_action_width_must_be_the_scenarios(tmp_path: Path) -> None:
-    lit = PPO("MlpPolicy", gym.make(NAV_ID, led_action=True), seed=0, device="cpu", n_steps=64)
+    lit = PPO(
+        "MlpPolicy", gym.make(LATEST["nav"], led_action=True), seed=0, device="cpu", n_steps=64
+    )
     with pytest.raises(ConfigError, match="led_action=True"):
-        export.export_policy(lit, tmp_path, env_id=NAV_ID, check=False)
-    plain = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+        export.export_policy(lit, tmp_path, env_id=LATEST["nav"], check=False)
+    plain = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     with pytest.raises(ConfigError, match=r"takes 5 \(its wheels, then its LEDs"):
-        export.export_policy(plain, tmp_path, env_id=NAV_ID, check=False, led_action=True)
+        export.export_policy(plain, tmp_path, env_id=LATEST["nav"], check=False, led_action=True)
 
 
 def test_formation_follower_policy_exports_one_robots_block(tmp_path: Path) -> None:
@@ -494,9 +502,9 @@ def test_formation_follower_policy_exports_one_robots_block(tmp_path: Path) -> N
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", n_steps=64)
     scale_output_layer(model.policy.action_net, 300.0)
     recording, _ = recording_of(
-        FORMATION_ID, formation_follower_heuristic, obs_dim=venv.follower_obs_dim
+        LATEST["formation"], formation_follower_heuristic, obs_dim=venv.follower_obs_dim
     )
-    result = export.export_policy(model, tmp_path, env_id=FORMATION_ID, check=False)
+    result = export.export_policy(model, tmp_path, env_id=LATEST["formation"], check=False)
     assert result.robot.agent == "follower_0"
     assert json.loads((tmp_path / export.LAYOUT_FILE).read_text())["target_offset"] == [13, 15]
 
@@ -529,7 +537,7 @@ def robot_program_on_fake_robot(out_dir: Path) -> Path:
 
 def test_robot_program_drives_a_fake_robot_with_the_policys_actions(tmp_path: Path) -> None:
     model, _ = nav_models()["ppo"]()
-    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False)
+    export.export_policy(model, tmp_path, env_id=LATEST["nav"], check=False)
     program = robot_program_on_fake_robot(tmp_path)
 
     # Three steps toward a goal 1 m ahead and 0.5 m to the left of the start pose.
@@ -581,7 +589,7 @@ def frame_stacked_ppo(n_stack: int) -> Any:
 
     from khepera_gym.sb3 import FrameStackPolicy
 
-    normalized = VecNormalize(make_vec_env(NAV_ID, 4, seed=0))
+    normalized = VecNormalize(make_vec_env(LATEST["nav"], 4, seed=0))
     venv = VecFrameStack(normalized, n_stack)
     venv.reset()
     rng = np.random.default_rng(0)
@@ -598,7 +606,7 @@ def test_a_frame_stacked_policy_exports_with_its_memory(
     nav_recording: export.Recording, tmp_path: Path
 ) -> None:
     policy = frame_stacked_ppo(3)
-    result = export.export_policy(policy, tmp_path, formats=("c", "onnx"), env_id=NAV_ID)
+    result = export.export_policy(policy, tmp_path, formats=("c", "onnx"), env_id=LATEST["nav"])
     width = nav_recording.observations.shape[1]
     assert result.network.frame_stack == 3 and result.network.obs_dim == width
     assert result.network.input_dim == 3 * width and result.network.normalization is not None
@@ -645,10 +653,10 @@ def test_a_frame_stacked_policy_exports_with_its_memory(
 
 
 def test_robot_program_sets_the_leds_a_led_policy_asks_for(tmp_path: Path) -> None:
-    env = gym.make(NAV_ID, led_action=True)
+    env = gym.make(LATEST["nav"], led_action=True)
     model = PPO("MlpPolicy", env, seed=0, device="cpu", n_steps=64)
     scale_output_layer(model.policy.action_net, 300.0)
-    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False, led_action=True)
+    export.export_policy(model, tmp_path, env_id=LATEST["nav"], check=False, led_action=True)
     program = robot_program_on_fake_robot(tmp_path)
     run = subprocess.run(
         [str(program), "1.0", "0.5", "2"], capture_output=True, text=True, check=True, timeout=10
@@ -675,15 +683,17 @@ def test_export_follows_a_scenario_that_observes_only_the_ir_ring(tmp_path: Path
     # must follow the env's own layout, and the robot program must not switch the ultrasonic
     # sensors on nor read them.
     config = {"observe": ["ir"]}
-    env = gym.make(AVOID_ID, **config)
+    env = gym.make(LATEST["avoid"], **config)
     layout = env.unwrapped.obs_layout()
     assert "us" not in layout and env.observation_space.shape == (13,)
-    recording = recording_of(AVOID_ID, Braitenberg(layout=env), **config)[0]
+    recording = recording_of(LATEST["avoid"], Braitenberg(layout=env), **config)[0]
     model = PPO("MlpPolicy", env, seed=0, device="cpu", n_steps=64)
     scale_output_layer(model.policy.action_net, 300.0)
 
     # The export's own check (on its own rollouts) passes.
-    result = export.export_policy(model, tmp_path, formats=("c", "onnx"), env_id=AVOID_ID, **config)
+    result = export.export_policy(
+        model, tmp_path, formats=("c", "onnx"), env_id=LATEST["avoid"], **config
+    )
     assert result.checks["c_max_abs_error"] < ACTION_TOLERANCE
     assert result.checks["onnx_max_abs_error"] < ACTION_TOLERANCE
     assert result.checks["observation_max_abs_error"] < OBSERVATION_TOLERANCE
@@ -723,7 +733,7 @@ def test_export_follows_a_scenario_that_observes_only_the_ir_ring(tmp_path: Path
 
 def test_robot_program_template_compiles_without_goal_inputs(tmp_path: Path) -> None:
     model = PPO("MlpPolicy", make_formation_vec_env(1), seed=0, device="cpu", n_steps=64)
-    export.export_policy(model, tmp_path, env_id=FORMATION_ID, check=False)
+    export.export_policy(model, tmp_path, env_id=LATEST["formation"], check=False)
     compile_only = ["cc", *C_FLAGS, "-c", f"-I{FAKE_LIBKHEPERA}", "-o", str(tmp_path / "o.o")]
     for name in ("khepera_policy_main.c", *export.C_SOURCES, *export.ROBOT_SOURCES):
         subprocess.run(
@@ -743,14 +753,14 @@ def test_command_exports_a_trained_run_with_its_scenario_and_statistics(
     run = tmp_path / "run"
     run.mkdir()
     overrides = {"ir_floor_value": 110.0}
-    venv = VecNormalize(make_vec_env(NAV_ID, 2, seed=0, **overrides))
+    venv = VecNormalize(make_vec_env(LATEST["nav"], 2, seed=0, **overrides))
     venv.reset()
     for _ in range(50):
         venv.step(np.full((2, 2), 0.5, np.float32))
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", n_steps=64)
     model.save(run / "model.zip")
     venv.save(str(run / "vecnormalize.pkl"))
-    record = {"env_id": NAV_ID, "algo": "ppo", "hyperparams": {"env_kwargs": overrides}}
+    record = {"env_id": LATEST["nav"], "algo": "ppo", "hyperparams": {"env_kwargs": overrides}}
     (run / "run.json").write_text(json.dumps(record))
 
     status = cli.main(["export", str(run / "model.zip"), "--format", "c", "onnx"])
@@ -759,7 +769,7 @@ def test_command_exports_a_trained_run_with_its_scenario_and_statistics(
     printed = capsys.readouterr().out
     assert "c max abs error" in printed and "onnx max abs error" in printed
     manifest = json.loads((out / export.MANIFEST_FILE).read_text())
-    assert manifest["vecnormalize"] is True and manifest["env_id"] == NAV_ID
+    assert manifest["vecnormalize"] is True and manifest["env_id"] == LATEST["nav"]
     assert manifest["checks"]["c_max_abs_error"] < ACTION_TOLERANCE
     assert manifest["checks"]["onnx_max_abs_error"] < ACTION_TOLERANCE
     assert manifest["checks"]["observation_max_abs_error"] < OBSERVATION_TOLERANCE
@@ -771,7 +781,7 @@ def test_command_exports_a_trained_run_with_its_scenario_and_statistics(
     # --set overrides the scenario, --env the run's env; --no-check measures nothing.
     other = tmp_path / "other"
     arguments = ["--set", "us_max_range=1.5", "--no-check", "--out", str(other)]
-    assert cli.main(["export", str(run / "model.zip"), "--env", NAV_ID, *arguments]) == 0
+    assert cli.main(["export", str(run / "model.zip"), "--env", LATEST["nav"], *arguments]) == 0
     assert "#define OBSERVATION_US_MAX_RANGE 1.5f" in (other / "observation.h").read_text()
     assert json.loads((other / export.MANIFEST_FILE).read_text())["checks"] == {}
 
@@ -780,14 +790,16 @@ def test_export_check_reports_figures_and_fails_beyond_its_tolerance(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     model, _ = nav_models()["ppo"]()
-    result = export.export_policy(model, tmp_path / "ok", env_id=NAV_ID, compiler="no-such-cc")
+    result = export.export_policy(
+        model, tmp_path / "ok", env_id=LATEST["nav"], compiler="no-such-cc"
+    )
     assert result.checks["c_skipped"] == "no C compiler 'no-such-cc' on PATH"
     assert result.checks["observations"] > 300
 
     # float32 sums in another order than torch's cannot all agree to the last bit.
     monkeypatch.setattr(export.checks, "PARITY_TOLERANCE", 0.0)
     with pytest.raises(KheperaError, match="exported C actions differ"):
-        export.export_policy(model, tmp_path / "strict", env_id=NAV_ID)
+        export.export_policy(model, tmp_path / "strict", env_id=LATEST["nav"])
     checks = json.loads((tmp_path / "strict" / export.MANIFEST_FILE).read_text())["checks"]
     assert 0 < checks["c_max_abs_error"] < ACTION_TOLERANCE
 
@@ -812,42 +824,42 @@ def test_unsupported_model_error_lists_supported_types(
     make_model: Callable[[], Any], tmp_path: Path
 ) -> None:
     with pytest.raises(ConfigError, match="supported are stable-baselines3 PPO or A2C") as error:
-        export.export_policy(make_model(), tmp_path, env_id=NAV_ID)
+        export.export_policy(make_model(), tmp_path, env_id=LATEST["nav"])
     assert "SAC or TD3" in str(error.value) and "RLlib PPO checkpoint" in str(error.value)
 
 
 def test_unsupported_files_and_env_mismatch_raise_config_errors(tmp_path: Path) -> None:
     (tmp_path / "weights.pt").write_bytes(b"")
     with pytest.raises(ConfigError, match="supported are"):
-        export.export_policy(tmp_path / "weights.pt", tmp_path / "out", env_id=NAV_ID)
+        export.export_policy(tmp_path / "weights.pt", tmp_path / "out", env_id=LATEST["nav"])
     with pytest.raises(ConfigError, match="not an RLlib checkpoint"):
-        export.export_policy(tmp_path, tmp_path / "out", env_id=NAV_ID)
-    nav_model = PPO("MlpPolicy", gym.make(NAV_ID), device="cpu")
+        export.export_policy(tmp_path, tmp_path / "out", env_id=LATEST["nav"])
+    nav_model = PPO("MlpPolicy", gym.make(LATEST["nav"]), device="cpu")
     with pytest.raises(ConfigError, match="cannot tell which env"):
         export.export_policy(nav_model, tmp_path / "out")
     with pytest.raises(ConfigError, match=r"takes 18 observation values; .* have 23 each"):
-        export.export_policy(nav_model, tmp_path / "out", env_id=FORMATION_ID)
+        export.export_policy(nav_model, tmp_path / "out", env_id=LATEST["formation"])
     with pytest.raises(ConfigError, match="unknown export formats"):
-        export.export_policy(nav_model, tmp_path / "out", env_id=NAV_ID, formats=("tflite",))
+        export.export_policy(nav_model, tmp_path / "out", env_id=LATEST["nav"], formats=("tflite",))
 
 
 def test_missing_onnx_extra_names_the_pip_command(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    model = PPO("MlpPolicy", gym.make(NAV_ID), device="cpu")
+    model = PPO("MlpPolicy", gym.make(LATEST["nav"]), device="cpu")
     monkeypatch.setitem(sys.modules, "onnx", None)
     with pytest.raises(ImportError, match=r"pip install 'khepera-gym\[export\]'"):
-        export.export_policy(model, tmp_path, env_id=NAV_ID, formats=("onnx",))
+        export.export_policy(model, tmp_path, env_id=LATEST["nav"], formats=("onnx",))
     monkeypatch.setitem(sys.modules, "onnxruntime", None)
     with pytest.raises(ImportError, match=r"pip install 'khepera-gym\[export\]'"):
         export.onnx_actions(tmp_path / "policy.onnx", np.zeros((1, 18), np.float32))
 
 
 def test_missing_sb3_names_the_pip_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    PPO("MlpPolicy", gym.make(NAV_ID), device="cpu").save(tmp_path / "model.zip")
+    PPO("MlpPolicy", gym.make(LATEST["nav"]), device="cpu").save(tmp_path / "model.zip")
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)
     with pytest.raises(ImportError, match=r"pip install 'khepera-gym\[sb3\]'"):
-        export.export_policy(tmp_path / "model.zip", tmp_path / "out", env_id=NAV_ID)
+        export.export_policy(tmp_path / "model.zip", tmp_path / "out", env_id=LATEST["nav"])
 
 
 def test_missing_ray_names_the_pip_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -861,7 +873,7 @@ def test_missing_ray_names_the_pip_command(tmp_path: Path, monkeypatch: pytest.M
     for name in [name for name in sys.modules if name.startswith("ray.")] + ["ray"]:
         monkeypatch.setitem(sys.modules, name, None)
     with pytest.raises(ImportError, match=r"pip install 'khepera-gym\[rllib\]'"):
-        export.export_policy(tmp_path, tmp_path / "out", env_id=NAV_ID)
+        export.export_policy(tmp_path, tmp_path / "out", env_id=LATEST["nav"])
 
 
 @pytest.fixture
@@ -891,7 +903,7 @@ def test_rllib_ppo_checkpoint_exports_with_parity(
 
     config = (
         PPOConfig()
-        .environment(NAV_ID)
+        .environment(LATEST["nav"])
         .env_runners(num_env_runners=0, rollout_fragment_length=64)
         .training(train_batch_size_per_learner=64, minibatch_size=32, num_epochs=1)
         .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=[32, 32]))
@@ -917,7 +929,7 @@ def test_rllib_ppo_checkpoint_exports_with_parity(
 
     # The env id comes from the checkpoint's config.
     result = export.export_policy(checkpoint, tmp_path / "out", formats=("c", "onnx"), check=False)
-    assert result.robot.env_id == NAV_ID and result.network.source.startswith("RLlib")
+    assert result.robot.env_id == LATEST["nav"] and result.network.source.startswith("RLlib")
     actions = run_check(compile_check(tmp_path / "out"), "policy", nav_recording.observations)
     assert np.max(np.abs(actions - expected)) < ACTION_TOLERANCE
     onnx_actions = export.onnx_actions(
@@ -938,13 +950,15 @@ def _program_calls(tmp_path: Path, model: Any, **kwargs: Any) -> list[list[str]]
 
 
 def test_the_program_sets_the_drive_the_policy_was_trained_with(tmp_path: Path) -> None:
-    model = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    model = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     # A preset K-Team program sets (its Braitenberg demo: Acc_Inc 10): the same profile.
-    calls = _program_calls(tmp_path / "demo", model, env_id=NAV_ID, preset="kteam_braitenberg")
+    calls = _program_calls(
+        tmp_path / "demo", model, env_id=LATEST["nav"], preset="kteam_braitenberg"
+    )
     assert calls[:2] == [["set_mode", "0"], ["set_profile", "10", "0", "20", "1", "400"]]
     assert calls[2] == ["set_mode", "2"]
     # The speed mode: kh4RegSpeed (1), no profile.
-    calls = _program_calls(tmp_path / "speed", model, env_id=NAV_ID, preset="speed_mode")
+    calls = _program_calls(tmp_path / "speed", model, env_id=LATEST["nav"], preset="speed_mode")
     assert ["set_mode", "1"] in calls and not any(c[0] == "set_profile" for c in calls)
     manifest = json.loads((tmp_path / "speed" / export.MANIFEST_FILE).read_text())
     assert manifest["motors"]["mode"] == "speed" and "estimate" in manifest["motors"]["note"]
@@ -960,13 +974,17 @@ def test_a_drive_the_robot_cannot_be_set_to_needs_its_nominal_setting(tmp_path: 
     calls = _program_calls(tmp_path / "v1", model, env_id=v1, drive="nominal")
     assert ["set_profile", "3", "0", "20", "1", "400"] in calls and ["set_mode", "2"] in calls
     # A profile randomised over a range: the robot runs one; nominal takes the midpoint.
-    model = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    model = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     with pytest.raises(ConfigError, match=r"randomised drive.*motors\.acc_inc"):
-        export.export_policy(model, tmp_path / "dr", env_id=NAV_ID, check=False, acc_inc=[20, 60])
-    calls = _program_calls(tmp_path / "dr", model, env_id=NAV_ID, acc_inc=[20, 60], drive="nominal")
+        export.export_policy(
+            model, tmp_path / "dr", env_id=LATEST["nav"], check=False, acc_inc=[20, 60]
+        )
+    calls = _program_calls(
+        tmp_path / "dr", model, env_id=LATEST["nav"], acc_inc=[20, 60], drive="nominal"
+    )
     assert ["set_profile", "40", "0", "20", "1", "400"] in calls
     with pytest.raises(ConfigError, match="drive must be one of"):
-        export.export_policy(model, tmp_path / "x", env_id=NAV_ID, check=False, drive="fast")
+        export.export_policy(model, tmp_path / "x", env_id=LATEST["nav"], check=False, drive="fast")
 
 
 @pytest.mark.skipif(
@@ -986,8 +1004,10 @@ def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) ->
     compiler, flags = (
         (arm.compiler, arm.flags) if arm.missing() is None else ("cc", ("-O2", "-funsigned-char"))
     )
-    led = PPO("MlpPolicy", gym.make(NAV_ID, led_action=True), seed=0, device="cpu", n_steps=64)
-    sampled = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    led = PPO(
+        "MlpPolicy", gym.make(LATEST["nav"], led_action=True), seed=0, device="cpu", n_steps=64
+    )
+    sampled = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     programs = {
         "plain": (nav_models()["ppo"]()[0], {}),
         "frame_stack": (frame_stacked_ppo(3), {}),
@@ -996,9 +1016,9 @@ def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) ->
     }
     folders = []
     for name, (model, options) in programs.items():
-        export.export_policy(model, tmp_path / name, env_id=NAV_ID, check=False, **options)
+        export.export_policy(model, tmp_path / name, env_id=LATEST["nav"], check=False, **options)
         folders.append(tmp_path / name)
-    write_calibration_program(tmp_path / "calibrate", env_id=NAV_ID)
+    write_calibration_program(tmp_path / "calibrate", env_id=LATEST["nav"])
     folders.append(tmp_path / "calibrate")
     compile_only = [compiler, *flags, rp.ROBOT_STD, *rp.WARNINGS, f"-I{include}", "-c"]
     compiled = 0

@@ -30,7 +30,7 @@ import numpy.typing as npt
 import pytest
 import robot_programs as rp
 import torch
-from conftest import NAV_ID
+from conftest import LATEST
 from stable_baselines3 import PPO
 from test_calibrate import SHORT_PHASES, WALL_DISTANCE
 from test_export import ACTION_TOLERANCE, frame_stacked_ppo, nav_models, scale_output_layer
@@ -61,14 +61,16 @@ def _frame_stack() -> tuple[Any, dict[str, Any]]:
 
 def _sampled() -> tuple[Any, dict[str, Any]]:
     # Untrained, unscaled: a mean within ±1 that the draws move.
-    model = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    model = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     with torch.no_grad():
         model.policy.log_std.copy_(torch.log(torch.tensor(SIGMA)))
     return model, {"sample_seed": SAMPLE_SEED}
 
 
 def _led() -> tuple[Any, dict[str, Any]]:
-    model = PPO("MlpPolicy", gym.make(NAV_ID, led_action=True), seed=0, device="cpu", n_steps=64)
+    model = PPO(
+        "MlpPolicy", gym.make(LATEST["nav"], led_action=True), seed=0, device="cpu", n_steps=64
+    )
     scale_output_layer(model.policy.action_net, 300.0)
     return model, {"led_action": True}
 
@@ -132,7 +134,7 @@ def exports(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, A
     for kind, make in POLICIES.items():
         model, options = make()
         out = tmp_path_factory.mktemp(f"export_{kind}")
-        result = export.export_policy(model, out, env_id=NAV_ID, check_arm=True, **options)
+        result = export.export_policy(model, out, env_id=LATEST["nav"], check_arm=True, **options)
         done[kind] = (out, model, result)
     return done
 
@@ -252,7 +254,7 @@ def failure_cases(calls: list[str]) -> list[tuple[str, int, int]]:
 def calibration_program(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The calibration program (test_calibrate.py's short manoeuvre), written once."""
     out = tmp_path_factory.mktemp("calibration_program")
-    write_calibration_program(out, env_id=NAV_ID, phases=SHORT_PHASES)
+    write_calibration_program(out, env_id=LATEST["nav"], phases=SHORT_PHASES)
     return out
 
 
@@ -424,7 +426,7 @@ def test_the_generated_makefiles_build_every_program_for_the_robot(
     out = exports["plain"][0]
     run = rp.run(arm, out / "khepera_policy", *GOAL, "2")
     assert len(run.stdout.splitlines()) == 2
-    observation = gym.make(NAV_ID).reset(seed=0)[0]
+    observation = gym.make(LATEST["nav"]).reset(seed=0)[0]
     on_arm = export.run_check_program(
         out / "export_check_robot", "policy", [observation], arm.runner
     )
@@ -436,8 +438,8 @@ def test_the_export_command_checks_on_arm_or_says_why_not(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     path = tmp_path / "model.zip"
-    PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64).save(path)
-    base = ["export", str(path), "--env", NAV_ID, "--check-arm"]
+    PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64).save(path)
+    base = ["export", str(path), "--env", LATEST["nav"], "--check-arm"]
     if rp.TARGETS["arm"].missing() is None:
         assert cli.main([*base, "--out", str(tmp_path / "arm")]) == 0
         printed = capsys.readouterr().out

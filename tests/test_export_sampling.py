@@ -15,7 +15,7 @@ from test_export import compile_check, robot_program_on_fake_robot, run_check
 
 pytest.importorskip("stable_baselines3")
 import torch
-from conftest import NAV_ID
+from conftest import LATEST
 from stable_baselines3 import PPO, SAC
 
 from khepera_gym import cli, export
@@ -30,7 +30,7 @@ DRAWS = 4000
 @pytest.fixture(scope="module")
 def model() -> PPO:
     """An untrained Nav PPO whose Gaussian has σ = SIGMA (one value per wheel)."""
-    model = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+    model = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     with torch.no_grad():
         model.policy.log_std.copy_(torch.log(torch.tensor(SIGMA)))
     return model
@@ -46,12 +46,12 @@ def sample(binary: Path, seed: int, rows: np.ndarray) -> np.ndarray:
 
 
 def test_sampled_actions_are_the_mean_plus_the_trained_sigma(model: PPO, tmp_path: Path) -> None:
-    result = export.export_policy(model, tmp_path, env_id=NAV_ID, sample_seed=3)
+    result = export.export_policy(model, tmp_path, env_id=LATEST["nav"], sample_seed=3)
     np.testing.assert_allclose(result.network.action_std, SIGMA, rtol=1e-6)
     manifest = json.loads((tmp_path / export.MANIFEST_FILE).read_text())
     assert manifest["actions"]["sampled"] and manifest["actions"]["seed"] == 3
     binary = compile_check(tmp_path)
-    observation = gym.make(NAV_ID).reset(seed=0)[0]
+    observation = gym.make(LATEST["nav"]).reset(seed=0)[0]
     mean = run_check(binary, "policy", [observation])[0]
     assert np.all(np.abs(mean) < 1.0 - 3 * max(SIGMA))  # so the clip hardly matters
     rows = np.column_stack([np.ones(DRAWS), np.tile(observation, (DRAWS, 1))])
@@ -69,12 +69,12 @@ def test_sampled_actions_are_the_mean_plus_the_trained_sigma(model: PPO, tmp_pat
     assert not np.array_equal(sample(binary, 4, rows[:50]), actions[:50])
     # The mean itself is the deterministic export's, bit for bit.
     plain = tmp_path / "plain"
-    export.export_policy(model, plain, env_id=NAV_ID, check=False)
+    export.export_policy(model, plain, env_id=LATEST["nav"], check=False)
     np.testing.assert_array_equal(run_check(compile_check(plain), "policy", [observation])[0], mean)
 
 
 def test_the_program_samples_from_the_seed_it_was_exported_with(model: PPO, tmp_path: Path) -> None:
-    export.export_policy(model, tmp_path, env_id=NAV_ID, check=False, sample_seed=11)
+    export.export_policy(model, tmp_path, env_id=LATEST["nav"], check=False, sample_seed=11)
     program = robot_program_on_fake_robot(tmp_path)
 
     def actions() -> tuple[np.ndarray, str]:
@@ -97,19 +97,19 @@ def test_the_program_samples_from_the_seed_it_was_exported_with(model: PPO, tmp_
 
 
 def test_sampling_needs_a_policy_with_a_state_independent_sigma(tmp_path: Path) -> None:
-    sac = SAC("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", learning_starts=0)
+    sac = SAC("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", learning_starts=0)
     with pytest.raises(ConfigError, match="action noise cannot be exported"):
-        export.export_policy(sac, tmp_path / "sac", env_id=NAV_ID, sample_seed=0)
-    ppo = PPO("MlpPolicy", gym.make(NAV_ID), seed=0, device="cpu", n_steps=64)
+        export.export_policy(sac, tmp_path / "sac", env_id=LATEST["nav"], sample_seed=0)
+    ppo = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     for seed in (-1, 2**64, 1.5, True):
         with pytest.raises(ConfigError, match="sampling seed"):
-            export.export_policy(ppo, tmp_path / "seed", env_id=NAV_ID, sample_seed=seed)
+            export.export_policy(ppo, tmp_path / "seed", env_id=LATEST["nav"], sample_seed=seed)
 
 
 def test_the_command_says_what_the_program_does(model: PPO, tmp_path: Path, capsys) -> None:
     path = tmp_path / "model.zip"
     model.save(path)
-    base = ["export", str(path), "--env", NAV_ID, "--no-check"]
+    base = ["export", str(path), "--env", LATEST["nav"], "--no-check"]
     assert cli.main([*base, "--out", str(tmp_path / "a"), "--sample-actions"]) == 0
     assert "actions: sampled from the policy's Gaussian (sigma 0.15, 0.3), seed 0" in (
         capsys.readouterr().out

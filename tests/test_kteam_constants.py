@@ -23,7 +23,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
-from conftest import NAV_ID
+from conftest import LATEST
 
 import khepera_gym
 from khepera_gym import _core
@@ -85,8 +85,8 @@ def truncated(value: float, decimals: int) -> float:
 def test_the_wheel_distance_is_kteams() -> None:
     # The simulator, its scenario default and what the exporter and calibration program bake in.
     assert math.isclose(_core.AXLE_LENGTH, KH4_WHEELS_DISTANCE / 1000, abs_tol=1e-8)
-    with gym.make(NAV_ID) as env:
-        exported = robot.robot_interface(env, 18, NAV_ID)
+    with gym.make(LATEST["nav"]) as env:
+        exported = robot.robot_interface(env, 18, LATEST["nav"])
     assert exported.axle_length == pytest.approx(KH4_WHEELS_DISTANCE / 1000, abs=1e-8)
     assert "axle_length = 0.1054 " in _core.default_config("nav", None)
 
@@ -120,7 +120,7 @@ def test_the_speed_unit_is_kteams_factor_untruncated() -> None:
 
 def test_the_gyroscope_count_is_kteams() -> None:
     # The simulated gyroscope reads whole counts and gives the rate in rad/s from them.
-    env = gym.make(NAV_ID, carry=["ir", "us", "gyro"])
+    env = gym.make(LATEST["nav"], carry=["ir", "us", "gyro"])
     env.reset(seed=0)
     raws, rates = [], []
     for _ in range(40):
@@ -138,7 +138,7 @@ def test_the_gyroscope_count_is_kteams() -> None:
 def test_the_infrared_span_and_the_ultrasonic_codes_are_kteams() -> None:
     # A wall 20 mm ahead, noisy infrared sensors: the ring saturates at K-Team's 10-bit top.
     overrides = {**replay.calibration_scene(0.02), "ir_noise_sigma": 100.0}
-    env = gym.make(NAV_ID, **overrides)
+    env = gym.make(LATEST["nav"], **overrides)
     env.reset(seed=0)
     fronts = []
     for _ in range(30):
@@ -153,7 +153,7 @@ def test_the_infrared_span_and_the_ultrasonic_codes_are_kteams() -> None:
     env.close()
     assert us[2] == KH4_US_OBJECT_NEAR and us[0] == KH4_US_NO_OBJECT_IN_RANGE
     overrides["us_enabled"] = [False, True, True, True, True]
-    with gym.make(NAV_ID, **overrides) as env:
+    with gym.make(LATEST["nav"], **overrides) as env:
         env.reset(seed=0)
         env.step(np.zeros(2, np.float32))
         assert env.unwrapped.sensor_readings()["us_cm"][0][0] == KH4_US_DISABLED_SENSOR
