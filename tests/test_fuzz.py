@@ -1015,7 +1015,21 @@ _IMPOSSIBLE_FORMATION = [
 
 
 def _impossible(task: str) -> list[tuple[dict[str, Any], str]]:
-    return _IMPOSSIBLE + (_IMPOSSIBLE_FORMATION if task == "formation" else [])
+    """The impossible overrides for TASK. The cases are written for the shared sections; a bare
+    key that TASK also has in its own section (LineFollow's `width`: the arena's and the
+    line's) is ambiguous, an error of its own, so there it is written with its shared section."""
+    cases = _IMPOSSIBLE + (_IMPOSSIBLE_FORMATION if task == "formation" else [])
+    schema = _schema(task)
+
+    def qualified(key: str) -> str:
+        sections = [name for name, table in schema.items() if key in table]
+        shared = [name for name in sections if name != task]
+        return f"{shared[0]}.{key}" if len(sections) > 1 and len(shared) == 1 else key
+
+    return [
+        ({qualified(k): v for k, v in overrides.items()}, expected)
+        for overrides, expected in cases
+    ]
 
 
 def _assert_config_error_names_a_key(
@@ -1069,6 +1083,19 @@ def _check_built_env(env: gym.Env, seed: int, data: st.DataObject) -> None:
         assert math.isfinite(reward), f"non-finite reward {reward}"
         if terminated or truncated:
             break
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_impossible_scenario_is_refused_naming_its_key(env_id: str) -> None:
+    """Each impossible case, on every task, not only those the random draw happens to pick:
+    a ConfigError that names the key at fault (a LineFollow `width` was ambiguous, and only a
+    CI run's draw showed it)."""
+    task = TASKS[env_id]
+    for overrides, key in _impossible(task):
+        env, error = _attempt(lambda o=overrides: gym.make(env_id, **o))
+        assert env is None, f"impossible {overrides} was accepted on {env_id}"
+        _assert_config_error_names_a_key(error, "<override>", task, list(overrides))
+        assert key in str(error), (overrides, str(error), key)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
