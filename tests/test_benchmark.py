@@ -214,8 +214,20 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
 # episode ended (a few frames of a long episode), are theirs.
 @pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
 @pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
-def test_mappo_trains_through_benchmarl(tmp_path: Path) -> None:
+def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    import torch
+    from benchmarl.experiment import Experiment
+    from tensordict import TensorDict
+
+    experiments: list[Any] = []
+    build = Experiment.__init__
+
+    def keep(self: Any, *args: Any, **kwargs: Any) -> None:
+        build(self, *args, **kwargs)
+        experiments.append(self)
+
+    monkeypatch.setattr(Experiment, "__init__", keep)
     out = tmp_path / "bench"
     _run(
         [
@@ -240,8 +252,30 @@ def test_mappo_trains_through_benchmarl(tmp_path: Path) -> None:
             "minibatch_size=256",
             "--hp",
             "n_envs=4",
+            "--hp",
+            "sigma_min=0.25",
         ]
     )
     record = json.loads(next((out / "runs").glob("formation-*_mappo_seed0.json")).read_text())
     assert record["timesteps"] >= 1024 and "formation_error_mean" in record["final"]
     assert Path(record["files"]["policy"]).is_file()
+    # The recipe's floor holds under the actor's σ, however far its outputs push it down.
+    (experiment,) = experiments
+    group = next(iter(experiment.group_map))
+    actor = experiment.policy
+    for parameter in actor.parameters():
+        torch.nn.init.constant_(parameter, -100.0)
+    observation = torch.rand(8, 4, experiment.observation_spec[group, "observation"].shape[-1])
+    with torch.no_grad():
+        scale = actor(TensorDict({group: {"observation": observation}}, batch_size=[8]))[
+            group, "scale"
+        ]
+    assert record["recipe"]["sigma_min"] == 0.25
+    assert scale.min().item() == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("floor", [0.0, 1.0, "high", True])
+def test_a_wrong_sigma_floor_is_refused_before_training(floor: Any) -> None:
+    pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    with pytest.raises(ConfigError, match="sigma_min must be"):
+        learners.learner("mappo").recipe("formation", _core.LATEST_VERSION, {"sigma_min": floor})
