@@ -23,6 +23,7 @@ from khepera_gym.benchmark import learners, load_suite
 from khepera_gym.benchmark.runner import FORMAT, judge, means
 from khepera_gym.benchmark.suite import Condition
 from khepera_gym.errors import ConfigError
+from khepera_gym.sb3.policy import frame_stack_of
 
 #: The smallest benchmark that runs every step: one seed, a few updates, a few episodes.
 TINY = [
@@ -39,6 +40,8 @@ TINY = [
     "n_envs=8",
     "--hp",
     "n_steps=128",
+    "--hp",
+    "frame_stack=2",
 ]
 
 
@@ -172,6 +175,11 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     )
     summary = json.loads((out / "benchmark.json").read_text())
     assert summary["tables"][0]["learners"][0]["seeds"] == [0]
+    # The model has its run.json beside it, as `khepera-gym train` leaves one: load_policy
+    # (compare, render) stacks its frames and export finds its env.
+    run = json.loads(Path(record["files"]["run"]).read_text())
+    assert run["env_id"] == record["key"]["env"] and run["hyperparams"] == record["recipe"]
+    assert frame_stack_of(record["files"]["model"]) == 2
 
     # Resumed: a finished run is not trained again.
     def no_training(*args: Any, **kwargs: Any) -> None:
