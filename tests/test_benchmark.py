@@ -23,6 +23,7 @@ from khepera_gym.benchmark import learners, load_suite
 from khepera_gym.benchmark.runner import FORMAT, judge, means
 from khepera_gym.benchmark.suite import Condition
 from khepera_gym.errors import ConfigError
+from khepera_gym.sb3.policy import frame_stack_of
 
 #: The smallest benchmark that runs every step: one seed, a few updates, a few episodes.
 TINY = [
@@ -39,6 +40,8 @@ TINY = [
     "n_envs=8",
     "--hp",
     "n_steps=128",
+    "--hp",
+    "frame_stack=2",
 ]
 
 
@@ -172,6 +175,11 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     )
     summary = json.loads((out / "benchmark.json").read_text())
     assert summary["tables"][0]["learners"][0]["seeds"] == [0]
+    # The model has its run.json beside it, as `khepera-gym train` leaves one: load_policy
+    # (compare, render) stacks its frames and export finds its env.
+    run = json.loads(Path(record["files"]["run"]).read_text())
+    assert run["env_id"] == record["key"]["env"] and run["hyperparams"] == record["recipe"]
+    assert frame_stack_of(record["files"]["model"]) == 2
 
     # Resumed: a finished run is not trained again.
     def no_training(*args: Any, **kwargs: Any) -> None:
@@ -214,8 +222,20 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
 # episode ended (a few frames of a long episode), are theirs.
 @pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
 @pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
-def test_mappo_trains_through_benchmarl(tmp_path: Path) -> None:
+def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    import torch
+    from benchmarl.experiment import Experiment
+    from tensordict import TensorDict
+
+    experiments: list[Any] = []
+    build = Experiment.__init__
+
+    def keep(self: Any, *args: Any, **kwargs: Any) -> None:
+        build(self, *args, **kwargs)
+        experiments.append(self)
+
+    monkeypatch.setattr(Experiment, "__init__", keep)
     out = tmp_path / "bench"
     _run(
         [
@@ -240,8 +260,30 @@ def test_mappo_trains_through_benchmarl(tmp_path: Path) -> None:
             "minibatch_size=256",
             "--hp",
             "n_envs=4",
+            "--hp",
+            "sigma_min=0.25",
         ]
     )
     record = json.loads(next((out / "runs").glob("formation-*_mappo_seed0.json")).read_text())
     assert record["timesteps"] >= 1024 and "formation_error_mean" in record["final"]
     assert Path(record["files"]["policy"]).is_file()
+    # The recipe's floor holds under the actor's σ, however far its outputs push it down.
+    (experiment,) = experiments
+    group = next(iter(experiment.group_map))
+    actor = experiment.policy
+    for parameter in actor.parameters():
+        torch.nn.init.constant_(parameter, -100.0)
+    observation = torch.rand(8, 4, experiment.observation_spec[group, "observation"].shape[-1])
+    with torch.no_grad():
+        scale = actor(TensorDict({group: {"observation": observation}}, batch_size=[8]))[
+            group, "scale"
+        ]
+    assert record["recipe"]["sigma_min"] == 0.25
+    assert scale.min().item() == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("floor", [0.0, 1.0, "high", True])
+def test_a_wrong_sigma_floor_is_refused_before_training(floor: Any) -> None:
+    pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    with pytest.raises(ConfigError, match="sigma_min must be"):
+        learners.learner("mappo").recipe("formation", _core.LATEST_VERSION, {"sigma_min": floor})

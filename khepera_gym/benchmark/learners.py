@@ -18,6 +18,7 @@ apart from training time.
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -160,6 +161,7 @@ class SB3Learner:
 
         from khepera_gym.sb3 import as_predictor, make_vec_env
         from khepera_gym.sb3.evaluate import first_episode_stats
+        from khepera_gym.sb3.policy import RUN_FILE, VECNORMALIZE_FILE
         from khepera_gym.train import build_model
 
         name = self.env_name(job.task, job.version)
@@ -217,9 +219,16 @@ class SB3Learner:
         model.save(files["model"])
         normalizer = model.get_vec_normalize_env()
         if normalizer is not None:
-            files["vecnormalize"] = str(job.out_dir / "vecnormalize.pkl")
+            files["vecnormalize"] = str(job.out_dir / VECNORMALIZE_FILE)
             normalizer.save(files["vecnormalize"])
         recipe["n_timesteps"] = total
+        # As `khepera-gym train` leaves it beside its model: load_policy (compare, render)
+        # stacks frames from it and export reads the env and scenario the policy trained on.
+        files["run"] = str(job.out_dir / RUN_FILE)
+        run = {"env_id": name, "algo": self.algo, "seed": job.seed, "hyperparams": recipe}
+        Path(files["run"]).write_text(
+            json.dumps(run, indent=2, default=str) + "\n", encoding="utf-8"
+        )
         eval_env.close()
 
         def sample(seed: int) -> Any:

@@ -7,7 +7,9 @@ table in ``configs/hyperparams/mappo.toml`` (or ``ippo.toml``): ``n_timesteps`` 
 ``hidden``, ``learning_rate``, ``gamma``, ``gae_lambda``, ``max_grad_norm``,
 ``normalize_advantage`` (each minibatch's advantages standardised, as SB3's PPO does),
 ``entropy_coef``, ``tanh`` (BenchMARL's tanh-squashed Gaussian, or a Gaussian clipped to the
-bounds) and ``env_kwargs``. The trained actor plays the held-out episodes agent by agent, as the
+bounds), ``sigma_min`` (a floor under the actor's σ, before the tanh: BenchMARL maps half of the
+actor's outputs to σ by a softplus whose floor is 0.01; this raises it, so σ cannot collapse) and
+``env_kwargs``. The trained actor plays the held-out episodes agent by agent, as the
 rows of :func:`khepera_gym.sb3.make_vec_env` of the task's PettingZoo module.
 """
 
@@ -40,8 +42,25 @@ RECIPE_KEYS = (
     "normalize_advantage",
     "entropy_coef",
     "tanh",
+    "sigma_min",
     "env_kwargs",
 )
+
+#: BenchMARL's own floor under σ (its ``biased_softplus_1.0`` mapping: σ = 1 at a zero output).
+SIGMA_MIN = 0.01
+
+
+def scale_mapping(sigma_min: float) -> str:
+    """BenchMARL's σ mapping (tensordict's ``biased_softplus_<σ at 0>_<floor>``) with a floor.
+
+    Raises:
+        ConfigError: A floor that is not a number in [0.01, 1) (1 is σ at a zero output).
+    """
+    if isinstance(sigma_min, bool) or not isinstance(sigma_min, int | float):
+        raise ConfigError(f"sigma_min must be a number, got {sigma_min!r}")
+    if not SIGMA_MIN <= sigma_min < 1.0:
+        raise ConfigError(f"sigma_min must be in [{SIGMA_MIN}, 1), got {sigma_min!r}")
+    return f"biased_softplus_1.0_{float(sigma_min)!r}"
 
 
 class _ActorOnRows:
@@ -88,6 +107,7 @@ class BenchMARLLearner:
             raise ConfigError(
                 f"{self.name} recipe: unknown key {unknown[0]!r}; known: {', '.join(RECIPE_KEYS)}"
             )
+        scale_mapping(recipe.get("sigma_min", SIGMA_MIN))  # a wrong floor: now, not after training
         return recipe
 
     def train(self, job: Job, report: Callable[[int, int], None] | None = None) -> Trained:
@@ -128,6 +148,7 @@ class BenchMARLLearner:
         algorithm.lmbda = float(recipe.get("gae_lambda", 0.95))
         algorithm.use_tanh_normal = bool(recipe.get("tanh", True))
         algorithm.entropy_coef = float(recipe.get("entropy_coef", 0.0))
+        algorithm.scale_mapping = scale_mapping(recipe.get("sigma_min", SIGMA_MIN))
         model = MlpConfig.get_from_yaml()
         model.num_cells = list(recipe.get("hidden", [64, 64]))
         task_config = {**recipe.get("env_kwargs", {}), "version": job.version}
@@ -211,4 +232,4 @@ class BenchMARLLearner:
         )
 
 
-__all__ = ["RECIPE_KEYS", "BenchMARLLearner"]
+__all__ = ["RECIPE_KEYS", "SIGMA_MIN", "BenchMARLLearner", "scale_mapping"]
