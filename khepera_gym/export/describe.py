@@ -96,10 +96,12 @@ def reference_actions(model: Any, normalizer: Any = None) -> ReferencePolicy:
     model = as_policy(model)
     if isinstance(model, RllibPolicy):
         return ReferencePolicy(lambda obs: model.predict(obs, deterministic=True), _no_memory)
-    if type(model).__name__ == "RecurrentPPO" and type(model).__module__.startswith("sb3_contrib"):
+    if is_sb3_model(model):
         from khepera_gym.sb3 import RecurrentPolicy
+        from khepera_gym.sb3.policy import is_recurrent
 
-        model = RecurrentPolicy(model, normalizer)
+        if is_recurrent(model):
+            model = RecurrentPolicy(model, normalizer)
     if normalizer is not None and not hasattr(model, "normalizer"):
         from khepera_gym.sb3 import NormalizedPolicy
 

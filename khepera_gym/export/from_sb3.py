@@ -94,7 +94,9 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
     from stable_baselines3.common.torch_layers import FlattenExtractor
     from torch import nn
 
-    if type(model).__name__ == "RecurrentPPO" and type(model).__module__.startswith("sb3_contrib"):
+    from khepera_gym.sb3.policy import is_recurrent
+
+    if is_recurrent(model):
         return _describe_recurrent(model, normalizer, frame_stack)
     name = f"stable-baselines3 {type(model).__name__}"
     if not isinstance(model, (PPO, A2C, SAC, TD3)):

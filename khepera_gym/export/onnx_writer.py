@@ -24,7 +24,7 @@ Threading: onnxruntime uses its own thread pool inside ``run``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -66,42 +66,18 @@ def _onnx_gates(array: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
     return np.concatenate([blocks[k] for k in _ONNX_GATE_ORDER], axis=0)
 
 
-def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None) -> Any:
-    """The ONNX ``ModelProto`` of ``network``, checked with ``onnx.checker``.
+def _lstm_nodes(
+    network: PolicyNetwork,
+    current: str,
+    constant: Callable[..., str],
+    node: Callable[..., str],
+    nodes: list[Any],
+) -> str:
+    """Appends the LSTM layers' nodes (ONNX's ``LSTM`` operator, one time step: each layer's
+    state sliced from :data:`STATE_INPUTS`, the next ones joined into :data:`STATE_OUTPUTS`) and
+    returns the last layer's output (N, hidden); ``current`` itself without LSTM layers."""
+    from onnx import helper
 
-    Input ``"observation"`` float32 (N, input_dim: ``frame_stack`` observations), output
-    ``"action"`` float32 (N, action_dim); for a recurrent policy also the state in and out
-    (:data:`STATE_INPUTS`, :data:`STATE_OUTPUTS`: float32 (layers, N, hidden)). The
-    normalisation runs in float64 (as SB3's does), the rest in float32.
-
-    Raises:
-        ImportError: onnx is not installed (the message names the pip command).
-    """
-    onnx = import_onnx()
-    from onnx import TensorProto, helper, numpy_helper
-
-    nodes: list[Any] = []
-    initializers: list[Any] = []
-
-    def constant(name: str, values: npt.ArrayLike, dtype: Any = np.float32) -> str:
-        initializers.append(numpy_helper.from_array(np.asarray(values, dtype), name))
-        return name
-
-    def node(op: str, inputs: list[str], output: str, **attributes: Any) -> str:
-        nodes.append(helper.make_node(op, inputs, [output], name=output, **attributes))
-        return output
-
-    current = "observation"
-    norm = network.normalization
-    stack = network.frame_stack
-    if norm is not None:
-        mean, std = np.tile(norm.mean, stack), np.tile(norm.std, stack)  # the same for each frame
-        current = node("Cast", [current], "observation_f64", to=TensorProto.DOUBLE)
-        current = node("Sub", [current, constant("obs_mean", mean, np.float64)], "centred")
-        current = node("Div", [current, constant("obs_std", std, np.float64)], "scaled")
-        current = node("Max", [current, constant("obs_low", [-norm.clip], np.float64)], "lower")
-        current = node("Min", [current, constant("obs_high", [norm.clip], np.float64)], "upper")
-        current = node("Cast", [current], "normalized", to=TensorProto.FLOAT)
     states: dict[str, list[str]] = {name: [] for name in STATE_OUTPUTS}
     layers = len(network.lstm)
     for index, lstm in enumerate(network.lstm):
@@ -146,6 +122,46 @@ def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None
                 if len(parts) > 1
                 else helper.make_node("Identity", parts, [name], name=name)
             )
+    return current
+
+
+def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None) -> Any:
+    """The ONNX ``ModelProto`` of ``network``, checked with ``onnx.checker``.
+
+    Input ``"observation"`` float32 (N, input_dim: ``frame_stack`` observations), output
+    ``"action"`` float32 (N, action_dim); for a recurrent policy also the state in and out
+    (:data:`STATE_INPUTS`, :data:`STATE_OUTPUTS`: float32 (layers, N, hidden)). The
+    normalisation runs in float64 (as SB3's does), the rest in float32.
+
+    Raises:
+        ImportError: onnx is not installed (the message names the pip command).
+    """
+    onnx = import_onnx()
+    from onnx import TensorProto, helper, numpy_helper
+
+    nodes: list[Any] = []
+    initializers: list[Any] = []
+
+    def constant(name: str, values: npt.ArrayLike, dtype: Any = np.float32) -> str:
+        initializers.append(numpy_helper.from_array(np.asarray(values, dtype), name))
+        return name
+
+    def node(op: str, inputs: list[str], output: str, **attributes: Any) -> str:
+        nodes.append(helper.make_node(op, inputs, [output], name=output, **attributes))
+        return output
+
+    current = "observation"
+    norm = network.normalization
+    stack = network.frame_stack
+    if norm is not None:
+        mean, std = np.tile(norm.mean, stack), np.tile(norm.std, stack)  # the same for each frame
+        current = node("Cast", [current], "observation_f64", to=TensorProto.DOUBLE)
+        current = node("Sub", [current, constant("obs_mean", mean, np.float64)], "centred")
+        current = node("Div", [current, constant("obs_std", std, np.float64)], "scaled")
+        current = node("Max", [current, constant("obs_low", [-norm.clip], np.float64)], "lower")
+        current = node("Min", [current, constant("obs_high", [norm.clip], np.float64)], "upper")
+        current = node("Cast", [current], "normalized", to=TensorProto.FLOAT)
+    current = _lstm_nodes(network, current, constant, node, nodes)
     for index, layer in enumerate(network.layers):
         weight = constant(f"layer{index}_weight", layer.weight)
         bias = constant(f"layer{index}_bias", layer.bias)
@@ -178,7 +194,7 @@ def build_onnx(network: PolicyNetwork, metadata: Mapping[str, str] | None = None
         helper.make_tensor_value_info("action", TensorProto.FLOAT, ["N", network.action_dim])
     ]
     if network.recurrent:
-        shape = [layers, "N", network.lstm_hidden_size]
+        shape = [len(network.lstm), "N", network.lstm_hidden_size]
         inputs += [helper.make_tensor_value_info(n, TensorProto.FLOAT, shape) for n in STATE_INPUTS]
         outputs += [
             helper.make_tensor_value_info(n, TensorProto.FLOAT, shape) for n in STATE_OUTPUTS
