@@ -49,8 +49,9 @@ if TYPE_CHECKING:
 
     from khepera_gym.sb3 import Evaluation
 
-#: Algorithms ``train`` knows: command-line name → SB3 class name.
-ALGORITHMS = {"ppo": "PPO", "sac": "SAC"}
+#: Algorithms ``train`` knows: command-line name → class name (stable-baselines3's, or
+#: sb3-contrib's RecurrentPPO: PPO with an LSTM policy, ``MlpLstmPolicy``).
+ALGORITHMS = {"ppo": "PPO", "sac": "SAC", "recurrent_ppo": "RecurrentPPO"}
 #: Training libraries of ``--backend``: stable-baselines3 (default) or Ray RLlib (PPO only).
 BACKENDS = ("sb3", "rllib")
 #: Keys of a hyperparameter table that configure the run rather than the SB3 algorithm.
@@ -111,11 +112,11 @@ def build_model(
     Raises:
         ConfigError: Unknown algorithm, or a key the algorithm does not take.
     """
-    import stable_baselines3
+    from khepera_gym.sb3 import algorithm_class
 
     if algo not in ALGORITHMS:
         raise ConfigError(f"unknown algorithm {algo!r}; known: {sorted(ALGORITHMS)}")
-    algorithm = getattr(stable_baselines3, ALGORITHMS[algo])
+    algorithm = algorithm_class(ALGORITHMS[algo])
     kwargs = {key: value for key, value in hyperparams.items() if key not in _RUN_KEYS}
     if "learning_rate" in kwargs:
         kwargs["learning_rate"] = _learning_rate(kwargs["learning_rate"])
@@ -191,7 +192,7 @@ def train(
 
     Args:
         env_id: A khepera_gym id ("KheperaIV-Nav" picks the latest version).
-        algo: "ppo" or "sac".
+        algo: "ppo", "sac" or "recurrent_ppo" (sb3-contrib's RecurrentPPO).
         timesteps: Environment steps in total; None takes the table's ``n_timesteps``.
         n_envs: Worlds trained in parallel; None takes the table's ``n_envs``.
         seed: Seeds the algorithm (torch) and the training worlds (world i: seed + i).
@@ -285,6 +286,10 @@ def _train(
     frame_stack = hyperparams.get("frame_stack", 1)
     if isinstance(frame_stack, bool) or not isinstance(frame_stack, int) or frame_stack < 1:
         raise ConfigError(f"frame_stack must be an integer >= 1, got {frame_stack!r}")
+    if frame_stack > 1 and ALGORITHMS.get(algo) == "RecurrentPPO":
+        raise ConfigError(
+            "a RecurrentPPO model keeps its memory in its LSTM: train it without frame_stack"
+        )
     env_kwargs = dict(hyperparams.get("env_kwargs", {}))
     short_name = env_id.removeprefix("KheperaIV-").lower()
     out = Path(out_dir) if out_dir is not None else Path("runs") / f"{algo}-{short_name}-s{seed}"

@@ -995,6 +995,7 @@ def test_a_drive_the_robot_cannot_be_set_to_needs_its_nominal_setting(tmp_path: 
 def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) -> None:
     """Optional: ``KHEPERA_SDK=/path/to/libkhepera-2.1 pytest tests/test_export.py -k sdk``."""
     import robot_programs as rp
+    from test_export_recurrent import recurrent_ppo
 
     from khepera_gym.calibrate import write_calibration_program
 
@@ -1011,6 +1012,7 @@ def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) ->
     programs = {
         "plain": (nav_models()["ppo"]()[0], {}),
         "frame_stack": (frame_stacked_ppo(3), {}),
+        "recurrent": (recurrent_ppo(1), {}),
         "sampled": (sampled, {"sample_seed": 1}),
         "led_action": (led, {"led_action": True}),
     }
@@ -1031,4 +1033,4 @@ def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) ->
             )
             assert result.returncode == 0, f"{source} against {include}:\n{result.stderr}"
             compiled += 1
-    assert compiled == 4 * 8 + 4  # each export's 8 C files, the calibration program's 4
+    assert compiled == len(programs) * 8 + 4  # each export's 8 C files, calibration's 4

@@ -1,13 +1,14 @@
 """The generated robot programs on the Khepera IV's own processor, and on K-Team's interface.
 
-Every program (a policy without memory, a frame-stacked one, one sampling its actions, a
-``led_action`` one, their ``export_check``, and the calibration program) is cross-compiled for
-ARMv7-A, hard float, NEON, with the flags of K-Team's Poky toolchain and warnings as errors
-(:mod:`khepera_gym.export.toolchain`), linked with the simulated libkhepera built for ARM, and run
-under ``qemu-arm`` against the simulated robot (tests/fake_libkhepera/). The ARM builds must act
-as the Python policy does within the host build's tolerance over whole episodes, and the ARM
-calibration log must calibrate as the host's. A failing libkhepera call, made to fail in turn by
-the fake library, must stop the motors, say which call failed and close the log, on both.
+Every program (a policy without memory, a frame-stacked one, a recurrent one (an LSTM), one
+sampling its actions, a ``led_action`` one, their ``export_check``, and the calibration program)
+is cross-compiled for ARMv7-A, hard float, NEON, with the flags of K-Team's Poky toolchain and
+warnings as errors (:mod:`khepera_gym.export.toolchain`), linked with the simulated libkhepera
+built for ARM, and run under ``qemu-arm`` against the simulated robot (tests/fake_libkhepera/).
+The ARM builds must act as the Python policy does within the host build's tolerance over whole
+episodes, and the ARM calibration log must calibrate as the host's. A failing libkhepera call,
+made to fail in turn by the fake library, must stop the motors, say which call failed and close
+the log, on both.
 
 Where the cross compiler or the emulator is missing, the ARM tests skip saying so (.ci/run
 installs ``gcc-arm-linux-gnueabihf`` and ``qemu-user``). Self-consistent, not external: the
@@ -34,6 +35,7 @@ from conftest import LATEST
 from stable_baselines3 import PPO
 from test_calibrate import SHORT_PHASES, WALL_DISTANCE
 from test_export import ACTION_TOLERANCE, frame_stacked_ppo, nav_models, scale_output_layer
+from test_export_recurrent import recurrent_ppo
 
 from khepera_gym import cli, export
 from khepera_gym.calibrate import calibrate, read_log, write_calibration_program
@@ -59,6 +61,10 @@ def _frame_stack() -> tuple[Any, dict[str, Any]]:
     return frame_stacked_ppo(3), {}
 
 
+def _recurrent() -> tuple[Any, dict[str, Any]]:
+    return recurrent_ppo(1), {}
+
+
 def _sampled() -> tuple[Any, dict[str, Any]]:
     # Untrained, unscaled: a mean within ±1 that the draws move.
     model = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
@@ -79,6 +85,7 @@ def _led() -> tuple[Any, dict[str, Any]]:
 POLICIES: dict[str, Callable[[], tuple[Any, dict[str, Any]]]] = {
     "plain": _plain,
     "frame_stack": _frame_stack,
+    "recurrent": _recurrent,
     "sampled": _sampled,
     "led_action": _led,
 }

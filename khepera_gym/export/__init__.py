@@ -2,23 +2,26 @@
 
 A policy network is first reduced to a small description,
 :class:`~khepera_gym.export.network.PolicyNetwork`: the observation normalisation (``VecNormalize``
-statistics), how many observations it acts on (a frame stack), a list of dense layers with their
-activations, and the transform of the network's output into an action. Both writers work from that
+statistics), how many observations it acts on (a frame stack), a recurrent policy's LSTM layers,
+a list of dense layers with their activations, and the transform of the network's output into an
+action. Both writers work from that
 one description, so the ONNX file and the C code compute the same function. The package, one job a
 module:
 
 * :mod:`~khepera_gym.export.network`: the description, and what is supported;
 * :mod:`~khepera_gym.export.describe` (with :mod:`~khepera_gym.export.from_sb3`,
   :mod:`~khepera_gym.export.from_rllib` and :mod:`~khepera_gym.export.torch_layers`): a
-  stable-baselines3 model (PPO, A2C, SAC, TD3) or a Ray RLlib PPO checkpoint to that
+  stable-baselines3 model (PPO, A2C, SAC, TD3; sb3-contrib's RecurrentPPO) or a Ray RLlib PPO
+  checkpoint to that
   description (:data:`SUPPORTED_MODELS`; anything else raises ConfigError naming these);
 * :mod:`~khepera_gym.export.robot`: the robot side, read from the env the policy was trained on:
   its observation layout (the scenario's observed sensors only) and the scenario's constants;
 * :mod:`~khepera_gym.export.onnx_writer`: ``policy.onnx`` (opset 13, checked with
   ``onnx.checker``; the ``export`` extra);
-* :mod:`~khepera_gym.export.c_writer`: ``policy.c``, ``observation.c``, ``wheel_command.c``, the
-  libkhepera template program, ``export_check.c``, a Makefile and a README (templates in
-  ``khepera_gym/export/templates/``);
+* :mod:`~khepera_gym.export.c_writer`: ``policy.c`` (the network:
+  :mod:`~khepera_gym.export.c_policy`), ``observation.c``, ``wheel_command.c``, the libkhepera
+  template program, ``export_check.c``, a Makefile and a README (templates in
+  ``khepera_gym/export/templates/``, C text by :mod:`~khepera_gym.export.c_text`);
 * :mod:`~khepera_gym.export.checks`: the exported files against the Python policy and the
   simulator on seeded rollouts (:func:`khepera_gym.rollout.run_episodes`);
 * :mod:`~khepera_gym.export.toolchain`: where the C is built and run: here, or for the robot's
@@ -63,15 +66,19 @@ from khepera_gym.export.network import (
     SUPPORTED_MODELS,
     ActionTransform,
     DenseLayer,
+    LstmLayer,
     ObservationNormalization,
     PolicyNetwork,
 )
 from khepera_gym.export.onnx_writer import (
     ONNX_FILE,
     ONNX_OPSET,
+    STATE_INPUTS,
+    STATE_OUTPUTS,
     build_onnx,
     onnx_actions,
     onnx_inputs,
+    onnx_sequence_actions,
 )
 from khepera_gym.export.robot import RobotInterface, robot_interface, toml_loads
 from khepera_gym.export.toolchain import Target, arm_target, host_target
@@ -92,10 +99,13 @@ __all__ = [
     "ROBOT_HEADERS",
     "ROBOT_SOURCES",
     "SCENARIO_FILE",
+    "STATE_INPUTS",
+    "STATE_OUTPUTS",
     "SUPPORTED_MODELS",
     "ActionTransform",
     "DenseLayer",
     "ExportResult",
+    "LstmLayer",
     "MotorSetting",
     "ObservationNormalization",
     "PolicyNetwork",
@@ -115,6 +125,7 @@ __all__ = [
     "motor_setting",
     "onnx_actions",
     "onnx_inputs",
+    "onnx_sequence_actions",
     "record_rollouts",
     "reference_actions",
     "robot_interface",

@@ -3,10 +3,8 @@
 :func:`write_c` writes, from a :class:`~khepera_gym.export.network.PolicyNetwork` and a
 :class:`~khepera_gym.export.robot.RobotInterface`:
 
-* ``policy.c``/``policy.h``: the weights as ``const float`` arrays,
-  ``int policy_step(policy_state *state, const float *observation, float *action)`` with the
-  policy's memory (its frame stack) in ``policy_state``, and ``policy_forward`` (a fresh state)
-  (no allocation, libm for tanhf/expf only);
+* ``policy.c``/``policy.h``: the network (:mod:`~khepera_gym.export.c_policy`), with the
+  policy's memory (its frame stack, a recurrent policy's LSTM state) in ``policy_state``;
 * ``observation.c``/``.h``: the simulator's normalisation of the raw IR and ultrasonic readings,
   wheel speeds and goal into the observation of the env the policy was trained on, block by
   block in the env's own layout (only the blocks it observes), with the scenario's constants
@@ -22,23 +20,19 @@
 
 The fixed parts are files of ``khepera_gym/export/templates/`` with ``$``-placeholders
 (``string.Template``). Float constants are written so that they read back as the same float32
-(or float64) value. Threading: none.
+(or float64) value (:mod:`~khepera_gym.export.c_text`). Threading: none.
 """
 
 from __future__ import annotations
 
-import importlib.resources
 import math
 import re
-import string
-import textwrap
-from collections.abc import Iterable
 from pathlib import Path
-
-import numpy as np
 
 import khepera_gym
 from khepera_gym.errors import ConfigError
+from khepera_gym.export.c_policy import check_sampling, policy_c_sources
+from khepera_gym.export.c_text import c_double, c_float, load_template, wrap_comment
 from khepera_gym.export.motors import PROFILE_MAX_SPEED, MotorSetting
 from khepera_gym.export.network import PolicyNetwork
 from khepera_gym.export.robot import (
@@ -79,32 +73,6 @@ def shared_robot_sources() -> dict[str, str]:
     return {name: load_template(name).template for name in (*ROBOT_SOURCES, *ROBOT_HEADERS)}
 
 
-def _c_float(value: float) -> str:
-    """A float32 literal that reads back as exactly ``np.float32(value)``."""
-    number = float(np.float32(value))
-    if not math.isfinite(number):
-        raise ConfigError(f"cannot write the non-finite value {number} as a C constant")
-    text = f"{number:.9g}"
-    if not any(mark in text for mark in ".en"):
-        text += ".0"
-    return text + "f"
-
-
-def c_double(value: float) -> str:
-    """A double literal that reads back as exactly ``value``."""
-    if not math.isfinite(value):
-        raise ConfigError(f"cannot write the non-finite value {value} as a C constant")
-    text = f"{value:.17g}"
-    return text if any(mark in text for mark in ".en") else text + ".0"
-
-
-def _c_array(values: Iterable[str], indent: str = "    ", per_line: int = 6) -> str:
-    """Comma-separated values, ``per_line`` to a line."""
-    items = list(values)
-    lines = [", ".join(items[i : i + per_line]) for i in range(0, len(items), per_line)]
-    return (",\n" + indent).join(lines)
-
-
 def _indices(start: int, stop: int, dash: str) -> str:
     """A block's indices: "13", or "0-7" for a longer one."""
     return str(start) if stop - start == 1 else f"{start}{dash}{stop - 1}"
@@ -112,174 +80,6 @@ def _indices(start: int, stop: int, dash: str) -> str:
 
 def _c_name(name: str) -> str:
     return re.sub(r"\W", "_", name)
-
-
-def load_template(name: str) -> string.Template:
-    """A file of khepera_gym/export/templates/ ($-placeholders, see string.Template)."""
-    text = importlib.resources.files("khepera_gym.export").joinpath("templates", name)
-    return string.Template(text.read_text("utf-8"))
-
-
-#: C expressions of the activations, of ``{x}`` (and ``{alpha}``).
-_C_ACTIVATIONS = {
-    "tanh": "tanhf({x})",
-    "relu": "({x} > 0.0f ? {x} : 0.0f)",
-    "elu": "({x} > 0.0f ? {x} : {alpha} * (expf({x}) - 1.0f))",
-    "leaky_relu": "({x} > 0.0f ? {x} : {alpha} * {x})",
-    "silu": "({x} / (1.0f + expf(-{x})))",
-}
-
-
-def _policy_constants(network: PolicyNetwork) -> str:
-    """The C definitions of the normalisation statistics, weights and action transform."""
-    parts = []
-    norm = network.normalization
-    if norm is not None:
-        parts.append(
-            "/* VecNormalize statistics: clip((obs - mean) / sqrt(var + epsilon)), in double as\n"
-            f" * stable-baselines3 computes it (epsilon {norm.epsilon:g} is in OBS_STD). */\n"
-            f"#define OBS_CLIP {c_double(norm.clip)}\n"
-            "static const double OBS_MEAN[POLICY_OBS_DIM] = {\n    "
-            f"{_c_array(c_double(v) for v in norm.mean)}\n}};\n"
-            "static const double OBS_STD[POLICY_OBS_DIM] = {\n    "
-            f"{_c_array(c_double(v) for v in norm.std)}\n}};\n"
-        )
-    for index, layer in enumerate(network.layers):
-        rows = ",\n".join(
-            "    {" + _c_array((_c_float(v) for v in row), indent="     ") + "}"
-            for row in layer.weight
-        )
-        bias = _c_array(_c_float(v) for v in layer.bias)
-        parts.append(
-            f"/* Layer {index}: {layer.inputs} -> {layer.outputs}, {layer.activation}. */\n"
-            f"static const float LAYER{index}_WEIGHT[{layer.outputs}][{layer.inputs}] = {{\n"
-            f"{rows}\n}};\n"
-            f"static const float LAYER{index}_BIAS[{layer.outputs}] = {{\n    {bias}\n}};\n"
-        )
-    transform = network.action
-    if transform.is_affine:
-        parts.append(
-            "/* The action: ACTION_SCALE * output + ACTION_OFFSET (to the action bounds). */\n"
-            "static const float ACTION_SCALE[POLICY_ACTION_DIM] = {"
-            f"{', '.join(_c_float(v) for v in transform.scale)}}};\n"
-            "static const float ACTION_OFFSET[POLICY_ACTION_DIM] = {"
-            f"{', '.join(_c_float(v) for v in transform.offset)}}};\n"
-        )
-    if transform.low is not None and transform.high is not None:
-        parts.append(
-            "/* The action's bounds (the action space): it is clipped to them. */\n"
-            "static const float ACTION_LOW[POLICY_ACTION_DIM] = {"
-            f"{', '.join(_c_float(v) for v in transform.low)}}};\n"
-            "static const float ACTION_HIGH[POLICY_ACTION_DIM] = {"
-            f"{', '.join(_c_float(v) for v in transform.high)}}};\n"
-        )
-    return "\n".join(parts)
-
-
-def _policy_forward(network: PolicyNetwork) -> str:
-    """The statements of ``policy_step``: the stack's shift, the new observation's
-    normalisation, layers, action transform."""
-    lines = []
-    if network.frame_stack > 1:
-        lines += [
-            "    /* The stack moves by one observation: the oldest goes. */",
-            "    for (i = 0; i < (POLICY_FRAME_STACK - 1) * POLICY_OBS_DIM; ++i) {",
-            "        state->frames[i] = state->frames[i + POLICY_OBS_DIM];",
-            "    }",
-        ]
-    lines.append("    for (i = 0; i < POLICY_OBS_DIM; ++i) {")
-    if network.normalization is not None:
-        lines += [
-            "        double value = ((double)observation[i] - OBS_MEAN[i]) / OBS_STD[i];",
-            "        value = value < -OBS_CLIP ? -OBS_CLIP : value;",
-            "        value = value > OBS_CLIP ? OBS_CLIP : value;",
-            "        newest[i] = (float)value;",
-        ]
-    else:
-        lines.append("        newest[i] = observation[i];")
-    lines += [
-        "    }",
-        "    for (i = 0; i < POLICY_FRAME_STACK * POLICY_OBS_DIM; ++i) {",
-        "        buffer_a[i] = state->frames[i];",
-        "    }",
-    ]
-    source, target = "buffer_a", "buffer_b"
-    for index, layer in enumerate(network.layers):
-        lines.append(
-            f"    dense(&LAYER{index}_WEIGHT[0][0], LAYER{index}_BIAS, {layer.inputs}, "
-            f"{layer.outputs}, {source}, {target});"
-        )
-        if layer.activation != "identity":
-            x = f"{target}[i]"
-            expression = _C_ACTIVATIONS[layer.activation].format(x=x, alpha=_c_float(layer.alpha))
-            lines += [
-                f"    for (i = 0; i < {layer.outputs}; ++i) {{",
-                f"        {x} = {expression};",
-                "    }",
-            ]
-        source, target = target, source
-    lines += [
-        "    for (i = 0; i < POLICY_ACTION_DIM; ++i) {",
-        f"        float value = {source}[i];",
-    ]
-    if network.action.is_affine:
-        lines.append("        value = ACTION_SCALE[i] * value + ACTION_OFFSET[i];")
-    lines += ["        action[i] = value;", "    }"]
-    return "\n".join(lines)
-
-
-def _action_clip(network: PolicyNetwork) -> str:
-    """The statements of ``clip_action``: the action to its bounds, when it has some."""
-    if network.action.low is None:
-        return "    (void)action; /* the action transform ends in the bounds: nothing to clip */"
-    return "\n".join(
-        [
-            "    int i;",
-            "    for (i = 0; i < POLICY_ACTION_DIM; ++i) {",
-            "        if (action[i] < ACTION_LOW[i]) {",
-            "            action[i] = ACTION_LOW[i];",
-            "        } else if (action[i] > ACTION_HIGH[i]) {",
-            "            action[i] = ACTION_HIGH[i];",
-            "        }",
-            "    }",
-        ]
-    )
-
-
-def _sampling_fields(network: PolicyNetwork) -> dict[str, str]:
-    """policy.h's declarations and policy.c's code of sampled actions: the whole of
-    ``sampling.c`` when the network knows its Gaussian's σ, else a note."""
-    if network.action_std is None:
-        note = (
-            "#define POLICY_SAMPLES 0 /* this policy's action noise is not exported (only PPO's "
-            "and A2C's σ is): policy_step gives its deterministic action */"
-        )
-        return {"sampling_api": note, "sampling": ""}
-    std = ", ".join(_c_float(v) for v in network.action_std)
-    return {
-        "sampling_api": load_template("sampling.h").template,
-        "sampling": load_template("sampling.c").substitute(action_std=std),
-    }
-
-
-def policy_c_sources(network: PolicyNetwork, provenance: str) -> dict[str, str]:
-    """``policy.h`` and ``policy.c`` of ``network`` (file name → text)."""
-    widths = [network.input_dim, *(layer.outputs for layer in network.layers)]
-    fields = {
-        "source": network.source,
-        "version": khepera_gym.__version__,
-        "provenance": provenance,
-        "obs_dim": network.obs_dim,
-        "frame_stack": network.frame_stack,
-        "action_dim": network.action_dim,
-        "widths": " -> ".join(str(width) for width in widths),
-        "max_width": network.max_width,
-        "constants": _policy_constants(network),
-        "forward": _policy_forward(network),
-        "clip": _action_clip(network),
-        **_sampling_fields(network),
-    }
-    return {name: load_template(name).substitute(fields) for name in ("policy.h", "policy.c")}
 
 
 def _input_fields(robot: RobotInterface) -> list[tuple[str, str, int, str]]:
@@ -340,15 +140,6 @@ def _input_fields(robot: RobotInterface) -> list[tuple[str, str, int, str]]:
     return fields
 
 
-def wrap_comment(text: str, indent: str) -> str:
-    """A ``/* ... */`` comment of ``text`` wrapped to 100 columns."""
-    lines = textwrap.wrap(text, 100 - len(indent) - 3)
-    return "\n".join(
-        indent + ("/* " if i == 0 else "   ") + line + (" */" if i == len(lines) - 1 else "")
-        for i, line in enumerate(lines)
-    )
-
-
 def _observation_statement(name: str, start: int, stop: int) -> str:
     """The C statement of ``observation_build`` filling one block."""
     target = f"observation[{start}]"
@@ -401,10 +192,10 @@ def observation_c_sources(robot: RobotInterface) -> dict[str, str]:
         "has_goal": int(robot.has_goal),
         "extra_inputs": len(robot.extra_blocks),
         "randomised": randomised,
-        "ir_floor_value": _c_float(robot.ir_floor_value),
-        "us_max_range": _c_float(robot.us_max_range),
-        "max_wheel_speed": _c_float(robot.max_wheel_speed),
-        "arena_diagonal": _c_float(robot.arena_diagonal),
+        "ir_floor_value": c_float(robot.ir_floor_value),
+        "us_max_range": c_float(robot.us_max_range),
+        "max_wheel_speed": c_float(robot.max_wheel_speed),
+        "arena_diagonal": c_float(robot.arena_diagonal),
         "fields": "\n".join(
             f"{wrap_comment(comment + '.', '    ')}\n    {c_type} {name}[{count}];"
             for name, c_type, count, comment in fields
@@ -466,10 +257,10 @@ def robot_c_sources(
         if unicycle
         else "normalised (left, right) wheel speeds, 1 = the wheel speed limit.",
         "unicycle": int(unicycle),
-        "max_wheel_speed": _c_float(robot.max_wheel_speed),
-        "min_wheel_speed": _c_float(robot.min_wheel_speed),
-        "axle_length": _c_float(robot.axle_length),
-        "mm_s_per_unit": _c_float(mm_s_per_unit(robot.wheel_radius)),
+        "max_wheel_speed": c_float(robot.max_wheel_speed),
+        "min_wheel_speed": c_float(robot.min_wheel_speed),
+        "axle_length": c_float(robot.axle_length),
+        "mm_s_per_unit": c_float(mm_s_per_unit(robot.wheel_radius)),
         "max_units": MAX_SPEED_UNITS,
     }
     config_fields = {
@@ -509,18 +300,6 @@ def robot_c_sources(
         "export_check.c": load_template("export_check.c").template,
         "Makefile": load_template("Makefile").template,
     }
-
-
-def check_sampling(network: PolicyNetwork, seed: int) -> None:
-    """Raises ConfigError unless ``network`` can be exported sampling its actions with ``seed``:
-    it knows its Gaussian's σ, and ``seed`` is an int in [0, 2^64) (the C generator's state)."""
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**64:
-        raise ConfigError(f"the sampling seed must be an integer in [0, 2^64), got {seed!r}")
-    if network.action_std is None:
-        raise ConfigError(
-            f"the {network.source} policy's action noise cannot be exported (only PPO's and "
-            "A2C's state-independent σ can): export it without --sample-actions"
-        )
 
 
 def readme(network: PolicyNetwork, robot: RobotInterface) -> str:

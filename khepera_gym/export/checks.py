@@ -32,7 +32,7 @@ import numpy.typing as npt
 from khepera_gym.errors import KheperaError
 from khepera_gym.export.c_writer import C_SOURCES
 from khepera_gym.export.network import PolicyNetwork
-from khepera_gym.export.onnx_writer import ONNX_FILE, onnx_actions, onnx_inputs
+from khepera_gym.export.onnx_writer import ONNX_FILE, onnx_sequence_actions
 from khepera_gym.export.robot import RobotInterface
 from khepera_gym.export.toolchain import Target, host_target
 from khepera_gym.rollout import run_episodes
@@ -267,12 +267,14 @@ def check_export(
 ) -> tuple[dict[str, Any], list[str]]:
     """Measures the exported files in ``out`` against ``reference`` (the Python policy's
     deterministic actions: a :class:`~khepera_gym.export.describe.ReferencePolicy`, or any
-    function of observations for a policy without memory) on recorded rollouts of ``env``.
+    function of observations for a policy without memory) on recorded rollouts of ``env``:
+    whole episodes, so that a policy with memory (a frame stack, an LSTM) is checked as it runs.
 
     The C policy runs ``policy_step`` over the recorded episodes in order, starting a fresh
-    ``policy_state`` at each episode's start; the ONNX graph gets each step's frame stack
-    (:func:`~khepera_gym.export.onnx_writer.onnx_inputs`). The C is built with ``compiler``
-    and run here, then for each target of ``cross`` (the robot's ARM:
+    ``policy_state`` at each episode's start; the ONNX graph gets each step's frame stack, and
+    a recurrent one its state, fed back step by step and zeroed at each episode's start
+    (:func:`~khepera_gym.export.onnx_writer.onnx_sequence_actions`). The C is built with
+    ``compiler`` and run here, then for each target of ``cross`` (the robot's ARM:
     :func:`~khepera_gym.export.toolchain.arm_target`) built and run there.
 
     Returns:
@@ -295,7 +297,7 @@ def check_export(
     checks: dict[str, Any] = {"observations": len(recording.observations)}
     failures = []
     if "onnx" in formats:
-        got = onnx_actions(out / ONNX_FILE, onnx_inputs(network, recording.observations, starts))
+        got = onnx_sequence_actions(out / ONNX_FILE, network, recording.observations, starts)
         checks["onnx_max_abs_error"] = float(np.max(np.abs(got - expected)))
         if checks["onnx_max_abs_error"] > PARITY_TOLERANCE:
             failures.append("ONNX actions")

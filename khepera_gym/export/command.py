@@ -118,6 +118,14 @@ def run_from_args(args: argparse.Namespace) -> int:
             f"memory: the policy acts on its last {result.network.frame_stack} observations; "
             "the program keeps them in a policy_state, emptied at its start"
         )
+    if result.network.recurrent:
+        print(
+            f"memory: the policy's {len(result.network.lstm)} LSTM layer(s) carry a hidden and a "
+            f"cell state of {result.network.lstm_hidden_size} values from step to step; the "
+            "program keeps them in a policy_state, zeroed at its start (ONNX: the inputs "
+            "lstm_hidden and lstm_cell, zeros at an episode's start, fed the outputs "
+            "next_lstm_hidden and next_lstm_cell)"
+        )
     std = result.network.action_std
     if args.sample_actions and std is not None:
         sigma = ", ".join(f"{value:.3g}" for value in std)

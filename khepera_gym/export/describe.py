@@ -61,8 +61,8 @@ class ReferencePolicy:
     """A model's own deterministic actions, the reference the exported files are checked against.
 
     Calling it maps observations (N, obs_dim), one row per robot, to actions. A policy with
-    memory (``stateful``: one trained on stacked observations) keeps one stack per row between
-    calls; :meth:`reset` empties them (an episode starts).
+    memory (``stateful``: one trained on stacked observations, or a recurrent one) keeps one
+    stack or LSTM state per row between calls; :meth:`reset` empties them (an episode starts).
     """
 
     act: Callable[[npt.NDArray[np.float32]], npt.NDArray[Any]]
@@ -91,10 +91,17 @@ class ReferencePolicy:
 
 def reference_actions(model: Any, normalizer: Any = None) -> ReferencePolicy:
     """The model's own deterministic actions (:class:`ReferencePolicy`) on raw observations: an
-    SB3 model applies ``normalizer`` first, a ``FrameStackPolicy`` stacks them."""
+    SB3 model applies ``normalizer`` first, a ``FrameStackPolicy`` stacks them, a
+    ``RecurrentPPO`` (as :class:`khepera_gym.sb3.RecurrentPolicy`) carries its LSTM state."""
     model = as_policy(model)
     if isinstance(model, RllibPolicy):
         return ReferencePolicy(lambda obs: model.predict(obs, deterministic=True), _no_memory)
+    if is_sb3_model(model):
+        from khepera_gym.sb3 import RecurrentPolicy
+        from khepera_gym.sb3.policy import is_recurrent
+
+        if is_recurrent(model):
+            model = RecurrentPolicy(model, normalizer)
     if normalizer is not None and not hasattr(model, "normalizer"):
         from khepera_gym.sb3 import NormalizedPolicy
 

@@ -24,7 +24,8 @@ import gymnasium as gym
 
 import khepera_gym
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.export.c_writer import check_sampling, write_c
+from khepera_gym.export.c_policy import check_sampling
+from khepera_gym.export.c_writer import write_c
 from khepera_gym.export.checks import check_export
 from khepera_gym.export.describe import as_policy, describe_policy, load_model, reference_actions
 from khepera_gym.export.from_rllib import RllibPolicy
@@ -181,6 +182,7 @@ def export_policy(
                 "source": network.source,
                 "env_id": env_id,
                 "obs_layout": json.dumps(layout),
+                "frame_stack": str(network.frame_stack),
                 "khepera_gym_version": khepera_gym.__version__,
             }
             (out / ONNX_FILE).write_bytes(build_onnx(network, metadata).SerializeToString())
@@ -204,6 +206,7 @@ def export_policy(
             "agent": robot.agent,
             "obs_dim": network.obs_dim,
             "frame_stack": network.frame_stack,
+            "lstm": {"layers": len(network.lstm), "hidden_size": network.lstm_hidden_size},
             "action_dim": network.action_dim,
             "action_type": robot.action_type,
             "layers": [

@@ -6,9 +6,12 @@ sampled actions), SAC and TD3 (DDPG is a TD3) with
 ``MlpPolicy`` (the actor, tanh-squashed, rescaled to the action bounds as SB3's ``unscale_action``
 does), with the ``VecNormalize`` observation statistics when the model was trained under one, and
 its frame stack when it was trained on stacked observations (a
-:class:`khepera_gym.sb3.FrameStackPolicy`, as ``load_policy`` gives a ``frame_stack`` run). Zips are
-loaded with :func:`khepera_gym.sb3.load_policy` (which also picks up a ``vecnormalize.pkl`` beside
-them). stable-baselines3 is imported when called.
+:class:`khepera_gym.sb3.FrameStackPolicy`, as ``load_policy`` gives a ``frame_stack`` run); and
+sb3-contrib's RecurrentPPO with ``MlpLstmPolicy`` (the actor's LSTM, ``lstm_actor``, then its
+dense layers: the Gaussian's mean clipped as PPO's, its state carried by
+:class:`khepera_gym.sb3.RecurrentPolicy`). Zips are loaded with
+:func:`khepera_gym.sb3.load_policy` (which also picks up a ``vecnormalize.pkl`` beside them).
+stable-baselines3 and sb3-contrib are imported when called.
 Threading: none.
 """
 
@@ -19,10 +22,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from khepera_gym.errors import ConfigError, KheperaError
 from khepera_gym.export.network import (
     ActionTransform,
+    LstmLayer,
     ObservationNormalization,
     PolicyNetwork,
     unsupported_model,
@@ -40,8 +45,9 @@ def is_sb3_model(model: Any) -> bool:
     wrapped = module.startswith("khepera_gym.sb3") and type(model).__name__ in (
         "NormalizedPolicy",
         "FrameStackPolicy",
+        "RecurrentPolicy",
     )
-    return wrapped or module.startswith("stable_baselines3")
+    return wrapped or module.startswith(("stable_baselines3", "sb3_contrib"))
 
 
 def load_sb3_zip(path: Path) -> tuple[Any, Any]:
@@ -62,7 +68,7 @@ def load_sb3_zip(path: Path) -> tuple[Any, Any]:
         policy = sb3.load_policy(path, device="cpu")
     except KheperaError as error:
         raise unsupported_model(f"{path} ({error})") from error
-    if isinstance(policy, sb3.FrameStackPolicy):
+    if isinstance(policy, (sb3.FrameStackPolicy, sb3.RecurrentPolicy)):
         return policy, policy.normalizer
     if isinstance(policy, sb3.NormalizedPolicy):
         return policy.model, policy.normalizer
@@ -70,8 +76,9 @@ def load_sb3_zip(path: Path) -> tuple[Any, Any]:
 
 
 def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
-    """The :class:`PolicyNetwork` of an SB3 model (or a ``NormalizedPolicy`` or
-    ``FrameStackPolicy``, whose statistics win over ``normalizer``).
+    """The :class:`PolicyNetwork` of an SB3 model (or a ``NormalizedPolicy``,
+    ``FrameStackPolicy`` or ``RecurrentPolicy``, whose statistics win over ``normalizer``), or of
+    an sb3-contrib ``RecurrentPPO``.
 
     Raises:
         ConfigError: Another algorithm or policy class, gSDE, or layers the writers lack.
@@ -80,13 +87,17 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
     if type(model).__name__ == "FrameStackPolicy":
         frame_stack = int(model.n_stack)
         model, normalizer = model.model, model.normalizer
-    if type(model).__name__ == "NormalizedPolicy":
+    if type(model).__name__ in ("NormalizedPolicy", "RecurrentPolicy"):
         model, normalizer = model.model, model.normalizer
     from stable_baselines3 import A2C, PPO, SAC, TD3
     from stable_baselines3.common.policies import ActorCriticPolicy
     from stable_baselines3.common.torch_layers import FlattenExtractor
     from torch import nn
 
+    from khepera_gym.sb3.policy import is_recurrent
+
+    if is_recurrent(model):
+        return _describe_recurrent(model, normalizer, frame_stack)
     name = f"stable-baselines3 {type(model).__name__}"
     if not isinstance(model, (PPO, A2C, SAC, TD3)):
         raise unsupported_model(f"a {name} model")
@@ -135,6 +146,68 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
         action=action,
         frame_stack=frame_stack,
         action_std=action_std,
+    )
+
+
+def _describe_recurrent(model: Any, normalizer: Any, frame_stack: int) -> PolicyNetwork:
+    """The :class:`PolicyNetwork` of an sb3-contrib ``RecurrentPPO``: the actor's LSTM
+    (``lstm_actor``), the actor's dense layers and ``action_net``, the Gaussian's mean clipped
+    to the action space.
+
+    Raises:
+        ConfigError: Another policy class, gSDE, or an LSTM the writers do not implement
+            (bidirectional, projected, batch-first or with dropout between layers: sb3-contrib
+            makes none of these by default).
+    """
+    from sb3_contrib.common.recurrent.policies import RecurrentActorCriticPolicy
+    from stable_baselines3.common.torch_layers import FlattenExtractor
+
+    name = "sb3-contrib RecurrentPPO"
+    policy = model.policy
+    if not isinstance(policy, RecurrentActorCriticPolicy) or not isinstance(
+        policy.pi_features_extractor, FlattenExtractor
+    ):
+        raise unsupported_model(f"a {name} with {type(policy).__name__}")
+    if policy.use_sde:
+        raise unsupported_model(f"a {name} trained with gSDE (use_sde=True)")
+    if frame_stack != 1:
+        raise unsupported_model(f"a {name} on stacked observations (its memory is its LSTM)")
+    obs_dim, action_dim = check_spaces(model.observation_space, model.action_space, name)
+    lstm = policy.lstm_actor
+    if lstm.bidirectional or lstm.proj_size or lstm.batch_first or lstm.dropout:
+        raise unsupported_model(
+            f"a {name} whose LSTM is bidirectional, projected, batch-first or has dropout"
+        )
+
+    def weights(attribute: str, rows: int) -> npt.NDArray[np.float32]:
+        tensor = getattr(lstm, attribute, None)
+        if tensor is None:  # bias=False
+            return np.zeros(rows, np.float32)
+        return tensor.detach().cpu().numpy().astype(np.float32)
+
+    gates = 4 * lstm.hidden_size
+    layers = tuple(
+        LstmLayer(
+            weights(f"weight_ih_l{k}", gates),
+            weights(f"weight_hh_l{k}", gates),
+            weights(f"bias_ih_l{k}", gates),
+            weights(f"bias_hh_l{k}", gates),
+        )
+        for k in range(lstm.num_layers)
+    )
+    low = model.action_space.low.astype(np.float32)
+    high = model.action_space.high.astype(np.float32)
+    modules = [*policy.mlp_extractor.policy_net, policy.action_net]
+    ones = np.ones(action_dim, np.float32)
+    return PolicyNetwork(
+        source=name,
+        obs_dim=obs_dim,
+        action_dim=action_dim,
+        normalization=_sb3_normalization(normalizer, obs_dim),
+        layers=tuple(dense_layers(modules, f"the {name} policy")),
+        action=ActionTransform(ones, np.zeros(action_dim, np.float32), low, high),
+        action_std=np.exp(policy.log_std.detach().cpu().numpy()).astype(np.float32),
+        lstm=layers,
     )
 
 

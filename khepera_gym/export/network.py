@@ -3,10 +3,12 @@ ONNX writer and the C writer both work from, so the two compute the same functio
 
 A policy is reduced to the observation normalisation (``VecNormalize`` statistics: mean,
 variance, epsilon, clip), the number of observations it acts on (``frame_stack``: its last n,
-normalised, oldest first, as SB3's ``VecFrameStack`` outside ``VecNormalize`` feeds them), a list
-of dense layers with their activations, and the transform of the network's output into an action
-(an affine map and a clip to the action bounds). Weights are
-float32 as in torch; the normalisation is float64 as stable-baselines3 computes it.
+normalised, oldest first, as SB3's ``VecFrameStack`` outside ``VecNormalize`` feeds them), the
+LSTM layers of a recurrent policy (sb3-contrib's ``RecurrentPPO``: a hidden and a cell state
+carried from step to step, zeros at an episode's start), a list of dense layers with their
+activations, and the transform of the network's output into an action (an affine map and a clip
+to the action bounds). Weights are float32 as in torch; the normalisation is float64 as
+stable-baselines3 computes it.
 
 This module also says what the exporter supports (:data:`SUPPORTED_MODELS`, the message of
 :func:`unsupported_model`) and how to install what it needs (:data:`EXPORT_EXTRA`).
@@ -26,6 +28,7 @@ from khepera_gym.errors import ConfigError, KheperaError
 SUPPORTED_MODELS = (
     "stable-baselines3 PPO or A2C with MlpPolicy (a model.zip, the loaded model, or "
     "khepera_gym.sb3.load_policy's result)",
+    "sb3-contrib RecurrentPPO with MlpLstmPolicy (its LSTM state carried between steps)",
     "stable-baselines3 SAC or TD3 (DDPG) with MlpPolicy",
     "a Ray RLlib PPO checkpoint directory (new API stack, default torch MLP RLModule) or its "
     "loaded RLModule",
@@ -85,6 +88,52 @@ class DenseLayer:
 
 
 @dataclasses.dataclass(frozen=True)
+class LstmLayer:
+    """One LSTM layer as ``torch.nn.LSTM`` computes it, from input ``x``, hidden state ``h`` and
+    cell state ``c`` (H values each) to the next ``h`` and ``c``::
+
+        z = weight_input @ x + bias_input + weight_hidden @ h + bias_hidden   (4 H values)
+        i, f, g, o = sigmoid(z[0:H]), sigmoid(z[H:2H]), tanh(z[2H:3H]), sigmoid(z[3H:4H])
+        c' = f * c + i * g;  h' = o * tanh(c')
+
+    ``h'`` is also the layer's output. Gates in torch's order (input, forget, cell, output);
+    weights (4 H, inputs) and (4 H, H), biases (4 H,), float32. A layer without biases has them
+    zero.
+    """
+
+    weight_input: npt.NDArray[np.float32]
+    weight_hidden: npt.NDArray[np.float32]
+    bias_input: npt.NDArray[np.float32]
+    bias_hidden: npt.NDArray[np.float32]
+
+    def __post_init__(self) -> None:
+        hidden = self.hidden_size
+        shapes = {
+            "weight_input": (self.weight_input.shape, (4 * hidden, self.inputs)),
+            "weight_hidden": (self.weight_hidden.shape, (4 * hidden, hidden)),
+            "bias_input": (self.bias_input.shape, (4 * hidden,)),
+            "bias_hidden": (self.bias_hidden.shape, (4 * hidden,)),
+        }
+        for name, (shape, expected) in shapes.items():
+            if tuple(shape) != expected or hidden < 1:
+                raise KheperaError(f"LSTM {name} has shape {tuple(shape)}, not {expected}")
+
+    @property
+    def inputs(self) -> int:
+        """Input width."""
+        return int(self.weight_input.shape[1])
+
+    @property
+    def hidden_size(self) -> int:
+        """H: the width of the hidden and of the cell state, and of the output."""
+        return int(self.weight_hidden.shape[1])
+
+    def arrays(self) -> tuple[npt.NDArray[np.float32], ...]:
+        """The weights and biases."""
+        return (self.weight_input, self.weight_hidden, self.bias_input, self.bias_hidden)
+
+
+@dataclasses.dataclass(frozen=True)
 class ActionTransform:
     """The network output ``y`` to an action: ``scale * y + offset``, then clipped to
     ``[low, high]`` when those are set (float32)."""
@@ -102,12 +151,16 @@ class ActionTransform:
 
 @dataclasses.dataclass(frozen=True)
 class PolicyNetwork:
-    """A deterministic policy as normalisation → frame stack → dense layers → action transform.
+    """A deterministic policy as normalisation → frame stack → LSTM layers → dense layers →
+    action transform.
 
     ``obs_dim`` is the width of one observation (what the env gives and the normalisation
     statistics cover); the first layer takes ``frame_stack`` of them (:attr:`input_dim`): each
     observation is normalised as it arrives, the stack holds the last ``frame_stack`` ones, oldest
-    first, and zeros before an episode's first observation.
+    first, and zeros before an episode's first observation. A recurrent policy's ``lstm`` layers
+    (none for the others) come first; their hidden and cell states are the policy's memory
+    besides the stack, zeros before an episode's first observation (as SB3's ``episode_start``
+    resets them); the last one's hidden state feeds the dense layers.
 
     Raises:
         KheperaError: The layers do not chain from ``obs_dim`` to ``action_dim`` or use an
@@ -129,6 +182,8 @@ class PolicyNetwork:
     #: ``log_std``): what sampling its actions as in training needs. None for a policy whose
     #: noise the writers cannot reproduce (SAC's state-dependent σ, TD3, RLlib).
     action_std: npt.NDArray[np.float32] | None = None
+    #: LSTM layers before the dense ones (a recurrent policy), all of one hidden size.
+    lstm: tuple[LstmLayer, ...] = ()
 
     def __post_init__(self) -> None:
         if isinstance(self.frame_stack, bool) or not isinstance(self.frame_stack, int):
@@ -136,6 +191,14 @@ class PolicyNetwork:
         if self.frame_stack < 1:
             raise KheperaError(f"frame_stack must be >= 1, got {self.frame_stack}")
         width = self.input_dim
+        for index, lstm in enumerate(self.lstm):
+            if lstm.inputs != width:
+                raise KheperaError(f"LSTM layer {index} takes {lstm.inputs} inputs, not {width}")
+            if lstm.hidden_size != self.lstm[0].hidden_size:
+                raise KheperaError("the LSTM layers must have one hidden size")
+            if not all(np.all(np.isfinite(array)) for array in lstm.arrays()):
+                raise ConfigError(f"LSTM layer {index} of the {self.source} policy has NaN/inf")
+            width = lstm.hidden_size
         for index, layer in enumerate(self.layers):
             if layer.inputs != width:
                 raise KheperaError(f"layer {index} takes {layer.inputs} inputs, not {width}")
@@ -161,9 +224,20 @@ class PolicyNetwork:
         return self.obs_dim * self.frame_stack
 
     @property
+    def lstm_hidden_size(self) -> int:
+        """H of the LSTM layers (0 without any)."""
+        return self.lstm[0].hidden_size if self.lstm else 0
+
+    @property
+    def recurrent(self) -> bool:
+        """Whether the policy carries an LSTM state between steps."""
+        return bool(self.lstm)
+
+    @property
     def max_width(self) -> int:
         """The widest vector of the forward pass."""
-        return max([self.input_dim, *(layer.outputs for layer in self.layers)])
+        widths = [self.input_dim, *(layer.outputs for layer in self.layers)]
+        return max([*widths, self.lstm_hidden_size])
 
 
 __all__ = [
@@ -172,6 +246,7 @@ __all__ = [
     "SUPPORTED_MODELS",
     "ActionTransform",
     "DenseLayer",
+    "LstmLayer",
     "ObservationNormalization",
     "PolicyNetwork",
     "unsupported_model",

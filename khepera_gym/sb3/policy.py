@@ -1,6 +1,6 @@
 """Loading models trained by ``khepera-gym train``: the SB3 algorithm of a saved zip, its
-``VecNormalize`` statistics and its frame stacking (``VecFrameStack``) applied so that
-``predict`` takes raw env observations.
+``VecNormalize`` statistics and its memory (frame stacking, ``VecFrameStack``; or the LSTM state
+of sb3-contrib's ``RecurrentPPO``) applied so that ``predict`` takes raw env observations.
 """
 
 from __future__ import annotations
@@ -24,15 +24,20 @@ VECNORMALIZE_FILE = "vecnormalize.pkl"
 #: File next to a saved model describing its run (``khepera-gym train``); :func:`load_policy`
 #: reads the hyperparameter ``frame_stack`` from it.
 RUN_FILE = "run.json"
+#: The recurrent algorithm of sb3-contrib that :func:`load_policy` recognises: its zip's
+#: ``policy_class`` is a class of this module (its saved ``data`` otherwise looks like PPO's).
+RECURRENT_POLICY_MODULE = "sb3_contrib.common.recurrent.policies"
+#: Install hint for sb3-contrib (in the sb3 extra).
+SB3_CONTRIB_EXTRA = "pip install 'khepera-gym[sb3]'"
 #: SB3 algorithms that :func:`load_policy` recognises in a saved zip: (class name, an attribute
-#: that only its saved ``data`` has), tried in order.
+#: that only its saved ``data`` has), tried in order after ``RecurrentPPO``.
 _ALGORITHM_MARKERS = (
     ("PPO", "clip_range"),
     ("SAC", "target_entropy"),
     ("TD3", "target_policy_noise"),
     ("A2C", "gae_lambda"),
 )
-_ALGORITHMS = tuple(name for name, _ in _ALGORITHM_MARKERS)
+_ALGORITHMS = ("RecurrentPPO", *(name for name, _ in _ALGORITHM_MARKERS))
 
 
 class Predictor(Protocol):
@@ -152,12 +157,95 @@ class FrameStackPolicy:
         return actions, None
 
 
+class RecurrentPolicy:
+    """An sb3-contrib ``RecurrentPPO`` model, carrying its LSTM state from step to step.
+
+    ``predict`` passes each row's hidden and cell state (``(n_layers, N, H)`` arrays, SB3's
+    ``state``) from one call to the next, as SB3's recurrent ``predict`` expects its caller to;
+    the state starts at zeros, :meth:`reset` (called by :func:`khepera_gym.rollout.run_episodes`
+    before its episodes) zeros every row's, and ``episode_start`` zeros the rows of worlds whose
+    episode starts with this observation, as in training. When the model was trained under
+    ``VecNormalize``, observations are normalised with the training statistics first.
+
+    A ``state`` passed to ``predict`` (SB3's own convention, e.g. ``evaluate_policy``) is used
+    instead of the carried one; the new state is returned and carried either way.
+
+    Args:
+        model: The loaded ``RecurrentPPO``.
+        normalizer: The ``VecNormalize`` the model was trained under, or None.
+
+    Raises:
+        ConfigError: The model's observation is not a flat vector.
+    """
+
+    def __init__(self, model: BaseAlgorithm, normalizer: VecNormalize | None = None) -> None:
+        shape = model.observation_space.shape
+        if shape is None or len(shape) != 1:
+            raise ConfigError(f"a recurrent policy on observations of shape {shape}: flat only")
+        self.model = model
+        self.normalizer = normalizer
+        self.observation_space = model.observation_space
+        self.action_space = model.action_space
+        #: Length of one env observation.
+        self.obs_dim = int(shape[0])
+        self._state: tuple[npt.NDArray[Any], ...] | None = None
+
+    def reset(self) -> None:
+        """Zeros every world's LSTM state: the next observation starts an episode."""
+        self._state = None
+
+    def predict(
+        self,
+        observation: npt.NDArray[np.float32],
+        state: tuple[npt.NDArray[Any], ...] | None = None,
+        episode_start: npt.NDArray[np.bool_] | None = None,
+        deterministic: bool = False,
+    ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]:
+        """Actions for raw observations (obs_dim,) or (N, obs_dim), and the new LSTM state."""
+        rows = np.asarray(observation, dtype=np.float32)
+        single = rows.ndim == 1
+        rows = rows.reshape(1, -1) if single else rows
+        if rows.ndim != 2 or rows.shape[1] != self.obs_dim:
+            raise ConfigError(
+                f"the recurrent model takes observations of {self.obs_dim} values; got "
+                f"observations of shape {np.shape(observation)}"
+            )
+        if self.normalizer is not None:
+            rows = np.asarray(self.normalizer.normalize_obs(rows), dtype=np.float32)
+        carried = self._state if state is None else state
+        if carried is not None and carried[0].shape[1] != rows.shape[0]:
+            carried = None  # another number of worlds: they all start
+        starts = None
+        if episode_start is not None:
+            starts = np.asarray(episode_start, dtype=bool).reshape(-1)
+        actions, self._state = self.model.predict(rows, carried, starts, deterministic)  # type: ignore[arg-type]
+        return (actions[0] if single else actions), self._state
+
+
+def is_recurrent(model: Any) -> bool:
+    """Whether ``model`` is an sb3-contrib ``RecurrentPPO`` (without importing sb3-contrib)."""
+    return type(model).__name__ == "RecurrentPPO" and type(model).__module__.startswith(
+        "sb3_contrib"
+    )
+
+
 def as_predictor(
     model: BaseAlgorithm, normalizer: VecNormalize | None = None, frame_stack: int = 1
 ) -> Any:
     """The model as a :class:`Predictor` on raw env observations: with its ``VecNormalize``
-    statistics (:class:`NormalizedPolicy`) and its frame stacking (:class:`FrameStackPolicy`)
-    when it was trained with them; the model itself otherwise."""
+    statistics (:class:`NormalizedPolicy`), its frame stacking (:class:`FrameStackPolicy`) or its
+    LSTM state (:class:`RecurrentPolicy`) when it was trained with them; the model itself
+    otherwise.
+
+    Raises:
+        ConfigError: A recurrent model with ``frame_stack`` > 1 (its memory is its LSTM).
+    """
+    if is_recurrent(model):
+        if frame_stack > 1:
+            raise ConfigError(
+                "a RecurrentPPO model keeps its memory in its LSTM: train it without frame_stack"
+            )
+        return RecurrentPolicy(model, normalizer)
     if frame_stack > 1:
         return FrameStackPolicy(model, frame_stack, normalizer)
     if normalizer is not None:
@@ -196,11 +284,35 @@ def algorithm_of(path: str | Path) -> str:
             data = json.loads(archive.read("data"))
     except (OSError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as error:
         raise KheperaError(f"{path}: not a stable-baselines3 model zip ({error})") from error
+    policy_class = data.get("policy_class") if isinstance(data, dict) else None
+    if isinstance(policy_class, dict) and policy_class.get("__module__") == RECURRENT_POLICY_MODULE:
+        return "RecurrentPPO"
     # The saved attributes tell the algorithms apart (PPO and A2C share their policy class).
     for name, attribute in _ALGORITHM_MARKERS:
         if attribute in data:
             return name
     raise KheperaError(f"{path}: cannot tell which algorithm saved it (known: {_ALGORITHMS})")
+
+
+def algorithm_class(name: str) -> type[BaseAlgorithm]:
+    """The class of an algorithm :func:`algorithm_of` names: stable-baselines3's, or
+    sb3-contrib's ``RecurrentPPO``.
+
+    Raises:
+        ImportError: sb3-contrib is missing for ``RecurrentPPO`` (the message names the pip
+            command).
+    """
+    if name == "RecurrentPPO":
+        try:
+            from sb3_contrib import RecurrentPPO
+        except ImportError as error:
+            raise ImportError(
+                f"a RecurrentPPO model needs sb3-contrib: {SB3_CONTRIB_EXTRA}"
+            ) from error
+        return RecurrentPPO  # type: ignore[no-any-return]
+    import stable_baselines3
+
+    return getattr(stable_baselines3, name)  # type: ignore[no-any-return]
 
 
 def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
@@ -210,8 +322,9 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
     with ``normalize = true``), the result normalises raw observations with those statistics
     (:class:`NormalizedPolicy`); when the ``run.json`` next to it has ``frame_stack`` > 1, it
     stacks the observations as training did (:class:`FrameStackPolicy`, whose ``reset()``
-    starts new episodes); otherwise it is the SB3 model itself. Either way
-    ``predict(obs, deterministic=True)`` takes raw env observations, single or batched.
+    starts new episodes); an sb3-contrib ``RecurrentPPO`` carries its LSTM state
+    (:class:`RecurrentPolicy`, reset the same way); otherwise it is the SB3 model itself. Either
+    way ``predict(obs, deterministic=True)`` takes raw env observations, single or batched.
 
     Args:
         path: The model's ``.zip``.
@@ -219,11 +332,11 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
 
     Raises:
         KheperaError: The file is not an SB3 zip of a known algorithm.
+        ImportError: A RecurrentPPO model without sb3-contrib (the message names the pip
+            command).
     """
-    import stable_baselines3
-
     path = Path(path)
-    algorithm = getattr(stable_baselines3, algorithm_of(path))
+    algorithm = algorithm_class(algorithm_of(path))
     model: BaseAlgorithm = algorithm.load(path, device=device)
     stats_path = path.parent / VECNORMALIZE_FILE
     normalizer: VecNormalize | None = None
@@ -235,13 +348,17 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
 
 
 __all__ = [
+    "RECURRENT_POLICY_MODULE",
     "RUN_FILE",
     "VECNORMALIZE_FILE",
     "FrameStackPolicy",
     "NormalizedPolicy",
     "Predictor",
+    "RecurrentPolicy",
+    "algorithm_class",
     "algorithm_of",
     "as_predictor",
     "frame_stack_of",
+    "is_recurrent",
     "load_policy",
 ]

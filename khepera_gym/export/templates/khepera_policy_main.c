@@ -154,7 +154,7 @@ int main(int argc, char *argv[])
     khepera_readings readings;
     float observation[OBSERVATION_DIM];
     float action[POLICY_ACTION_DIM];
-    policy_state memory; /* the last POLICY_FRAME_STACK observations, for a frame-stacked policy */
+    policy_state memory; /* a frame stack's observations, a recurrent policy's LSTM states */
 #if KHEPERA_SAMPLE_ACTIONS
     policy_rng rng; /* the draws of sampled actions */
 #endif
