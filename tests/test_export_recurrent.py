@@ -26,7 +26,7 @@ pytest.importorskip("onnx", reason="needs the export extra: pip install 'khepera
 
 import onnx
 import torch
-from conftest import NAV_ID
+from conftest import LATEST
 from sb3_contrib import RecurrentPPO
 from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
 from test_export import (
@@ -53,7 +53,7 @@ HIDDEN = 16
 def recurrent_ppo(n_lstm_layers: int = 1) -> RecurrentPolicy:
     """An untrained RecurrentPPO on normalised Nav observations (statistics far from (0, 1), as
     after training), as ``load_policy`` gives it back, its output layer scaled up."""
-    normalized = VecNormalize(make_vec_env(NAV_ID, 4, seed=0))
+    normalized = VecNormalize(make_vec_env(LATEST["nav"], 4, seed=0))
     normalized.reset()
     rng = np.random.default_rng(0)
     for _ in range(200):
@@ -72,7 +72,7 @@ def recurrent_ppo(n_lstm_layers: int = 1) -> RecurrentPolicy:
 
 @pytest.fixture(scope="module")
 def nav_recording() -> export.Recording:
-    return recording_of(NAV_ID, nav_heuristic)[0]
+    return recording_of(LATEST["nav"], nav_heuristic)[0]
 
 
 @pytest.fixture(scope="module", params=[1, 2], ids=["one_layer", "two_layers"])
@@ -86,7 +86,7 @@ def exported(
     try:
         policy = recurrent_ppo(request.param)
         out = tmp_path_factory.mktemp(f"recurrent_{request.param}")
-        result = export.export_policy(policy, out, formats=("c", "onnx"), env_id=NAV_ID)
+        result = export.export_policy(policy, out, formats=("c", "onnx"), env_id=LATEST["nav"])
     finally:
         torch.set_num_threads(previous)
     return out, policy, result
@@ -202,7 +202,7 @@ def test_the_onnx_graph_takes_the_state_and_gives_the_next(
 
 def test_the_robot_program_carries_the_lstm_state_across_control_periods(tmp_path: Path) -> None:
     policy = recurrent_ppo(1)
-    export.export_policy(policy, tmp_path, env_id=NAV_ID, check=False)
+    export.export_policy(policy, tmp_path, env_id=LATEST["nav"], check=False)
     out = tmp_path
     # On the fake robot's constant readings its actions are the Python policy's on that
     # observation repeated, which the LSTM state makes change from step to step.
@@ -245,7 +245,7 @@ def test_what_a_recurrent_export_cannot_do_is_refused(tmp_path: Path) -> None:
     )
     with pytest.raises(KheperaError, match="one hidden size"):
         dataclasses.replace(network, lstm=(lstm, wider))
-    env = make_vec_env(NAV_ID, 2, seed=0)
+    env = make_vec_env(LATEST["nav"], 2, seed=0)
     sde = RecurrentPPO("MlpLstmPolicy", env, use_sde=True, n_steps=64, device="cpu")
     with pytest.raises(ConfigError, match=r"gSDE.*supported are"):
         export.describe_policy(sde)
@@ -264,7 +264,7 @@ def test_a_recurrent_policy_exported_sampling_its_actions_draws_around_its_lstm_
     policy = recurrent_ppo()
     with torch.no_grad():  # a σ that moves the actions
         policy.model.policy.log_std.fill_(np.log(0.3))
-    result = export.export_policy(policy, tmp_path, env_id=NAV_ID, sample_seed=3)
+    result = export.export_policy(policy, tmp_path, env_id=LATEST["nav"], sample_seed=3)
     assert result.checks["c_max_abs_error"] < ACTION_TOLERANCE  # its mean, over whole episodes
     binary = compile_check(tmp_path)
     observations, starts = nav_recording.observations, nav_recording.starts

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from khepera_gym.benchmark.learners import Job, Means, Trained, agents_of, module_of, shares_rows
+from khepera_gym.benchmark.jobs import Job, Means, Trained, agents_of, module_of, shares_rows
 from khepera_gym.errors import ConfigError
 from khepera_gym.hyperparams import EVAL_SEED, load_hyperparams
 

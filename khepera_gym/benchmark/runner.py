@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from khepera_gym.benchmark.learners import Job, Means, gym_id, module_of, shares_rows
+from khepera_gym.benchmark.jobs import Job, Means, gym_id, module_of, shares_rows
 from khepera_gym.benchmark.suite import TaskEntry
 from khepera_gym.compare.stats import bootstrap_interval, json_number, wilson_interval
 from khepera_gym.errors import ConfigError
