@@ -22,7 +22,7 @@ steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs)
 minibatch's advantages standardised, the gradients' norm clipped at 0.5 (BenchMARL's MAPPO does not
 standardise them and clips at 5: with its settings MAPPO ends 600k env steps at 1.0, 8.0 and 4.1 cm
 over three training seeds, with these at 0.3, 0.8 and 0.9 cm; LeaderFollower 0.4 cm;
-docs/training.md). BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every
+docs/history.md). BenchMARL's default of 45 epochs per batch is far slower on a CPU. Every
 ``--report-every`` iterations the script prints the policy's mean action noise (the σ of its
 Gaussian before the tanh) over the batch just collected: on v1 it shows why MAPPO fails there
 (README), and ``--fixed-sigma`` holds σ constant (a scale mapping registered with tensordict's

@@ -342,7 +342,7 @@ def _train(
         final = history[-1]  # the callback evaluated the final model at the end of training
     else:
         final = evaluate_episodes(policy, eval_env, eval_seed, model.num_timesteps)
-    # A policy's mean can stall where the policy it learnt does not (Avoid-v2, docs/training.md).
+    # A policy's mean can stall where the policy it learnt does not (Avoid-v2, docs/history.md).
     final_sampled = evaluate_episodes(
         policy, eval_env, eval_seed, model.num_timesteps, sample_seed=eval_seed
     )

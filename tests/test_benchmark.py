@@ -218,6 +218,30 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
     assert "consensus_error_final" in record["final"]
 
 
+def test_a_recurrent_policy_trains_and_plays_the_held_out_episodes_with_its_state(
+    tmp_path: Path,
+) -> None:
+    """recurrent_ppo (sb3-contrib's RecurrentPPO): its memory is the LSTM's state, so it trains
+    without a frame stack, is judged on the held-out episodes carrying that state, and the
+    model it leaves reloads as a recurrent policy (compare, render and export use that)."""
+    from khepera_gym.sb3.policy import RecurrentPolicy, load_policy
+
+    out = tmp_path / "bench"
+    tiny = ["--seeds", "1", "--timesteps", "1024", "--episodes", "4", "--eval-episodes", "2"]
+    recipe = ["--hp", "n_envs=4", "--hp", "n_steps=64", "--hp", "batch_size=128"]
+    argv = ["--tasks", "avoid", "--learners", "recurrent_ppo", "--out", str(out), "--no-progress"]
+    _run([*argv, *tiny, *recipe])
+    path = next((out / "runs").glob("avoid-*_recurrent_ppo_seed0.json"))
+    record = json.loads(path.read_text())
+    assert record["timesteps"] >= 1024 and "success" in record["final"]
+    assert "frame_stack" not in record["recipe"] or record["recipe"]["frame_stack"] == 1
+    model = next((out / "models").rglob("model.zip"))
+    assert isinstance(load_policy(model), RecurrentPolicy)
+    # A frame stack on top of the LSTM is refused before anything trains.
+    with pytest.raises(SystemExit, match="frame_stack"):
+        cli.main(["benchmark", *argv, "--restart", *tiny, *recipe, "--hp", "frame_stack=2"])
+
+
 # torchrl's own deprecation notices inside BenchMARL, and its notice of an iteration where no
 # episode ended (a few frames of a long episode), are theirs.
 @pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")

@@ -39,7 +39,7 @@ from khepera_gym.hyperparams import EVAL_SEED, load_hyperparams
 
 
 class SB3Learner:
-    """stable-baselines3 (``algo``: PPO or SAC) on rows of worlds, or with ``shared`` on rows of
+    """stable-baselines3 (``algo``: PPO, SAC or sb3-contrib's RecurrentPPO) on rows of worlds, or with ``shared`` on rows of
     agents of a multi-agent task (parameter sharing)."""
 
     def __init__(self, name: str, algo: str, shared: bool) -> None:
@@ -200,6 +200,8 @@ def _marl(name: str) -> Any:
 LEARNERS: dict[str, Callable[[], Any]] = {
     "ppo": lambda: SB3Learner("ppo", "ppo", shared=False),
     "sac": lambda: SB3Learner("sac", "sac", shared=False),
+    # sb3-contrib's PPO with an LSTM policy: the memory is its state, not a frame stack.
+    "recurrent_ppo": lambda: SB3Learner("recurrent_ppo", "recurrent_ppo", shared=False),
     "shared_ppo": lambda: SB3Learner("shared_ppo", "ppo", shared=True),
     "mappo": lambda: _marl("mappo"),
     "ippo": lambda: _marl("ippo"),
