@@ -216,6 +216,14 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
     record = json.loads(next((out / "runs").glob("consensus-*_shared_ppo_seed0.json")).read_text())
     assert record["key"]["env"].startswith("consensus_v")
     assert "consensus_error_final" in record["final"]
+    # The results page renders the row, and names the suite's other learner of the task as not
+    # run rather than leaving its row out; every other task says it has no run.
+    from khepera_gym._docgen.results import benchmark_fragment
+
+    page = benchmark_fragment(out)
+    consensus = next(p for p in page.split("\n\n") if "--tasks consensus" in p)
+    assert "Not run yet: mappo" in consensus, consensus
+    assert "**nav**: no learned run recorded yet. Not run yet: ppo" in page
 
 
 def test_a_recurrent_policy_trains_and_plays_the_held_out_episodes_with_its_state(

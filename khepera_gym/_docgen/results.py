@@ -401,17 +401,33 @@ def benchmark_fragment(folder: Path) -> str:
     """The learning benchmark's tables (:mod:`khepera_gym.benchmark.tables`), one a task, from
     ``docs/results/benchmark/``, with where each was measured and how to run it again."""
     from khepera_gym.benchmark.command import reproduce
+    from khepera_gym.benchmark.suite import load_suite
     from khepera_gym.benchmark.tables import load_records, markdown, task_rows
 
     baselines, runs = load_records(folder)
     if not runs:
         return _missing(f"khepera-gym benchmark --out docs/results/{BENCHMARK_DIR}")
+    suite = load_suite()
     tasks = [name for name, _, _ in _core.tasks()]
     parts = []
     for task in tasks:
         table = task_rows(task, baselines, runs)
+        # A learner of the suite without a recorded run is named, never left out silently.
+        recorded = {row["learner"] for row in table["learners"]}
+        entry = suite.get(task)
+        unrun = [name for name in (entry.learners if entry else ()) if name not in recorded]
+        not_run = (
+            "Not run yet: "
+            + "; ".join(
+                f"{name} ({code(f'khepera-gym benchmark --tasks {task} --learners {name}')})"
+                for name in unrun
+            )
+            + "."
+            if unrun
+            else ""
+        )
         if not table["learners"]:
-            parts.append(f"**{task}**: no learned run recorded yet.")
+            parts.append(f"**{task}**: no learned run recorded yet. {not_run}".rstrip())
             continue
         mine = [r for r in runs if r["key"]["task"] == task]
         dates = sorted({r["meta"]["date"][:10] for r in mine})
@@ -432,6 +448,7 @@ def benchmark_fragment(folder: Path) -> str:
                 for row in table["learners"]
             )
             + "."
+            + (f" {not_run}" if not_run else "")
         )
     return "\n\n".join(parts)
 

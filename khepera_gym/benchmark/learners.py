@@ -39,8 +39,8 @@ from khepera_gym.hyperparams import EVAL_SEED, load_hyperparams
 
 
 class SB3Learner:
-    """stable-baselines3 (``algo``: PPO, SAC or sb3-contrib's RecurrentPPO) on rows of worlds, or with ``shared`` on rows of
-    agents of a multi-agent task (parameter sharing)."""
+    """stable-baselines3 (``algo``: PPO, SAC or sb3-contrib's RecurrentPPO) on rows of worlds,
+    or with ``shared`` on rows of agents of a multi-agent task (parameter sharing)."""
 
     def __init__(self, name: str, algo: str, shared: bool) -> None:
         self.name = name
