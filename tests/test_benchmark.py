@@ -319,3 +319,40 @@ def test_a_wrong_sigma_floor_is_refused_before_training(floor: Any) -> None:
     pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
     with pytest.raises(ConfigError, match="sigma_min must be"):
         learners.learner("mappo").recipe("formation", _core.LATEST_VERSION, {"sigma_min": floor})
+
+
+def test_the_recipe_speed_table_pairs_each_earlier_run_with_the_shipped_run_of_its_seed(
+    tmp_path: Path,
+) -> None:
+    """The ratio on the results page is earlier training time over shipped training time, seed
+    by seed, over the runs both folders hold (a seed the shipped folder lacks is left out)."""
+    from khepera_gym._docgen.results import recipe_speed_fragment
+
+    def write(folder: Path, seed: int, seconds: float, success: float) -> None:
+        (folder / "runs").mkdir(parents=True, exist_ok=True)
+        record = {
+            "format": FORMAT,
+            "key": {"task": "avoid", "learner": "ppo", "version": 3, "seed": seed},
+            "meta": {
+                "date": "2026-11-28T20:00:00+00:00",
+                "commit": {"id": "0123456789abcdef", "dirty": False},
+                "machine": {"cpu": "a CPU", "cpus": 2},
+                "command": f"khepera-gym benchmark --tasks avoid --out {folder} --seed-list {seed}"
+                " --hp n_epochs=10",
+            },
+            "train_seconds": seconds,
+            "final": {"success": {"value": success}},
+        }
+        (folder / "runs" / f"avoid-v3_ppo_seed{seed}.json").write_text(json.dumps(record))
+
+    before, after = tmp_path / "before", tmp_path / "after"
+    for seed, (slow, fast) in enumerate([(60.0, 10.0), (90.0, 20.0), (50.0, 5.0)]):
+        write(before, seed, slow, 0.9)
+        if seed < 2:
+            write(after, seed, fast, 0.97)
+    page = recipe_speed_fragment(before, after)
+    assert "| avoid ppo v3 | 0 | 60 s, 90.0 % | 10 s, 97.0 % | 6.0 |" in page
+    assert "| avoid ppo v3 | 1 | 90 s, 90.0 % | 20 s, 97.0 % | 4.5 |" in page
+    assert "| 2 |" not in page
+    assert "150 s against 30 s" in page and "(5.0x; median ratio 5.2)" in page
+    assert str(tmp_path) not in page and "--hp n_epochs=10 --seed-list S" in page

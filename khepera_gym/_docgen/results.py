@@ -15,6 +15,7 @@ import itertools
 import json
 import re
 import shlex
+import statistics
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -453,6 +454,77 @@ def benchmark_fragment(folder: Path) -> str:
     return "\n\n".join(parts)
 
 
+#: Runs of an earlier recipe, interleaved seed by seed with the shipped recipe's in one session
+#: (``khepera-gym benchmark --hp ...`` into another folder): what the recipe's speed is measured
+#: against.
+RECIPE_BEFORE_DIR = "benchmark_recipe_before"
+
+
+def recipe_speed_fragment(before_dir: Path, after_dir: Path) -> str:
+    """The shipped recipe's training time against an earlier recipe's, seed by seed, from the
+    runs of both in one session: per seed, each one's training time (evaluations excluded) and
+    held-out success, and the ratio."""
+    from khepera_gym.benchmark.runner import means
+    from khepera_gym.benchmark.tables import load_records
+
+    _, before = load_records(before_dir)
+    if not before:
+        return _missing(f"khepera-gym benchmark --out docs/results/{RECIPE_BEFORE_DIR} --hp ...")
+    _, after = load_records(after_dir)
+
+    def key(run: dict[str, Any]) -> tuple[Any, ...]:
+        k = run["key"]
+        return (k["task"], k["learner"], k["version"], k["seed"])
+
+    shipped = {key(run): run for run in after}
+    rows, ratios, totals = [], [], [0.0, 0.0]
+    for run in sorted(before, key=key):
+        other = shipped.get(key(run))
+        if other is None:
+            continue
+        ratio = run["train_seconds"] / other["train_seconds"]
+        ratios.append(ratio)
+        totals[0] += run["train_seconds"]
+        totals[1] += other["train_seconds"]
+        task, learner, version, seed = key(run)
+        rows.append(
+            [
+                f"{task} {learner} v{version}",
+                str(seed),
+                f"{run['train_seconds']:.0f} s, "
+                f"{100 * means(run['final']).get('success', 0):.1f} %",
+                f"{other['train_seconds']:.0f} s, "
+                f"{100 * means(other['final']).get('success', 0):.1f} %",
+                f"{ratio:.1f}",
+            ]
+        )
+    if not rows:
+        return "No run of the earlier recipe has a run of the shipped recipe of the same seed."
+    meta = before[0]["meta"]
+    words = shlex.split(meta.get("command", ""))
+    # The folder is the measuring machine's; the recipe is what a reader needs.
+    for flag in ("--out", "--seed-list"):
+        while flag in words:
+            i = words.index(flag)
+            end = i + 1
+            while end < len(words) and not words[end].startswith("--"):
+                end += 1
+            del words[i:end]
+    median = statistics.median(ratios)
+    return (
+        table(
+            ["task", "seed", "earlier recipe: training, success", "shipped recipe", "ratio"],
+            rows,
+        )
+        + f"\n\nIn all, {totals[0]:.0f} s against {totals[1]:.0f} s of training "
+        + f"({totals[0] / totals[1]:.1f}x; median ratio {median:.1f}); success is on the 200 "
+        + "held-out episodes with mean actions. Run interleaved, seed by seed, on "
+        + f"{meta['date'][:10]} at commit `{(meta.get('commit') or {}).get('id', '?')[:10]}` on "
+        + f"{meta['machine'].get('cpu', '?')} ({meta['machine'].get('cpus', '?')} CPUs). "
+        + f"The earlier recipe's runs: {code(shlex.join(words) + ' --seed-list S')}."
+    )
+
+
 def fragments(results_dir: Path) -> dict[str, str]:
     """Every results fragment (``results-<name>.md``) from the folder's files.
 
@@ -465,6 +537,9 @@ def fragments(results_dir: Path) -> dict[str, str]:
             raise ValueError(f"{path}: not a results file of compare, train, bench or a campaign")
     rendered = {name: render(files) + "\n" for name, render in FRAGMENTS.items()}
     rendered["benchmark"] = benchmark_fragment(results_dir / BENCHMARK_DIR) + "\n"
+    rendered["recipe-speed"] = (
+        recipe_speed_fragment(results_dir / RECIPE_BEFORE_DIR, results_dir / BENCHMARK_DIR) + "\n"
+    )
     return rendered
 
 
