@@ -97,6 +97,11 @@ def test_the_shipped_suite_has_a_valid_entry_for_every_task() -> None:
             "unknown baseline 'vhf'; did you mean 'vfh'",
         ),
         ("[nav]\nlearner = ['ppo']", "unknown key 'learner'; did you mean 'learners'"),
+        (
+            "[nav]\nlearners = ['ppo']\ncriterion = [{metric = 'success', at_least = 0.9}]\n"
+            "tried = ['a longer run']",
+            "tried must be a string",
+        ),
     ],
 )
 def test_a_wrong_suite_is_an_error_naming_the_choices(
@@ -223,6 +228,12 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
     page = benchmark_fragment(out)
     consensus = next(p for p in page.split("\n\n") if "--tasks consensus" in p)
     assert "Not run yet: mappo" in consensus, consensus
+    # What was tried follows the task's table, before any other task's.
+    after = page[page.index("--tasks consensus") :]
+    tried = after.index(f"\n\nTried: {load_suite()['consensus'].tried}")
+    assert "--tasks " not in after[len("--tasks consensus") : tried].replace(
+        "--tasks consensus", ""
+    )
     assert "**nav**: no learned run recorded yet. Not run yet: ppo" in page
 
 

@@ -1027,8 +1027,7 @@ def _impossible(task: str) -> list[tuple[dict[str, Any], str]]:
         return f"{shared[0]}.{key}" if len(sections) > 1 and len(shared) == 1 else key
 
     return [
-        ({qualified(k): v for k, v in overrides.items()}, expected)
-        for overrides, expected in cases
+        ({qualified(k): v for k, v in overrides.items()}, expected) for overrides, expected in cases
     ]
 
 

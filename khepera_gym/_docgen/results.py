@@ -450,6 +450,7 @@ def benchmark_fragment(folder: Path) -> str:
             )
             + "."
             + (f" {not_run}" if not_run else "")
+            + (f"\n\nTried: {entry.tried}" if entry and entry.tried else "")
         )
     return "\n\n".join(parts)
 

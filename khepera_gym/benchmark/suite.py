@@ -40,7 +40,7 @@ COMMON_STATS = ("success", "return", "length", "path_length", "collisions")
 #: The two bounds a condition may set.
 BOUNDS = ("at_least", "at_most")
 #: Keys of a task's entry.
-ENTRY_KEYS = ("learners", "baselines", "criterion", "why")
+ENTRY_KEYS = ("learners", "baselines", "criterion", "why", "tried")
 
 
 def _choices(name: str, known: Sequence[str]) -> str:
@@ -111,6 +111,8 @@ class TaskEntry:
         baselines: The baselines it is compared with (``khepera-gym compare``'s names).
         criterion: The conditions that say it is solved (all must hold).
         why: How the criterion was chosen from the baselines.
+        tried: What was tried where a learner does not meet the criterion (the results page
+            prints it under the task's table), or "".
     """
 
     task: str
@@ -118,6 +120,7 @@ class TaskEntry:
     baselines: tuple[str, ...]
     criterion: tuple[Condition, ...]
     why: str
+    tried: str = ""
 
     def describe_criterion(self) -> str:
         return " and ".join(c.describe() for c in self.criterion)
@@ -188,7 +191,12 @@ def _entry(task: str, table: Any, where: str, learners: Sequence[str]) -> TaskEn
         _condition(task, f"{where}: [{task}] criterion[{i}]", c, baselines)
         for i, c in enumerate(conditions)
     )
-    return TaskEntry(task, tuple(names), tuple(baselines), criterion, str(table.get("why", "")))
+    tried = table.get("tried", "")
+    if not isinstance(tried, str):
+        raise ConfigError(f"{where}: [{task}] tried must be a string, got {tried!r}")
+    return TaskEntry(
+        task, tuple(names), tuple(baselines), criterion, str(table.get("why", "")), tried
+    )
 
 
 def load_suite(path: str | Path | None = None) -> dict[str, TaskEntry]:
