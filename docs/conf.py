@@ -26,7 +26,7 @@ release = khepera_gym.__version__
 extensions = ["myst_parser"]
 myst_enable_extensions = ["colon_fence", "deflist", "dollarmath"]
 # Headings get anchors (page.md#a-heading) down to ###.
-myst_heading_anchors = 3
+myst_heading_anchors = 4
 source_suffix = {".md": "markdown"}
 root_doc = "index"
 # Fragments under generated/ are included into pages, not pages of their own; results/ holds
