@@ -223,7 +223,7 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
     assert "consensus_error_final" in record["final"]
     # The results page renders the row, and names the suite's other learner of the task as not
     # run rather than leaving its row out; every other task says it has no run.
-    from khepera_gym._docgen.results import benchmark_fragment
+    from khepera_gym._docgen.benchmark_results import benchmark_fragment
 
     page = benchmark_fragment(out)
     consensus = next(p for p in page.split("\n\n") if "--tasks consensus" in p)
@@ -337,7 +337,7 @@ def test_the_recipe_speed_table_pairs_each_earlier_run_with_the_shipped_run_of_i
 ) -> None:
     """The ratio on the results page is earlier training time over shipped training time, seed
     by seed, over the runs both folders hold (a seed the shipped folder lacks is left out)."""
-    from khepera_gym._docgen.results import recipe_speed_fragment
+    from khepera_gym._docgen.benchmark_results import recipe_speed_fragment
 
     def write(folder: Path, seed: int, seconds: float, success: float) -> None:
         (folder / "runs").mkdir(parents=True, exist_ok=True)

@@ -61,6 +61,11 @@ def code(text: str) -> str:
     return f"{fence}{padding}{text}{padding}{fence}"
 
 
+def missing_results(command: str, what: str = "the JSON file it writes") -> str:
+    """A note for a results table with no file yet: the command that writes it."""
+    return f"```{{note}}\nNo data yet. Run {code(command)} and copy {what} into docs/results/.\n```"
+
+
 def table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> str:
     """A Markdown pipe table; cells are used as given (escape them with :func:`escape_cell`)."""
     lines = [
