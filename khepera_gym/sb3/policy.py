@@ -84,6 +84,28 @@ class NormalizedPolicy:
         return self.model.predict(normalized, state, episode_start, deterministic)  # type: ignore[arg-type]
 
 
+def _observation_rows(
+    observation: npt.NDArray[np.float32],
+    obs_dim: int,
+    normalizer: VecNormalize | None,
+    takes: str,
+) -> tuple[npt.NDArray[np.float32], bool]:
+    """Raw observations (obs_dim,) or (N, obs_dim) as (N, obs_dim) rows, normalised with the
+    training statistics when there are some, and whether a single one was given.
+
+    Raises:
+        ConfigError: Observations of another shape ("TAKES; got observations of shape ...").
+    """
+    rows = np.asarray(observation, dtype=np.float32)
+    single = rows.ndim == 1
+    rows = rows.reshape(1, -1) if single else rows
+    if rows.ndim != 2 or rows.shape[1] != obs_dim:
+        raise ConfigError(f"{takes}; got observations of shape {np.shape(observation)}")
+    if normalizer is not None:
+        rows = np.asarray(normalizer.normalize_obs(rows), dtype=np.float32)
+    return rows, single
+
+
 class FrameStackPolicy:
     """A model trained on the last ``n_stack`` observations (SB3's ``VecFrameStack``), fed the
     same stack from raw env observations.
@@ -136,16 +158,12 @@ class FrameStackPolicy:
     ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]:
         """Actions for raw observations (obs_dim,) or (N, obs_dim), stacked with the previous
         ones of the same rows."""
-        rows = np.asarray(observation, dtype=np.float32)
-        single = rows.ndim == 1
-        rows = rows.reshape(1, -1) if single else rows
-        if rows.ndim != 2 or rows.shape[1] != self.obs_dim:
-            raise ConfigError(
-                f"the model stacks {self.n_stack} observations of {self.obs_dim} values; "
-                f"got observations of shape {np.shape(observation)}"
-            )
-        if self.normalizer is not None:
-            rows = np.asarray(self.normalizer.normalize_obs(rows), dtype=np.float32)
+        rows, single = _observation_rows(
+            observation,
+            self.obs_dim,
+            self.normalizer,
+            f"the model stacks {self.n_stack} observations of {self.obs_dim} values",
+        )
         if self._stack is None or self._stack.shape[0] != rows.shape[0]:
             self._stack = np.zeros((rows.shape[0], self.n_stack * self.obs_dim), np.float32)
         if episode_start is not None:
@@ -202,16 +220,12 @@ class RecurrentPolicy:
         deterministic: bool = False,
     ) -> tuple[npt.NDArray[np.float32], tuple[npt.NDArray[Any], ...] | None]:
         """Actions for raw observations (obs_dim,) or (N, obs_dim), and the new LSTM state."""
-        rows = np.asarray(observation, dtype=np.float32)
-        single = rows.ndim == 1
-        rows = rows.reshape(1, -1) if single else rows
-        if rows.ndim != 2 or rows.shape[1] != self.obs_dim:
-            raise ConfigError(
-                f"the recurrent model takes observations of {self.obs_dim} values; got "
-                f"observations of shape {np.shape(observation)}"
-            )
-        if self.normalizer is not None:
-            rows = np.asarray(self.normalizer.normalize_obs(rows), dtype=np.float32)
+        rows, single = _observation_rows(
+            observation,
+            self.obs_dim,
+            self.normalizer,
+            f"the recurrent model takes observations of {self.obs_dim} values",
+        )
         carried = self._state if state is None else state
         if carried is not None and carried[0].shape[1] != rows.shape[0]:
             carried = None  # another number of worlds: they all start
