@@ -132,12 +132,33 @@ def parse_key_values(items: list[str], option: str) -> dict[str, Any]:
     return values
 
 
+def toml_value(value: Any, where: str = "TOML") -> str:
+    """``value`` (bool, number, string, list or dict of them) written as a TOML value: the
+    inverse of what :func:`parse_key_values` reads.
+
+    Raises:
+        ConfigError: A value TOML cannot hold (``where`` says what was being written).
+    """
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v, where) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {toml_value(v, where)}" for k, v in value.items()) + "}"
+    raise ConfigError(f"cannot write {value!r} into {where}")
+
+
 __all__ = [
     "BUILT_IN_SOURCE",
     "builtin_config_names",
     "builtin_config_text",
     "parse_key_values",
     "resolve_config",
+    "toml_value",
 ]
 
 

@@ -7,8 +7,10 @@ interrupted benchmark resumes without training again, and results of other code 
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
+import shlex
 from pathlib import Path
 from typing import Any
 
@@ -20,8 +22,11 @@ pytest.importorskip(
 
 from khepera_gym import _core, cli
 from khepera_gym.benchmark import learners, load_suite
+from khepera_gym.benchmark.command import add_arguments, reproduce
 from khepera_gym.benchmark.runner import FORMAT, judge, means
 from khepera_gym.benchmark.suite import Condition
+from khepera_gym.benchmark.tables import load_records, markdown, task_rows
+from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
 from khepera_gym.sb3.policy import frame_stack_of
 
@@ -180,6 +185,13 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     )
     summary = json.loads((out / "benchmark.json").read_text())
     assert summary["tables"][0]["learners"][0]["seeds"] == [0]
+    # The printed command is the command that ran: parsed again, it asks for the same work.
+    again = _parsed(summary["tables"][0]["learners"][0]["reproduce"])
+    ran = _parsed(" ".join(["khepera-gym benchmark", "--tasks nav", *TINY]))
+    for option in ("tasks", "timesteps", "episodes", "heldout_seed", "eval_episodes", "version"):
+        assert getattr(again, option) == getattr(ran, option), option
+    assert again.seed_list == [0]
+    assert parse_key_values(again.hp, "--hp") == parse_key_values(ran.hp, "--hp")
     # The model has its run.json beside it, as `khepera-gym train` leaves one: load_policy
     # (compare, render) stacks its frames and export finds its env.
     run = json.loads(Path(record["files"]["run"]).read_text())
@@ -199,6 +211,33 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     run_file.write_text(json.dumps(record))
     with pytest.raises(SystemExit, match="comes from commit 000000000000"):
         cli.main(["benchmark", "--tasks", "nav", "--out", str(out), *TINY])
+
+
+def _parsed(command: str) -> argparse.Namespace:
+    """``command`` (``khepera-gym benchmark ...``) as the CLI parses it."""
+    words = shlex.split(command)
+    assert words[:2] == ["khepera-gym", "benchmark"], command
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    return parser.parse_args(words[2:])
+
+
+def test_runs_of_another_recipe_in_the_folder_get_their_own_row(tmp_path: Path) -> None:
+    out = tmp_path / "bench"
+    _run(["--tasks", "nav", "--out", str(out), *TINY])
+    _run(["--tasks", "nav", "--out", str(out), *TINY, "--seed-list", "1", "--hp", "gamma=0.9"])
+    baselines, runs = load_records(out)
+    rows = task_rows("nav", baselines, runs)["learners"]
+    # Two recipes, two rows: seed 1's gamma is never averaged with seed 0's.
+    assert [row["seeds"] for row in rows] == [[0], [1]]
+    assert [row["recipe"]["gamma"] for row in rows][1] == 0.9 != rows[0]["recipe"]["gamma"]
+    assert rows[0]["variant"] != rows[1]["variant"]
+    assert all(
+        f"recipe {row['variant'][:8]}"
+        in markdown({"task": "nav", "baselines": [], "learners": [row]})
+        for row in rows
+    )
+    assert parse_key_values(_parsed(reproduce("nav", rows[1])).hp, "--hp")["gamma"] == 0.9
 
 
 def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Path) -> None:

@@ -64,10 +64,7 @@ def benchmark_fragment(folder: Path) -> str:
             + f"\n\nMeasured {', '.join(dates)} at commit {', '.join(f'`{c}`' for c in commits)}"
             + f" on {mine[0]['meta']['machine'].get('cpu', '?')} "
             + f"({mine[0]['meta']['machine'].get('cpus', '?')} CPUs); rows again: "
-            + "; ".join(
-                f"{code(reproduce(task, row['learner'], row['seeds'], row['version']))}"
-                for row in table["learners"]
-            )
+            + "; ".join(f"{code(reproduce(task, row))}" for row in table["learners"])
             + "."
             + (f" {not_run}" if not_run else "")
             + (f"\n\nTried: {entry.tried}" if entry and entry.tried else "")

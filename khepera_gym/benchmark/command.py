@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Sequence
+import shlex
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,7 @@ from khepera_gym.benchmark.learners import learner as make_learner
 from khepera_gym.benchmark.runner import Settings, run_baselines, run_one
 from khepera_gym.benchmark.suite import load_suite
 from khepera_gym.benchmark.tables import load_records, markdown, task_rows
-from khepera_gym.config import parse_key_values
+from khepera_gym.config import parse_key_values, toml_value
 from khepera_gym.errors import ConfigError
 from khepera_gym.provenance import provenance
 
@@ -34,6 +35,10 @@ from khepera_gym.provenance import provenance
 DEFAULT_OUT = Path("benchmark_out")
 #: Seeds of each (task, learner) without ``--seeds``.
 DEFAULT_SEEDS = 5
+#: Held-out episodes of every run and baseline without ``--episodes``.
+DEFAULT_EPISODES = 200
+#: Episodes of each evaluation while training without ``--eval-episodes``.
+DEFAULT_EVAL_EPISODES = 50
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,15 +57,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--episodes",
         type=int,
-        default=200,
-        help="held-out episodes, seeds --heldout-seed + i (200)",
+        default=DEFAULT_EPISODES,
+        help=f"held-out episodes, seeds --heldout-seed + i ({DEFAULT_EPISODES})",
     )
     parser.add_argument("--heldout-seed", type=int, default=0, help="first held-out seed (0)")
     parser.add_argument(
         "--eval-episodes",
         type=int,
-        default=50,
-        help="episodes of each evaluation while training, seeds 10000 + i (50)",
+        default=DEFAULT_EVAL_EPISODES,
+        help="episodes of each evaluation while training, seeds 10000 + i "
+        f"({DEFAULT_EVAL_EPISODES})",
     )
     parser.add_argument(
         "--timesteps", type=int, default=None, help="environment steps of every run (each recipe's)"
@@ -146,13 +152,27 @@ def _version(task: str, version: int | None) -> int:
     return version
 
 
-def reproduce(task: str, learner: str, seeds: Sequence[int], version: int) -> str:
-    """The command that runs one row again."""
+def reproduce(task: str, row: Mapping[str, Any]) -> str:
+    """The command that runs one row of a task's table (:func:`task_rows`) again: its learner,
+    seeds and version, and whatever its command changed (``--hp``, ``--timesteps``, held-out
+    and evaluation episodes)."""
     latest = _core.task_versions(task)[-1]
-    parts = ["khepera-gym benchmark", f"--tasks {task}", f"--learners {learner}"]
-    parts.append(f"--seed-list {' '.join(map(str, seeds))}")
-    if version != latest:
-        parts.append(f"--version {version}")
+    parts = ["khepera-gym benchmark", f"--tasks {task}", f"--learners {row['learner']}"]
+    parts.append(f"--seed-list {' '.join(map(str, row['seeds']))}")
+    if row["version"] != latest:
+        parts.append(f"--version {row['version']}")
+    settings = row.get("settings") or {}
+    if settings.get("timesteps") is not None:
+        parts.append(f"--timesteps {settings['timesteps']}")
+    for flag, name, default in (
+        ("--episodes", "episodes", DEFAULT_EPISODES),
+        ("--heldout-seed", "heldout_seed", 0),
+        ("--eval-episodes", "eval_episodes", DEFAULT_EVAL_EPISODES),
+    ):
+        if settings.get(name) not in (None, default):
+            parts.append(f"{flag} {settings[name]}")
+    for key, value in (settings.get("overrides") or {}).items():
+        parts.append("--hp " + shlex.quote(f"{key}={toml_value(value, '--hp')}"))
     return " ".join(parts)
 
 
@@ -233,7 +253,7 @@ def _write_summary(out: Path, tasks: Sequence[str]) -> None:
     for task in tasks:
         table = task_rows(task, baselines, runs)
         for row in table["learners"]:
-            row["reproduce"] = reproduce(task, row["learner"], row["seeds"], row["version"])
+            row["reproduce"] = reproduce(task, row)
         tables.append(table)
         print("\n" + markdown(table))
         for row in table["learners"]:

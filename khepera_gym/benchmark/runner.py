@@ -254,6 +254,12 @@ def run_one(
         "key": key,
         "meta": provenance(),
         "recipe": trained.recipe,
+        # What the command changed from the recipe, so its row prints the command again.
+        "settings": {
+            "timesteps": settings.timesteps,
+            "overrides": dict(settings.overrides),
+            "eval_episodes": settings.eval_episodes,
+        },
         "timesteps": trained.timesteps,
         "train_seconds": trained.train_seconds,
         "eval_seconds": trained.eval_seconds,

@@ -35,6 +35,12 @@ def load_records(out: Path) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]
     return read("baselines"), read("runs")
 
 
+def _work(run: Mapping[str, Any]) -> tuple[Any, ...]:
+    """What a run did, but for its seed: runs alike in it share a row."""
+    key = run["key"]
+    return (key["learner"], key["version"], key["recipe"], key["episodes"], key["heldout_seed"])
+
+
 def _median(values: Sequence[float]) -> float:
     return statistics.median(values) if values else math.nan
 
@@ -59,15 +65,26 @@ def task_rows(
         for name, summary in b["summaries"].items()
     ]
     learner_rows = []
-    for learner, version in dict.fromkeys((r["key"]["learner"], r["key"]["version"]) for r in runs):
-        mine = [
-            r for r in runs if r["key"]["learner"] == learner and r["key"]["version"] == version
-        ]
+    # One row per piece of work: runs of another recipe or other held-out episodes in the same
+    # folder get their own row, never averaged in.
+    works = list(dict.fromkeys(_work(r) for r in runs))
+    for work in works:
+        mine = [r for r in runs if _work(r) == work]
+        learner, version = work[0], work[1]
         seeds = [r["key"]["seed"] for r in mine]
+        twins = sum(w[:2] == work[:2] for w in works)
         row: dict[str, Any] = {
             "learner": learner,
             "version": version,
             "env": mine[0]["key"]["env"],
+            # The recipe's fingerprint when the folder holds more than one for this learner.
+            "variant": work[2] if twins > 1 else None,
+            "settings": {
+                **{"timesteps": None, "overrides": {}, "eval_episodes": None},
+                **mine[0].get("settings", {}),
+                "episodes": mine[0]["key"]["episodes"],
+                "heldout_seed": mine[0]["key"]["heldout_seed"],
+            },
             "seeds": seeds,
             "metrics": {},
             "solved": sum(bool(r["solved"]) for r in mine),
@@ -155,7 +172,9 @@ def markdown(table: Mapping[str, Any]) -> str:
             else f"never ({row['reached']}/{n})"
         )
         lines.append(
-            f"| {row['learner']} ({row['env']}) | {n} | "
+            f"| {row['learner']} ({row['env']}"
+            + (f", recipe {row['variant'][:8]}" if row.get("variant") else "")
+            + f") | {n} | "
             + " | ".join(mean_cells)
             + f" | {sampled} | {row['solved']}/{n} / {row['solved_sampled']}/{n} | {reached} "
             f"| {row['median_train_seconds']:.0f} s, {row['median_steps'] / 1e3:.0f}k steps |"

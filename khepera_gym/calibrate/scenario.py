@@ -21,7 +21,7 @@ from typing import Any
 import khepera_gym
 from khepera_gym import _core
 from khepera_gym.calibrate.fit import Calibration, Estimate
-from khepera_gym.config import tomllib
+from khepera_gym.config import toml_value, tomllib
 from khepera_gym.errors import ConfigError
 
 #: The keys of the estimates that take a [low, high] range, with the least value the range may
@@ -81,20 +81,6 @@ def _leaf_sections() -> dict[str, str]:
             for key in keys:
                 sections.setdefault(key, section)
     return sections
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return repr(value)
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
-    raise ConfigError(f"cannot write {value!r} into the scenario file")
 
 
 def dotted(overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -210,7 +196,7 @@ def calibrated_toml(
         section, _, leaf = key.partition(".")
         if section not in lines:
             lines[section] = []
-        lines[section].append(f"{leaf} = {_toml_value(value)}  # {comment}")
+        lines[section].append(f"{leaf} = {toml_value(value, 'the scenario file')}  # {comment}")
     when = datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat()
     logs = ", ".join(log.name for log in calibration.logs)
     header = [
