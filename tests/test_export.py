@@ -250,6 +250,14 @@ def nav_models() -> dict[str, Callable[[], tuple[Any, Any]]]:
         scale_output_layer(model.policy.action_net, 300.0)
         return model, None
 
+    def ppo_gsde() -> tuple[Any, Any]:
+        # gSDE's mean action is the same network's; only its noise depends on the state.
+        model = PPO(
+            "MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64, use_sde=True
+        )
+        scale_output_layer(model.policy.action_net, 300.0)
+        return model, None
+
     def ppo_vecnormalize() -> tuple[Any, Any]:
         venv = VecNormalize(make_vec_env(LATEST["nav"], 4, seed=0))
         venv.reset()
@@ -287,6 +295,7 @@ def nav_models() -> dict[str, Callable[[], tuple[Any, Any]]]:
 
     return {
         "ppo": ppo,
+        "ppo_gsde": ppo_gsde,
         "ppo_vecnormalize": ppo_vecnormalize,
         "a2c_elu": a2c_elu,
         "sac": sac,

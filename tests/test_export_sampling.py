@@ -100,6 +100,10 @@ def test_sampling_needs_a_policy_with_a_state_independent_sigma(tmp_path: Path) 
     sac = SAC("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", learning_starts=0)
     with pytest.raises(ConfigError, match="action noise cannot be exported"):
         export.export_policy(sac, tmp_path / "sac", env_id=LATEST["nav"], sample_seed=0)
+    # gSDE's noise depends on the state: its mean action exports, its noise does not.
+    gsde = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64, use_sde=True)
+    with pytest.raises(ConfigError, match=r"action noise cannot be exported.*not gSDE's"):
+        export.export_policy(gsde, tmp_path / "gsde", env_id=LATEST["nav"], sample_seed=0)
     ppo = PPO("MlpPolicy", gym.make(LATEST["nav"]), seed=0, device="cpu", n_steps=64)
     for seed in (-1, 2**64, 1.5, True):
         with pytest.raises(ConfigError, match="sampling seed"):

@@ -259,7 +259,7 @@ def _sampling_fields(network: PolicyNetwork) -> dict[str, str]:
     if network.action_std is None:
         note = (
             "#define POLICY_SAMPLES 0 /* this policy's action noise is not exported (only PPO's "
-            "and A2C's σ is): policy_step gives its deterministic action */"
+            "and A2C's state-independent σ is): policy_step gives its deterministic action */"
         )
         return {"sampling_api": note, "sampling": ""}
     std = ", ".join(c_float(v) for v in network.action_std)
@@ -302,7 +302,7 @@ def check_sampling(network: PolicyNetwork, seed: int) -> None:
     if network.action_std is None:
         raise ConfigError(
             f"the {network.source} policy's action noise cannot be exported (only PPO's and "
-            "A2C's state-independent σ can): export it without --sample-actions"
+            "A2C's state-independent σ can, not gSDE's): export it without --sample-actions"
         )
 
 

@@ -115,13 +115,19 @@ def describe_sb3(model: Any, normalizer: Any) -> PolicyNetwork:
             policy.pi_features_extractor, FlattenExtractor
         ):
             raise unsupported_model(f"a {name} with {type(policy).__name__}")
-        if policy.use_sde:
-            raise unsupported_model(f"a {name} trained with gSDE (use_sde=True)")
+        if policy.squash_output:
+            raise unsupported_model(f"a {name} whose actions are squashed (squash_output=True)")
         modules = [*policy.mlp_extractor.policy_net, policy.action_net]
         ones = np.ones(action_dim, np.float32)
         action = ActionTransform(ones, np.zeros(action_dim, np.float32), low, high)
         # The Gaussian's σ, one learned number per action value (DiagGaussianDistribution).
-        action_std = np.exp(policy.log_std.detach().cpu().numpy()).astype(np.float32)
+        # gSDE's noise is a function of the state (StateDependentNoiseDistribution): its mean
+        # action is the same network's, but its noise is not exported.
+        action_std = (
+            None
+            if policy.use_sde
+            else np.exp(policy.log_std.detach().cpu().numpy()).astype(np.float32)
+        )
     else:
         actor = policy.actor
         if not isinstance(actor.features_extractor, FlattenExtractor):
