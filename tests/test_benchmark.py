@@ -231,13 +231,22 @@ def test_runs_of_another_recipe_in_the_folder_get_their_own_row(tmp_path: Path) 
     # Two recipes, two rows: seed 1's gamma is never averaged with seed 0's.
     assert [row["seeds"] for row in rows] == [[0], [1]]
     assert [row["recipe"]["gamma"] for row in rows][1] == 0.9 != rows[0]["recipe"]["gamma"]
-    assert rows[0]["variant"] != rows[1]["variant"]
+    assert rows[0]["variant"].startswith("recipe ") and rows[0]["variant"] != rows[1]["variant"]
     assert all(
-        f"recipe {row['variant'][:8]}"
+        f"({row['env']}, {row['variant']})"
         in markdown({"task": "nav", "baselines": [], "learners": [row]})
         for row in rows
     )
     assert parse_key_values(_parsed(reproduce("nav", rows[1])).hp, "--hp")["gamma"] == 0.9
+    # Other held-out episodes, the same recipe: a row of its own too, labelled by them.
+    _run(["--tasks", "nav", "--out", str(out), *TINY, "--seed-list", "2", "--episodes", "4"])
+    rows = task_rows("nav", *load_records(out))["learners"]
+    assert [row["seeds"] for row in rows] == [[0], [1], [2]]
+    recipe_of = [row["variant"].split(", ")[0] for row in rows]
+    assert recipe_of[2] == recipe_of[0] != recipe_of[1]
+    assert rows[2]["variant"].endswith(", 4 episodes from seed 0")
+    assert rows[0]["variant"].endswith(", 6 episodes from seed 0")
+    assert _parsed(reproduce("nav", rows[2])).episodes == 4
 
 
 def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Path) -> None:

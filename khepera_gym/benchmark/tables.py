@@ -41,6 +41,18 @@ def _work(run: Mapping[str, Any]) -> tuple[Any, ...]:
     return (key["learner"], key["version"], key["recipe"], key["episodes"], key["heldout_seed"])
 
 
+def _variant(work: tuple[Any, ...], twins: Sequence[tuple[Any, ...]]) -> str | None:
+    """The label of ``work`` among the rows of its learner and version (``twins``)."""
+    if len(twins) < 2:
+        return None
+    parts = []
+    if len({w[2] for w in twins}) > 1:
+        parts.append(f"recipe {work[2][:8]}")
+    if len({w[3:] for w in twins}) > 1:
+        parts.append(f"{work[3]} episodes from seed {work[4]}")
+    return ", ".join(parts)
+
+
 def _median(values: Sequence[float]) -> float:
     return statistics.median(values) if values else math.nan
 
@@ -72,13 +84,14 @@ def task_rows(
         mine = [r for r in runs if _work(r) == work]
         learner, version = work[0], work[1]
         seeds = [r["key"]["seed"] for r in mine]
-        twins = sum(w[:2] == work[:2] for w in works)
+        twins = [w for w in works if w[:2] == work[:2]]
         row: dict[str, Any] = {
             "learner": learner,
             "version": version,
             "env": mine[0]["key"]["env"],
-            # The recipe's fingerprint when the folder holds more than one for this learner.
-            "variant": work[2] if twins > 1 else None,
+            # What tells the row from the learner's others in the folder: the recipe's
+            # fingerprint and/or its held-out episodes (None when it is the only one).
+            "variant": _variant(work, twins),
             "settings": {
                 **{"timesteps": None, "overrides": {}, "eval_episodes": None},
                 **mine[0].get("settings", {}),
@@ -173,7 +186,7 @@ def markdown(table: Mapping[str, Any]) -> str:
         )
         lines.append(
             f"| {row['learner']} ({row['env']}"
-            + (f", recipe {row['variant'][:8]}" if row.get("variant") else "")
+            + (f", {row['variant']}" if row.get("variant") else "")
             + f") | {n} | "
             + " | ".join(mean_cells)
             + f" | {sampled} | {row['solved']}/{n} / {row['solved_sampled']}/{n} | {reached} "
