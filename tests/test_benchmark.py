@@ -23,6 +23,7 @@ pytest.importorskip(
 from khepera_gym import _core, cli
 from khepera_gym.benchmark import learners, load_suite
 from khepera_gym.benchmark.command import add_arguments, reproduce
+from khepera_gym.benchmark.jobs import gym_id
 from khepera_gym.benchmark.runner import FORMAT, judge, means
 from khepera_gym.benchmark.suite import Condition
 from khepera_gym.benchmark.tables import load_records, markdown, task_rows
@@ -222,31 +223,73 @@ def _parsed(command: str) -> argparse.Namespace:
     return parser.parse_args(words[2:])
 
 
+def _single_agent_task() -> str:
+    """The registry's first task with a Gymnasium id: a tiny PPO run, the suite's cheapest."""
+    return next(name for name, _, _ in _core.tasks() if gym_id(name, _latest(name)) is not None)
+
+
+def _latest(task: str) -> int:
+    return _core.task_versions(task)[-1]
+
+
+@pytest.mark.parametrize(
+    ("task", "learner"),
+    [(entry.task, name) for entry in load_suite().values() for name in entry.learners],
+)
+def test_the_printed_command_asks_for_the_rows_work_again(task: str, learner: str) -> None:
+    # Every task and learner of the suite, on its oldest and its latest version.
+    overrides = {"gamma": 0.9, "policy_kwargs": {"net_arch": [8, 8]}, "schedule": "lin_1e-3"}
+    for version in dict.fromkeys((_core.task_versions(task)[0], _latest(task))):
+        row = {
+            "learner": learner,
+            "seeds": [3, 1],
+            "version": version,
+            "settings": {
+                "timesteps": 4096,
+                "overrides": overrides,
+                "eval_episodes": 7,
+                "episodes": 9,
+                "heldout_seed": 5,
+            },
+        }
+        args = _parsed(reproduce(task, row))
+        assert (args.tasks, args.learners, args.seed_list) == ([task], [learner], [3, 1])
+        assert (_latest(task) if args.version is None else args.version) == version
+        assert (args.timesteps, args.eval_episodes, args.episodes, args.heldout_seed) == (
+            4096,
+            7,
+            9,
+            5,
+        )
+        assert parse_key_values(args.hp, "--hp") == overrides
+
+
 def test_runs_of_another_recipe_in_the_folder_get_their_own_row(tmp_path: Path) -> None:
     out = tmp_path / "bench"
-    _run(["--tasks", "nav", "--out", str(out), *TINY])
-    _run(["--tasks", "nav", "--out", str(out), *TINY, "--seed-list", "1", "--hp", "gamma=0.9"])
+    task = _single_agent_task()
+    _run(["--tasks", task, "--out", str(out), *TINY])
+    _run(["--tasks", task, "--out", str(out), *TINY, "--seed-list", "1", "--hp", "gamma=0.9"])
     baselines, runs = load_records(out)
-    rows = task_rows("nav", baselines, runs)["learners"]
+    rows = task_rows(task, baselines, runs)["learners"]
     # Two recipes, two rows: seed 1's gamma is never averaged with seed 0's.
     assert [row["seeds"] for row in rows] == [[0], [1]]
     assert [row["recipe"]["gamma"] for row in rows][1] == 0.9 != rows[0]["recipe"]["gamma"]
     assert rows[0]["variant"].startswith("recipe ") and rows[0]["variant"] != rows[1]["variant"]
     assert all(
         f"({row['env']}, {row['variant']})"
-        in markdown({"task": "nav", "baselines": [], "learners": [row]})
+        in markdown({"task": task, "baselines": [], "learners": [row]})
         for row in rows
     )
-    assert parse_key_values(_parsed(reproduce("nav", rows[1])).hp, "--hp")["gamma"] == 0.9
+    assert parse_key_values(_parsed(reproduce(task, rows[1])).hp, "--hp")["gamma"] == 0.9
     # Other held-out episodes, the same recipe: a row of its own too, labelled by them.
-    _run(["--tasks", "nav", "--out", str(out), *TINY, "--seed-list", "2", "--episodes", "4"])
-    rows = task_rows("nav", *load_records(out))["learners"]
+    _run(["--tasks", task, "--out", str(out), *TINY, "--seed-list", "2", "--episodes", "4"])
+    rows = task_rows(task, *load_records(out))["learners"]
     assert [row["seeds"] for row in rows] == [[0], [1], [2]]
     recipe_of = [row["variant"].split(", ")[0] for row in rows]
     assert recipe_of[2] == recipe_of[0] != recipe_of[1]
     assert rows[2]["variant"].endswith(", 4 episodes from seed 0")
     assert rows[0]["variant"].endswith(", 6 episodes from seed 0")
-    assert _parsed(reproduce("nav", rows[2])).episodes == 4
+    assert _parsed(reproduce(task, rows[2])).episodes == 4
 
 
 def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Path) -> None:

@@ -37,6 +37,8 @@ DEFAULT_OUT = Path("benchmark_out")
 DEFAULT_SEEDS = 5
 #: Held-out episodes of every run and baseline without ``--episodes``.
 DEFAULT_EPISODES = 200
+#: First held-out episode's seed without ``--heldout-seed``.
+DEFAULT_HELDOUT_SEED = 0
 #: Episodes of each evaluation while training without ``--eval-episodes``.
 DEFAULT_EVAL_EPISODES = 50
 
@@ -60,7 +62,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_EPISODES,
         help=f"held-out episodes, seeds --heldout-seed + i ({DEFAULT_EPISODES})",
     )
-    parser.add_argument("--heldout-seed", type=int, default=0, help="first held-out seed (0)")
+    parser.add_argument(
+        "--heldout-seed",
+        type=int,
+        default=DEFAULT_HELDOUT_SEED,
+        help=f"first held-out seed ({DEFAULT_HELDOUT_SEED})",
+    )
     parser.add_argument(
         "--eval-episodes",
         type=int,
@@ -166,7 +173,7 @@ def reproduce(task: str, row: Mapping[str, Any]) -> str:
         parts.append(f"--timesteps {settings['timesteps']}")
     for flag, name, default in (
         ("--episodes", "episodes", DEFAULT_EPISODES),
-        ("--heldout-seed", "heldout_seed", 0),
+        ("--heldout-seed", "heldout_seed", DEFAULT_HELDOUT_SEED),
         ("--eval-episodes", "eval_episodes", DEFAULT_EVAL_EPISODES),
     ):
         if settings.get(name) not in (None, default):

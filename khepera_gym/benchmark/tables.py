@@ -93,8 +93,10 @@ def task_rows(
             # fingerprint and/or its held-out episodes (None when it is the only one).
             "variant": _variant(work, twins),
             "settings": {
-                **{"timesteps": None, "overrides": {}, "eval_episodes": None},
-                **mine[0].get("settings", {}),
+                "timesteps": None,
+                "overrides": {},
+                "eval_episodes": None,
+                **mine[0].get("settings", {}),  # files before it recorded none
                 "episodes": mine[0]["key"]["episodes"],
                 "heldout_seed": mine[0]["key"]["heldout_seed"],
             },
