@@ -133,7 +133,7 @@ docs: develop $(DOCS_TOOLS)
 # Every task's default scenario file, configs/<task>.toml, written from the core's declarations
 # (the files are what the docs point users to; tests/test_scenarios.py checks they are current).
 configs: develop
-	$(PYTHON) -m khepera_gym._docgen --configs configs
+	$(PYTHON) -m khepera_gym.analysis.docgen --configs configs
 
 # Clippy runs twice: the binding (src/python/) is compiled only with the `python` feature.
 lint: develop

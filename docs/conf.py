@@ -2,7 +2,7 @@
 
 The site is MyST Markdown with the Furo theme, as Gymnasium's and PettingZoo's. Reference pages
 and results tables are generated from the code and from docs/results/ at every build
-(:func:`khepera_gym._docgen.write_all`, into docs/generated/, which git ignores), so they cannot
+(:func:`khepera_gym.analysis.docgen.write_all`, into docs/generated/, which git ignores), so they cannot
 drift from what the package does. The package is imported from the source tree, with the
 extension `make develop` compiled into it.
 """
@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import khepera_gym  # noqa: E402
-from khepera_gym._docgen import write_all  # noqa: E402
+from khepera_gym.analysis.docgen import write_all  # noqa: E402
 
 project = "khepera_gym"
 author = "the khepera_gym developers"

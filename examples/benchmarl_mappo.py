@@ -10,13 +10,13 @@
     python examples/benchmarl_mappo.py --shared-sigma  # one learned σ per action, as SB3's PPO
     python examples/benchmarl_mappo.py --json mappo.json  # also the results page's file
 
-BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the
-``state``, the joint observation) on ``khepera_gym.benchmarl.KheperaTask.FORMATION``: a
-``KheperaTorchEnv`` of ``--worlds`` worlds, each follower an agent of the ``"followers"`` group
-with its own 23-value observation and its own reward (minus its distance to its eq. 12 target,
-minus contacts); the scripted leader drives to its goal. Before and after training the policy
-(deterministic actions) plays the same ``--episodes`` seeded episodes (seeds 10000 + i), as
-does the LeaderFollower baseline for reference, and the mean formation error is printed.
+BenchMARL trains MAPPO (one actor shared by the followers, a centralised critic on the ``state``,
+the joint observation) on ``khepera_gym.learning.torchrl.benchmarl.KheperaTask.FORMATION``: a
+``KheperaTorchEnv`` of ``--worlds`` worlds, each follower an agent of the ``"followers"`` group with
+its own 23-value observation and its own reward (minus its distance to its eq. 12 target, minus
+contacts); the scripted leader drives to its goal. Before and after training the policy
+(deterministic actions) plays the same ``--episodes`` seeded episodes (seeds 10000 + i), as does the
+LeaderFollower baseline for reference, and the mean formation error is printed.
 Hyperparameters mirror the ``formation-followers`` table of configs/hyperparams/ppo.toml (1,024 env
 steps per batch, 10 epochs of minibatches of 128, γ = λ = 0.95, 64 × 64 MLPs) and SB3's PPO: each
 minibatch's advantages standardised, the gradients' norm clipped at 0.5 (BenchMARL's MAPPO does not
@@ -47,13 +47,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from khepera_gym import _core
+from khepera_gym import registry
+from khepera_gym.analysis.compare import parse_overrides
+from khepera_gym.analysis.compare.report import write_formation_learning
 from khepera_gym.baselines import LeaderFollower
-from khepera_gym.benchmarl import KheperaTask
-from khepera_gym.compare import parse_overrides
-from khepera_gym.compare.report import write_formation_learning
 from khepera_gym.errors import ConfigError
-from khepera_gym.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
+from khepera_gym.learning.torchrl import KheperaTorchEnv, torchrl_import_warnings_ignored
+from khepera_gym.learning.torchrl.benchmarl import KheperaTask
 
 with torchrl_import_warnings_ignored():
     from benchmarl.algorithms import IppoConfig, MappoConfig
@@ -356,7 +356,7 @@ def main() -> None:
             EVAL_SEED,
             rows,
             args.seed,
-            version=_core.LATEST_VERSION if args.version is None else args.version,
+            version=registry.LATEST_VERSION if args.version is None else args.version,
         )
         print(f"saved {args.json}")
 

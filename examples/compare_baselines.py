@@ -3,7 +3,7 @@ figures.
 
 Usage: ``python examples/compare_baselines.py [--episodes 200] [--fig6-episodes 20]
 [--out compare_out] [--docs docs/images] [--version 1]``. Runs, with
-:func:`khepera_gym.compare.compare`, on the envs of behaviour ``--version`` (default: the
+:func:`khepera_gym.analysis.compare.compare`, on the envs of behaviour ``--version`` (default: the
 latest; 0 is the paper's V-REP-like dynamics):
 
 1. the paper's Fig. 6 scene (``config="paper_fig6"``): Braitenberg vs VFH (and position control
@@ -33,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from khepera_gym import compare
-from khepera_gym.plot import panel_title, plot_rollouts
+from khepera_gym.analysis import compare
+from khepera_gym.analysis.plots import panel_title, plot_rollouts
 
 #: Resolution of the figures saved for the documentation (keeps them well under 200 KB).
 DOCS_DPI = 100

@@ -15,9 +15,9 @@ import argparse
 import numpy as np
 from matplotlib.figure import Figure
 
+from khepera_gym.analysis.plots import plot_trajectories
 from khepera_gym.baselines import ConsensusLaw
 from khepera_gym.pettingzoo import consensus_v1
-from khepera_gym.plot import plot_trajectories
 
 DT = 0.05
 

@@ -1,6 +1,6 @@
 """PPO with one policy shared by every robot of ``consensus_v1`` (parameter sharing), against the
-consensus law: trains on :class:`khepera_gym.sb3.SharedAgentsVecEnv` (each row one robot of one
-world, with its own observation and the shared reward −error), then plays the same seeded
+consensus law: trains on :class:`khepera_gym.learning.sb3.SharedAgentsVecEnv` (each row one robot of
+one world, with its own observation and the shared reward −error), then plays the same seeded
 episodes with both policies and prints the final error, the share of episodes that converged
 (below 3 cm for good), the messages per robot per second and the steps in contact.
 
@@ -17,8 +17,8 @@ import numpy as np
 from stable_baselines3 import PPO
 
 from khepera_gym.baselines import ConsensusLaw
-from khepera_gym.sb3 import SharedAgentsVecEnv
-from khepera_gym.sb3.evaluate import first_episode_stats
+from khepera_gym.learning.sb3 import SharedAgentsVecEnv
+from khepera_gym.learning.sb3.evaluate import first_episode_stats
 
 
 def summary(name: str, stats: dict) -> str:

@@ -13,8 +13,8 @@ import gymnasium as gym
 import numpy as np
 
 import khepera_gym  # noqa: F401  (registers the envs)
-from khepera_gym.compare.stats import bootstrap_interval, wilson_interval
 from khepera_gym.envs import dronefollow_heuristic
+from khepera_gym.tooling.stats import bootstrap_interval, wilson_interval
 
 ENV_ID = "KheperaIV-DroneFollow-v1"
 

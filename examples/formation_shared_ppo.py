@@ -4,9 +4,9 @@
     python examples/formation_shared_ppo.py --json shared_ppo.json   # also the results file
 
 Every follower of every world is one row of an SB3 ``VecEnv`` over a Rust Formation batch
-(``khepera_gym.sb3.make_formation_vec_env``): row w·K + k observes follower k's own 23-value block
-of world w (IR, ultrasonic, its target in its own frame, the leader's offset, heading and
-velocity, its wheel speeds), drives its own two wheels and earns its own reward (minus its
+(``khepera_gym.learning.sb3.make_formation_vec_env``): row w·K + k observes follower k's own
+23-value block of world w (IR, ultrasonic, its target in its own frame, the leader's offset, heading
+and velocity, its wheel speeds), drives its own two wheels and earns its own reward (minus its
 distance to its eq. 12 target, minus contacts). One PPO policy learns from all rows at once;
 the scripted leader drives to its goal. After training, the policy and the LeaderFollower
 baseline (``khepera_gym.baselines.LeaderFollower``, or the proportional follower heuristic when
@@ -29,10 +29,10 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecMonitor
 
-from khepera_gym import _core
-from khepera_gym.compare.report import write_formation_learning
-from khepera_gym.sb3 import first_episode_stats, make_formation_vec_env
-from khepera_gym.train import build_model, load_hyperparams
+from khepera_gym import registry
+from khepera_gym.analysis.compare.report import write_formation_learning
+from khepera_gym.learning.sb3 import first_episode_stats, make_formation_vec_env
+from khepera_gym.learning.train import build_model, load_hyperparams
 
 #: Evaluation episodes are seeded EVAL_SEED + i, away from the training worlds' seeds.
 EVAL_SEED = 10_000
@@ -84,7 +84,7 @@ def main() -> None:
     parser.add_argument("--json", help="also write the figures to this results file")
     args = parser.parse_args()
 
-    version = _core.LATEST_VERSION  # the Formation env's default, which the vec env makes
+    version = registry.LATEST_VERSION  # the Formation env's default, which the vec env makes
     hyperparams = load_hyperparams("ppo", f"formation_v{version}-followers")
     worlds = args.worlds or hyperparams["n_envs"]
     timesteps = args.timesteps or hyperparams["n_timesteps"]

@@ -21,7 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import khepera_gym  # noqa: F401  (registers the envs)
-from khepera_gym.bench import _resident_bytes
+from khepera_gym.analysis.throughput import _resident_bytes
 
 
 def _mib(value: int | None) -> str:

@@ -12,7 +12,7 @@ Prints two tables, measured on this machine:
   seeded episodes), env-steps per CPU-second (this process, plus RLlib's EnvRunner processes;
   not Ray's daemons), which other load on the machine hardly changes, and the final success rate;
 * sampling alone: env-steps/s of RLlib's EnvRunners stepping the Rust batch with the initial
-  policy, no learning (``khepera_gym.rllib.sampling_throughput``).
+  policy, no learning (``khepera_gym.learning.rllib.sampling_throughput``).
 
 Ray runs locally with one CPU per core; each remote EnvRunner takes one. The learner runs in
 this process on one torch thread. Needs the ``sb3`` and ``rllib`` extras. About 3 minutes on 2
@@ -30,8 +30,8 @@ from pathlib import Path
 import ray
 import torch
 
-from khepera_gym import rllib
-from khepera_gym.train import train as train_sb3
+from khepera_gym.learning import rllib
+from khepera_gym.learning.train import train as train_sb3
 
 
 def main() -> None:

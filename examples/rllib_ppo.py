@@ -7,8 +7,8 @@
 The same script runs in both places; only ``--address`` changes (and the number of EnvRunners
 you can afford). Each EnvRunner (a Ray actor with 1 CPU) steps ONE Rust batch of
 ``--envs-per-runner`` worlds through RLlib's vector entry point, world i of runner w seeded
-``(seed + w) · N + i`` (``khepera_gym.rllib``); the learner runs in this process. After training
-the policy is evaluated on the same 100 seeded episodes as ``khepera-gym train`` (seeds
+``(seed + w) · N + i`` (``khepera_gym.learning.rllib``); the learner runs in this process. After
+training the policy is evaluated on the same 100 seeded episodes as ``khepera-gym train`` (seeds
 10000..10099) and the algorithm is saved as an RLlib checkpoint.
 
 Every node must be able to import khepera_gym, a compiled extension: install the abi3 wheel of
@@ -28,7 +28,7 @@ import torch
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
-from khepera_gym import rllib  # registers "khepera_gym/KheperaIV-Nav-v1" with Ray Tune
+from khepera_gym.learning import rllib  # registers "khepera_gym/KheperaIV-Nav-v1" with Ray Tune
 
 ENV = "khepera_gym/KheperaIV-Nav-v1"
 

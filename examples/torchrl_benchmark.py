@@ -1,4 +1,4 @@
-"""Env-steps/s of the TorchRL env (khepera_gym.torchrl) against the native vector env.
+"""Env-steps/s of the TorchRL env (khepera_gym.learning.torchrl) against the native vector env.
 
     python examples/torchrl_benchmark.py [--worlds 64 1024] [--threads N] [--repeats 3]
                                          [--clock wall|cpu]
@@ -32,8 +32,8 @@ import gymnasium as gym
 import numpy as np
 import torch
 
+from khepera_gym.learning.torchrl import KheperaTorchEnv
 from khepera_gym.registration import latest_ids
-from khepera_gym.torchrl import KheperaTorchEnv
 
 #: Tasks measured (their Gymnasium ids come from the registration).
 TASKS = ("nav", "formation")

@@ -23,7 +23,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecMonitor
 
 import khepera_gym  # noqa: F401  (registers the environments)
-from khepera_gym.sb3 import SuccessEvalCallback, evaluate_episodes, make_vec_env
+from khepera_gym.learning.sb3 import SuccessEvalCallback, evaluate_episodes, make_vec_env
 
 ENV_ID = "KheperaIV-Nav-v1"
 #: Evaluation episodes are seeded EVAL_SEED + i, away from the training worlds' seeds.

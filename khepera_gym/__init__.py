@@ -27,10 +27,10 @@ on top; to change the episode length of the simulator itself pass ``max_steps=k`
 
 from __future__ import annotations
 
-from khepera_gym import _core, errors
-from khepera_gym.catalog import default_config, scenes
-from khepera_gym.layout import obs_layout
+from khepera_gym import _core, _moved, errors
+from khepera_gym.observations import obs_layout
 from khepera_gym.registration import register_envs
+from khepera_gym.registry import default_config, scenes
 
 #: Real-robot speed units (``kh4_set_speed``, 0.678181 mm/s each) to and from m/s.
 speed_to_units = _core.speed_to_units
@@ -49,6 +49,8 @@ def motor_presets() -> dict[str, dict[str, str]]:
 
 
 register_envs()
+# The modules that moved to the layered folders in 0.2.0 keep their old paths (with a warning).
+_moved.install()
 
 __all__ = [
     "__version__",

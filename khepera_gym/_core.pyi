@@ -204,6 +204,10 @@ def tasks() -> list[tuple[str, str | None, list[str]]]:
 def task_versions(name: str) -> list[int]:
     """The behaviour versions of a task, oldest first (from the version that added it)."""
 
+def task_agents(name: str) -> tuple[bool, bool, bool]:
+    """What a task's agents are: (several agents in its default scenario, alike agents (robots
+    with one observation layout), agents that end separately)."""
+
 def task_scoring(name: str) -> dict[str, Any]:
     """How a task is scored: ``success``, ``time``, ``error_prefix``, ``error``, ``termination``
     (str or None), ``speed``, ``moving_reference``, ``path_trace`` (bool) and ``columns``, a list

@@ -1,27 +1,28 @@
 """The ``khepera-gym`` command: ``list``, ``demo``, ``compare``, ``train``, ``render``,
 ``export``, ``robot-program``, ``calibrate``, ``replay``, ``bench`` and ``benchmark``.
 
-``list`` prints what the package has, read from the registries (:mod:`khepera_gym.catalog`):
+``list`` prints what the package has, read from the registries (:mod:`khepera_gym.registry`):
 the Gymnasium ids, the PettingZoo modules, the built-in scenes, the sensors and the policies
 ``compare`` and ``render`` take.
 
-``train`` trains a stable-baselines3 agent on the Rust batch (:mod:`khepera_gym.train`; SB3 and
-torch are imported only then). ``export`` writes a trained policy as C for the real robot or as
-ONNX (:mod:`khepera_gym.export`). ``robot-program calibrate`` writes the calibration program for
-the robot, ``calibrate`` fits the simulator to its logs and ``replay`` compares a robot log with
-the simulator (:mod:`khepera_gym.calibrate`; a malformed log or scenario is a one-line error).
+``train`` trains a stable-baselines3 agent on the Rust batch (:mod:`khepera_gym.learning.train`; SB3
+and torch are imported only then). ``export`` writes a trained policy as C for the real robot or as
+ONNX (:mod:`khepera_gym.robot.export`). ``robot-program calibrate`` writes the calibration program
+for the robot, ``calibrate`` fits the simulator to its logs and ``replay`` compares a robot log with
+the simulator (:mod:`khepera_gym.robot.calibrate`; a malformed log or scenario is a one-line error).
 
 ``compare`` runs policies (the paper's controllers of :mod:`khepera_gym.baselines`, random, or a
 stable-baselines3 model) on the same seeded episodes and prints a table with 95% intervals,
-writing CSV, JSON and trajectory plots (:mod:`khepera_gym.compare`). ``demo`` runs that
+writing CSV, JSON and trajectory plots (:mod:`khepera_gym.analysis.compare`). ``demo`` runs that
 comparison on the paper's Fig. 6 and Fig. 7 scenes and on every task, and says where the
 plots are (``--out-dir``, demo_out/). ``benchmark`` trains every task's learners over several
-seeds and reports them on held-out episodes beside the baselines (:mod:`khepera_gym.benchmark`).
+seeds and reports them on held-out episodes beside the baselines
+(:mod:`khepera_gym.learning.benchmark`).
 
 Every subcommand checks its arguments (ids, counts, seeds, output formats and folders, which it
 creates) before it simulates anything, shows a progress bar on work longer than a moment, and
 ends a user error with one line on stderr and a non-zero status
-(:func:`khepera_gym.cli_checks.run_command`), never a traceback.
+(:func:`khepera_gym.tooling.arguments.run_command`), never a traceback.
 """
 
 from __future__ import annotations
@@ -31,11 +32,17 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import bench, catalog, cli_checks, compare, export, provenance, record, train
-from khepera_gym.benchmark import command as benchmark_command
-from khepera_gym.calibrate import command as calibrate_command
-from khepera_gym.compare.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
+from khepera_gym import registry
+from khepera_gym.analysis import compare, record, throughput
+from khepera_gym.config import check_version
+from khepera_gym.errors import KheperaError
+from khepera_gym.learning import train
+from khepera_gym.learning.benchmark import command as benchmark_command
+from khepera_gym.learning.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
 from khepera_gym.registration import registered_ids
+from khepera_gym.robot import export
+from khepera_gym.robot.calibrate import command as calibrate_command
+from khepera_gym.tooling import arguments, provenance
 
 #: What ``khepera-gym list`` can print.
 LIST_TOPICS = ("envs", "pettingzoo", "scenes", "sensors", "policies")
@@ -44,10 +51,13 @@ LIST_TOPICS = ("envs", "pettingzoo", "scenes", "sensors", "policies")
 DEMO_EPISODES = 50
 
 
-def demo(episodes: int = DEMO_EPISODES, out_dir: Path = Path("demo_out")) -> int:
-    """Runs :func:`khepera_gym.compare.demo`: the baselines on the paper's scenes and the tasks."""
+def demo(
+    episodes: int = DEMO_EPISODES, out_dir: Path = Path("demo_out"), version: int | None = None
+) -> int:
+    """Runs :func:`khepera_gym.analysis.compare.demo`: the baselines on the paper's scenes and the
+    tasks, on behaviour ``version`` (None: each task's latest)."""
     print(f"khepera_gym {khepera_gym.__version__}")
-    return compare.demo(episodes, out_dir)
+    return compare.demo(episodes, out_dir, version=version)
 
 
 def _policy_tasks(name: str) -> str:
@@ -68,16 +78,16 @@ def list_catalog(topics: Sequence[str] = LIST_TOPICS) -> str:
         sections.append("\n".join(lines))
     if "pettingzoo" in topics:
         lines = ["PettingZoo modules (khepera_gym.pettingzoo.<name>.parallel_env()):"]
-        for module in catalog.pettingzoo_modules():
+        for module in registry.pettingzoo_modules():
             lines.append(f"  {module.name:<20} task {module.task}")
         sections.append("\n".join(lines))
     if "scenes" in topics:
         lines = ["Built-in scenes (config=NAME; also every task's name for its defaults):"]
-        lines += [f"  {name:<12} {summary}" for name, summary in catalog.scenes().items()]
+        lines += [f"  {name:<12} {summary}" for name, summary in registry.scenes().items()]
         sections.append("\n".join(lines))
     if "sensors" in topics:
         lines = ["Sensors (scenario keys sensors.carry and sensors.observe):"]
-        for sensor in catalog.sensors():
+        for sensor in registry.sensors():
             default = "observed" if sensor.observed else "carried" if sensor.carried else "off"
             values = f"{sensor.values} value{'s' if sensor.values > 1 else ''}"
             lines.append(f"  {sensor.name:<8} {values:>10}   default: {default}")
@@ -127,6 +137,12 @@ def build_parser() -> argparse.ArgumentParser:
     demo_parser.add_argument(
         "--out-dir", type=Path, default=Path("demo_out"), help="where the files go (demo_out/)"
     )
+    demo_parser.add_argument(
+        "--version",
+        type=int,
+        default=None,
+        help="behaviour version of every run (default: each task's latest)",
+    )
 
     compare_parser = commands.add_parser(
         "compare", help="run policies on the same seeded episodes; table, CSV, JSON, plots"
@@ -166,7 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
     calibrate_command.add_replay_arguments(replay_parser)
 
     bench_parser = commands.add_parser("bench", help="env-steps/s and memory per world")
-    bench.add_arguments(bench_parser)
+    throughput.add_arguments(bench_parser)
 
     benchmark_parser = commands.add_parser(
         "benchmark",
@@ -186,9 +202,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     args = build_parser().parse_args(argv)
     if argv is None:
-        return cli_checks.run_command(args.command, lambda: _run(args))
+        return arguments.run_command(args.command, lambda: _run(args))
     with provenance.running_command(["khepera-gym", *argv]):
-        return cli_checks.run_command(args.command, lambda: _run(args))
+        return arguments.run_command(args.command, lambda: _run(args))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -202,9 +218,13 @@ def _run(args: argparse.Namespace) -> int:
         print(list_catalog(args.topics or LIST_TOPICS))
         return 0
     if args.command == "demo":
-        cli_checks.at_least(args.episodes, 1, "--episodes")
-        cli_checks.output_folder(args.out_dir, "--out-dir")
-        return demo(args.episodes, args.out_dir)
+        arguments.at_least(args.episodes, 1, "--episodes")
+        arguments.output_folder(args.out_dir, "--out-dir")
+        try:
+            check_version(args.version)
+        except KheperaError as error:
+            raise SystemExit(f"khepera-gym demo: --version: {arguments.one_line(error)}") from error
+        return demo(args.episodes, args.out_dir, args.version)
     if args.command == "compare":
         return compare.run_from_args(args)
     if args.command == "train":
@@ -222,7 +242,7 @@ def _run(args: argparse.Namespace) -> int:
         return loop_commands[args.command](args)
     if args.command == "benchmark":
         return benchmark_command.run_from_args(args)
-    return bench.run_from_args(args)
+    return throughput.run_from_args(args)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ from typing import Any
 from khepera_gym import _core
 from khepera_gym._inputs import check_int
 from khepera_gym.errors import ConfigError, KheperaError
+from khepera_gym.registry import LATEST_VERSION, builtin_config_names
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -42,12 +43,6 @@ def _builtin_config_text(name: str) -> str | None:
         return _core.default_config(name)
     except (KheperaError, ValueError, KeyError):
         return None
-
-
-def builtin_config_names() -> list[str]:
-    """Names of the built-in scenarios embedded in the extension, e.g. ``["nav"]``: every
-    task's defaults and the scenes (the core lists them)."""
-    return list(_core.builtin_configs())
 
 
 def builtin_config_text(name: str) -> str:
@@ -178,7 +173,7 @@ VERSION_KEY = "version"
 
 
 def check_version(version: object) -> int | None:
-    """``version`` as an int in ``0..=_core.LATEST_VERSION``, or None (the latest).
+    """``version`` as an int in ``0..=LATEST_VERSION``, or None (the latest).
 
     Raises:
         ConfigError: Not an int, or no such version.
@@ -187,9 +182,9 @@ def check_version(version: object) -> int | None:
         return None
     if isinstance(version, bool) or not isinstance(version, int):
         raise ConfigError(f"version must be an int, got {type(version).__name__}")
-    if not 0 <= version <= _core.LATEST_VERSION:
+    if not 0 <= version <= LATEST_VERSION:
         raise ConfigError(
-            f"behaviour version {version} does not exist; versions are 0..{_core.LATEST_VERSION}"
+            f"behaviour version {version} does not exist; versions are 0..{LATEST_VERSION}"
         )
     return version
 

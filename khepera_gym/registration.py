@@ -18,7 +18,7 @@ from typing import Any
 import gymnasium
 import gymnasium.envs.registration
 
-from khepera_gym import _core
+from khepera_gym import registry
 from khepera_gym.envs import ENV_CLASSES
 from khepera_gym.errors import ConfigError
 from khepera_gym.vector import VECTOR_ENV_CLASSES
@@ -27,7 +27,8 @@ from khepera_gym.vector import VECTOR_ENV_CLASSES
 def registered_ids() -> dict[str, list[str]]:
     """Every registered id of each task with a Gymnasium env, oldest version first."""
     ids: dict[str, list[str]] = {}
-    for task, env_id, _ in _core.tasks():
+    for task, info in registry.tasks().items():
+        env_id = info.env_id
         env_class = ENV_CLASSES.get(task)
         if env_id is None or env_class is None:
             continue
@@ -50,7 +51,7 @@ def _first_versions() -> dict[str, tuple[int, int]]:
     """Each of our unversioned ids → (its task's first version, the latest)."""
     firsts = {}
     for task, ids in registered_ids().items():
-        versions = _core.task_versions(task)
+        versions = registry.task_versions(task)
         firsts[ids[0].rsplit("-v", 1)[0]] = (versions[0], versions[-1])
     return firsts
 
@@ -154,9 +155,9 @@ def task_and_version(name: str) -> tuple[str, int]:
     """
     from khepera_gym.pettingzoo import FAMILIES, modules
 
-    tasks = [task for task, _, _ in _core.tasks()]
+    tasks = registry.task_names()
     if name in tasks:
-        return name, _core.task_versions(name)[-1]
+        return name, registry.latest_version(name)
     if name in modules():
         family, _, version = name.rpartition("_v")
         return FAMILIES[family].TASK, int(version)

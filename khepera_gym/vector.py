@@ -56,10 +56,10 @@ from khepera_gym._inputs import (
     check_seed,
     check_world_seeds,
 )
+from khepera_gym.batch_face import BatchFace, check_render_mode, first_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.envs import ENV_CLASSES, KheperaEnv
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.face import BatchFace, check_render_mode, first_seed
 from khepera_gym.render import Renderer
 
 #: The autoreset modes of the native vector envs (the Rust batch resets a finished world on the

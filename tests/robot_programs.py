@@ -1,6 +1,6 @@
 """Builds and runs of the generated robot programs against the simulated libkhepera
 (tests/fake_libkhepera/), on this PC or for the Khepera IV's ARM processor under emulation
-(:mod:`khepera_gym.export.toolchain`): the helpers of the tests that run them.
+(:mod:`khepera_gym.robot.export.toolchain`): the helpers of the tests that run them.
 
 A program built here links the fake library's simulated clock (fake_clock.c) in place of the
 program's own khepera_clock.c, so that a run of minutes of robot time takes a fraction of a
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from khepera_gym.export import C_SOURCES, Target, arm_target, host_target
+from khepera_gym.robot.export import C_SOURCES, Target, arm_target, host_target
 
 #: The simulated libkhepera.
 FAKE = Path(__file__).resolve().parent / "fake_libkhepera"

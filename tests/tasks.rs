@@ -199,3 +199,55 @@ fn test_scripted_leader_reaches_goal_and_followers_hold_formation() {
         );
     }
 }
+
+/// Every task's declared agent facts (`TaskInfo::agents`, which the Python adapters read
+/// instead of lists of their own) agree with the agents its default scenario builds, and a
+/// task that says its agents end together never ends one agent alone.
+#[test]
+fn test_agent_facts_match_the_agents_each_task_builds() {
+    use _core::tasks::Body;
+    for &kind in TaskKind::ALL {
+        let facts = kind.info().agents;
+        let cfg = Arc::new(scenario(kind.name(), None, ""));
+        let agents = kind.agents(&cfg).expect("agents");
+        assert_eq!(facts.several, agents.len() > 1, "{}: several", kind.name());
+        let robots = agents.iter().all(|a| matches!(a.body, Body::Robot(_)));
+        let one_layout = agents.iter().all(|a| a.layout.len() == agents[0].layout.len());
+        assert_eq!(facts.alike, robots && one_layout, "{}: alike", kind.name());
+        if facts.end_separately {
+            assert!(facts.several, "{}: one agent cannot end apart", kind.name());
+            continue;
+        }
+        let spawner = Arc::new(Env::spawner(kind, &cfg).expect("spawner"));
+        let mut env = Env::new(kind, cfg.clone(), spawner, ActionType::Wheels).expect("env");
+        let mut obs = vec![0.0; env.obs_dim()];
+        let width = _core::tasks::action_width(&cfg);
+        for seed in 0..3 {
+            env.seed(seed);
+            env.reset(&mut obs);
+            for step in 0..3000 {
+                // Full speed ahead with a slow turn: robots reach walls, goals and each other.
+                let turn = ((step / 40) % 2) as f32 * 0.6;
+                let action: Vec<f32> = (0..agents.len())
+                    .flat_map(|_| {
+                        let mut a = vec![0.0; width];
+                        a[0] = 1.0;
+                        a[1] = 1.0 - turn;
+                        a
+                    })
+                    .collect();
+                let out = env.step(&action, &mut obs);
+                let first = env.agent_terminated[0];
+                assert!(
+                    env.agent_terminated.iter().all(|&t| t == first),
+                    "{} seed {seed} step {step}: an agent ended alone",
+                    kind.name()
+                );
+                if out.terminated || out.truncated {
+                    break;
+                }
+            }
+        }
+    }
+}
+

@@ -17,9 +17,9 @@ import pytest
 from conftest import ALL_IDS, PETTINGZOO_MODULES, latest_module, random_actions
 
 from khepera_gym import _core
+from khepera_gym.batch_face import WORLD_STATS_KEY
 from khepera_gym.envs import formation_follower_heuristic, nav_heuristic
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.face import WORLD_STATS_KEY
 from khepera_gym.pettingzoo.arrays import MultiAgentArrayEnv
 
 #: Episode length of these tests (steps), so that episodes end within them.
@@ -205,7 +205,7 @@ MULTI_AGENT_TASKS = [t for t, _, _ in _core.tasks() if len(_core.Batch(t, 1).age
 @pytest.mark.parametrize("task", MULTI_AGENT_TASKS)
 def test_sb3_shared_agent_rows_report_their_agents_own_statistics(task: str) -> None:
     pytest.importorskip("stable_baselines3")
-    from khepera_gym.sb3 import SharedAgentsVecEnv
+    from khepera_gym.learning.sb3 import SharedAgentsVecEnv
 
     worlds = 2
     env = SharedAgentsVecEnv(task, worlds, max_episode_steps=EPISODE, seed=3)
@@ -233,8 +233,8 @@ def test_sb3_shared_agent_rows_report_their_agents_own_statistics(task: str) -> 
 
 def test_rllib_multi_agent_env_reports_each_agents_own_statistics() -> None:
     pytest.importorskip("ray.rllib")
-    from khepera_gym.rllib.followers import FormationFollowersVectorEnv
-    from khepera_gym.rllib.multi_agent import KheperaMultiAgentEnv
+    from khepera_gym.learning.rllib.followers import FormationFollowersVectorEnv
+    from khepera_gym.learning.rllib.multi_agent import KheperaMultiAgentEnv
 
     env = KheperaMultiAgentEnv(latest_module("multinav").parallel_env(max_steps=EPISODE))
     env.reset(seed=5)
@@ -274,7 +274,7 @@ def test_torchrl_agent_episode_stats_are_each_agents_own() -> None:
     pytest.importorskip("torchrl")
     import torch
 
-    from khepera_gym.torchrl import KheperaTorchEnv
+    from khepera_gym.learning.torchrl import KheperaTorchEnv
 
     worlds = 2
     env = KheperaTorchEnv("multinav", worlds, n_robots=3, max_steps=40, seed=2)

@@ -11,6 +11,7 @@ import pytest
 from conftest import AVOID_V0_ID, FORMATION_V0_ID, LATEST, NAV_V0_ID
 
 from khepera_gym import _core
+from khepera_gym.analysis.plots import record_rollout
 from khepera_gym.baselines import (
     VFH,
     BaselinePolicy,
@@ -22,7 +23,6 @@ from khepera_gym.baselines import (
 )
 from khepera_gym.errors import ActionError
 from khepera_gym.pettingzoo import formation_v1
-from khepera_gym.plot import record_rollout
 
 FIG6_START = (-0.75, 0.05, 0.0)  # configs/paper_fig6.toml spawn.start
 FIG6_GOAL = (0.75, 0.05)  # configs/paper_fig6.toml spawn.goal

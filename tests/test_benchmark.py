@@ -21,15 +21,15 @@ pytest.importorskip(
 )
 
 from khepera_gym import _core, cli
-from khepera_gym.benchmark import learners, load_suite
-from khepera_gym.benchmark.command import add_arguments, reproduce
-from khepera_gym.benchmark.jobs import gym_id
-from khepera_gym.benchmark.runner import FORMAT, judge, means
-from khepera_gym.benchmark.suite import Condition
-from khepera_gym.benchmark.tables import load_records, markdown, task_rows
 from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
-from khepera_gym.sb3.policy import frame_stack_of
+from khepera_gym.learning.benchmark import learners, load_suite
+from khepera_gym.learning.benchmark.command import add_arguments, reproduce
+from khepera_gym.learning.benchmark.jobs import gym_id
+from khepera_gym.learning.benchmark.runner import FORMAT, judge, means
+from khepera_gym.learning.benchmark.suite import Condition
+from khepera_gym.learning.benchmark.tables import load_records, markdown, task_rows
+from khepera_gym.learning.sb3.policy import frame_stack_of
 
 #: The smallest benchmark that runs every step: one seed, a few updates, a few episodes.
 TINY = [
@@ -314,7 +314,7 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
     assert "consensus_error_final" in record["final"]
     # The results page renders the row, and names the suite's other learner of the task as not
     # run rather than leaving its row out; every other task says it has no run.
-    from khepera_gym._docgen.benchmark_results import benchmark_fragment
+    from khepera_gym.analysis.docgen.benchmark_results import benchmark_fragment
 
     page = benchmark_fragment(out)
     consensus = next(p for p in page.split("\n\n") if "--tasks consensus" in p)
@@ -334,7 +334,7 @@ def test_a_recurrent_policy_trains_and_plays_the_held_out_episodes_with_its_stat
     """recurrent_ppo (sb3-contrib's RecurrentPPO): its memory is the LSTM's state, so it trains
     without a frame stack, is judged on the held-out episodes carrying that state, and the
     model it leaves reloads as a recurrent policy (compare, render and export use that)."""
-    from khepera_gym.sb3.policy import RecurrentPolicy, load_policy
+    from khepera_gym.learning.sb3.policy import RecurrentPolicy, load_policy
 
     out = tmp_path / "bench"
     tiny = ["--seeds", "1", "--timesteps", "1024", "--episodes", "4", "--eval-episodes", "2"]
@@ -428,7 +428,7 @@ def test_the_recipe_speed_table_pairs_each_earlier_run_with_the_shipped_run_of_i
 ) -> None:
     """The ratio on the results page is earlier training time over shipped training time, seed
     by seed, over the runs both folders hold (a seed the shipped folder lacks is left out)."""
-    from khepera_gym._docgen.benchmark_results import recipe_speed_fragment
+    from khepera_gym.analysis.docgen.benchmark_results import recipe_speed_fragment
 
     def write(folder: Path, seed: int, seconds: float, success: float) -> None:
         (folder / "runs").mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,8 @@
 """The loop back from the robot: the robot programs' logs, ``khepera-gym calibrate`` and
 ``khepera-gym replay``, tested without a robot.
 
-* Synthetic logs come from the simulator (:mod:`khepera_gym.calibrate.synthetic`): a robot whose
+* Synthetic logs come from the simulator (:mod:`khepera_gym.robot.calibrate.synthetic`): a robot
+whose
   parameters are drawn within the real robots' spread runs the calibration manoeuvre with the
   simulator's noise, and the fit must find each parameter within its tolerance.
 * The generated C programs are built as ``make robot`` builds them and run against a simulated
@@ -58,8 +59,11 @@ pytest.importorskip(
     "scipy", reason="needs the calibrate extra: pip install 'khepera-gym[calibrate]'"
 )
 
-from khepera_gym import cli, export
-from khepera_gym.calibrate import (
+from khepera_gym import cli
+from khepera_gym.errors import ConfigError
+from khepera_gym.registration import latest_ids
+from khepera_gym.robot import export
+from khepera_gym.robot.calibrate import (
     LogFormatError,
     calibrate,
     ir_curve,
@@ -69,12 +73,10 @@ from khepera_gym.calibrate import (
     write_calibration_program,
     write_log,
 )
-from khepera_gym.calibrate import fit as fitting
-from khepera_gym.calibrate import replay as rp
-from khepera_gym.calibrate.logformat import COLUMNS, format_log, note
-from khepera_gym.calibrate.schedule import Phase, PhaseRunner
-from khepera_gym.errors import ConfigError
-from khepera_gym.registration import latest_ids
+from khepera_gym.robot.calibrate import fit as fitting
+from khepera_gym.robot.calibrate import replay as rp
+from khepera_gym.robot.calibrate.logformat import COLUMNS, format_log, note
+from khepera_gym.robot.calibrate.schedule import Phase, PhaseRunner
 
 #: The simulated libkhepera of these tests.
 FAKE = Path(__file__).resolve().parent / "fake_libkhepera"

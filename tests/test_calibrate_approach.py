@@ -33,10 +33,9 @@ import numpy as np
 import pytest
 from conftest import LATEST
 
-from khepera_gym import export
-from khepera_gym.calibrate import replay as rp
-from khepera_gym.calibrate import schedule, synthetic, write_calibration_program
-from khepera_gym.calibrate.logformat import note, read_log
+from khepera_gym.robot import export
+from khepera_gym.robot.calibrate import replay, schedule, synthetic, write_calibration_program
+from khepera_gym.robot.calibrate.logformat import note, read_log
 
 #: The simulated libkhepera.
 FAKE = Path(__file__).resolve().parent / "fake_libkhepera"
@@ -117,7 +116,7 @@ def run_on_fake(
 ) -> tuple[np.ndarray, Any]:
     """Runs the program (the approach by default); returns the fake's trace (time, x, y,
     heading, gap) and the log."""
-    program = _build(out, stuck, phases, FAKE_WALL_X=gap_true + rp.BODY_RADIUS, **fake)
+    program = _build(out, stuck, phases, FAKE_WALL_X=gap_true + replay.BODY_RADIUS, **fake)
     trace = out / "trace.txt"
     subprocess.run(
         [str(program), repr(gap_given), str(out / "approach.csv")],
@@ -148,7 +147,7 @@ FAKE_CASES = {
 @pytest.mark.parametrize("case", list(FAKE_CASES))
 def test_the_calibration_program_stops_short_of_the_wall(case: str, tmp_path: Path) -> None:
     gap_given, gap_true, stuck, settings = FAKE_CASES[case]
-    radius = rp.NOMINAL_WHEEL_RADIUS * (1.0 + schedule.RADIUS_TOLERANCE)
+    radius = replay.NOMINAL_WHEEL_RADIUS * (1.0 + schedule.RADIUS_TOLERANCE)
     trace, log = run_on_fake(
         tmp_path,
         gap_given=gap_given,
@@ -184,9 +183,9 @@ def test_one_infrared_glitch_does_not_stop_the_approach() -> None:
     # The program's approach (and what follows), from its first row; 1 mm a row.
     approach = _approach_phases()[1:]
     runner = schedule.PhaseRunner(
-        approach, 0.05, 0.5, rp.metres_per_pulse(rp.NOMINAL_WHEEL_RADIUS), 0.1054
+        approach, 0.05, 0.5, replay.metres_per_pulse(replay.NOMINAL_WHEEL_RADIUS), 0.1054
     )
-    pulses_per_row = round(0.001 / rp.metres_per_pulse(rp.NOMINAL_WHEEL_RADIUS))
+    pulses_per_row = round(0.001 / replay.metres_per_pulse(replay.NOMINAL_WHEEL_RADIUS))
     readings = [100] * 60 + [1023] + [100] * 10 + [1023, 1023] + [100] * 10
     phases = []
     for row, ir in enumerate(readings):
@@ -207,7 +206,7 @@ def test_the_python_state_machine_stops_the_simulated_robot_short_of_the_wall(
     # The simulator as the robot: the lowest infrared gain of the spread and the shortest
     # distance scale (its curve then reaches 700 nearest the wall), wheels 3 % off.
     robot = synthetic.TrueRobot(
-        wheel_radius=rp.NOMINAL_WHEEL_RADIUS * wheel_scale,
+        wheel_radius=replay.NOMINAL_WHEEL_RADIUS * wheel_scale,
         ir_gain=0.85,
         ir_scale=0.9,
         ir_floor_value=80.0,

@@ -1,10 +1,10 @@
 """``khepera-gym calibrate`` on a robot it does not contain: logs of the independent bench model
-(:mod:`khepera_gym.calibrate.independent`, written from K-Team's manual, sharing no code with the
-simulator), and the failures issue 45 found, each as a test.
+(:mod:`khepera_gym.robot.calibrate.independent`, written from K-Team's manual, sharing no code with
+the simulator), and the failures issue 45 found, each as a test.
 
 These tests are external to the simulator (the model is another one); the many-seed study over
-robots across ``SPREAD`` (``python -m khepera_gym.calibrate.study``) is too long for a test: its
-results file is in docs/data/ and the tables of docs/sim-to-real.md are checked against it
+robots across ``SPREAD`` (``python -m khepera_gym.robot.calibrate.study``) is too long for a test:
+its results file is in docs/data/ and the tables of docs/sim-to-real.md are checked against it
 here. A log here is a short manoeuvre (the wall from 0.4 m, a spin of a turn and a half, one
 step and one turn each way) so that a fit takes seconds.
 
@@ -29,25 +29,25 @@ pytest.importorskip(
 
 from test_calibrate_approach import run_on_fake
 
-import khepera_gym.calibrate.study as study
+import khepera_gym.robot.calibrate.study as study
 from khepera_gym import cli
-from khepera_gym.calibrate import calibrate, command, schedule, write_log
-from khepera_gym.calibrate import replay as rp
-from khepera_gym.calibrate.drive_fit import DriveFit
-from khepera_gym.calibrate.fit import Calibration
-from khepera_gym.calibrate.geometry import GeometryFit
-from khepera_gym.calibrate.independent import (
+from khepera_gym.config import tomllib
+from khepera_gym.robot.calibrate import calibrate, command, schedule, write_log
+from khepera_gym.robot.calibrate import replay as rp
+from khepera_gym.robot.calibrate.drive_fit import DriveFit
+from khepera_gym.robot.calibrate.fit import Calibration
+from khepera_gym.robot.calibrate.geometry import GeometryFit
+from khepera_gym.robot.calibrate.independent import (
     BenchRun,
     bench_calibration_run,
     draw_bench_robot,
 )
-from khepera_gym.calibrate.independent_program import BenchProgram
-from khepera_gym.calibrate.logformat import RobotLog
-from khepera_gym.calibrate.scenario import calibrated_toml
-from khepera_gym.calibrate.schedule import Phase
-from khepera_gym.calibrate.solver import Progress
-from khepera_gym.calibrate.timing import time_gaps
-from khepera_gym.config import tomllib
+from khepera_gym.robot.calibrate.independent_program import BenchProgram
+from khepera_gym.robot.calibrate.logformat import RobotLog
+from khepera_gym.robot.calibrate.scenario import calibrated_toml
+from khepera_gym.robot.calibrate.schedule import Phase
+from khepera_gym.robot.calibrate.solver import Progress
+from khepera_gym.robot.calibrate.timing import time_gaps
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The study's results file and the page whose tables come from it.

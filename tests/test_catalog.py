@@ -7,15 +7,15 @@ import gymnasium as gym
 import pytest
 
 import khepera_gym
-from khepera_gym import _core, catalog, cli
-from khepera_gym.compare.policies import POLICY_NAMES
+from khepera_gym import _core, cli, registry
 from khepera_gym.errors import ConfigError
+from khepera_gym.learning.policies import POLICY_NAMES
 from khepera_gym.registration import registered_ids
 
 
-@pytest.mark.parametrize("task", catalog.task_names())
+@pytest.mark.parametrize("task", registry.task_names())
 def test_default_config_is_the_cores_for_every_version_the_task_exists_in(task: str) -> None:
-    versions = catalog.task_versions(task)
+    versions = registry.task_versions(task)
     assert versions and versions[-1] == _core.LATEST_VERSION
     for version in versions:
         assert khepera_gym.default_config(task, version) == _core.default_config(task, version)
@@ -33,18 +33,18 @@ def test_default_config_names_the_tasks_and_points_a_scene_to_scenes() -> None:
 
 def test_task_versions_are_the_registered_ids_versions() -> None:
     for task, ids in registered_ids().items():
-        assert [int(i.rsplit("-v", 1)[1]) for i in ids] == list(catalog.task_versions(task))
+        assert [int(i.rsplit("-v", 1)[1]) for i in ids] == list(registry.task_versions(task))
 
 
 def test_scenes_are_the_builtin_files_that_are_not_tasks_each_with_a_summary() -> None:
     scenes = khepera_gym.scenes()
-    assert set(scenes) == set(_core.builtin_configs()) - set(catalog.task_names())
+    assert set(scenes) == set(_core.builtin_configs()) - set(registry.task_names())
     assert {"paper_fig6", "paper_fig7", "swarm"} <= set(scenes)
     for name, summary in scenes.items():
         assert summary.endswith(".") and len(summary) > 20, name
-        assert catalog.scene_config(name) == _core.default_config(name)
+        assert registry.scene_config(name) == _core.default_config(name)
     with pytest.raises(ConfigError, match="unknown scene 'nav'"):
-        catalog.scene_config("nav")
+        registry.scene_config("nav")
 
 
 def test_a_scene_loads_on_the_task_it_names() -> None:
@@ -55,7 +55,7 @@ def test_a_scene_loads_on_the_task_it_names() -> None:
 
 
 def test_sensors_are_the_cores_with_their_blocks_and_keys() -> None:
-    sensors = {sensor.name: sensor for sensor in catalog.sensors()}
+    sensors = {sensor.name: sensor for sensor in registry.sensors()}
     assert list(sensors)[:2] == ["ir", "us"]
     assert sensors["ir"].values == 8 and sensors["us"].values == 5
     assert sensors["ir"].observed and sensors["gyro"].carried and not sensors["gyro"].observed
@@ -69,11 +69,11 @@ def test_sensors_are_the_cores_with_their_blocks_and_keys() -> None:
 def test_pettingzoo_modules_are_every_versioned_module_of_the_package() -> None:
     import khepera_gym.pettingzoo as package
 
-    modules = catalog.pettingzoo_modules()
+    modules = registry.pettingzoo_modules()
     assert {m.name for m in modules} == {n for n in package.__all__ if "_v" in n}
     for module in modules:
         assert module.env_class.metadata["name"] == module.name
-        assert module.version in catalog.task_versions(module.task)
+        assert module.version in registry.task_versions(module.task)
         env = module.module.parallel_env()
         assert env.unwrapped._batch.task == module.task
         env.close()
@@ -85,9 +85,9 @@ def test_list_prints_every_id_module_scene_sensor_and_policy(capsys) -> None:
     for ids in registered_ids().values():
         for env_id in ids:
             assert env_id in text
-    for module in catalog.pettingzoo_modules():
+    for module in registry.pettingzoo_modules():
         assert module.name in text
-    for name in (*khepera_gym.scenes(), *(s.name for s in catalog.sensors()), *POLICY_NAMES):
+    for name in (*khepera_gym.scenes(), *(s.name for s in registry.sensors()), *POLICY_NAMES):
         assert f"  {name} " in text, name
 
 

@@ -13,8 +13,9 @@ from unittest import mock
 import numpy as np
 import pytest
 
-from khepera_gym import cli, record
-from khepera_gym.compare import run as compare_run
+from khepera_gym import cli
+from khepera_gym.analysis import record
+from khepera_gym.analysis.compare import run as compare_run
 
 #: A path whose folder cannot be created (/proc takes no new entries, even for root).
 UNWRITABLE = "/proc/khepera-gym-test/out"
@@ -103,7 +104,7 @@ def test_render_records_a_users_own_function(tmp_path: Path) -> None:
     import gymnasium as gym
 
     import khepera_gym
-    from khepera_gym.compare import make_policy
+    from khepera_gym.analysis.compare import make_policy
     from khepera_gym.registration import latest_ids
 
     controller = tmp_path / "mine.py"
@@ -194,7 +195,7 @@ def test_train_refuses_bad_arguments_in_one_line_before_training(
     argv: list[str], expected: str
 ) -> None:
     pytest.importorskip("stable_baselines3")
-    with mock.patch("khepera_gym.train.train", side_effect=AssertionError("trained")):
+    with mock.patch("khepera_gym.learning.train.train", side_effect=AssertionError("trained")):
         message = _user_error(["train", *argv])
     assert expected in message, message
 
@@ -212,7 +213,7 @@ def test_train_refuses_bad_arguments_in_one_line_before_training(
 def test_bench_refuses_bad_arguments_in_one_line_before_measuring(
     argv: list[str], expected: str
 ) -> None:
-    with mock.patch("khepera_gym.bench.run", side_effect=AssertionError("measured")):
+    with mock.patch("khepera_gym.analysis.throughput.run", side_effect=AssertionError("measured")):
         message = _user_error(["bench", *argv])
     assert expected in message, message
 

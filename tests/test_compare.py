@@ -1,4 +1,5 @@
-"""The comparison tool (khepera_gym.compare, ``khepera-gym compare``) and the rollout plots."""
+"""The comparison tool (khepera_gym.analysis.compare, ``khepera-gym compare``) and the rollout
+plots."""
 
 from __future__ import annotations
 
@@ -15,11 +16,12 @@ import numpy as np
 import pytest
 from conftest import LATEST
 
-from khepera_gym import cli, compare
+from khepera_gym import cli
+from khepera_gym.analysis import compare
+from khepera_gym.analysis.plots import plot_rollouts, record_rollout
 from khepera_gym.baselines import Braitenberg, LeaderFollower, PositionControl
-from khepera_gym.compare.policies import DEFAULT_POLICIES
 from khepera_gym.errors import ConfigError
-from khepera_gym.plot import plot_rollouts, record_rollout
+from khepera_gym.learning.policies import DEFAULT_POLICIES
 
 
 def test_wilson_interval_matches_the_textbook_values() -> None:
@@ -240,7 +242,9 @@ def test_sb3_models_are_loaded_by_algorithm_and_act_on_the_episodes(
 ) -> None:
     fake = _fake_stable_baselines3(_FakeModel(PositionControl(), 18))
     monkeypatch.setitem(sys.modules, "stable_baselines3", fake)
-    monkeypatch.setitem(sys.modules, "khepera_gym.sb3", None)  # fall back to trying loaders
+    monkeypatch.setitem(
+        sys.modules, "khepera_gym.learning.sb3", None
+    )  # fall back to trying loaders
     model = tmp_path / "model.zip"
     model.write_bytes(b"")
     result = compare.compare(
@@ -264,7 +268,7 @@ def test_sb3_follower_model_drives_every_follower_of_a_formation(
 ) -> None:
     follower = _FakeModel(LeaderFollower(shape=None), 23)  # one follower's block in, 2 out
     monkeypatch.setitem(sys.modules, "stable_baselines3", _fake_stable_baselines3(follower))
-    monkeypatch.setitem(sys.modules, "khepera_gym.sb3", None)
+    monkeypatch.setitem(sys.modules, "khepera_gym.learning.sb3", None)
     model = tmp_path / "followers.zip"
     model.write_bytes(b"")
     result = compare.compare(LATEST["formation"], [f"sb3:{model}"], episodes=3, progress=False)

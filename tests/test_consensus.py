@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from khepera_gym import cli
+from khepera_gym.analysis.compare import consensus as sweep
 from khepera_gym.baselines import ConsensusLaw
-from khepera_gym.compare import consensus as sweep
 from khepera_gym.errors import ActionError, ConfigError
 from khepera_gym.pettingzoo import consensus, consensus_v1
 from khepera_gym.pettingzoo.arrays import MultiAgentArrayEnv

@@ -197,7 +197,7 @@ def test_installed_versions_are_the_pinned_ones_in_a_floor_step_and_allowed_else
 @pytest.mark.filterwarnings("ignore::tqdm.TqdmExperimentalWarning")  # tqdm.rich is "experimental"
 def test_sb3_training_draws_its_progress_bar_with_rich(tmp_path: Path, capsys) -> None:
     """The sb3 extra's rich (through tqdm.rich) draws SB3's bar; the other tests train without."""
-    from khepera_gym.train import train
+    from khepera_gym.learning.train import train
 
     train(
         LATEST["nav"],

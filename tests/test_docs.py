@@ -19,8 +19,8 @@ from conftest import LATEST
 
 import khepera_gym
 import khepera_gym.baselines
-import khepera_gym.catalog
 import khepera_gym.registration
+import khepera_gym.registry
 from khepera_gym import envs
 from khepera_gym.config import tomllib
 from khepera_gym.envs import (
@@ -163,7 +163,7 @@ def _stated_defaults(text: str) -> list[tuple[str, float, float, int | None]]:
 
 def _manuals() -> list[tuple[str, str]]:
     """(task, manual) of every env page: the env classes' and the PettingZoo manuals."""
-    from khepera_gym._docgen.envs import env_pages
+    from khepera_gym.analysis.docgen.envs import env_pages
 
     return [(page.task, page.manual) for page in env_pages()]
 
@@ -182,10 +182,10 @@ def test_every_default_a_manual_states_is_the_codes(task: str, manual: str) -> N
     """A manual that says "`task.max_steps` (400)" or "`physics.friction` = 0.7" says what the
     task's latest version has (or the version the sentence names); the version histories are
     left out (they tell what older versions had)."""
-    from khepera_gym._docgen.scenario import task_keys
+    from khepera_gym.analysis.docgen.scenario import task_keys
 
     text = manual.split("## Version History")[0]
-    versions = khepera_gym.catalog.task_versions(task)
+    versions = khepera_gym.registry.task_versions(task)
     checked = 0
     for key, value, tolerance, version in _stated_defaults(text):
         version = versions[-1] if version is None else version
@@ -212,7 +212,7 @@ def test_no_manual_copies_a_key_table_any_more() -> None:
 @pytest.fixture(scope="module")
 def generated(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """docs/ with its images and results, and the generated pages written into a copy."""
-    from khepera_gym._docgen import write_all
+    from khepera_gym.analysis.docgen import write_all
 
     docs = tmp_path_factory.mktemp("docs")
     shutil.copytree(DOCS / "images", docs / "images")
@@ -232,7 +232,7 @@ def _table_rows(markdown: str) -> list[list[str]]:
 def test_every_task_with_an_id_or_a_module_has_a_page(generated: Path) -> None:
     from khepera_gym.registration import registered_ids
 
-    tasks = set(registered_ids()) | {m.task for m in khepera_gym.catalog.pettingzoo_modules()}
+    tasks = set(registered_ids()) | {m.task for m in khepera_gym.registry.pettingzoo_modules()}
     assert {path.stem for path in (generated / "envs").glob("*.md")} == tasks
     table = (generated / "env-table.md").read_text(encoding="utf-8")
     for ids in registered_ids().values():
@@ -242,7 +242,7 @@ def test_every_task_with_an_id_or_a_module_has_a_page(generated: Path) -> None:
             assert f"`{env_id}`" in page.read_text(encoding="utf-8")
 
 
-@pytest.mark.parametrize("task", khepera_gym.catalog.task_names())
+@pytest.mark.parametrize("task", khepera_gym.registry.task_names())
 def test_a_page_tables_every_key_with_the_codes_default_in_each_version(
     generated: Path, task: str
 ) -> None:
@@ -250,7 +250,7 @@ def test_a_page_tables_every_key_with_the_codes_default_in_each_version(
     if not page.is_file():
         pytest.skip(f"{task} has no page (no id, no PettingZoo module)")
     text = page.read_text(encoding="utf-8").split("## Scenario file")[1].split("\n## ")[0]
-    versions = khepera_gym.catalog.task_versions(task)
+    versions = khepera_gym.registry.task_versions(task)
     latest = tomllib.loads(khepera_gym.default_config(task))
     rows = {row[0].strip("`"): row for row in _table_rows(text) if "." in row[0]}
     for section, keys in latest.items():
@@ -281,12 +281,12 @@ def test_a_page_tables_the_observation_blocks_with_their_bounds(
 
 
 def test_reference_fragments_name_every_scene_sensor_policy_and_baseline(generated: Path) -> None:
-    from khepera_gym.compare.policies import POLICY_NAMES
+    from khepera_gym.learning.policies import POLICY_NAMES
 
     scenes = (generated / "scenes.md").read_text(encoding="utf-8")
     assert all(f"`{name}`" in scenes for name in khepera_gym.scenes())
     sensors = (generated / "sensors.md").read_text(encoding="utf-8")
-    assert all(f"`{s.name}`" in sensors for s in khepera_gym.catalog.sensors())
+    assert all(f"`{s.name}`" in sensors for s in khepera_gym.registry.sensors())
     policies = (generated / "policies.md").read_text(encoding="utf-8")
     assert all(f"`{name}`" in policies for name in POLICY_NAMES)
     baselines = (generated / "baselines.md").read_text(encoding="utf-8")
@@ -297,7 +297,7 @@ def test_reference_fragments_name_every_scene_sensor_policy_and_baseline(generat
 
 
 def test_every_env_page_has_a_small_animation_of_a_baseline() -> None:
-    from khepera_gym._docgen.envs import ANIMATIONS, env_pages
+    from khepera_gym.analysis.docgen.envs import ANIMATIONS, env_pages
 
     index = json.loads((DOCS / ANIMATIONS / "animations.json").read_text(encoding="utf-8"))
     for page in env_pages():
@@ -309,28 +309,28 @@ def test_every_env_page_has_a_small_animation_of_a_baseline() -> None:
         assert (
             f"_v{record['version']}" in record["env"] or f"-v{record['version']}" in record["env"]
         ), record
-        assert record["version"] in khepera_gym.catalog.task_versions(page.task), record
+        assert record["version"] in khepera_gym.registry.task_versions(page.task), record
 
 
 def test_an_env_page_says_when_its_animation_is_of_an_older_version(generated: Path) -> None:
-    from khepera_gym._docgen.envs import ANIMATIONS, env_pages
+    from khepera_gym.analysis.docgen.envs import ANIMATIONS, env_pages
 
     index = json.loads((DOCS / ANIMATIONS / "animations.json").read_text(encoding="utf-8"))
     for page in env_pages():
         text = (generated / "envs" / f"{page.slug}.md").read_text(encoding="utf-8")
         version = index[page.task]["version"]
-        latest = khepera_gym.catalog.task_versions(page.task)[-1]
+        latest = khepera_gym.registry.task_versions(page.task)[-1]
         assert (f"Recorded on v{version}, before v{latest}" in text) == (version != latest)
 
 
 def baselines_of(task: str) -> tuple[type, ...]:
-    from khepera_gym._docgen.envs import baselines
+    from khepera_gym.analysis.docgen.envs import baselines
 
     return baselines(task)
 
 
 def test_results_pages_render_every_results_file_with_its_provenance(generated: Path) -> None:
-    from khepera_gym._docgen.results import as_typed, kind, load
+    from khepera_gym.analysis.docgen.results import as_typed, kind, load
 
     files = load(DOCS / "results")
     assert files, "docs/results/ holds no results file"
@@ -344,8 +344,8 @@ def test_results_pages_render_every_results_file_with_its_provenance(generated: 
 
 
 def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -> None:
-    from khepera_gym._docgen.results import kind, learning_fragment, target_name
-    from khepera_gym.compare.report import write_formation_learning
+    from khepera_gym.analysis.compare.report import write_formation_learning
+    from khepera_gym.analysis.docgen.results import kind, learning_fragment, target_name
 
     rows = [
         {
@@ -392,7 +392,7 @@ def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -
 
 
 def test_a_results_file_names_its_command_as_typed() -> None:
-    from khepera_gym.provenance import command_line
+    from khepera_gym.tooling.provenance import command_line
 
     assert command_line(["/venv/bin/khepera-gym", "bench", "--json", "b.json"]) == (
         "khepera-gym bench --json b.json"
@@ -404,7 +404,7 @@ def test_a_results_file_names_its_command_as_typed() -> None:
 
 
 def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others() -> None:
-    from khepera_gym._docgen.results import target_name
+    from khepera_gym.analysis.docgen.results import target_name
 
     meta = {"date": "2026-11-28T00:00:00+00:00"}
     baselines = {"meta": meta, "env_id": "E-v2", "label": "avoid", "summaries": [{"policy": "vfh"}]}
@@ -418,7 +418,7 @@ def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others(
     stacked = {**run, "hyperparams": {"frame_stack": 8}}
     assert target_name(stacked) == "train_E-v2_ppo_seed0_stack8_2026-11-28.json"
     # A variant of a shipped table is named, and shown, by what it changed.
-    from khepera_gym._docgen.results import train_fragment
+    from khepera_gym.analysis.docgen.results import train_fragment
 
     shipped = {"frame_stack": 8, "learning_rate": 0.0005, "gamma": 0.99}
     variant = {**run, "env_id": "KheperaIV-Avoid-v2", "hyperparams": {**shipped, "gamma": 0.995}}
@@ -435,7 +435,7 @@ def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others(
 
 
 def test_a_hostile_campaign_report_renders_with_its_counts_and_failures() -> None:
-    from khepera_gym._docgen.results import hostile_fragment, kind, target_name
+    from khepera_gym.analysis.docgen.results import hostile_fragment, kind, target_name
 
     meta = {"date": "2026-11-28T00:00:00+00:00", "command": "python tests/hostile_campaign.py"}
     by_kind = {"make": {"built": 3, "refused: ConfigError": 5}, "state": {"restored": 2}}
@@ -461,15 +461,16 @@ def test_readme_is_a_short_front_door_whose_links_exist() -> None:
 
 
 def test_readme_env_table_is_the_generated_one() -> None:
-    """Refresh it with ``python -m khepera_gym._docgen --readme`` when the registries change."""
-    from khepera_gym._docgen import readme_env_table
+    """Refresh it with ``python -m khepera_gym.analysis.docgen --readme`` when the registries
+    change."""
+    from khepera_gym.analysis.docgen import readme_env_table
 
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     start = readme.index("<!-- env-table:start -->") + len("<!-- env-table:start -->")
     end = readme.index("<!-- env-table:end -->")
     assert readme[start:end].strip() == readme_env_table().strip(), (
         "the README's env table differs from the registries: run "
-        "`python -m khepera_gym._docgen --readme`"
+        "`python -m khepera_gym.analysis.docgen --readme`"
     )
 
 
@@ -500,7 +501,7 @@ def test_every_cited_section_of_a_research_note_is_a_section_of_a_docs_page() ->
         if path.name == Path(__file__).name:
             continue
         text = path.read_text(encoding="utf-8")
-        if path.parent.name != "_docgen":  # the generator links the old names in pages
+        if path.parent.name != "docgen":  # the generator links the old names in pages
             old_names = _OLD_CITATION.findall(text)
             assert not old_names, f"{path.relative_to(ROOT)} cites {old_names}: name the page"
         for match in _CITATION.finditer(text):
@@ -513,7 +514,7 @@ def test_every_cited_section_of_a_research_note_is_a_section_of_a_docs_page() ->
 
 def test_python_comments_cite_the_docs_pages_not_the_research_folder() -> None:
     for path in [*ROOT.glob("khepera_gym/**/*.py"), *ROOT.glob("tests/*.py")]:
-        if path.name == Path(__file__).name or path.parent.name == "_docgen":
+        if path.name == Path(__file__).name or path.parent.name == "docgen":
             continue  # this test and the generator, which links the old citations
         text = path.read_text(encoding="utf-8")
         assert "research/" not in text and "khepera4_spec.md" not in text, path

@@ -9,8 +9,8 @@ import pytest
 from conftest import LATEST
 from matplotlib.figure import Figure
 
+from khepera_gym.analysis.plots import plot_rollouts
 from khepera_gym.baselines import Kanayama, PositionControl, PurePursuit
-from khepera_gym.plot import plot_rollouts
 from khepera_gym.rollout import record_rollout
 
 

@@ -281,8 +281,8 @@ def test_every_command_reads_key_values_with_one_parser_and_refuses_bad_items() 
     import argparse
 
     from khepera_gym.config import parse_key_values
-    from khepera_gym.export.command import run_from_args as export_from_args
-    from khepera_gym.hyperparams import parse_override
+    from khepera_gym.learning.recipes import parse_override
+    from khepera_gym.robot.export.command import run_from_args as export_from_args
 
     assert parse_key_values(["a=0.5", "b=[1, 2]", "c=square", 'd="ccw"', "e = true"], "--set") == {
         "a": 0.5,

@@ -38,11 +38,12 @@ from stable_baselines3.common.vec_env import VecNormalize
 from torch import nn
 
 import khepera_gym
-from khepera_gym import cli, export
+from khepera_gym import cli
 from khepera_gym.baselines import Braitenberg
 from khepera_gym.envs import avoid_heuristic, formation_follower_heuristic, nav_heuristic
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.sb3 import NormalizedPolicy, make_formation_vec_env, make_vec_env
+from khepera_gym.learning.sb3 import NormalizedPolicy, make_formation_vec_env, make_vec_env
+from khepera_gym.robot import export
 
 #: The parity the exported policies must reach (issue 17): max abs action error.
 ACTION_TOLERANCE = 1e-5
@@ -313,7 +314,7 @@ def test_c_and_onnx_policies_match_predict_on_recorded_observations(
     expected, _ = reference.predict(observations, deterministic=True)
     assert_actions_span_the_space(expected)
 
-    # With VecNormalize, the model is given as khepera_gym.sb3.load_policy gives it.
+    # With VecNormalize, the model is given as khepera_gym.learning.sb3.load_policy gives it.
     result = export.export_policy(
         reference, tmp_path, formats=("c", "onnx"), env_id=LATEST["nav"], check=False
     )
@@ -596,7 +597,7 @@ def frame_stacked_ppo(n_stack: int) -> Any:
     outside VecNormalize, as ``khepera-gym train`` wraps them), as load_policy gives it back."""
     from stable_baselines3.common.vec_env import VecFrameStack
 
-    from khepera_gym.sb3 import FrameStackPolicy
+    from khepera_gym.learning.sb3 import FrameStackPolicy
 
     normalized = VecNormalize(make_vec_env(LATEST["nav"], 4, seed=0))
     venv = VecFrameStack(normalized, n_stack)
@@ -1006,7 +1007,7 @@ def test_every_program_compiles_against_kteams_libkhepera_sdk(tmp_path: Path) ->
     import robot_programs as rp
     from test_export_recurrent import recurrent_ppo
 
-    from khepera_gym.calibrate import write_calibration_program
+    from khepera_gym.robot.calibrate import write_calibration_program
 
     include = rp.sdk_include(Path(os.environ["KHEPERA_SDK"]), tmp_path / "include")
     # The robot's compiler when there is one; else this PC's, with the robot's unsigned char.

@@ -3,7 +3,7 @@
 Every program (a policy without memory, a frame-stacked one, a recurrent one (an LSTM), one
 sampling its actions, a ``led_action`` one, their ``export_check``, and the calibration program)
 is cross-compiled for ARMv7-A, hard float, NEON, with the flags of K-Team's Poky toolchain and
-warnings as errors (:mod:`khepera_gym.export.toolchain`), linked with the simulated libkhepera
+warnings as errors (:mod:`khepera_gym.robot.export.toolchain`), linked with the simulated libkhepera
 built for ARM, and run under ``qemu-arm`` against the simulated robot (tests/fake_libkhepera/).
 The ARM builds must act as the Python policy does within the host build's tolerance over whole
 episodes, and the ARM calibration log must calibrate as the host's. A failing libkhepera call,
@@ -37,9 +37,9 @@ from test_calibrate import SHORT_PHASES, WALL_DISTANCE
 from test_export import ACTION_TOLERANCE, frame_stacked_ppo, nav_models, scale_output_layer
 from test_export_recurrent import recurrent_ppo
 
-from khepera_gym import cli, export
-from khepera_gym.calibrate import calibrate, read_log, write_calibration_program
-from khepera_gym.calibrate import replay as calibration_replay
+from khepera_gym import cli
+from khepera_gym.robot import export
+from khepera_gym.robot.calibrate import calibrate, read_log, replay, write_calibration_program
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
@@ -341,7 +341,7 @@ def test_the_arm_calibration_log_calibrates_as_the_hosts(
     arm = rp.target("arm")
     out = calibration_program
     # The fake's wall stands where the user says it is (test_calibrate.py's fake run).
-    wall = {"FAKE_WALL_X": WALL_DISTANCE + calibration_replay.BODY_RADIUS}
+    wall = {"FAKE_WALL_X": WALL_DISTANCE + replay.BODY_RADIUS}
     logs = {}
     true_gap = None
     for name, chosen in (("host", rp.target("host")), ("arm", arm)):

@@ -1,6 +1,6 @@
 """``khepera-gym export`` of a recurrent policy (sb3-contrib's RecurrentPPO): the C program and
 the ONNX graph carry the LSTM's hidden and cell state from step to step, reset at an episode's
-start, and act as the Python policy (:class:`khepera_gym.sb3.RecurrentPolicy`, SB3's own
+start, and act as the Python policy (:class:`khepera_gym.learning.sb3.RecurrentPolicy`, SB3's own
 ``predict`` with its state) does over whole episodes; bad input fails with messages that say
 what to do.
 
@@ -39,10 +39,10 @@ from test_export import (
     scale_output_layer,
 )
 
-from khepera_gym import export
 from khepera_gym.envs import nav_heuristic
 from khepera_gym.errors import ConfigError, KheperaError
-from khepera_gym.sb3 import FrameStackPolicy, RecurrentPolicy, as_predictor, make_vec_env
+from khepera_gym.learning.sb3 import FrameStackPolicy, RecurrentPolicy, as_predictor, make_vec_env
+from khepera_gym.robot import export
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 

@@ -18,8 +18,9 @@ import torch
 from conftest import LATEST
 from stable_baselines3 import PPO, SAC
 
-from khepera_gym import cli, export
+from khepera_gym import cli
 from khepera_gym.errors import ConfigError
+from khepera_gym.robot import export
 
 #: The test policy's σ: small enough that its mean, well inside ±1, is rarely clipped.
 SIGMA = (0.15, 0.3)

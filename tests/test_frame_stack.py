@@ -1,6 +1,7 @@
 """Frame stacking (``frame_stack`` in the hyperparameter tables): a policy that acts on its last
 n observations, trained under SB3's ``VecFrameStack`` and run from raw observations by
-:class:`khepera_gym.sb3.FrameStackPolicy` in evaluation, ``load_policy``, compare and render."""
+:class:`khepera_gym.learning.sb3.FrameStackPolicy` in evaluation, ``load_policy``, compare and
+render."""
 
 from __future__ import annotations
 
@@ -16,12 +17,12 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
 
 from khepera_gym import cli
-from khepera_gym.compare import compare
-from khepera_gym.compare.policies import load_sb3_policy
+from khepera_gym.analysis.compare import compare
 from khepera_gym.errors import ConfigError
-from khepera_gym.export import export_policy
+from khepera_gym.learning.policies import load_sb3_policy
+from khepera_gym.learning.sb3 import FrameStackPolicy, load_policy, make_vec_env
+from khepera_gym.robot.export import export_policy
 from khepera_gym.rollout import run_episodes
-from khepera_gym.sb3 import FrameStackPolicy, load_policy, make_vec_env
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 

@@ -229,13 +229,13 @@ def _task_table_entry_points() -> dict[str, Any]:
         "parallel_env": lambda **kw: multinav_v1.parallel_env(**kw),
     }
     try:
-        from khepera_gym.sb3 import make_vec_env
+        from khepera_gym.learning.sb3 import make_vec_env
 
         entries["sb3"] = lambda **kw: make_vec_env(LATEST["nav"], 2, **kw)
     except ImportError:
         pass
     try:
-        from khepera_gym.torchrl import KheperaTorchEnv
+        from khepera_gym.learning.torchrl import KheperaTorchEnv
 
         entries["torchrl"] = lambda **kw: KheperaTorchEnv("nav", 2, **kw)
     except ImportError:

@@ -27,8 +27,8 @@ from conftest import LATEST
 
 import khepera_gym
 from khepera_gym import _core
-from khepera_gym.calibrate import replay
-from khepera_gym.export import motors, robot
+from khepera_gym.robot.calibrate import replay
+from khepera_gym.robot.export import motors, robot
 
 FAKE = Path(__file__).resolve().parent / "fake_libkhepera"
 

@@ -14,8 +14,8 @@ import pytest
 
 from khepera_gym.baselines import Braitenberg, ConsensusLaw, PositionControl, with_leds
 from khepera_gym.errors import ActionError, ConfigError
+from khepera_gym.learning.sb3 import SharedAgentsVecEnv
 from khepera_gym.pettingzoo import consensus_v1, multinav_v1
-from khepera_gym.sb3 import SharedAgentsVecEnv
 
 NAV = "KheperaIV-Avoid-v1"
 #: Highest level of one LED colour (6 bits, docs/robot.md §6).

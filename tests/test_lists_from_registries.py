@@ -130,14 +130,14 @@ def _prose(path: Path) -> list[tuple[int, str]]:
 
 
 def _compare_policies() -> list[str]:
-    from khepera_gym.compare.policies import POLICY_NAMES
+    from khepera_gym.learning.policies import POLICY_NAMES
 
     return list(POLICY_NAMES)
 
 
 #: Docstrings that list a registry in full on purpose, grouped for the reader, and are checked
 #: here to name every entry: module → the names it must hold.
-CHECKED_LISTS = {"khepera_gym.compare": _compare_policies}
+CHECKED_LISTS = {"khepera_gym.analysis.compare": _compare_policies}
 
 
 @pytest.mark.parametrize("module", list(CHECKED_LISTS))
@@ -204,7 +204,7 @@ def _entry_name(registry: str, node: ast.AST) -> str | None:
 #: Literals that name part of a registry on purpose: "path:line" → why. Each is data about those
 #: entries (not a list of them all), and says so.
 PARTIAL_ON_PURPOSE: dict[str, str] = {
-    "tests/test_torchrl.py:44": "smaller scenes for the multi-robot tasks; others run as they are",
+    "tests/test_torchrl.py:45": "smaller scenes for the multi-robot tasks; others run as they are",
     "examples/compare_baselines.py:157": "the three tasks of the KH4VREP paper, beside its scenes",
 }
 

@@ -22,7 +22,7 @@ import pytest
 
 import khepera_gym
 import khepera_gym.pettingzoo
-import khepera_gym.versions
+import khepera_gym.registry
 from khepera_gym import _core
 from khepera_gym.registration import registered_ids, task_and_version
 
@@ -111,7 +111,7 @@ def test_a_pettingzoo_module_runs_the_version_in_its_name(name: str) -> None:
 @pytest.mark.parametrize("name", list(MODULES))
 def test_the_sb3_and_torchrl_adapters_of_a_module_run_its_version(name: str) -> None:
     pytest.importorskip("stable_baselines3")
-    from khepera_gym.sb3 import make_vec_env
+    from khepera_gym.learning.sb3 import make_vec_env
 
     task, version = task_and_version(name)
     expected_config = _reference_config(task, version)
@@ -121,7 +121,7 @@ def test_the_sb3_and_torchrl_adapters_of_a_module_run_its_version(name: str) -> 
     envs.close()
     if importlib.util.find_spec("torchrl") is None:
         pytest.skip("torchrl is not installed (the torchrl extra)")
-    from khepera_gym.torchrl import KheperaTorchEnv
+    from khepera_gym.learning.torchrl import KheperaTorchEnv
 
     torch_env = KheperaTorchEnv(name, 2, num_threads=1)
     assert torch_env.behaviour_version == version
@@ -142,14 +142,14 @@ def test_every_entry_point_of_a_gymnasium_id_runs_its_version(env_id: str) -> No
     assert envs.unwrapped.config_toml() == expected_config
     envs.close()
     if importlib.util.find_spec("stable_baselines3") is not None:
-        from khepera_gym.sb3 import make_vec_env
+        from khepera_gym.learning.sb3 import make_vec_env
 
         sb3_envs = make_vec_env(env_id, 2, num_threads=1)
         assert sb3_envs.behaviour_version == version
         assert sb3_envs.config_toml() == expected_config
         sb3_envs.close()
     if importlib.util.find_spec("torchrl") is not None:
-        from khepera_gym.torchrl import KheperaTorchEnv
+        from khepera_gym.learning.torchrl import KheperaTorchEnv
 
         torch_env = KheperaTorchEnv(env_id, 2, num_threads=1)
         assert torch_env.behaviour_version == version
@@ -163,4 +163,4 @@ def test_the_versions_of_the_core_differ_in_their_scenarios() -> None:
         configs = [_reference_config(task, v) for v in _core.task_versions(task)]
         assert len(set(configs)) == len(configs), task
     assert [v for v, *_ in _core.versions()] == list(range(_core.LATEST_VERSION + 1))
-    assert khepera_gym.versions.LATEST_VERSION == _core.LATEST_VERSION
+    assert khepera_gym.registry.LATEST_VERSION == _core.LATEST_VERSION

@@ -10,10 +10,10 @@ import gymnasium as gym
 import numpy as np
 from conftest import LATEST
 
+from khepera_gym.analysis.plots import record_rollout
 from khepera_gym.baselines import VFH, BlobServo, BlobVFH, Braitenberg, LeaderFollower
 from khepera_gym.envs import seek_heuristic
 from khepera_gym.envs.seek import SEEK_POLICY
-from khepera_gym.plot import record_rollout
 
 #: The paper shows one run of each figure; 20 seeds differ in sensor noise only (Fig. 6, 7).
 FIGURE_SEEDS = 20

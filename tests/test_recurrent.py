@@ -1,7 +1,7 @@
 """Recurrent policies (sb3-contrib's RecurrentPPO, an LSTM): trained by ``khepera-gym train
---algo recurrent_ppo`` and played from raw observations by :class:`khepera_gym.sb3.RecurrentPolicy`
-in evaluation, ``load_policy``, compare, render and export, the LSTM state carried from step to
-step and reset at each episode's start.
+--algo recurrent_ppo`` and played from raw observations by
+:class:`khepera_gym.learning.sb3.RecurrentPolicy` in evaluation, ``load_policy``, compare, render
+and export, the LSTM state carried from step to step and reset at each episode's start.
 
 The reference is SB3's own convention for recurrent models (as its ``evaluate_policy`` drives
 them): the caller passes the state ``predict`` returned and ``episode_start`` flags.
@@ -22,15 +22,15 @@ from sb3_contrib import RecurrentPPO
 from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
 from khepera_gym import cli
-from khepera_gym.compare import compare
-from khepera_gym.compare.policies import load_sb3_policy
+from khepera_gym.analysis.compare import compare
+from khepera_gym.analysis.record import record_video
 from khepera_gym.config import tomllib
 from khepera_gym.errors import ConfigError
-from khepera_gym.hyperparams import HYPERPARAMS_DIR, load_hyperparams
-from khepera_gym.record import record_video
+from khepera_gym.learning.policies import load_sb3_policy
+from khepera_gym.learning.recipes import HYPERPARAMS_DIR, load_hyperparams
+from khepera_gym.learning.sb3 import RecurrentPolicy, algorithm_of, load_policy, make_vec_env
+from khepera_gym.learning.train import build_model
 from khepera_gym.rollout import run_episodes
-from khepera_gym.sb3 import RecurrentPolicy, algorithm_of, load_policy, make_vec_env
-from khepera_gym.train import build_model
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
@@ -153,7 +153,7 @@ def test_train_recurrent_ppo_and_the_saved_model_plays_with_its_state(tmp_path: 
 
     # The export reads the model and its statistics from the run and writes a program that
     # carries the LSTM state; its own check compares it with this policy over whole episodes.
-    from khepera_gym.export import export_policy
+    from khepera_gym.robot.export import export_policy
 
     result = export_policy(model_path, tmp_path / "export", formats=("c",))
     assert result.network.recurrent and result.network.lstm_hidden_size == 8

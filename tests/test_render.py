@@ -131,8 +131,8 @@ def test_render_command_records_a_baseline_episode(tmp_path) -> None:
 
 
 def test_a_recorded_rollout_replays_from_its_file_without_simulating(tmp_path) -> None:
+    from khepera_gym.analysis.plots import Rollout, plot_rollouts, record_rollout
     from khepera_gym.baselines import Braitenberg
-    from khepera_gym.plot import Rollout, plot_rollouts, record_rollout
 
     rollout = record_rollout(
         LATEST["avoid"], Braitenberg(), seed=3, max_steps=60, label="braitenberg"

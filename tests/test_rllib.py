@@ -1,5 +1,5 @@
-"""Ray RLlib (khepera_gym.rllib): seeds per EnvRunner, RLlib's env checks, multi-agent envs,
-a short local PPO that learns Nav, and the errors for configs the envs cannot serve.
+"""Ray RLlib (khepera_gym.learning.rllib): seeds per EnvRunner, RLlib's env checks, multi-agent
+envs, a short local PPO that learns Nav, and the errors for configs the envs cannot serve.
 
 Needs the rllib extra (ray[rllib], torch), which ``make test`` installs. One local Ray instance
 serves the module; EnvRunners are built in this process (``num_env_runners=0``, or RLlib's
@@ -34,10 +34,10 @@ from ray.rllib.core.rl_module.rl_module import RLModule, RLModuleSpec
 from ray.rllib.env.multi_agent_env_runner import MultiAgentEnvRunner
 from ray.rllib.env.single_agent_env_runner import SingleAgentEnvRunner
 
-from khepera_gym import rllib
+from khepera_gym.batch_face import BatchFace
 from khepera_gym.cli import main as cli_main
 from khepera_gym.errors import ConfigError
-from khepera_gym.face import BatchFace
+from khepera_gym.learning import rllib
 from khepera_gym.pettingzoo import multinav_v0
 from khepera_gym.registration import latest_ids
 
@@ -528,7 +528,7 @@ def test_missing_extra_names_the_pip_command() -> None:
     script = (
         "import sys; sys.modules['ray'] = None\n"
         "try:\n"
-        "    import khepera_gym.rllib\n"
+        "    import khepera_gym.learning.rllib\n"
         "except ImportError as error:\n"
         "    print(error)\n"
         "from khepera_gym.cli import main\n"

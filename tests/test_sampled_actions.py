@@ -15,9 +15,9 @@ from conftest import LATEST
 from stable_baselines3 import PPO
 
 from khepera_gym import cli
-from khepera_gym.compare import compare
-from khepera_gym.compare.policies import load_sb3_policy
-from khepera_gym.sb3 import make_vec_env
+from khepera_gym.analysis.compare import compare
+from khepera_gym.learning.policies import load_sb3_policy
+from khepera_gym.learning.sb3 import make_vec_env
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 

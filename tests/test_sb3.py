@@ -29,7 +29,7 @@ from khepera_gym import cli
 from khepera_gym.config import tomllib
 from khepera_gym.envs import formation_heuristic, nav_heuristic
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
-from khepera_gym.sb3 import (
+from khepera_gym.learning.sb3 import (
     FormationFollowersVecEnv,
     KheperaSB3VecEnv,
     NormalizedPolicy,
@@ -40,7 +40,7 @@ from khepera_gym.sb3 import (
     make_vec_env,
     resolve_env_id,
 )
-from khepera_gym.train import (
+from khepera_gym.learning.train import (
     ALGORITHMS,
     HYPERPARAMS_DIR,
     build_model,
@@ -474,7 +474,7 @@ def test_vec_env_pickles_mid_episode_and_continues_like_the_original() -> None:
 def test_a_sampled_evaluation_repeats_and_differs_from_the_deterministic_one() -> None:
     """``evaluate_episodes(sample_seed=...)``: the policy's noise (σ = 1 untrained) changes the
     episodes, and the seed makes them repeat."""
-    from khepera_gym.sb3.evaluate import evaluate_episodes
+    from khepera_gym.learning.sb3.evaluate import evaluate_episodes
 
     env = make_vec_env(LATEST["nav"], 4, seed=0, num_threads=1, max_steps=50)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, seed=0, device="cpu")

@@ -14,11 +14,11 @@ import pytest
 from conftest import LATEST
 
 from khepera_gym import _core
+from khepera_gym.analysis.plots import plot_trajectories
 from khepera_gym.config import builtin_config_names
 from khepera_gym.envs import avoid_heuristic
 from khepera_gym.errors import ConfigError
 from khepera_gym.pettingzoo import multinav_v1
-from khepera_gym.plot import plot_trajectories
 
 try:
     import tomllib

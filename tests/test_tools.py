@@ -13,10 +13,11 @@ from conftest import LATEST
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
-from khepera_gym import _core, bench, cli
-from khepera_gym.compare.command import DEMO_RUNS
+from khepera_gym import _core, cli
+from khepera_gym.analysis import throughput
+from khepera_gym.analysis.compare.command import DEMO_RUNS
+from khepera_gym.analysis.plots import plot_trajectories
 from khepera_gym.envs import formation_heuristic
-from khepera_gym.plot import plot_trajectories
 from khepera_gym.registration import latest_ids, registered_ids
 
 
@@ -143,16 +144,16 @@ def test_cli_demo_prints_the_comparison_tables_and_saves_the_plots(
 
 
 def test_benchmark_runs_and_reports_steps_per_second(capsys: pytest.CaptureFixture[str]) -> None:
-    measurements = bench.run(
+    measurements = throughput.run(
         num_envs=(2,), num_threads=(1, 2), duration=0.02, memory=False, task_envs=3
     )
     # Nav at n = 2 on 1 and 2 threads, then every other task of the registry and the camera
     # rows at n = 3 on 1 and 2 threads, then the single env.
-    labels = [env_id.removeprefix("KheperaIV-") for env_id in bench.OTHER_TASKS]
-    labels += [label for label, _ in bench.CAMERA_ROWS]
+    labels = [env_id.removeprefix("KheperaIV-") for env_id in throughput.OTHER_TASKS]
+    labels += [label for label, _ in throughput.CAMERA_ROWS]
     assert {"Avoid", "Formation", "Track", "PathFollow", "LineFollow", "Seek"} <= set(labels)
     every_task = {ids[-1].rsplit("-v", 1)[0] for ids in registered_ids().values()}
-    assert {LATEST["nav"].rsplit("-v", 1)[0], *bench.OTHER_TASKS} == every_task
+    assert {LATEST["nav"].rsplit("-v", 1)[0], *throughput.OTHER_TASKS} == every_task
     assert [m.num_envs for m in measurements] == [2, 2] + [3] * (2 * len(labels)) + [1]
     assert [m.label for m in measurements][2:-1] == [
         f"{label} make_vec n=3" for label in labels for _ in range(2)
@@ -166,9 +167,9 @@ def test_bench_writes_its_rows_with_date_commit_machine_and_command(tmp_path: Pa
     argv = ["bench", "--num-envs", "2", "--threads", "1", "--duration", "0.02", "--no-single"]
     argv += ["--no-memory", "--json", str(path)]
     with (
-        mock.patch.object(bench, "OTHER_TASKS", ()),
-        mock.patch.object(bench, "CAMERA_ROWS", ()),
-        mock.patch.object(bench, "swarm_rows", lambda *args: [{"robots": 4}]),
+        mock.patch.object(throughput, "OTHER_TASKS", ()),
+        mock.patch.object(throughput, "CAMERA_ROWS", ()),
+        mock.patch.object(throughput, "swarm_rows", lambda *args: [{"robots": 4}]),
     ):
         assert cli.main(argv) == 0
     document = json.loads(path.read_text())
@@ -186,7 +187,7 @@ def test_memory_per_world_is_measured_on_linux() -> None:
     freed = _core.Batch("nav", 2048, num_threads=1)
     freed.reset(0)
     del freed
-    per_world = bench.memory_per_world(num_worlds=256)
+    per_world = throughput.memory_per_world(num_worlds=256)
     if per_world is None:
         pytest.skip("no /proc/self/statm on this platform")
     assert isinstance(per_world, float) and per_world > 1024

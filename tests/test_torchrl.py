@@ -1,4 +1,5 @@
-"""The TorchRL env (khepera_gym.torchrl) and the BenchMARL tasks (khepera_gym.benchmarl).
+"""The TorchRL env (khepera_gym.learning.torchrl) and the BenchMARL tasks
+(khepera_gym.learning.torchrl.benchmarl).
 
 Needs the ``torchrl`` and ``benchmarl`` extras, which ``make test`` installs.
 """
@@ -24,7 +25,7 @@ from conftest import FORMATION, LATEST, MULTINAV, random_actions
 from khepera_gym import _core
 from khepera_gym.baselines import PositionControl
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
-from khepera_gym.torchrl import (
+from khepera_gym.learning.torchrl import (
     KheperaTorchEnv,
     multi_agent_tasks,
     torchrl_import_warnings_ignored,
@@ -38,7 +39,7 @@ with torchrl_import_warnings_ignored():
     from torchrl.envs import EnvBase
     from torchrl.envs.utils import MarlGroupMapType, check_env_specs, step_mdp
 
-from khepera_gym.benchmarl import KheperaTask, default_task_config
+from khepera_gym.learning.torchrl.benchmarl import KheperaTask, default_task_config
 
 #: Smaller scenarios for the multi-robot tasks, to keep the checks quick.
 SMALL = {
@@ -556,8 +557,8 @@ def test_bad_uses_raise_khepera_errors() -> None:
 @pytest.mark.parametrize(
     ("hidden", "module", "extra"),
     [
-        ("torchrl", "khepera_gym.torchrl", "torchrl"),
-        ("benchmarl", "khepera_gym.benchmarl", "benchmarl"),
+        ("torchrl", "khepera_gym.learning.torchrl", "torchrl"),
+        ("benchmarl", "khepera_gym.learning.torchrl.benchmarl", "benchmarl"),
     ],
 )
 def test_a_missing_extra_names_the_pip_command(
@@ -565,9 +566,9 @@ def test_a_missing_extra_names_the_pip_command(
 ) -> None:
     for name in [name for name in sys.modules if name.split(".")[0] == hidden]:
         monkeypatch.setitem(sys.modules, name, None)  # importing it now raises ImportError
-    for name in [n for n in sys.modules if n.startswith(("khepera_gym.torchrl", module))]:
+    for name in [n for n in sys.modules if n.startswith(("khepera_gym.learning.torchrl", module))]:
         monkeypatch.delitem(sys.modules, name)  # imported afresh (monkeypatch restores them)
-    monkeypatch.delitem(sys.modules, "khepera_gym.benchmarl", raising=False)
+    monkeypatch.delitem(sys.modules, "khepera_gym.learning.torchrl.benchmarl", raising=False)
     with pytest.raises(ImportError, match=rf"pip install 'khepera-gym\[{extra}\]'"):
         importlib.import_module(module)
 

@@ -40,7 +40,7 @@ instance may serve several environments (``predict`` returns ``state`` unchanged
 
 import functools
 
-from khepera_gym import _core
+from khepera_gym import _core, registry
 from khepera_gym.baselines.base import (
     BRAITENBERG_WEIGHT_SETS,
     FORMATION_SHAPES,
@@ -71,9 +71,9 @@ def for_task(task: str) -> tuple[type[BaselinePolicy], ...]:
     Raises:
         ConfigError: ``task`` is not a task of the core.
     """
-    from khepera_gym.layout import layout_dict
+    from khepera_gym.observations import layout_dict
 
-    order = [name for name, _ in _core.controllers()]
+    order = list(registry.controllers())
     layout = layout_dict(_core.Batch(task, 1, num_threads=1).agents()[0][4])
     classes: list[type[BaselinePolicy]] = []
     pending = list(BaselinePolicy.__subclasses__())

@@ -92,7 +92,7 @@ class BaselinePolicy:
     #: The tasks (core task names) whose comparison runs it when no policy is named
     #: (``khepera-gym compare --task seek``): a task's default policies are the baselines that
     #: name it, in the order they are defined, each followed by its named variants
-    #: (:data:`khepera_gym.compare.policies.VARIANTS`), then uniform random actions.
+    #: (:data:`khepera_gym.learning.policies.VARIANTS`), then uniform random actions.
     #: Its parameters: (name, default, comment), from the Rust core.
     PARAMETERS: ClassVar[list[tuple[str, Any, str]]] = []
     _policy: _core.Policy

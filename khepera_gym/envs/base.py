@@ -3,7 +3,8 @@
 Each env owns a ``_core.Batch`` of one world without autoreset: the Rust core simulates,
 observes, rewards and ends episodes; this layer only validates actions, converts outputs to
 Python scalars and builds ``info``. Ground truth and the rest come from
-:class:`khepera_gym.face.BatchFace`. A task's env class (its manual in the docstring) subclasses
+:class:`khepera_gym.batch_face.BatchFace`. A task's env class (its manual in the docstring)
+subclasses
 :class:`KheperaEnv` with ``TASK``; :data:`ENV_CLASSES` collects them, and registration
 (``khepera_gym/__init__.py``) pairs them with the tasks the core exports.
 
@@ -21,13 +22,13 @@ import gymnasium as gym
 import numpy as np
 import numpy.typing as npt
 
-from khepera_gym import _core
+from khepera_gym import registry
 from khepera_gym._inputs import as_action_array, check_options, check_seed
+from khepera_gym.batch_face import BatchFace, check_render_mode, first_seed
 from khepera_gym.config import VERSION_KEY, ConfigArg, make_batch
 from khepera_gym.errors import ConfigError
-from khepera_gym.face import BatchFace, check_render_mode, first_seed
+from khepera_gym.registry import with_history
 from khepera_gym.render import Renderer
-from khepera_gym.versions import with_history
 
 #: The single-world env class of each task, by the Rust core's task name (filled by subclasses).
 ENV_CLASSES: dict[str, type[KheperaEnv]] = {}
@@ -63,7 +64,7 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
         super().__init_subclass__(**kwargs)
         if cls.TASK:
             if "VERSIONS" not in cls.__dict__:
-                cls.VERSIONS = {v: {VERSION_KEY: v} for v in _core.task_versions(cls.TASK)}
+                cls.VERSIONS = {v: {VERSION_KEY: v} for v in registry.task_versions(cls.TASK)}
             if "TASK" in cls.__dict__ and ENV_CLASSES.setdefault(cls.TASK, cls) is cls:
                 # The task's manual: its Version History comes from the core's versions.
                 cls.__doc__ = with_history(cls.__doc__, cls.TASK)
@@ -80,7 +81,7 @@ class KheperaEnv(BatchFace, gym.Env[npt.NDArray[np.float32], npt.NDArray[np.floa
             raise ConfigError(
                 f"num_envs={overrides['num_envs']!r}: gym.make builds one world; for N worlds "
                 "stepped together in Rust use gym.make_vec(env_id, num_envs=N) (or "
-                "khepera_gym.sb3.make_vec_env(env_id, N) for stable-baselines3)"
+                "khepera_gym.learning.sb3.make_vec_env(env_id, N) for stable-baselines3)"
             )
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode

@@ -36,7 +36,7 @@ import pkgutil
 import sys
 from types import ModuleType
 
-from khepera_gym import _core
+from khepera_gym import registry
 from khepera_gym.pettingzoo._parallel import FAMILIES, KheperaParallelEnv
 from khepera_gym.pettingzoo._versions import module_name, versioned_module
 
@@ -48,7 +48,7 @@ for _info in pkgutil.iter_modules(__path__):
 #: Every versioned module, ``formation_v2`` → its module, sorted by family then version.
 _MODULES: dict[str, ModuleType] = {}
 for _family, _base in sorted(FAMILIES.items()):
-    for _version in _core.task_versions(_base.TASK):
+    for _version in registry.task_versions(_base.TASK):
         _module = versioned_module(_base, _version)
         _MODULES[module_name(_family, _version)] = _module
         sys.modules[_module.__name__] = _module

@@ -22,14 +22,14 @@ import numpy as np
 import numpy.typing as npt
 from pettingzoo import ParallelEnv
 
-from khepera_gym import _core
+from khepera_gym import registry
 from khepera_gym._inputs import as_action_array, check_options, check_seed
+from khepera_gym.batch_face import WORLD_STATS_KEY, BatchFace, check_render_mode, first_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
-from khepera_gym.face import WORLD_STATS_KEY, BatchFace, check_render_mode, first_seed
-from khepera_gym.layout import layout_dict
+from khepera_gym.observations import layout_dict
+from khepera_gym.registry import with_history
 from khepera_gym.render import Renderer
-from khepera_gym.versions import with_history
 
 #: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";
 #: with ``task.led_action`` each agent has 3 more, its LEDs' red, green, blue (5 in all).
@@ -103,7 +103,7 @@ class KheperaParallelEnv(BatchFace, ParallelEnv[str, AgentObs, AgentAction]):
         super().__init_subclass__(**kwargs)
         if "FAMILY" not in cls.__dict__ or FAMILIES.setdefault(cls.FAMILY, cls) is not cls:
             return
-        latest = _core.task_versions(cls.TASK)[-1]
+        latest = registry.latest_version(cls.TASK)
         cls.metadata = {**cls.metadata, "name": f"{cls.FAMILY}_v{latest}"}
         # The family's manual (its class docstring, or else its module's) gets its Version
         # History from the core's versions.

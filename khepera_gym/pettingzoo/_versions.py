@@ -21,7 +21,7 @@ from typing import Any
 from pettingzoo import AECEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from khepera_gym import _core
+from khepera_gym import registry
 from khepera_gym.pettingzoo._parallel import AgentAction, AgentObs, KheperaParallelEnv
 from khepera_gym.pettingzoo.arrays import MultiAgentArrayEnv
 
@@ -32,7 +32,7 @@ PACKAGE = "khepera_gym.pettingzoo"
 @functools.cache
 def version_notes() -> dict[int, tuple[str, str]]:
     """Each behaviour version's title and summary, from the core (``_core.versions()``)."""
-    return {number: (title, summary) for number, title, summary, _ in _core.versions()}
+    return {v.number: (v.title, v.summary) for v in registry.versions()}
 
 
 def module_name(family: str, version: int) -> str:
@@ -43,7 +43,7 @@ def module_name(family: str, version: int) -> str:
 def _module_doc(base: type[KheperaParallelEnv], name: str, version: int) -> str:
     family = base.FAMILY
     title, summary = version_notes()[version]
-    first = min(_core.task_versions(base.TASK))
+    first = min(registry.task_versions(base.TASK))
     history = f"{title}: {summary}" + (" The task's first version." if version == first else "")
     return (
         f"``{name}``: :mod:`{PACKAGE}.{family}` (the manual) with behaviour version {version}.\n\n"

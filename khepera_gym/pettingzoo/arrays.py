@@ -30,9 +30,9 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym._inputs import check_seed
+from khepera_gym.batch_face import BatchFace, first_seed
 from khepera_gym.config import ConfigArg, make_batch
 from khepera_gym.errors import ActionError, ConfigError, KheperaError
-from khepera_gym.face import BatchFace, first_seed
 from khepera_gym.render import Renderer
 
 #: Wheel actions per agent: normalised (left, right) wheel speeds, or (v, ω) with "unicycle";

@@ -36,6 +36,14 @@ pub fn task_versions(py: Python<'_>, name: &str) -> PyResult<Vec<u32>> {
     Ok((kind.info().schema.since..=scenario::LATEST_VERSION).collect())
 }
 
+/// What task `name`'s agents are (its `AgentFacts`): (several agents in its default scenario,
+/// alike agents, agents that end separately).
+#[pyfunction]
+pub fn task_agents(py: Python<'_>, name: &str) -> PyResult<(bool, bool, bool)> {
+    let facts = task_kind(py, name)?.info().agents;
+    Ok((facts.several, facts.alike, facts.end_separately))
+}
+
 /// How task `name` is scored (its `Scoring`), as a dict: success, time, error_prefix, error,
 /// termination (str or None), speed, moving_reference, path_trace (bool), and columns, a list
 /// of (statistic, header, scale, digits).

@@ -29,6 +29,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(functions::task_versions, m)?)?;
     m.add_function(wrap_pyfunction!(functions::versions, m)?)?;
     m.add_function(wrap_pyfunction!(functions::task_scoring, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::task_agents, m)?)?;
     m.add_function(wrap_pyfunction!(functions::motor_presets, m)?)?;
     m.add_function(wrap_pyfunction!(functions::controllers, m)?)?;
     m.add_function(wrap_pyfunction!(functions::controller_params, m)?)?;

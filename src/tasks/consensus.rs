@@ -43,7 +43,7 @@
 use std::collections::VecDeque;
 
 use super::nav;
-use super::{Agent, Body, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
@@ -87,6 +87,7 @@ collision_penalty = 0.1      # per step in contact
         }),
     },
     scoring: Scoring::GOAL,
+    agents: AgentFacts::TEAM,
 };
 
 /// One broadcast: the sender's estimate and when it was sent.

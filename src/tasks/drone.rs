@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
 use super::nav;
-use super::{Agent, Body, Column, Driver, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Column, Driver, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -84,6 +84,12 @@ max_steps = 800              # 40 s (docs/task-design.md §7)
             },
         ],
         ..Scoring::GOAL
+    },
+    agents: AgentFacts {
+        // The drone is the task's own vehicle, not a robot; with `driver = "agent"` the
+        // Khepera joins it as a second agent of another kind.
+        alike: false,
+        ..AgentFacts::ONE
     },
 };
 

@@ -27,7 +27,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Body, Driver, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Driver, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};
@@ -68,6 +68,7 @@ max_steps = 800              # 40 s
         speed: false,
         ..Scoring::GOAL
     },
+    agents: AgentFacts::TEAM,
 };
 
 /// Formation shapes: offsets (r, β) of the followers relative to the leader's pose (eq. 12).

@@ -30,7 +30,7 @@ use toml::Table;
 use super::pathfollow::geometry::Path;
 use super::reference::{random_spline, Curve, Shape};
 use super::track::Direction;
-use super::{Agent, Body, Column, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Column, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -87,6 +87,7 @@ max_steps = 4000             # cap; truncation is truncation_factor laps at refe
         ],
         ..Scoring::GOAL
     },
+    agents: AgentFacts::ONE,
 };
 
 /// Most points of a scenario's own line (`linefollow.points`).

@@ -55,9 +55,41 @@ pub struct TaskInfo {
     pub schema: TaskSchema,
     /// How its episodes are scored: what a comparison or a benchmark reports of it.
     pub scoring: Scoring,
+    /// What its agents are to a learner: how many, whether alike, whether they end apart.
+    pub agents: AgentFacts,
 }
 
-/// How a task's episodes are scored (`khepera_gym.compare`'s table and plots, the learning
+/// Facts about a task's agents that a learner's adapter needs before it builds an env (the
+/// TorchRL groups' done flags, RLlib's multi-agent envs, the PettingZoo families); a test in
+/// each task's file checks them against a built batch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AgentFacts {
+    /// Its default scenario has more than one agent.
+    pub several: bool,
+    /// Every agent has the same kind of observation and action (a team of robots): one shared
+    /// policy fits them all.
+    pub alike: bool,
+    /// An agent may end while the episode goes on (`agent_terminated()` true for some agents
+    /// only): a multinav robot parks at its goal, a lost platoon robot parks where it is.
+    pub end_separately: bool,
+}
+
+impl AgentFacts {
+    /// One robot.
+    pub const ONE: AgentFacts = AgentFacts {
+        several: false,
+        alike: true,
+        end_separately: false,
+    };
+    /// Several alike robots whose episode ends for all at once.
+    pub const TEAM: AgentFacts = AgentFacts {
+        several: true,
+        alike: true,
+        end_separately: false,
+    };
+}
+
+/// How a task's episodes are scored (`khepera_gym.analysis.compare`'s table and plots, the learning
 /// benchmark): every task has the common statistics (success, length, path, contacts), and
 /// says here what its success means and which of its own statistics matter.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -12,7 +12,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Body, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -56,6 +56,10 @@ collision_penalty = 0.5      # contacts (with walls and other robots) cost as in
     scoring: Scoring {
         speed: false,
         ..Scoring::GOAL
+    },
+    agents: AgentFacts {
+        end_separately: true,
+        ..AgentFacts::TEAM
     },
 };
 

@@ -13,7 +13,7 @@
 
 use rapier2d::math::Vector;
 
-use super::{Agent, Body, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
 use crate::draw::Mark;
 use crate::error::Result;
 use crate::obs::{Block, ObsLayout, ObsWriter};
@@ -32,6 +32,7 @@ pub const NAV: TaskInfo = TaskInfo {
         section: None,
     },
     scoring: Scoring::GOAL,
+    agents: AgentFacts::ONE,
 };
 
 /// KheperaIV-Avoid: Nav among random obstacles, new ones every episode.
@@ -57,6 +58,7 @@ collision_penalty = 0.5      # contacts cost more than in Nav
         section: None,
     },
     scoring: Scoring::GOAL,
+    agents: AgentFacts::ONE,
 };
 
 /// Per-world state of the Nav/Avoid task.

@@ -43,7 +43,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Shape};
-use super::{Agent, Body, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
@@ -91,6 +91,7 @@ max_steps = 4000             # cap only: the episode is truncated after pathfoll
         path_trace: true,
         ..Scoring::GOAL
     },
+    agents: AgentFacts::ONE,
 };
 
 /// Per-world state of the path-following task.

@@ -41,7 +41,7 @@ use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::Reference;
 use super::track::{draw_reference, Track};
-use super::{Agent, Body, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
 use crate::obs::ObsWriter;
@@ -76,6 +76,10 @@ max_steps = 4000             # cap only: the episode is truncated after one peri
         }),
     },
     scoring: Scoring::GOAL,
+    agents: AgentFacts {
+        end_separately: true,
+        ..AgentFacts::TEAM
+    },
 };
 
 /// One robot's tracking: its reference posture now, error and statistics.

@@ -18,7 +18,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{Agent, Body, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};
@@ -69,6 +69,7 @@ collision_penalty = 0.5      # as Avoid
         }),
     },
     scoring: Scoring::GOAL,
+    agents: AgentFacts::ONE,
 };
 
 crate::config_table! {

@@ -31,7 +31,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Posture, Reference, Shape};
-use super::{Agent, Body, Scoring, Task, TaskInfo};
+use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
@@ -69,6 +69,7 @@ max_steps = 4000             # cap only: the episode is truncated after one peri
         moving_reference: true,
         ..Scoring::GOAL
     },
+    agents: AgentFacts::ONE,
 };
 
 /// Per-world state of the tracking task.

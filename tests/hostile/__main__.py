@@ -14,7 +14,7 @@ import argparse
 import json
 import sys
 
-from khepera_gym.provenance import command_line, provenance
+from khepera_gym.tooling.provenance import command_line, provenance
 
 from .campaign import DEFAULT_MEMORY, DEFAULT_TIMEOUT, campaign, replay, worker
 

@@ -3,8 +3,8 @@ declares after its comment (``allowed: finite, > 0, <= 1000``), and values drawn
 
 Nothing here lists keys by hand: the keys, defaults and domains come from
 ``_core.default_config(task, version)``, read by the docs' own parser
-(:func:`khepera_gym._docgen.scenario.parse_keys`), so a new key or task is fuzzed as soon as it
-is declared. A drawn value is either meant to be accepted (inside the domain: a bound, the
+(:func:`khepera_gym.analysis.docgen.scenario.parse_keys`), so a new key or task is fuzzed as soon as
+it is declared. A drawn value is either meant to be accepted (inside the domain: a bound, the
 default, a random value) or not (just beyond a bound, NaN, an infinity, a huge number, a wrong
 type or length); the campaign does not rely on which, since whether a scenario builds also
 depends on the other keys: it checks that the outcome is an env that works or a typed error.
@@ -19,8 +19,8 @@ import random
 import re
 from typing import Any
 
-from khepera_gym import catalog
-from khepera_gym._docgen.scenario import parse_keys
+from khepera_gym import registry
+from khepera_gym.analysis.docgen.scenario import parse_keys
 
 #: Numbers that break naive code: signed zeros, subnormals, float32's edge, huge, infinite.
 SPECIAL_NUMBERS = (
@@ -124,7 +124,7 @@ class ScenarioKey:
 def task_keys(task: str, version: int) -> tuple[ScenarioKey, ...]:
     """Every key of ``task``'s default scenario in ``version``, with its domain."""
     keys = []
-    for key in parse_keys(catalog.default_config(task, version)):
+    for key in parse_keys(registry.default_config(task, version)):
         words = tuple(sorted(set(re.findall(r"[a-z][a-z_0-9]+", key.comment))))
         keys.append(
             ScenarioKey(

@@ -1,0 +1,110 @@
+"""Swarm scale: world-steps/s and robot-steps/s of multinav worlds of 4 to 1,000
+robots with IR, sonar and contacts, through the array env
+(:func:`khepera_gym.pettingzoo.multinav_v1.array_env`), uniform random actions.
+
+Arenas grow with √robots to keep multinav's density (4 robots in 2 m × 2 m); a batch holds 1,024
+robots' worth of worlds. The last row is the built-in ``swarm`` scene (1,000 robots in a 20 m
+arena, 2.5 times as dense). Worlds of 100 robots or more run twice: with
+``physics.split = "world"`` (the default: one robot that can touch something sends every robot
+through rapier) and ``"robot"`` (only those that can). "× real time" is one world's simulated
+seconds per second (control step 0.05 s). Called by :func:`khepera_gym.analysis.throughput.run`;
+prints, asserts nothing.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from khepera_gym.pettingzoo import multinav_v1
+
+#: Control step of the scenes (s), for "× real time".
+_DT = 0.05
+
+
+def bench_swarm(
+    robots: int, threads: int, duration: float, scene: bool = False, split: str = "world"
+) -> float:
+    """World-steps/s of worlds of ``robots`` robots on ``threads`` threads over ``duration`` s
+    (``scene``: the built-in ``swarm`` scene instead of an arena scaled to multinav's density;
+    ``split``: the ``physics.split`` key)."""
+    worlds = max(1, 1024 // robots)
+    physics = {"physics": {"split": split}}
+    if scene:
+        env = multinav_v1.array_env(
+            worlds, config="swarm", num_threads=threads, max_steps=100000, **physics
+        )
+    else:
+        side = 2.0 * (robots / 4.0) ** 0.5
+        env = multinav_v1.array_env(
+            worlds,
+            num_threads=threads,
+            n_robots=robots,
+            width=side,
+            height=side,
+            max_steps=100000,
+            **physics,
+        )
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    actions = [rng.uniform(-1, 1, (worlds, robots, 2)).astype(np.float32) for _ in range(16)]
+    for action in actions[:5]:
+        env.step(action)
+    steps = 0
+    start = time.perf_counter()
+    while time.perf_counter() - start < duration:
+        env.step(actions[steps % len(actions)])
+        steps += 1
+    return steps * worlds / (time.perf_counter() - start)
+
+
+def swarm_rows(
+    robot_counts: Sequence[int] = (4, 32, 100, 300, 1000),
+    num_threads: Sequence[int] = (1, 2),
+    duration: float = 1.5,
+) -> list[dict[str, Any]]:
+    """Prints the scaling table: one row per robot count and thread count, then the scene;
+    returns the rows (robots, scene, split, threads, world-steps/s, robot-steps/s, × real
+    time)."""
+    header = (
+        f"{'robots per world':<22} {'split':>5} {'threads':>7} {'world-steps/s':>13} "
+        f"{'robot-steps/s':>13} {'× real time':>11}"
+    )
+    print("\nswarm scale (multinav through the array env, uniform random actions)")
+    print(header)
+    print("-" * len(header))
+    cases = [(n, False) for n in robot_counts] + [(1000, True)]
+    rows = []
+    for robots, scene in cases:
+        for split in ("world", "robot") if robots >= 100 else ("world",):
+            for threads in num_threads:
+                rows.append(_row(robots, scene, split, threads, duration))
+    return rows
+
+
+def _row(robots: int, scene: bool, split: str, threads: int, duration: float) -> dict[str, Any]:
+    rate = bench_swarm(robots, threads, duration, scene, split)
+    label = f"{robots} (swarm scene)" if scene else f"{robots}"
+    worlds = max(1, 1024 // robots)
+    real_time = rate / worlds * _DT
+    print(
+        f"{label:<22} {split:>5} {threads:>7} {rate:>13,.0f} {rate * robots:>13,.0f} "
+        f"{real_time:>11.1f}",
+        flush=True,
+    )
+    return {
+        "robots": robots,
+        "worlds": worlds,
+        "scene": "swarm" if scene else None,
+        "split": split,
+        "threads": threads,
+        "world_steps_per_second": rate,
+        "robot_steps_per_second": rate * robots,
+        "real_time_factor": real_time,
+    }
+
+
+__all__ = ["bench_swarm", "swarm_rows"]

@@ -1,0 +1,274 @@
+"""``khepera-gym benchmark``: train every task's learners over several seeds, evaluate them on
+held-out episodes beside the baselines, and print and write the tables.
+
+    khepera-gym benchmark                                  # the whole suite, 5 seeds
+    khepera-gym benchmark --tasks track seek --seeds 5     # a part of it
+    khepera-gym benchmark --tasks avoid --learners ppo --seed-list 5 6 7
+    khepera-gym benchmark --list                           # what the suite holds
+
+It shows its progress, writes each run's results file as the run ends (so after an
+interruption the same command resumes without repeating a finished run), and ends with one
+table per task and the command that reproduces each row. ``--device`` and ``--num-threads``
+are honoured by every learner; ``--timesteps`` and ``--hp KEY=VALUE`` change every recipe (the
+results then record the recipe they ran).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from khepera_gym import registry
+from khepera_gym.config import parse_key_values, toml_value
+from khepera_gym.errors import ConfigError
+from khepera_gym.learning.benchmark.learners import learner as make_learner
+from khepera_gym.learning.benchmark.runner import Settings, run_baselines, run_one
+from khepera_gym.learning.benchmark.suite import load_suite
+from khepera_gym.learning.benchmark.tables import load_records, markdown, task_rows
+from khepera_gym.tooling import arguments
+from khepera_gym.tooling.provenance import provenance
+
+#: Where the results go without ``--out``.
+DEFAULT_OUT = Path("benchmark_out")
+#: Seeds of each (task, learner) without ``--seeds``.
+DEFAULT_SEEDS = 5
+#: Held-out episodes of every run and baseline without ``--episodes``.
+DEFAULT_EPISODES = 200
+#: First held-out episode's seed without ``--heldout-seed``.
+DEFAULT_HELDOUT_SEED = 0
+#: Episodes of each evaluation while training without ``--eval-episodes``.
+DEFAULT_EVAL_EPISODES = 50
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of ``khepera-gym benchmark``."""
+    parser.add_argument("--tasks", nargs="+", metavar="TASK", help="tasks (all in the suite)")
+    parser.add_argument(
+        "--learners", nargs="+", metavar="NAME", help="learners (each task's in the suite)"
+    )
+    parser.add_argument(
+        "--seeds", type=int, default=None, help=f"training seeds 0..N-1 ({DEFAULT_SEEDS})"
+    )
+    parser.add_argument(
+        "--seed-list", type=int, nargs="+", metavar="SEED", help="these training seeds instead"
+    )
+    parser.add_argument("--version", type=int, default=None, help="behaviour version (the latest)")
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        default=DEFAULT_EPISODES,
+        help=f"held-out episodes, seeds --heldout-seed + i ({DEFAULT_EPISODES})",
+    )
+    parser.add_argument(
+        "--heldout-seed",
+        type=int,
+        default=DEFAULT_HELDOUT_SEED,
+        help=f"first held-out seed ({DEFAULT_HELDOUT_SEED})",
+    )
+    parser.add_argument(
+        "--eval-episodes",
+        type=int,
+        default=DEFAULT_EVAL_EPISODES,
+        help="episodes of each evaluation while training, seeds 10000 + i "
+        f"({DEFAULT_EVAL_EPISODES})",
+    )
+    parser.add_argument(
+        "--timesteps", type=int, default=None, help="environment steps of every run (each recipe's)"
+    )
+    parser.add_argument(
+        "--hp",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a recipe key in every run, VALUE in TOML (repeatable)",
+    )
+    parser.add_argument(
+        "--out", type=Path, default=DEFAULT_OUT, help=f"results folder ({DEFAULT_OUT})"
+    )
+    parser.add_argument(
+        "--suite", type=Path, default=None, help="suite file (configs/benchmark.toml)"
+    )
+    parser.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1 (cpu)")
+    parser.add_argument(
+        "--num-threads", type=int, default=None, help="threads of the Rust batches (all cores)"
+    )
+    parser.add_argument(
+        "--restart",
+        action="store_true",
+        help="run everything again, replacing the folder's results",
+    )
+    parser.add_argument("--list", action="store_true", help="print the suite and stop")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def check_device(device: str) -> str:
+    """``device`` if torch can use it here.
+
+    Raises:
+        ConfigError: An unknown device, or CUDA asked for where torch has none.
+    """
+    import torch
+
+    try:
+        parsed = torch.device(device)
+    except (RuntimeError, TypeError) as error:
+        raise ConfigError(f"--device {device!r} is not a torch device: {error}") from None
+    if parsed.type == "cuda" and not torch.cuda.is_available():
+        raise ConfigError(f"--device {device}: torch sees no CUDA device on this machine")
+    if parsed.type not in ("cpu", "cuda"):
+        raise ConfigError(f"--device {device}: the learners run on cpu or cuda")
+    return device
+
+
+def _selection(args: argparse.Namespace, suite: dict[str, Any]) -> list[tuple[Any, list[str]]]:
+    """(entry, learners) of every task to run, after checking every name."""
+    tasks = registry.task_names()
+    chosen = args.tasks or list(suite)
+    for task in chosen:
+        if task not in tasks:
+            raise ConfigError(f"unknown task {task!r}; tasks: {', '.join(tasks)}")
+        if task not in suite:
+            raise ConfigError(
+                f"the suite has no entry for {task!r} (entries: {', '.join(suite)}): add one to "
+                "configs/benchmark.toml with its learners and criterion"
+            )
+    selection = []
+    for task in chosen:
+        entry = suite[task]
+        learners = [n for n in entry.learners if not args.learners or n in args.learners]
+        selection.append((entry, learners))
+    for name in args.learners or []:
+        make_learner(name)  # an unknown learner is an error naming them
+        if not any(name in learners for _, learners in selection):
+            raise ConfigError(
+                f"learner {name!r} is in no chosen task's entry; "
+                + "; ".join(f"{e.task}: {', '.join(e.learners)}" for e, _ in selection)
+            )
+    return selection
+
+
+def _version(task: str, version: int | None) -> int:
+    versions = registry.task_versions(task)
+    if version is None:
+        return versions[-1]
+    if version not in versions:
+        raise ConfigError(f"{task} has no behaviour version {version}; it has {versions}")
+    return version
+
+
+def reproduce(task: str, row: Mapping[str, Any]) -> str:
+    """The command that runs one row of a task's table (:func:`task_rows`) again: its learner,
+    seeds and version, and whatever its command changed (``--hp``, ``--timesteps``, held-out
+    and evaluation episodes)."""
+    latest = registry.latest_version(task)
+    parts = ["khepera-gym benchmark", f"--tasks {task}", f"--learners {row['learner']}"]
+    parts.append(f"--seed-list {' '.join(map(str, row['seeds']))}")
+    if row["version"] != latest:
+        parts.append(f"--version {row['version']}")
+    settings = row.get("settings") or {}
+    if settings.get("timesteps") is not None:
+        parts.append(f"--timesteps {settings['timesteps']}")
+    for flag, name, default in (
+        ("--episodes", "episodes", DEFAULT_EPISODES),
+        ("--heldout-seed", "heldout_seed", DEFAULT_HELDOUT_SEED),
+        ("--eval-episodes", "eval_episodes", DEFAULT_EVAL_EPISODES),
+    ):
+        if settings.get(name) not in (None, default):
+            parts.append(f"{flag} {settings[name]}")
+    for key, value in (settings.get("overrides") or {}).items():
+        parts.append("--hp " + shlex.quote(f"{key}={toml_value(value, '--hp')}"))
+    return " ".join(parts)
+
+
+def run_from_args(args: argparse.Namespace) -> int:
+    """Runs ``khepera-gym benchmark`` from parsed arguments.
+
+    Raises:
+        ConfigError: Any bad argument or suite entry, before anything is trained.
+    """
+    from tqdm import tqdm
+
+    suite = load_suite(args.suite)
+    if args.list:
+        for entry in suite.values():
+            print(
+                f"{entry.task}: learners {', '.join(entry.learners)}; baselines "
+                f"{', '.join(entry.baselines)}; solved when {entry.describe_criterion()}"
+            )
+        missing = [name for name in registry.task_names() if name not in suite]
+        if missing:
+            print(f"tasks without an entry: {', '.join(missing)}")
+        return 0
+    selection = _selection(args, suite)
+    seeds = args.seed_list or list(range(args.seeds or DEFAULT_SEEDS))
+    arguments.at_least(min(seeds), 0, "--seed-list")
+    arguments.at_least(args.episodes, 1, "--episodes")
+    arguments.at_least(args.eval_episodes, 1, "--eval-episodes")
+    arguments.at_least(args.timesteps, 1, "--timesteps")
+    settings = Settings(
+        out=args.out,
+        episodes=args.episodes,
+        heldout_seed=args.heldout_seed,
+        eval_episodes=args.eval_episodes,
+        timesteps=args.timesteps,
+        overrides=parse_key_values(args.hp, "--hp"),
+        device=check_device(args.device),
+        num_threads=args.num_threads,
+    )
+    plan = []
+    for entry, learners in selection:
+        version = _version(entry.task, args.version)
+        for name in learners:
+            learner = make_learner(name)
+            learner.recipe(entry.task, version, settings.overrides)  # a missing recipe: now
+            plan += [(entry, learner, version, seed) for seed in seeds]
+    bar = tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress)
+    baselines: dict[tuple[str, int], Any] = {}
+    with bar:
+        for entry, learner, version, seed in plan:
+            key = (entry.task, version)
+            if key not in baselines:
+                bar.set_postfix_str(f"{entry.task} baselines")
+                baselines[key] = run_baselines(entry, version, settings, args.restart)
+            bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
+            record = run_one(entry, learner, version, seed, settings, baselines[key], args.restart)
+            bar.update(1)
+            bar.write(_line(entry, learner.name, seed, record))
+    _write_summary(args.out, [e.task for e, _ in selection])
+    return 0
+
+
+def _line(entry: Any, learner: str, seed: int, record: dict[str, Any]) -> str:
+    values = ", ".join(
+        f"{c.metric} {record['final'][c.metric]['value']:.4g}" for c in entry.criterion
+    )
+    reached = record["reached"]
+    when = "never" if reached is None else f"at {reached['steps']:,} steps"
+    return (
+        f"{entry.task} {learner} seed {seed}: {values} (held-out, mean actions); solved "
+        f"{'yes' if record['solved'] else 'no'}; criterion first met {when}; trained "
+        f"{record['train_seconds']:.0f} s"
+    )
+
+
+def _write_summary(out: Path, tasks: Sequence[str]) -> None:
+    baselines, runs = load_records(out)
+    tables = []
+    for task in tasks:
+        table = task_rows(task, baselines, runs)
+        for row in table["learners"]:
+            row["reproduce"] = reproduce(task, row)
+        tables.append(table)
+        print("\n" + markdown(table))
+        for row in table["learners"]:
+            print(f"  reproduce {row['learner']}: {row['reproduce']}")
+    summary = {"meta": provenance(), "tables": tables}
+    (out / "benchmark.json").write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
+    print(f"\nwrote {out / 'benchmark.json'}")
+
+
+__all__ = ["DEFAULT_OUT", "add_arguments", "check_device", "reproduce", "run_from_args"]

@@ -1,0 +1,242 @@
+"""BenchMARL's MAPPO and IPPO as learners of the benchmark (the ``benchmarl`` extra).
+
+The task's agents form one group (``followers``, ``robots``) sharing one actor; MAPPO's critic
+reads the joint observation (``state``), IPPO's each agent's own. The recipe is the family's
+table in ``configs/hyperparams/mappo.toml`` (or ``ippo.toml``): ``n_timesteps`` (env steps),
+``n_envs`` (worlds collecting), ``frames_per_batch``, ``minibatch_size``, ``n_epochs``,
+``hidden``, ``learning_rate``, ``gamma``, ``gae_lambda``, ``max_grad_norm``,
+``normalize_advantage`` (each minibatch's advantages standardised, as SB3's PPO does),
+``entropy_coef``, ``tanh`` (BenchMARL's tanh-squashed Gaussian, or a Gaussian clipped to the
+bounds), ``sigma_min`` (a floor under the actor's σ, before the tanh: BenchMARL maps half of the
+actor's outputs to σ by a softplus whose floor is 0.01; this raises it, so σ cannot collapse) and
+``env_kwargs``. The trained actor plays the held-out episodes agent by agent, as the
+rows of :func:`khepera_gym.learning.sb3.make_vec_env` of the task's PettingZoo module.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+import warnings
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from khepera_gym.errors import ConfigError
+from khepera_gym.learning.benchmark.jobs import (
+    Job,
+    Means,
+    Trained,
+    agents_of,
+    module_of,
+    shares_rows,
+)
+from khepera_gym.learning.recipes import EVAL_SEED, load_hyperparams
+
+#: Recipe keys this learner reads (any other is an error naming them).
+RECIPE_KEYS = (
+    "n_timesteps",
+    "n_envs",
+    "frames_per_batch",
+    "minibatch_size",
+    "n_epochs",
+    "hidden",
+    "learning_rate",
+    "gamma",
+    "gae_lambda",
+    "max_grad_norm",
+    "normalize_advantage",
+    "entropy_coef",
+    "tanh",
+    "sigma_min",
+    "env_kwargs",
+)
+
+#: BenchMARL's own floor under σ (its ``biased_softplus_1.0`` mapping: σ = 1 at a zero output).
+SIGMA_MIN = 0.01
+
+
+def scale_mapping(sigma_min: float) -> str:
+    """BenchMARL's σ mapping (tensordict's ``biased_softplus_<σ at 0>_<floor>``) with a floor.
+
+    Raises:
+        ConfigError: A floor that is not a number in [0.01, 1) (1 is σ at a zero output).
+    """
+    if isinstance(sigma_min, bool) or not isinstance(sigma_min, int | float):
+        raise ConfigError(f"sigma_min must be a number, got {sigma_min!r}")
+    if not SIGMA_MIN <= sigma_min < 1.0:
+        raise ConfigError(f"sigma_min must be in [{SIGMA_MIN}, 1), got {sigma_min!r}")
+    return f"biased_softplus_1.0_{float(sigma_min)!r}"
+
+
+class _ActorOnRows:
+    """A BenchMARL actor as a predictor on rows (world-major agent blocks, K agents a world)."""
+
+    def __init__(self, policy: Any, group: str, agents: int, random: bool = False) -> None:
+        self.policy, self.group, self.agents, self.random = policy, group, agents, random
+
+    def predict(self, rows: Any, *args: Any, deterministic: bool = True) -> tuple[Any, None]:
+        import torch
+        from tensordict import TensorDict
+        from torchrl.envs.utils import ExplorationType, set_exploration_type
+
+        rows = np.asarray(rows, dtype=np.float32)
+        worlds = rows.shape[0] // self.agents
+        observation = torch.from_numpy(rows.reshape(worlds, self.agents, -1))
+        data = TensorDict({self.group: {"observation": observation}}, batch_size=[worlds])
+        kind = ExplorationType.RANDOM if self.random else ExplorationType.DETERMINISTIC
+        with torch.no_grad(), set_exploration_type(kind):
+            actions = self.policy(data)[self.group, "action"]
+        return actions.reshape(rows.shape[0], -1).numpy(), None
+
+
+class BenchMARLLearner:
+    """MAPPO (``name="mappo"``) or IPPO (``"ippo"``) through BenchMARL."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def env_name(self, task: str, version: int) -> str:
+        module = module_of(task, version)
+        if module is None or not shares_rows(task):
+            raise ConfigError(
+                f"learner {self.name!r} trains the agents of a multi-agent task sharing one "
+                f"actor; {task!r} is not one (agents: {agents_of(task)})"
+            )
+        return module
+
+    def recipe(self, task: str, version: int, overrides: Mapping[str, Any]) -> dict[str, Any]:
+        recipe = load_hyperparams(self.name, self.env_name(task, version))
+        recipe.update(overrides)
+        unknown = sorted(set(recipe) - set(RECIPE_KEYS))
+        if unknown:
+            raise ConfigError(
+                f"{self.name} recipe: unknown key {unknown[0]!r}; known: {', '.join(RECIPE_KEYS)}"
+            )
+        scale_mapping(recipe.get("sigma_min", SIGMA_MIN))  # a wrong floor: now, not after training
+        return recipe
+
+    def train(self, job: Job, report: Callable[[int, int], None] | None = None) -> Trained:
+        import torch
+
+        from khepera_gym.learning.sb3 import make_vec_env
+        from khepera_gym.learning.sb3.evaluate import first_episode_stats
+        from khepera_gym.learning.torchrl import torchrl_import_warnings_ignored
+        from khepera_gym.learning.torchrl.benchmarl import KheperaTask
+
+        with torchrl_import_warnings_ignored():
+            from benchmarl.algorithms import IppoConfig, MappoConfig
+            from benchmarl.experiment import Experiment, ExperimentConfig
+            from benchmarl.experiment.callback import Callback
+            from benchmarl.models import MlpConfig
+
+        name = self.env_name(job.task, job.version)
+        recipe = self.recipe(job.task, job.version, job.overrides)
+        total = int(job.timesteps if job.timesteps is not None else recipe["n_timesteps"])
+        config = ExperimentConfig.get_from_yaml()
+        config.sampling_device = config.train_device = config.buffer_device = job.device
+        per_batch = int(recipe.get("frames_per_batch", 4096))
+        config.max_n_frames = max(total, per_batch)
+        config.on_policy_collected_frames_per_batch = per_batch
+        config.on_policy_n_envs_per_worker = int(recipe.get("n_envs", 16))
+        config.on_policy_minibatch_size = int(recipe.get("minibatch_size", 1024))
+        config.on_policy_n_minibatch_iters = int(recipe.get("n_epochs", 5))
+        config.lr = float(recipe.get("learning_rate", 3e-4))
+        config.gamma = float(recipe.get("gamma", 0.99))
+        config.clip_grad_val = float(recipe.get("max_grad_norm", 0.5))
+        config.evaluation = False
+        config.render = False
+        config.loggers = []
+        config.create_json = False
+        config.checkpoint_at_end = False
+        config.save_folder = tempfile.mkdtemp(prefix=f"khepera_{self.name}_")
+        algorithm = (MappoConfig if self.name == "mappo" else IppoConfig).get_from_yaml()
+        algorithm.lmbda = float(recipe.get("gae_lambda", 0.95))
+        algorithm.use_tanh_normal = bool(recipe.get("tanh", True))
+        algorithm.entropy_coef = float(recipe.get("entropy_coef", 0.0))
+        algorithm.scale_mapping = scale_mapping(recipe.get("sigma_min", SIGMA_MIN))
+        model = MlpConfig.get_from_yaml()
+        model.num_cells = list(recipe.get("hidden", [64, 64]))
+        task_config = {**recipe.get("env_kwargs", {}), "version": job.version}
+        if job.num_threads is not None:
+            task_config["num_threads"] = job.num_threads
+        member = getattr(KheperaTask, job.task.upper())
+        history: list[tuple[int, float, Means]] = []
+        clock = {"eval": 0.0, "start": 0.0}
+        eval_env = make_vec_env(name, job.eval_episodes, num_threads=job.num_threads)
+        agents = len(agents_of(job.task))
+        every = max(per_batch, total // max(1, job.eval_points))
+
+        def evaluate(experiment: Any) -> None:
+            start = time.perf_counter()
+            group = next(iter(experiment.group_map))
+            actor = _ActorOnRows(experiment.policy, group, agents)
+            stats = first_episode_stats(actor, eval_env, EVAL_SEED)
+            seconds = time.perf_counter() - start
+            trained = start - clock["start"] - clock["eval"]
+            clock["eval"] += seconds
+            steps = int(experiment.total_frames)
+            history.append((steps, trained, {k: float(np.mean(v)) for k, v in stats.items()}))
+            if report is not None:
+                report(steps, total)
+
+        class Evaluations(Callback):
+            def on_train_end(self, training_td: Any, group: str) -> None:
+                if self.experiment.total_frames // every > len(history):
+                    evaluate(self.experiment)
+
+        previous = torch.get_num_threads()
+        torch.set_num_threads(1)
+        try:
+            experiment = Experiment(
+                task=member.get_task(config=task_config),
+                algorithm_config=algorithm,
+                model_config=model,
+                critic_model_config=model,
+                seed=job.seed,
+                config=config,
+            )
+            # Added after construction: BenchMARL pickles the callbacks it is given.
+            evaluations = Evaluations()
+            evaluations.experiment = experiment
+            experiment.callbacks.append(evaluations)
+            if recipe.get("normalize_advantage", True):
+                for loss in experiment.losses.values():
+                    loss.normalize_advantage = True  # torchrl's ClipPPOLoss option
+            clock["start"] = time.perf_counter()
+            with warnings.catch_warnings():
+                # The advantages are standardised over every agent of the minibatch together, as
+                # SB3's PPO does for a policy shared by its rows: on purpose, so torchrl's advice
+                # to keep the agents' dimension apart is not taken.
+                warnings.filterwarnings("ignore", "You requested advantage normalization")
+                experiment.run()
+            if not history or history[-1][0] != experiment.total_frames:
+                evaluate(experiment)
+            wall = time.perf_counter() - clock["start"]
+        finally:
+            torch.set_num_threads(previous)
+        job.out_dir.mkdir(parents=True, exist_ok=True)
+        files = {"policy": str(job.out_dir / "policy.pt")}
+        torch.save(experiment.policy.state_dict(), files["policy"])
+        group = next(iter(experiment.group_map))
+        recipe["n_timesteps"] = total
+        eval_env.close()
+
+        def sample(seed: int) -> Any:
+            torch.manual_seed(seed)
+            return _ActorOnRows(experiment.policy, group, agents, random=True)
+
+        return Trained(
+            policy=_ActorOnRows(experiment.policy, group, agents),
+            timesteps=int(experiment.total_frames),
+            train_seconds=wall - clock["eval"],
+            eval_seconds=clock["eval"],
+            history=history,
+            recipe=recipe,
+            files=files,
+            sample=sample,
+        )
+
+
+__all__ = ["RECIPE_KEYS", "SIGMA_MIN", "BenchMARLLearner", "scale_mapping"]

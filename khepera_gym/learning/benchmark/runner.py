@@ -1,0 +1,294 @@
+"""Running the benchmark: the baselines and every (task, learner, seed) run, each written to a
+results file as it ends, so an interrupted benchmark resumes where it stopped.
+
+Held-out evaluation: ``episodes`` episodes seeded ``heldout_seed + i`` (0..199 by default: the
+seeds ``khepera-gym compare`` uses; training evaluates on 10000 + i), one per world, the
+learned policy on its mean actions and sampling them, the baselines on the same episodes. Each
+statistic is reported as its mean with a 95 % bootstrap interval over the episodes (success:
+Wilson), and the task's criterion is judged on those means.
+
+Files, under the output folder: ``baselines/<task>-v<N>.json`` and
+``runs/<task>-v<N>_<learner>_seed<S>.json``, each with its provenance (date, commit, machine,
+command). A run whose file exists is not run again when the file comes from the same commit,
+version, held-out episodes and recipe; a file from another commit is refused (the message says
+to use another folder or ``--restart``), so results of different code are never mixed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from khepera_gym.errors import ConfigError
+from khepera_gym.learning.benchmark.jobs import Job, Means, gym_id, module_of, shares_rows
+from khepera_gym.learning.benchmark.suite import TaskEntry
+from khepera_gym.tooling.provenance import provenance
+from khepera_gym.tooling.stats import bootstrap_interval, json_number, wilson_interval
+
+#: Results file format, in every file (a reader refuses another).
+FORMAT = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """What every run of one benchmark shares."""
+
+    out: Path
+    episodes: int = 200
+    heldout_seed: int = 0
+    eval_episodes: int = 50
+    timesteps: int | None = None
+    overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    device: str = "cpu"
+    num_threads: int | None = None
+
+
+def baseline_env_name(task: str, version: int) -> str:
+    """The env the baselines play the held-out episodes on: the task's Gymnasium id (rows are
+    worlds, as ``khepera-gym compare`` plays them), else its PettingZoo module (rows are agents,
+    each driven by the baseline)."""
+    env_id = gym_id(task, version)
+    if env_id is not None:
+        return env_id
+    module = module_of(task, version)
+    if module is None or not shares_rows(task):
+        raise ConfigError(f"{task!r} has neither a Gymnasium id nor agents sharing one policy")
+    return module
+
+
+def summarize(stats: Mapping[str, Any]) -> dict[str, Any]:
+    """Each statistic's mean over the episodes with its 95 % interval (JSON-ready)."""
+    summary = {}
+    for name, values in stats.items():
+        values = np.asarray(values, dtype=float)
+        if name == "success":
+            estimate = wilson_interval(int(values.sum()), len(values))
+        else:
+            finite = values[np.isfinite(values)]
+            estimate = bootstrap_interval(finite, "mean")
+        summary[name] = estimate.to_json()
+    return summary
+
+
+def means(summary: Mapping[str, Any]) -> Means:
+    """The means of a :func:`summarize` record (NaN where there was no data)."""
+    return {name: _number(record["value"]) for name, record in summary.items()}
+
+
+def _number(value: Any) -> float:
+    if value is None:
+        return math.nan
+    return float(value)
+
+
+def play(policy: Any, env_name: str, settings: Settings, sampled: bool = False) -> Any:
+    """One held-out episode per world of ``env_name`` (a Gymnasium id: rows are worlds; a
+    PettingZoo module: rows are agents) with ``policy`` on its rows; the statistics per
+    episode."""
+    from khepera_gym.learning.sb3 import make_vec_env
+    from khepera_gym.learning.sb3.evaluate import first_episode_stats
+
+    env = make_vec_env(env_name, settings.episodes, num_threads=settings.num_threads)
+    try:
+        return first_episode_stats(policy, env, settings.heldout_seed, deterministic=not sampled)
+    finally:
+        env.close()
+
+
+def baseline_policy(name: str, env_name: str) -> Any:
+    """A baseline acting on the rows of ``env_name`` (one world, or one agent's block)."""
+    from khepera_gym.learning.benchmark.suite import all_baselines
+    from khepera_gym.learning.policies import VARIANTS
+    from khepera_gym.learning.sb3 import make_vec_env
+
+    controller, params = VARIANTS.get(name, (name, {}))
+    cls = all_baselines()[controller]
+    env = make_vec_env(env_name, 1, num_threads=1)
+    try:
+        if "for_env" in vars(cls):  # it reads its settings from the scenario (a formation)
+            return cls.for_env(env, **params)
+        layout = getattr(env, "agent_layout", None) or env
+        return cls(layout=layout, **params)
+    finally:
+        env.close()
+
+
+def _fingerprint(record: Mapping[str, Any]) -> str:
+    text = json.dumps(record, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _write(path: Path, record: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, indent=1, default=json_number) + "\n", encoding="utf-8")
+    tmp.replace(path)  # a run interrupted while writing leaves no half file
+
+
+def _reusable(path: Path, key: Mapping[str, Any], restart: bool) -> dict[str, Any] | None:
+    """The results file at ``path`` if it holds the same work as ``key`` from this commit."""
+    if restart or not path.is_file():
+        return None
+    record = json.loads(path.read_text(encoding="utf-8"))
+    if record.get("format") != FORMAT:
+        raise ConfigError(f"{path}: not a results file of this benchmark (format)")
+    here = provenance().get("commit")
+    there = record.get("meta", {}).get("commit")
+    if here != there:
+        raise ConfigError(
+            f"{path} comes from commit {(there or {}).get('id', '?')[:12]}"
+            f"{' (dirty)' if (there or {}).get('dirty') else ''}, this is "
+            f"{(here or {}).get('id', '?')[:12]}{' (dirty)' if (here or {}).get('dirty') else ''}"
+            ": results of different code are not mixed; use another --out, or --restart to "
+            "discard them"
+        )
+    if record.get("key") != dict(key):
+        return None  # other work (recipe, episodes, version): done again, the file replaced
+    return record
+
+
+def run_baselines(entry: TaskEntry, version: int, settings: Settings, restart: bool) -> dict:
+    """The baselines of a task on the held-out episodes (from their file when done already)."""
+    key = {
+        "task": entry.task,
+        "version": version,
+        "baselines": list(entry.baselines),
+        "episodes": settings.episodes,
+        "heldout_seed": settings.heldout_seed,
+    }
+    path = settings.out / "baselines" / f"{entry.task}-v{version}.json"
+    done = _reusable(path, key, restart)
+    if done is not None:
+        return done
+    rows = baseline_env_name(entry.task, version)
+    summaries = {
+        name: summarize(play(baseline_policy(name, rows), rows, settings))
+        for name in entry.baselines
+    }
+    record = {"format": FORMAT, "key": key, "meta": provenance(), "summaries": summaries}
+    _write(path, record)
+    return record
+
+
+def judge(entry: TaskEntry, values: Mapping[str, float], baselines: Mapping[str, Any]) -> bool:
+    """Whether means ``values`` meet the task's criterion."""
+    base = {name: means(summary) for name, summary in baselines["summaries"].items()}
+    return all(c.holds(values.get(c.metric, math.nan), c.threshold(base)) for c in entry.criterion)
+
+
+def run_one(
+    entry: TaskEntry,
+    learner: Any,
+    version: int,
+    seed: int,
+    settings: Settings,
+    baselines: Mapping[str, Any],
+    restart: bool = False,
+    report: Callable[[int, int], None] | None = None,
+) -> dict[str, Any]:
+    """Trains and evaluates one (task, learner, seed); returns its record (written to its file).
+
+    Raises:
+        ConfigError: The learner does not apply to the task, a recipe is missing or wrong, or
+            the run's file comes from other code.
+    """
+    name = learner.env_name(entry.task, version)
+    recipe = learner.recipe(entry.task, version, settings.overrides)
+    if settings.timesteps is not None:
+        recipe["n_timesteps"] = settings.timesteps
+    key = {
+        "task": entry.task,
+        "version": version,
+        "learner": learner.name,
+        "env": name,
+        "seed": seed,
+        "recipe": _fingerprint(recipe),
+        "episodes": settings.episodes,
+        "heldout_seed": settings.heldout_seed,
+        "criterion": [c.to_json() for c in entry.criterion],
+    }
+    stem = f"{entry.task}-v{version}_{learner.name}_seed{seed}"
+    path = settings.out / "runs" / f"{stem}.json"
+    done = _reusable(path, key, restart)
+    if done is not None:
+        return done
+    job = Job(
+        task=entry.task,
+        version=version,
+        seed=seed,
+        out_dir=settings.out / "models" / stem,
+        timesteps=settings.timesteps,
+        overrides=dict(settings.overrides),
+        eval_episodes=settings.eval_episodes,
+        device=settings.device,
+        num_threads=settings.num_threads,
+    )
+    trained = learner.train(job, report)
+    base = {n: means(s) for n, s in baselines["summaries"].items()}
+    thresholds = [c.threshold(base) for c in entry.criterion]
+    reached = next(
+        (
+            {"steps": steps, "train_seconds": seconds}
+            for steps, seconds, values in trained.history
+            if all(
+                c.holds(values.get(c.metric, math.nan), t)
+                for c, t in zip(entry.criterion, thresholds, strict=True)
+            )
+        ),
+        None,
+    )
+    final = summarize(play(trained.policy, name, settings))
+    sampled = None
+    if trained.sample is not None:
+        policy = trained.sample(settings.heldout_seed)
+        sampled = summarize(play(policy, name, settings, sampled=True))
+    record = {
+        "format": FORMAT,
+        "key": key,
+        "meta": provenance(),
+        "recipe": trained.recipe,
+        # What the command changed from the recipe, so its row prints the command again.
+        "settings": {
+            "timesteps": settings.timesteps,
+            "overrides": dict(settings.overrides),
+            "eval_episodes": settings.eval_episodes,
+        },
+        "timesteps": trained.timesteps,
+        "train_seconds": trained.train_seconds,
+        "eval_seconds": trained.eval_seconds,
+        "steps_per_second": trained.timesteps / max(trained.train_seconds, 1e-9),
+        "thresholds": thresholds,
+        "history": [
+            {"steps": steps, "train_seconds": seconds, "means": values}
+            for steps, seconds, values in trained.history
+        ],
+        "reached": reached,
+        "final": final,
+        "final_sampled": sampled,
+        "solved": judge(entry, means(final), baselines),
+        "solved_sampled": None if sampled is None else judge(entry, means(sampled), baselines),
+        "files": trained.files,
+    }
+    _write(path, record)
+    return record
+
+
+__all__ = [
+    "FORMAT",
+    "Settings",
+    "baseline_env_name",
+    "baseline_policy",
+    "judge",
+    "means",
+    "play",
+    "run_baselines",
+    "run_one",
+    "summarize",
+]

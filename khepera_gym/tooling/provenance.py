@@ -1,0 +1,150 @@
+"""Where a measurement comes from: the date, commit, machine and command that produced it.
+
+The tools that write results (``khepera-gym compare``, ``train``, ``bench`` and the consensus
+sweep) put :func:`provenance` under the key ``"meta"`` of every JSON file they write, so that a
+table made from those files (the documentation's results pages, ``docs/results/``) can say when,
+on what and how each figure was measured. Nothing here affects a result.
+
+The commit is read with ``git`` from the folder the package was imported from, when that folder
+is a git work tree (a source checkout); an installed wheel has none, and the package version
+stands in for it. Threading: none; reading the machine's description takes a few milliseconds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import datetime
+import os
+import platform
+import shlex
+import subprocess
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import khepera_gym
+
+#: The repository root of a source checkout (the folder holding ``khepera_gym/``).
+_SOURCE_ROOT = Path(__file__).resolve().parents[2]
+#: The command being run, when a caller knows it better than ``sys.argv`` (``cli.main(argv)``).
+_COMMAND: contextvars.ContextVar[str | None] = contextvars.ContextVar("command", default=None)
+
+
+def _git(*args: str) -> str | None:
+    """The stripped output of ``git args`` in the source folder, or None without git or a repo."""
+    try:
+        result = subprocess.run(
+            ["git", *args],
+            cwd=_SOURCE_ROOT,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=False,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return result.stdout.strip() if result.returncode == 0 else None
+
+
+def commit() -> dict[str, Any] | None:
+    """The source checkout's commit: ``{"id": full hash, "dirty": bool}`` (dirty: tracked files
+    changed since that commit), or None when the package does not run from a git work tree."""
+    if _git("rev-parse", "--is-inside-work-tree") != "true":
+        return None
+    head = _git("rev-parse", "HEAD")
+    if head is None:
+        return None
+    status = _git("status", "--porcelain", "--untracked-files=no")
+    return {"id": head, "dirty": bool(status)}
+
+
+def _cpu_model() -> str:
+    """The CPU's model name (Linux ``/proc/cpuinfo``), else what ``platform`` says."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _memory_bytes() -> int | None:
+    """Total memory (Linux ``/proc/meminfo``), or None."""
+    try:
+        for line in Path("/proc/meminfo").read_text(encoding="utf-8").splitlines():
+            if line.startswith("MemTotal:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def machine() -> dict[str, Any]:
+    """What the figures were measured on: CPU model, logical CPUs, memory, OS and the load
+    average when asked (a shared machine's figures are low; the load says how shared)."""
+    try:
+        load = [round(x, 2) for x in os.getloadavg()]
+    except OSError:  # pragma: no cover - not on Linux or macOS
+        load = None
+    return {
+        "cpu": _cpu_model(),
+        "cpus": os.cpu_count(),
+        "memory_bytes": _memory_bytes(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "load_average": load,
+    }
+
+
+def command_line(argv: Sequence[str] | None = None) -> str:
+    """The command as typed: ``sys.argv`` with the program named by its file name
+    (``khepera-gym compare ...``, ``python examples/benchmark.py ...``)."""
+    argv = list(sys.argv if argv is None else argv)
+    if not argv:
+        return ""
+    program = [Path(argv[0]).name]
+    if Path(argv[0]).as_posix().endswith("khepera_gym/cli.py"):
+        program = ["khepera-gym"]  # the package's command line, run from a source tree
+    elif program[0].endswith(".py"):
+        program = ["python", argv[0]]
+    elif program[0] in {"-c", ""}:
+        program = ["python", "-c"]
+    return shlex.join([*program, *argv[1:]])
+
+
+@contextlib.contextmanager
+def running_command(argv: Sequence[str]) -> Iterator[None]:
+    """Within the block, :func:`provenance` records ``argv`` as the command (``cli.main`` called
+    with its arguments, e.g. from a script or a test, rather than from the shell)."""
+    token = _COMMAND.set(command_line(argv))
+    try:
+        yield
+    finally:
+        _COMMAND.reset(token)
+
+
+def provenance(command: str | None = None) -> dict[str, Any]:
+    """The ``"meta"`` record of a results file.
+
+    Args:
+        command: The command that produced the results; None: the one of the enclosing
+            :func:`running_command`, else this process's command line.
+
+    Returns:
+        ``{"date": ISO 8601 UTC, "commit": {"id", "dirty"} or None, "khepera_gym": version,
+        "machine": {...}, "command": str}``.
+    """
+    now = datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0)
+    return {
+        "date": now.isoformat(),
+        "commit": commit(),
+        "khepera_gym": khepera_gym.__version__,
+        "machine": machine(),
+        "command": command or _COMMAND.get() or command_line(),
+    }
+
+
+__all__ = ["command_line", "commit", "machine", "provenance", "running_command"]

@@ -1,0 +1,69 @@
+"""Things saved with khepera_gym 0.1.0's layout load and behave the same after the package was
+laid out in layers (0.2.0).
+
+``tests/data/before_0_2/`` was written by the commit before the redesign (707870a): a pickled
+native vector env, a pickled PettingZoo env, a pickled SB3 ``VecEnv`` (whose class lived at
+``khepera_gym.sb3.vec_env``, now ``khepera_gym.learning.sb3.vec_env``) and a model saved by
+``khepera-gym train`` with its ``vecnormalize.pkl``; ``expected.json`` holds what each did next
+then (observations after fixed actions, the model's actions on fixed observations).
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+DATA = Path(__file__).parent / "data" / "before_0_2"
+EXPECTED = json.loads((DATA / "expected.json").read_text())
+
+
+def test_a_pickled_vector_env_continues_as_it_did() -> None:
+    envs = pickle.loads((DATA / "nav_vector_env.pkl").read_bytes())
+    observations = envs.step(np.full((4, 2), 0.5, dtype=np.float32))[0]
+    assert np.array_equal(observations, np.asarray(EXPECTED["nav_vector_env_next_obs"], np.float32))
+
+
+def test_a_pickled_pettingzoo_env_continues_as_it_did() -> None:
+    env = pickle.loads((DATA / "formation_v3_parallel_env.pkl").read_bytes())
+    assert type(env).__module__ == "khepera_gym.pettingzoo.formation_v3"
+    actions = {agent: np.array([0.3, 0.4], dtype=np.float32) for agent in env.agents}
+    observations = env.step(actions)[0]
+    for agent, expected in EXPECTED["formation_v3_next_obs"].items():
+        assert np.array_equal(observations[agent], np.asarray(expected, np.float32))
+
+
+def test_a_pickled_sb3_vec_env_loads_through_its_old_module_path() -> None:
+    pytest.importorskip("stable_baselines3")
+    already = "khepera_gym.sb3.vec_env" in sys.modules
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        venv = pickle.loads((DATA / "sb3_vec_env.pkl").read_bytes())
+    moved = [str(w.message) for w in caught if issubclass(w.category, FutureWarning)]
+    assert already or any("khepera_gym.learning.sb3" in message for message in moved), moved
+    assert type(venv).__module__ == "khepera_gym.learning.sb3.vec_env"
+    venv.step_async(np.zeros((2, 2), dtype=np.float32))
+    observations = venv.step_wait()[0]
+    assert np.array_equal(observations, np.asarray(EXPECTED["sb3_vec_env_next_obs"], np.float32))
+
+
+def test_a_model_saved_by_train_loads_and_acts_as_it_did() -> None:
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
+    from khepera_gym.learning.sb3.policy import load_policy
+
+    probe = np.load(DATA / "probe_obs.npy")
+    model = PPO.load(DATA / "ppo_nav" / "model.zip", device="cpu")
+    np.testing.assert_allclose(
+        model.predict(probe, deterministic=True)[0], EXPECTED["ppo_nav_actions"], rtol=1e-6
+    )
+    policy = load_policy(DATA / "ppo_nav" / "model.zip")  # with its vecnormalize.pkl
+    np.testing.assert_allclose(
+        policy.predict(probe, deterministic=True)[0], EXPECTED["ppo_nav_policy_actions"], rtol=1e-6
+    )
