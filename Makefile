@@ -40,7 +40,7 @@ FLOORS_CANDIDATES   = python3.10 $(wildcard $(PYENV_ROOT)/versions/3.10*/bin/pyt
 FLOORS_PYTHON      ?= $(firstword $(foreach candidate,$(FLOORS_CANDIDATES), \
                         $(call is_python310,$(candidate))))
 
-.PHONY: develop test test-floors demo bench lint format clean wheel docs configs
+.PHONY: develop test test-floors demo bench lint format clean wheel docs configs generated
 
 develop: $(BUILT)
 
@@ -62,13 +62,14 @@ $(BUILT): $(TOOLS) $(RUST_SRC)
 # and the `rllib` extra (ray[rllib]) for tests/test_rllib.py, the `export` extra (onnx,
 # onnxruntime) for tests/test_export.py, the `calibrate` extra (scipy) for tests/test_calibrate.py
 # and the `torchrl` and `benchmarl` extras for
-# tests/test_torchrl.py, with the same `maturin develop` (and stamps the build as fresh). PyPI's
+# tests/test_torchrl.py, and the `typecheck` extra (mypy, basedpyright: ~60 MB) for
+# tests/test_static_types.py, with the same `maturin develop` (and stamps the build as fresh). PyPI's
 # torch wheel brings its CUDA libraries: about 5.4 GB and 75 s on a fresh machine; Ray RLlib adds
 # about 0.7 GB and 60 s, onnx and onnxruntime about 110 MB, torchrl and BenchMARL ~160 MB and
 # ~10 s. Ray pins its gymnasium version, so the tests then run with that one. `make demo` does
 # without them.
 $(SB3): $(TOOLS) pyproject.toml
-	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,rllib,export,calibrate,torchrl,benchmarl
+	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,rllib,export,calibrate,torchrl,benchmarl,typecheck
 	touch $@ $(BUILT)
 
 test: $(SB3) develop
@@ -134,6 +135,12 @@ docs: develop $(DOCS_TOOLS)
 # (the files are what the docs point users to; tests/test_scenarios.py checks they are current).
 configs: develop
 	$(PYTHON) -m khepera_gym.analysis.docgen --configs configs
+
+# The generated source (khepera_gym/_generate.py): a PettingZoo module file for each family and
+# behaviour version, the import blocks of pettingzoo/ and envs/, the vector env classes. Run it
+# after adding a task, a version or a family; tests/test_generated.py fails while it is due.
+generated: develop
+	$(PYTHON) -m khepera_gym._generate
 
 # Clippy runs twice: the binding (src/python/) is compiled only with the `python` feature.
 lint: develop

@@ -22,10 +22,11 @@ from __future__ import annotations
 import importlib
 import importlib.abc
 import importlib.machinery
+import importlib.util
 import sys
 import warnings
 from collections.abc import Sequence
-from types import ModuleType
+from types import CodeType, ModuleType
 
 #: Old module path → new module path.
 MOVED: dict[str, str] = {
@@ -74,16 +75,36 @@ class _AliasLoader(importlib.abc.Loader):
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
         module = importlib.import_module(self.new)
+        self._warn()
+        return module
+
+    def _warn(self) -> None:
         warnings.warn(
             f"{self.old} moved to {self.new} in khepera_gym 0.2.0; import it from there "
             "(the old path is the same module and will be removed in a later release)",
             FutureWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
-        return module
 
     def exec_module(self, module: ModuleType) -> None:
         """Nothing to run: the new module ran when it was imported."""
+
+    def _target(self) -> importlib.machinery.ModuleSpec:
+        spec = importlib.util.find_spec(self.new)
+        if spec is None or spec.loader is None:  # pragma: no cover - MOVED names real modules
+            raise ImportError(f"{self.old} moved to {self.new}, which cannot be found")
+        return spec
+
+    def get_code(self, fullname: str) -> CodeType | None:
+        """The new module's code, for ``python -m <old path>`` (runpy runs it as ``__main__``;
+        the import of the old path has warned)."""
+        self._warn()
+        loader = self._target().loader
+        get_code = getattr(loader, "get_code", None)
+        return None if get_code is None else get_code(self.new)
+
+    def is_package(self, fullname: str) -> bool:
+        return self._target().submodule_search_locations is not None
 
 
 class MovedModuleFinder(importlib.abc.MetaPathFinder):
@@ -100,7 +121,11 @@ class MovedModuleFinder(importlib.abc.MetaPathFinder):
         new = new_path(fullname)
         if new is None:
             return None
-        return importlib.machinery.ModuleSpec(fullname, _AliasLoader(fullname, new))
+        loader = _AliasLoader(fullname, new)
+        target = loader._target()
+        return importlib.machinery.ModuleSpec(
+            fullname, loader, is_package=target.submodule_search_locations is not None
+        )
 
 
 def install() -> None:

@@ -193,17 +193,52 @@ def check_video(path: str | Path, fps: int = 20) -> None:
             ) from error
 
 
-def save_video(frames: Sequence[Frame], path: str | Path, fps: int = 20) -> Path:
+def _video_frames(frames: Sequence[npt.ArrayLike | None]) -> list[Frame]:
+    """``frames`` as (height, width, 3) uint8 arrays of one size.
+
+    Raises:
+        KheperaError: No frames, a None (an env made without ``render_mode="rgb_array"``
+            renders None), or a frame that is not (height, width, 3) or not the first's size.
+    """
+    if len(frames) == 0:
+        raise KheperaError("save_video() got no frames")
+    checked = []
+    for index, frame in enumerate(frames):
+        if frame is None:
+            raise KheperaError(
+                f"save_video(): frame {index} is None; make the env with "
+                'render_mode="rgb_array" for render() to return frames'
+            )
+        array = np.asarray(frame)
+        if array.ndim != 3 or array.shape[2] != 3:
+            raise KheperaError(
+                f"save_video(): frame {index} has shape {array.shape}, not (height, width, 3)"
+            )
+        if checked and array.shape != checked[0].shape:
+            raise KheperaError(
+                f"save_video(): frame {index} is {array.shape}, frame 0 {checked[0].shape}"
+            )
+        checked.append(array.astype(np.uint8, copy=False))
+    return checked
+
+
+def save_video(frames: Sequence[npt.ArrayLike | None], path: str | Path, fps: int = 20) -> Path:
     """Writes frames to ``path``: ``.gif`` with Pillow, ``.mp4`` with imageio-ffmpeg.
+
+    Args:
+        frames: (height, width, 3) uint8 frames of one size, as ``env.render()`` returns with
+            ``render_mode="rgb_array"`` (Gymnasium types its result as optional: a None here
+            is an error).
+        path: The file to write.
+        fps: Frames per second.
 
     Raises:
         ConfigError: An unknown suffix, or a frame rate below 1.
-        KheperaError: No frames, or imageio-ffmpeg missing for MP4.
+        KheperaError: No frames, a None or misshapen frame, or imageio-ffmpeg missing for MP4.
     """
     path = Path(path)
     check_video(path, fps)
-    if not frames:
-        raise KheperaError("save_video() got no frames")
+    frames = _video_frames(frames)
     suffix = path.suffix.lower()
     if suffix == ".gif":
         from PIL import Image

@@ -90,6 +90,17 @@ def test_bad_frame_sizes_and_videos_raise_clear_errors(tmp_path) -> None:
         save_video([], tmp_path / "x.gif")
     with pytest.raises(KheperaError, match=r"\.avi"):
         save_video([np.zeros((16, 16, 3), np.uint8)], tmp_path / "x.avi")
+    # What render() returns without render_mode="rgb_array", and frames a video cannot hold.
+    plain = gym.make(LATEST["nav"])
+    plain.reset(seed=0)
+    unrendered = plain.render()
+    with pytest.raises(KheperaError, match=r"frame 0 is None.*rgb_array"):
+        save_video([unrendered], tmp_path / "x.gif")
+    with pytest.raises(KheperaError, match=r"frame 0 has shape \(16, 16\)"):
+        save_video([np.zeros((16, 16), np.uint8)], tmp_path / "x.gif")
+    with pytest.raises(KheperaError, match=r"frame 1 is \(8, 8, 3\), frame 0 \(16, 16, 3\)"):
+        save_video([np.zeros((16, 16, 3), np.uint8), np.zeros((8, 8, 3))], tmp_path / "x.gif")
+    assert not (tmp_path / "x.gif").exists()
 
 
 def test_gif_of_a_rollout_is_written(tmp_path) -> None:

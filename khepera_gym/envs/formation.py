@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from khepera_gym.baselines import LeaderFollower
+from khepera_gym.batch_face import BatchFace
 from khepera_gym.envs.base import KheperaEnv
 from khepera_gym.envs.nav import AVOID_POLICY
 
@@ -175,8 +176,9 @@ class FormationEnv(KheperaEnv):
 
     TASK: ClassVar[str] = "formation"
 
-    def formation_targets(self) -> npt.NDArray[np.float64]:
-        """The followers' target points (eq. 12) for the current leader pose, shape (K, 2), m:
+    def formation_targets(self: BatchFace) -> npt.NDArray[np.float64]:
+        """The followers' target points (eq. 12) for the current leader pose, shape (K, 2), m
+        ((N, K, 2) on :class:`khepera_gym.vector.FormationVectorEnv`, which shares this method):
         :meth:`targets` under its task's name."""
         return self.targets()
 
