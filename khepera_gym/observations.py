@@ -30,8 +30,8 @@ def obs_layout(task: str) -> dict[str, slice]:
     """Observation layout of a task as an ordered mapping name → slice.
 
     Args:
-        task: A task of the Rust core's registry (a name of ``_core.tasks()``, such as "nav";
-            ``khepera-gym list`` prints them), with its default scenario.
+        task: A task of the Rust core's registry (a name of ``registry.task_names()``, such as
+            "nav"; ``khepera-gym list`` prints them), with its default scenario.
 
     Returns:
         A new dict (callers may modify it) whose slices cover ``0..obs_dim`` contiguously.

@@ -1,7 +1,7 @@
 """Registration of the environments with Gymnasium, from the task list the Rust core exports.
 
-For every task that the core exports with a Gymnasium id (``_core.tasks()``: the ``env_id`` of
-its ``TaskInfo``) and that has an env class (:data:`khepera_gym.envs.ENV_CLASSES`, filled by the
+For every task that the core exports with a Gymnasium id (``registry.tasks()``: the ``env_id``
+of its ``TaskInfo``) and that has an env class (:data:`khepera_gym.envs.ENV_CLASSES`, filled by the
 classes themselves), each version the class declares in ``VERSIONS`` is registered as
 ``<id>-v<version>`` with its single-env entry point, its native vector entry point and the
 version's scenario keyword defaults; ``gym.make("<id>")`` resolves to the latest. Nothing here
@@ -138,8 +138,8 @@ def version_of(env_id: str) -> int:
 
 
 def task_of(env_id: str) -> str:
-    """The Rust core's task name (a name of ``_core.tasks()``: "nav", ...) of a khepera_gym env
-    id."""
+    """The Rust core's task name (a name of ``registry.task_names()``: "nav", ...) of a
+    khepera_gym env id."""
     resolved = resolve_env_id(env_id)
     return next(task for task, ids in registered_ids().items() if resolved in ids)
 

@@ -98,7 +98,7 @@ class KheperaVectorEnv(BatchFace, VectorEnv):
 
     Args:
         num_envs: Number of worlds N (>= 1).
-        task: A task of the Rust core's registry (a name of ``_core.tasks()``: "nav", ...).
+        task: A task of the Rust core's registry (a name of ``registry.task_names()``: "nav", ...).
         render_mode: None, "rgb_array" (``render()`` returns a mosaic of the first
             ``render_worlds`` worlds) or "human" (that mosaic in a pygame window).
         config: None (built-in defaults), a built-in scenario name, or a path to a TOML file.

@@ -249,3 +249,26 @@ def test_a_recorded_command_with_an_old_module_path_still_runs() -> None:
     assert result.returncode == 0, result.stderr
     assert "--robots" in result.stdout
     assert "moved to khepera_gym.robot.calibrate" in result.stderr
+
+
+#: The core's registry functions: which tasks, versions, agents, controllers and scoring exist.
+REGISTRY_FUNCTIONS = frozenset(
+    {"tasks", "task_versions", "task_agents", "task_scoring", "versions", "controllers"}
+)
+
+
+def test_only_the_registry_module_asks_the_core_what_exists() -> None:
+    # Issue 51: one reader of the core's registries (khepera_gym/registry.py); every other
+    # module asks it, so a task's facts are worked out one way.
+    askers = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.name == "registry.py" and path.parent == PACKAGE:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.Attribute) or node.attr not in REGISTRY_FUNCTIONS:
+                continue
+            owner = node.value
+            name = owner.id if isinstance(owner, ast.Name) else getattr(owner, "attr", None)
+            if name == "_core":
+                askers.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} _core.{node.attr}")
+    assert not askers, "\n".join(askers)

@@ -31,7 +31,7 @@ def parameters(controller: str) -> list[tuple[str, Any, str]]:
     """The parameters of a controller of the Rust core, as declared there.
 
     Args:
-        controller: Its name, one of the core's registry (``_core.controllers()`` lists them:
+        controller: Its name, one of the core's registry (``registry.controllers()`` lists them:
             ``"position_control"``, ...).
 
     Returns:

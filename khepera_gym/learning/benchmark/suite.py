@@ -35,7 +35,7 @@ from khepera_gym.learning.recipes import HYPERPARAMS_DIR
 
 #: The suite file of a source checkout.
 SUITE_PATH = HYPERPARAMS_DIR.parent / "benchmark.toml"
-#: The episode statistics every task has (besides its own, ``_core.tasks()``).
+#: The episode statistics every task has (besides its own, ``registry.task_names()``).
 COMMON_STATS = ("success", "return", "length", "path_length", "collisions")
 #: The two bounds a condition may set.
 BOUNDS = ("at_least", "at_most")

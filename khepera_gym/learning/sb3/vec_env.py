@@ -35,7 +35,7 @@ class KheperaSB3VecEnv(BatchFace, VecEnv):
     """An SB3 ``VecEnv`` over N worlds of one task in a ``_core.Batch``; row i is world i.
 
     Args:
-        task: A task of the Rust core's registry (a name of ``_core.tasks()``: "nav", ...).
+        task: A task of the Rust core's registry (a name of ``registry.task_names()``: "nav", ...).
         num_worlds: Number of worlds N (>= 1).
         seed: If given, world i is seeded with ``seed + i`` at the first ``reset()``.
         num_threads: Threads of the batch's rayon pool; None uses all cores.

@@ -1,6 +1,6 @@
 """Which tasks have agent groups, what the groups are, and the TorchRL specs of an env's keys.
 
-Everything here comes from the Rust core: its task list (``_core.tasks()``), Gymnasium ids
+Everything here comes from the Rust core: its task list (``registry.task_names()``), Gymnasium ids
 (:mod:`khepera_gym.registration`), each batch's agents (``Batch.agents()``: names and
 observation columns) and observation bounds. A task whose default scenario has one agent (nav,
 avoid, track) gets flat keys, as TorchRL's Gym envs; the others (formation, multinav, platoon)
