@@ -329,6 +329,17 @@ def algorithm_class(name: str) -> type[BaseAlgorithm]:
     return getattr(stable_baselines3, name)  # type: ignore[no-any-return]
 
 
+def _no_schedule(_progress: float) -> float:
+    """A training schedule for a model loaded to act: it never trains."""
+    return 0.0
+
+
+#: What :func:`load_policy` loads in place of a model's training schedules. SB3 saves them as
+#: cloudpickled functions, whose code objects do not load on another Python minor version (a
+#: model trained on 3.11 acting on 3.10); acting needs none of them.
+INFERENCE_OBJECTS: dict[str, Any] = {"lr_schedule": _no_schedule, "clip_range": _no_schedule}
+
+
 def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
     """Loads a model saved by ``khepera-gym train`` (or any SB3 ``model.save``) for inference.
 
@@ -339,6 +350,8 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
     starts new episodes); an sb3-contrib ``RecurrentPPO`` carries its LSTM state
     (:class:`RecurrentPolicy`, reset the same way); otherwise it is the SB3 model itself. Either
     way ``predict(obs, deterministic=True)`` takes raw env observations, single or batched.
+    The training schedules are not loaded (:data:`INFERENCE_OBJECTS`), so a model saved on
+    another Python version acts the same; train a loaded model with SB3's own ``load``.
 
     Args:
         path: The model's ``.zip``.
@@ -351,7 +364,7 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
     """
     path = Path(path)
     algorithm = algorithm_class(algorithm_of(path))
-    model: BaseAlgorithm = algorithm.load(path, device=device)
+    model: BaseAlgorithm = algorithm.load(path, device=device, custom_objects=INFERENCE_OBJECTS)
     stats_path = path.parent / VECNORMALIZE_FILE
     normalizer: VecNormalize | None = None
     if stats_path.exists():
@@ -362,6 +375,7 @@ def load_policy(path: str | Path, device: str = "cpu") -> Predictor:
 
 
 __all__ = [
+    "INFERENCE_OBJECTS",
     "RECURRENT_POLICY_MODULE",
     "RUN_FILE",
     "VECNORMALIZE_FILE",
