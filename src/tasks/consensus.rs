@@ -43,7 +43,7 @@
 use std::collections::VecDeque;
 
 use super::nav;
-use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;

@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
 
 use super::nav;
-use super::{AgentFacts, Agent, Body, Column, Driver, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Column, Driver, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};

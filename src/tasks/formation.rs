@@ -27,7 +27,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{AgentFacts, Agent, Body, Driver, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Driver, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::controllers::position::twist_to_wheels;
 use crate::controllers::{Braitenberg, PositionControl};

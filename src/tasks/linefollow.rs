@@ -30,7 +30,7 @@ use toml::Table;
 use super::pathfollow::geometry::Path;
 use super::reference::{random_spline, Curve, Shape};
 use super::track::Direction;
-use super::{AgentFacts, Agent, Body, Column, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Column, Scoring, Task, TaskInfo};
 use crate::config::{limits, ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};

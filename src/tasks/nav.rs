@@ -13,7 +13,7 @@
 
 use rapier2d::math::Vector;
 
-use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Scoring, Task, TaskInfo};
 use crate::draw::Mark;
 use crate::error::Result;
 use crate::obs::{Block, ObsLayout, ObsWriter};

@@ -41,7 +41,7 @@ use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::Reference;
 use super::track::{draw_reference, Track};
-use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Scoring, Task, TaskInfo};
 use crate::draw::{Mark, PALETTE};
 use crate::error::Result;
 use crate::obs::ObsWriter;

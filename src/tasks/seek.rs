@@ -18,7 +18,7 @@ use rapier2d::math::Vector;
 use toml::Table;
 
 use super::nav;
-use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Scoring, Task, TaskInfo};
 use crate::config::{ConfigTable, Domain};
 use crate::draw::Mark;
 use crate::error::{Error, Result};

@@ -31,7 +31,7 @@ use rapier2d::math::Vector;
 use super::error_stats::ErrorStats;
 use super::nav;
 use super::reference::{random_spline, Posture, Reference, Shape};
-use super::{AgentFacts, Agent, Body, Scoring, Task, TaskInfo};
+use super::{Agent, AgentFacts, Body, Scoring, Task, TaskInfo};
 use crate::config::ConfigTable;
 use crate::draw::Mark;
 use crate::error::Result;
