@@ -30,7 +30,7 @@ FLOORS_RLLIB       := constraints/floors-rllib.txt
 FLOORS_WHEEL_DIR   := $(FLOORS_VENV)/wheel
 FLOORS_WHEEL        = $$(ls $(FLOORS_WHEEL_DIR)/*.whl)
 # The extras of the first step: all but rllib, whose floors cannot be installed beside them.
-FLOORS_EXTRAS      := test,sb3,render,export,calibrate,torchrl,benchmarl
+FLOORS_EXTRAS      := test,sb3,render,export,calibrate,torchrl,benchmarl,report
 # A Python 3.10 interpreter: FLOORS_PYTHON=... if given, else python3.10 on PATH, else one of
 # pyenv's 3.10 (each candidate is run to check it is 3.10: a pyenv shim may not be usable).
 PYENV_ROOT         ?= $(HOME)/.pyenv
@@ -63,13 +63,14 @@ $(BUILT): $(TOOLS) $(RUST_SRC)
 # onnxruntime) for tests/test_export.py, the `calibrate` extra (scipy) for tests/test_calibrate.py
 # and the `torchrl` and `benchmarl` extras for
 # tests/test_torchrl.py, and the `typecheck` extra (mypy, basedpyright: ~60 MB) for
-# tests/test_static_types.py, with the same `maturin develop` (and stamps the build as fresh). PyPI's
+# tests/test_static_types.py, and the `report` extra (rliable) for the benchmark's aggregate
+# statistics, with the same `maturin develop` (and stamps the build as fresh). PyPI's
 # torch wheel brings its CUDA libraries: about 5.4 GB and 75 s on a fresh machine; Ray RLlib adds
 # about 0.7 GB and 60 s, onnx and onnxruntime about 110 MB, torchrl and BenchMARL ~160 MB and
 # ~10 s. Ray pins its gymnasium version, so the tests then run with that one. `make demo` does
 # without them.
 $(SB3): $(TOOLS) pyproject.toml
-	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,rllib,export,calibrate,torchrl,benchmarl,typecheck
+	$(IN_VENV) $(VENV)/bin/maturin develop --release --extras test,sb3,rllib,export,calibrate,torchrl,benchmarl,typecheck,report
 	touch $@ $(BUILT)
 
 test: $(SB3) develop

@@ -177,7 +177,14 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     assert set(record["final"]) >= {"success", "return", "collisions"}
     assert record["final"]["success"]["n"] == 6
     baselines = json.loads((out / "baselines" / f"nav-v{_core.LATEST_VERSION}.json").read_text())
-    assert set(baselines["summaries"]) == {"position_control", "braitenberg", "vfh"}
+    # The suite's baselines, and the random policy: the 0 of the normalised scores.
+    assert set(baselines["summaries"]) == {"position_control", "braitenberg", "vfh", "random"}
+    assert baselines["summaries"]["random"]["success"]["n"] == 6
+    # The runs in marl-eval's format as well: this run, its evaluations and its final policy's.
+    marl = json.loads((out / "marl_eval.json").read_text())
+    mine = marl["khepera_gym"][f"nav-v{_core.LATEST_VERSION}"]["ppo"]["seed_0"]
+    assert len(mine) == len(record["history"]) + 1
+    assert mine["absolute_metrics"]["success"] == [record["final"]["success"]["value"]]
     # The criterion is judged on the held-out means against the baselines.
     assert record["solved"] == judge(load_suite()["nav"], means(record["final"]), baselines)
     assert "| ppo (KheperaIV-Nav-v" in printed and "braitenberg (baseline)" in printed

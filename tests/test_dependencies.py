@@ -66,7 +66,7 @@ class FloorStep:
 
 
 _FIRST_STEP_PARTS = frozenset(
-    {DEPENDENCIES, "test", "sb3", "render", "export", "calibrate", "torchrl", "benchmarl"}
+    {DEPENDENCIES, "test", "sb3", "render", "export", "calibrate", "torchrl", "benchmarl", "report"}
 )
 #: By ``KHEPERA_GYM_FLOORS``. Ray 2.52 pins gymnasium 1.1.1 and needs a protobuf that the export
 #: extra's onnx 1.12 refuses, so the rllib step moves gymnasium and uninstalls the export extra.

@@ -100,6 +100,16 @@ class RandomPolicy:
         shape = np.shape(observation)[:-1]
         return self._rng.uniform(-1.0, 1.0, (*shape, self.act_dim)).astype(np.float32)
 
+    def predict(
+        self,
+        observation: npt.ArrayLike,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[npt.NDArray[np.float32], None]:
+        """stable-baselines3's signature (the benchmark plays its baselines through it)."""
+        return self(observation), None
+
 
 class SB3Policy:
     """A stable-baselines3 model as a policy: ``model.predict(obs, deterministic=True)``, or,

@@ -50,6 +50,12 @@ def write_all(docs_dir: str | Path) -> list[Path]:
         write(f"{name}.md", text)
     for name, text in results.fragments(docs / "results").items():
         write(f"results-{name}.md", text)
+    from khepera_gym.analysis.docgen.benchmark_reliable import reliable_fragment
+
+    benchmark = reliable_fragment(
+        docs / "results" / "benchmark", out / "benchmark", f"{GENERATED}/benchmark"
+    )
+    write("results-benchmark-reliable.md", benchmark + "\n")
     return written
 
 

@@ -102,11 +102,31 @@ def play(policy: Any, env_name: str, settings: Settings, sampled: bool = False) 
         env.close()
 
 
+#: The random policy's row, played beside every task's baselines: the 0 of the normalised
+#: scores (:mod:`khepera_gym.learning.benchmark.aggregate`), uniform actions in [-1, 1].
+RANDOM = "random"
+#: Seed of the random policy's generator.
+RANDOM_SEED = 0
+
+
+def baseline_names(entry: TaskEntry) -> tuple[str, ...]:
+    """The rows of a task's baselines file: its suite's baselines, then :data:`RANDOM`."""
+    return tuple(dict.fromkeys((*entry.baselines, RANDOM)))
+
+
 def baseline_policy(name: str, env_name: str) -> Any:
-    """A baseline acting on the rows of ``env_name`` (one world, or one agent's block)."""
+    """A baseline acting on the rows of ``env_name`` (one world, or one agent's block), or the
+    random policy (:data:`RANDOM`)."""
     from khepera_gym.learning.benchmark.suite import all_baselines
-    from khepera_gym.learning.policies import VARIANTS
+    from khepera_gym.learning.policies import VARIANTS, RandomPolicy
     from khepera_gym.learning.sb3 import make_vec_env
+
+    if name == RANDOM:
+        env = make_vec_env(env_name, 1, num_threads=1)
+        try:
+            return RandomPolicy(env.action_space.shape[-1], RANDOM_SEED)
+        finally:
+            env.close()
 
     controller, params = VARIANTS.get(name, (name, {}))
     cls = all_baselines()[controller]
@@ -159,7 +179,7 @@ def run_baselines(entry: TaskEntry, version: int, settings: Settings, restart: b
     key = {
         "task": entry.task,
         "version": version,
-        "baselines": list(entry.baselines),
+        "baselines": list(baseline_names(entry)),
         "episodes": settings.episodes,
         "heldout_seed": settings.heldout_seed,
     }
@@ -170,7 +190,7 @@ def run_baselines(entry: TaskEntry, version: int, settings: Settings, restart: b
     rows = baseline_env_name(entry.task, version)
     summaries = {
         name: summarize(play(baseline_policy(name, rows), rows, settings))
-        for name in entry.baselines
+        for name in baseline_names(entry)
     }
     record = {"format": FORMAT, "key": key, "meta": provenance(), "summaries": summaries}
     _write(path, record)
@@ -277,6 +297,10 @@ def run_one(
         "files": trained.files,
     }
     _write(path, record)
+    # The folder's runs in marl-eval's format as well, for the field's plotting tools.
+    from khepera_gym.learning.benchmark.marl_eval import write_marl_eval
+
+    write_marl_eval(settings.out)
     return record
 
 
