@@ -250,3 +250,15 @@ def test_no_literal_in_the_code_lists_some_entries_of_a_registry(registry: str) 
                     f"{where}: names {sorted(set(named))}, not {sorted(names - set(named))}"
                 )
     assert not stale, "\n".join(stale)
+
+
+def test_tool_choices_keyed_by_task_name_tasks_of_the_registry() -> None:
+    # Tool choices stay with their tool (issue 51) but may only name tasks the core has: a task
+    # renamed in the core must not leave a choice that silently applies to nothing.
+    from khepera_gym import registry
+    from khepera_gym.analysis.compare.command import DEMO_PLOTTED_WORLDS
+    from khepera_gym.learning.policies import VARIANT_TASKS
+
+    tasks = set(registry.task_names())
+    assert set(DEMO_PLOTTED_WORLDS) <= tasks
+    assert {task for named in VARIANT_TASKS.values() for task in named} <= tasks
