@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from khepera_gym import cli
+from khepera_gym import cli, registry
 from khepera_gym.analysis.compare import consensus as sweep
 from khepera_gym.baselines import ConsensusLaw
 from khepera_gym.errors import ActionError, ConfigError
@@ -127,6 +127,11 @@ def test_compare_task_consensus_prints_and_saves_the_sweep(
     table = capsys.readouterr().out
     document = json.loads((tmp_path / "consensus_sweep.json").read_text())
     assert document["meta"]["command"].startswith("khepera-gym compare --task consensus")
+    # Without --version, the latest, named in the JSON and above the table (it was pinned to v1).
+    latest = registry.latest_version("consensus")
+    assert document["version"] == latest and document["env"] == f"consensus_v{latest}"
+    assert {r["version"] for r in document["rows"]} == {latest}
+    assert table.startswith(f"consensus_v{latest}: ")
     rows = document["rows"]
     assert len(rows) == len(sweep.PERIODS) + len(sweep.THRESHOLDS)
     assert "| event 0.01 m |" in table
@@ -140,6 +145,39 @@ def test_compare_task_consensus_prints_and_saves_the_sweep(
     # while the paths differ far less, so a larger threshold sends fewer.
     sent = [by_setting[("event", t)]["messages"]["value"] for t in sweep.THRESHOLDS]
     assert sent == sorted(sent, reverse=True)
+
+
+@pytest.mark.parametrize(
+    "target", [["--task", "consensus", "--version", "1"], ["--env", "consensus_v1"]]
+)
+def test_compare_runs_the_consensus_version_asked_for(
+    target: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    argv = ["khepera-gym", "compare", *target, "--episodes", "2", "--out", str(tmp_path)]
+    monkeypatch.setattr(sys, "argv", [*argv, "--no-progress", "--no-plot"])
+    assert cli.main() == 0
+    document = json.loads((tmp_path / "consensus_sweep.json").read_text())
+    assert document["version"] == 1 and document["env"] == "consensus_v1"
+    # The same worlds as the sweep's own v1 run: the version reached the env.
+    first = sweep.run_setting("periodic", sweep.PERIODS[0], 2, version=1)
+    assert document["rows"][0]["error_final"] == first.error_final.to_json()
+
+
+@pytest.mark.parametrize(
+    ("target", "message"),
+    [
+        (["--task", "consensus", "--version", "0"], "no behaviour version 0; it has 1, 2"),
+        (["--env", "consensus_v0"], "no behaviour version 0"),
+        (["--env", "consensus_v1", "--version", "1"], "names its version"),
+        (["--env", "consensus_vx"], "write consensus_vN"),
+    ],
+)
+def test_compare_refuses_a_consensus_version_it_does_not_have(
+    target: list[str], message: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(sys, "argv", ["khepera-gym", "compare", *target, "--episodes", "2"])
+    with pytest.raises(SystemExit, match=message):
+        cli.main()
 
 
 def test_compare_task_consensus_rejects_policies_and_trigger_keys(

@@ -13,12 +13,13 @@ from conftest import LATEST
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
-from khepera_gym import _core, cli
+from khepera_gym import _core, cli, registry
 from khepera_gym.analysis import throughput
-from khepera_gym.analysis.compare.command import DEMO_RUNS
+from khepera_gym.analysis.compare.command import DEMO_RUNS, demo_runs
 from khepera_gym.analysis.plots import plot_trajectories
 from khepera_gym.envs import formation_heuristic
 from khepera_gym.registration import latest_ids, registered_ids
+from khepera_gym.registration import task_of as registration_task
 
 
 def test_plot_trajectories_draws_paths_and_saves_png(tmp_path: Path) -> None:
@@ -191,3 +192,24 @@ def test_memory_per_world_is_measured_on_linux() -> None:
     if per_world is None:
         pytest.skip("no /proc/self/statm on this platform")
     assert isinstance(per_world, float) and per_world > 1024
+
+
+def test_cli_demo_runs_the_behaviour_version_asked_for(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cli.main(["demo", "--episodes", "1", "--version", "0", "--out-dir", str(tmp_path)]) == 0
+    output = capsys.readouterr().out
+    v0 = [t for t in registry.task_names() if 0 in registry.task_versions(t)]
+    later = [t for t in registry.task_names() if t not in v0]
+    # The tasks that did not exist at v0 are named as left out, and none of them runs.
+    assert f"behaviour version 0: {', '.join(later)} did not exist yet, left out" in output
+    ran = [run[1] for run in demo_runs(0)]
+    assert ran and all(env_id.endswith("-v0") for env_id in ran)
+    assert {registration_task(env_id) for env_id in ran} <= set(v0)
+    for env_id in ran:
+        assert env_id in output
+    assert "consensus_v" not in output  # consensus came with v1
+    with pytest.raises(SystemExit, match="--version"):
+        cli.main(
+            ["demo", "--version", str(registry.LATEST_VERSION + 1), "--out-dir", str(tmp_path)]
+        )
