@@ -222,3 +222,59 @@ def test_list_and_export_errors_are_one_line(tmp_path: Path) -> None:
     assert "unknown topic 'foo'" in _user_error(["list", "foo"])
     message = _user_error(["export", str(tmp_path / "missing.zip"), "--no-check"])
     assert "missing.zip" in message, message
+
+
+def _guide_controller() -> str:
+    """The single-observation controller of docs/getting-started.md, as the guide writes it."""
+    page = (Path(__file__).resolve().parents[1] / "docs" / "getting-started.md").read_text()
+    block = next(b for b in page.split("```python\n")[1:] if "def my_controller(obs)" in b)
+    code = block.split("```")[0]
+    return code[code.index("import numpy") : code.index("env = gym.make")]
+
+
+def test_the_guides_single_observation_controller_is_a_policy_of_render_and_compare(
+    tmp_path: Path,
+) -> None:
+    # docs/getting-started.md: "the same function" given to render and compare as
+    # file.py:function. It takes one observation (18,) and returns one action (2,).
+    import gymnasium as gym
+
+    from khepera_gym.analysis.compare import make_policy
+    from khepera_gym.registration import latest_ids
+
+    controller = tmp_path / "mine.py"
+    controller.write_text(_guide_controller())
+    out = tmp_path / "mine.gif"
+    argv = ["render", "--steps", "5", "--no-progress", "--out", str(out)]
+    assert cli.main([*argv, "--policy", f"{controller}:my_controller"]) == 0
+    assert out.stat().st_size > 0
+    namespace: dict[str, object] = {}
+    exec(_guide_controller(), namespace)
+    one = namespace["my_controller"]
+    envs = gym.make_vec(latest_ids()["nav"], num_envs=3, num_threads=1)
+    observations, _ = envs.reset(seed=0)
+    act = make_policy(f"{controller}:my_controller", envs)
+    # Each row gets what the function gives that observation on its own, on every call.
+    for _ in range(2):
+        expected = np.stack([one(row) for row in observations])  # type: ignore[operator]
+        np.testing.assert_array_equal(act(observations), expected)
+        observations = envs.step(expected)[0]
+    envs.close()
+
+
+def test_a_function_that_takes_neither_batches_nor_observations_is_named(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    import khepera_gym.errors
+    from khepera_gym.analysis.compare import make_policy
+    from khepera_gym.registration import latest_ids
+
+    controller = tmp_path / "bad.py"
+    controller.write_text("def bad(obs):\n    return obs[100]\n")
+    envs = gym.make_vec(latest_ids()["nav"], num_envs=2, num_threads=1)
+    observations, _ = envs.reset(seed=0)
+    with pytest.raises(
+        khepera_gym.errors.ConfigError, match=r"takes neither a batch.*IndexError.*nor one"
+    ):
+        make_policy(f"{controller}:bad", envs)(observations)
+    envs.close()

@@ -226,8 +226,12 @@ def load_sb3_policy(
 class UserPolicy:
     """A user's own function as a policy: ``module:function`` or ``path/to/file.py:function``.
 
-    The function takes a batch of observations (N, D) and returns actions (N, A) (anything
-    ``np.asarray`` turns into that shape); a class is instantiated without arguments first.
+    The function takes a batch of observations (N, D) and returns actions (N, A), or takes one
+    observation (D,) and returns one action (A,), as the getting-started guide's controller does
+    (anything ``np.asarray`` turns into that shape); a class is instantiated without arguments
+    first. Which of the two it is, is found on the first call: the batch is tried first, and a
+    function that fails on it or answers it in another shape is given the rows one by one (the
+    same actions a batch function would give, a Python call a row).
     """
 
     def __init__(self, spec: str, act_dim: int) -> None:
@@ -260,14 +264,53 @@ class UserPolicy:
         if not callable(function):
             raise ConfigError(f"policy {spec!r}: {attribute!r} is not callable")
         self._function = function
+        #: Whether the function takes one observation at a time (found on the first call).
+        self._per_row: bool | None = None
+
+    def _one(self, observation: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        action = np.asarray(self._function(observation), dtype=np.float32)
+        if action.shape != (self.act_dim,):
+            raise ConfigError(
+                f"policy {self.name!r} returned an action of shape {action.shape} for one "
+                f"observation of shape {observation.shape}; expected ({self.act_dim},)"
+            )
+        return action
 
     def __call__(self, observations: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        observations = np.asarray(observations, dtype=np.float32)
+        if observations.ndim == 1:
+            return self._one(observations)
+        expected = (*observations.shape[:-1], self.act_dim)
+        if self._per_row is None:
+            try:
+                actions = np.asarray(self._function(observations), dtype=np.float32)
+            except (IndexError, ValueError, TypeError) as error:
+                batch_answer = f"raised {type(error).__name__}: {error}"
+            else:
+                if actions.shape == expected:
+                    self._per_row = False
+                    return actions
+                batch_answer = f"returned actions of shape {actions.shape}"
+            try:
+                first = self._one(observations.reshape(-1, observations.shape[-1])[0])
+            except Exception as error:
+                raise ConfigError(
+                    f"policy {self.name!r} takes neither a batch of observations (for "
+                    f"{observations.shape} it {batch_answer}; expected {expected}) nor one "
+                    f"observation ({type(error).__name__}: {error})"
+                ) from error
+            self._per_row = True
+            rows = observations.reshape(-1, observations.shape[-1])
+            rest = [self._one(row) for row in rows[1:]]
+            return np.stack([first, *rest]).reshape(expected)
+        if self._per_row:
+            rows = observations.reshape(-1, observations.shape[-1])
+            return np.stack([self._one(row) for row in rows]).reshape(expected)
         actions = np.asarray(self._function(observations), dtype=np.float32)
-        expected = (*np.shape(observations)[:-1], self.act_dim)
         if actions.shape != expected:
             raise ConfigError(
                 f"policy {self.name!r} returned actions of shape {actions.shape} for observations "
-                f"of shape {np.shape(observations)}; expected {expected}"
+                f"of shape {observations.shape}; expected {expected}"
             )
         return actions
 
