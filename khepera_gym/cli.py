@@ -1,5 +1,5 @@
 """The ``khepera-gym`` command: ``list``, ``demo``, ``compare``, ``train``, ``render``,
-``export``, ``robot-program``, ``calibrate``, ``replay``, ``bench`` and ``benchmark``.
+``export``, ``robot-program``, ``calibrate``, ``replay``, ``bench``, ``benchmark`` and ``tune``.
 
 ``list`` prints what the package has, read from the registries (:mod:`khepera_gym.registry`):
 the Gymnasium ids, the PettingZoo modules, the built-in scenes, the sensors and the policies
@@ -38,6 +38,7 @@ from khepera_gym.config import check_version
 from khepera_gym.errors import KheperaError
 from khepera_gym.learning import train
 from khepera_gym.learning.benchmark import command as benchmark_command
+from khepera_gym.learning.benchmark import tune
 from khepera_gym.learning.policies import BASELINES, DEFAULT_POLICIES, POLICY_NAMES, VARIANTS
 from khepera_gym.registration import registered_ids
 from khepera_gym.robot import export
@@ -190,6 +191,11 @@ def build_parser() -> argparse.ArgumentParser:
         "baselines (needs the sb3 extra; benchmarl for mappo/ippo)",
     )
     benchmark_command.add_arguments(benchmark_parser)
+    tune_parser = commands.add_parser(
+        "tune",
+        help="search a learner's recipe for a task (Ray Tune, ASHA), never on held-out seeds",
+    )
+    tune.add_arguments(tune_parser)
     return parser
 
 
@@ -242,6 +248,8 @@ def _run(args: argparse.Namespace) -> int:
         return loop_commands[args.command](args)
     if args.command == "benchmark":
         return benchmark_command.run_from_args(args)
+    if args.command == "tune":
+        return tune.run_from_args(args)
     return throughput.run_from_args(args)
 
 

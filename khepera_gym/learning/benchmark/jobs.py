@@ -53,6 +53,9 @@ class Job:
         eval_points: Evaluations while training (evenly spaced, the last at the end).
         device: Torch device.
         num_threads: Threads of the Rust batches (None: all cores).
+        on_evaluation: Called after each evaluation while training with (steps, training
+            seconds, means): ``khepera-gym tune`` reports them to its scheduler, which may stop
+            the trial.
     """
 
     task: str
@@ -65,6 +68,7 @@ class Job:
     eval_points: int = 10
     device: str = "cpu"
     num_threads: int | None = None
+    on_evaluation: Callable[[int, float, Means], None] | None = None
 
 
 def agents_of(task: str) -> list[tuple[str, int]]:

@@ -121,6 +121,8 @@ class SB3Learner:
             trained = start - clock["start"] - clock["eval"]
             clock["eval"] += seconds
             history.append((steps, trained, {k: float(np.mean(v)) for k, v in stats.items()}))
+            if job.on_evaluation is not None:
+                job.on_evaluation(*history[-1])
             if report is not None:
                 report(steps, total)
 

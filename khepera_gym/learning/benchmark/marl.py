@@ -178,6 +178,8 @@ class BenchMARLLearner:
             clock["eval"] += seconds
             steps = int(experiment.total_frames)
             history.append((steps, trained, {k: float(np.mean(v)) for k, v in stats.items()}))
+            if job.on_evaluation is not None:
+                job.on_evaluation(*history[-1])
             if report is not None:
                 report(steps, total)
 
