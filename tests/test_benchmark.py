@@ -23,7 +23,7 @@ pytest.importorskip(
 from khepera_gym import _core, cli
 from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
-from khepera_gym.learning.benchmark import learners, load_suite
+from khepera_gym.learning.benchmark import command, learners, load_suite
 from khepera_gym.learning.benchmark.command import add_arguments, reproduce
 from khepera_gym.learning.benchmark.jobs import gym_id
 from khepera_gym.learning.benchmark.runner import FORMAT, judge, means
@@ -140,6 +140,19 @@ def test_a_condition_holds_against_a_number_or_a_baselines_held_out_mean() -> No
         (["--tasks", "nav", "--device", "abacus"], "not a torch device"),
         (["--tasks", "nav", "--version", "9"], "nav has no behaviour version 9"),
         (["--tasks", "nav", "--episodes", "0"], "--episodes must be >= 1"),
+        (["--tasks", "nva"], "unknown task 'nva'; did you mean 'nav'? known: nav, "),
+        (["--tasks", "nav", "--learners", "ppo0"], "unknown learner 'ppo0'; did you mean 'ppo'?"),
+        (["--tasks", "nav", "--learners", "PPO"], "unknown learner 'PPO'; did you mean 'ppo'?"),
+        (
+            ["--tasks", "nav", "--hp", "n_step=64"],
+            "--hp n_step: learner 'ppo' (PPO) has no hyperparameter 'n_step'; did you mean "
+            "'n_steps'? known: n_envs, n_timesteps, ",
+        ),
+        (
+            ["--tasks", "formation", "--learners", "mappo", "--hp", "minibatch=256"],
+            "--hp minibatch: learner 'mappo' has no recipe key 'minibatch'; did you mean "
+            "'minibatch_size'?",
+        ),
     ],
 )
 def test_bad_arguments_are_refused_before_anything_runs(
@@ -154,6 +167,49 @@ def test_bad_arguments_are_refused_before_anything_runs(
         cli.main(["benchmark", "--out", str(tmp_path), *argv])
     assert message in str(caught.value)
     assert not (tmp_path / "runs").exists()
+    # One line, as every command's errors, and before the baselines ran too.
+    assert "\n" not in str(caught.value) and not (tmp_path / "baselines").exists()
+
+
+def _no_work(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str, int]]:
+    """Replaces the baselines and the runs of the command with records made up on the spot;
+    returns the (task, learner, seed) of every run asked for."""
+    asked: list[tuple[str, str, int]] = []
+
+    def baselines(entry: Any, version: int, settings: Any, restart: bool) -> dict[str, Any]:
+        return {"summaries": {}}
+
+    def run(entry: Any, learner: Any, version: int, seed: int, *args: Any) -> dict[str, Any]:
+        asked.append((entry.task, learner.name, seed))
+        final = {c.metric: {"value": 0.5} for c in entry.criterion}
+        return {"final": final, "reached": None, "solved": False, "train_seconds": 1.0}
+
+    monkeypatch.setattr(command, "run_baselines", baselines)
+    monkeypatch.setattr(command, "run_one", run)
+    return asked
+
+
+def test_task_names_are_taken_in_any_case(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    asked = _no_work(monkeypatch)
+    _run(["--tasks", "Nav", "NAV", "--seeds", "1", "--out", str(tmp_path), "--no-progress"])
+    assert asked == [("nav", "ppo", 0)]
+
+
+def test_a_misspelt_hp_key_fails_before_the_baselines_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    asked = _no_work(monkeypatch)
+
+    def no_baselines(*args: Any) -> None:
+        raise AssertionError("the baselines ran before the --hp keys were checked")
+
+    monkeypatch.setattr(command, "run_baselines", no_baselines)
+    argv = ["--tasks", "avoid", "--out", str(tmp_path), "--no-progress"]
+    misspelt = {"n_step=64": "n_steps", "gama=0.9": "gamma", "batchsize=8": "batch_size"}
+    for hp, near in misspelt.items():
+        with pytest.raises(SystemExit, match=f"did you mean '{near}'"):
+            cli.main(["benchmark", *argv, "--hp", hp])
+    assert not asked
 
 
 def test_a_learner_that_does_not_fit_the_task_says_why() -> None:

@@ -127,10 +127,10 @@ def check_device(device: str) -> str:
 def _selection(args: argparse.Namespace, suite: dict[str, Any]) -> list[tuple[Any, list[str]]]:
     """(entry, learners) of every task to run, after checking every name."""
     tasks = registry.task_names()
-    chosen = args.tasks or list(suite)
+    chosen = list(suite)
+    if args.tasks:
+        chosen = list(dict.fromkeys(_task_name(name, tasks) for name in args.tasks))
     for task in chosen:
-        if task not in tasks:
-            raise ConfigError(f"unknown task {task!r}; tasks: {', '.join(tasks)}")
         if task not in suite:
             raise ConfigError(
                 f"the suite has no entry for {task!r} (entries: {', '.join(suite)}): add one to "
@@ -149,6 +149,17 @@ def _selection(args: argparse.Namespace, suite: dict[str, Any]) -> list[tuple[An
                 + "; ".join(f"{e.task}: {', '.join(e.learners)}" for e, _ in selection)
             )
     return selection
+
+
+def _task_name(name: str, tasks: Sequence[str]) -> str:
+    """The core's task ``name`` names, in any case (``Nav``: ``nav``).
+
+    Raises:
+        ConfigError: No task of that name; the message suggests the nearest and lists them.
+    """
+    if name.lower() in tasks:
+        return name.lower()
+    raise ConfigError(f"unknown task {name!r}; {arguments.did_you_mean(name, tasks)}")
 
 
 def _version(task: str, version: int | None) -> int:

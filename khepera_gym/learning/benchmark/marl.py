@@ -33,6 +33,7 @@ from khepera_gym.learning.benchmark.jobs import (
     shares_rows,
 )
 from khepera_gym.learning.recipes import EVAL_SEED, load_hyperparams
+from khepera_gym.tooling.arguments import did_you_mean
 
 #: Recipe keys this learner reads (any other is an error naming them).
 RECIPE_KEYS = (
@@ -106,13 +107,34 @@ class BenchMARLLearner:
             )
         return module
 
+    def check_overrides(self, overrides: Mapping[str, Any]) -> None:
+        """Checks the keys of ``overrides`` (``--hp``) against :data:`RECIPE_KEYS`.
+
+        Raises:
+            ConfigError: A key the learner does not read; the message suggests the nearest.
+        """
+        for key in overrides:
+            if key not in RECIPE_KEYS:
+                raise ConfigError(
+                    f"--hp {key}: learner {self.name!r} has no recipe key {key!r}; "
+                    f"{did_you_mean(key, RECIPE_KEYS)}"
+                )
+
     def recipe(self, task: str, version: int, overrides: Mapping[str, Any]) -> dict[str, Any]:
+        """The recipe table with ``overrides``.
+
+        Raises:
+            ConfigError: The learner does not apply to the task, its table is missing, or a key
+                (of the table or an override) is not one it reads, or ``sigma_min`` is wrong.
+        """
+        self.check_overrides(overrides)
         recipe = load_hyperparams(self.name, self.env_name(task, version))
         recipe.update(overrides)
         unknown = sorted(set(recipe) - set(RECIPE_KEYS))
         if unknown:
             raise ConfigError(
-                f"{self.name} recipe: unknown key {unknown[0]!r}; known: {', '.join(RECIPE_KEYS)}"
+                f"{self.name} recipe: unknown key {unknown[0]!r}; "
+                f"{did_you_mean(unknown[0], RECIPE_KEYS)}"
             )
         scale_mapping(recipe.get("sigma_min", SIGMA_MIN))  # a wrong floor: now, not after training
         return recipe
