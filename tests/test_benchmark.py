@@ -245,8 +245,10 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     # The printed command is the command that ran: parsed again, it asks for the same work.
     again = _parsed(summary["tables"][0]["learners"][0]["reproduce"])
     ran = _parsed(" ".join(["khepera-gym benchmark", "--tasks nav", *TINY]))
-    for option in ("tasks", "timesteps", "episodes", "heldout_seed", "eval_episodes", "version"):
+    for option in ("tasks", "timesteps", "episodes", "heldout_seed", "eval_episodes"):
         assert getattr(again, option) == getattr(ran, option), option
+    # The same version: the one the run resolved (none given: the latest), now pinned.
+    assert again.version == (ran.version or _core.LATEST_VERSION) == _core.LATEST_VERSION
     assert again.seed_list == [0]
     assert parse_key_values(again.hp, "--hp") == parse_key_values(ran.hp, "--hp")
     # The model has its run.json beside it, as `khepera-gym train` leaves one: load_policy
@@ -311,6 +313,8 @@ def test_the_printed_command_asks_for_the_rows_work_again(task: str, learner: st
         args = _parsed(reproduce(task, row))
         assert (args.tasks, args.learners, args.seed_list) == ([task], [learner], [3, 1])
         assert (_latest(task) if args.version is None else args.version) == version
+        # Pinned on the latest version too: the command must not run a later one some day.
+        assert args.version == version
         assert (args.timesteps, args.eval_episodes, args.episodes, args.heldout_seed) == (
             4096,
             7,

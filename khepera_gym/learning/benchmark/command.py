@@ -174,12 +174,11 @@ def _version(task: str, version: int | None) -> int:
 def reproduce(task: str, row: Mapping[str, Any]) -> str:
     """The command that runs one row of a task's table (:func:`task_rows`) again: its learner,
     seeds and version, and whatever its command changed (``--hp``, ``--timesteps``, held-out
-    and evaluation episodes)."""
-    latest = registry.latest_version(task)
+    and evaluation episodes). The version is always written: without it the command would run
+    the latest version of the day it is run, not the row's."""
     parts = ["khepera-gym benchmark", f"--tasks {task}", f"--learners {row['learner']}"]
     parts.append(f"--seed-list {' '.join(map(str, row['seeds']))}")
-    if row["version"] != latest:
-        parts.append(f"--version {row['version']}")
+    parts.append(f"--version {row['version']}")
     settings = row.get("settings") or {}
     if settings.get("timesteps") is not None:
         parts.append(f"--timesteps {settings['timesteps']}")
