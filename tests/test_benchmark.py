@@ -264,6 +264,13 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     monkeypatch.setattr(learners.SB3Learner, "train", no_training)
     _run(["--tasks", "nav", "--out", str(out), *TINY])
     assert json.loads(run_file.read_text())["meta"] == record["meta"]
+    # ... and it says so, before it starts and on the run's line.
+    printed = capsys.readouterr().out
+    assert printed.startswith(
+        f"resuming in {out}: 1 run done already, not run again: "
+        f"nav ppo v{_core.LATEST_VERSION} seed 0\n"
+    ), printed
+    assert "nav ppo seed 0: " in printed and "(done before: read from its file" in printed
 
     # A file written by other code is refused, never mixed in.
     record["meta"]["commit"] = {"id": "0" * 40, "dirty": False}

@@ -26,7 +26,7 @@ from khepera_gym import registry
 from khepera_gym.config import parse_key_values, toml_value
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.benchmark.learners import learner as make_learner
-from khepera_gym.learning.benchmark.runner import Settings, run_baselines, run_one
+from khepera_gym.learning.benchmark.runner import Settings, finished, run_baselines, run_one
 from khepera_gym.learning.benchmark.suite import load_suite
 from khepera_gym.learning.benchmark.tables import load_records, markdown, task_rows
 from khepera_gym.tooling import arguments
@@ -236,10 +236,16 @@ def run_from_args(args: argparse.Namespace) -> int:
             learner = make_learner(name)
             learner.recipe(entry.task, version, settings.overrides)  # a missing recipe: now
             plan += [(entry, learner, version, seed) for seed in seeds]
+    done = [
+        finished(entry, learner, version, seed, settings, args.restart) is not None
+        for entry, learner, version, seed in plan
+    ]
+    if any(done):
+        print(_skipped(args.out, [run for run, skip in zip(plan, done, strict=True) if skip]))
     bar = tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress)
     baselines: dict[tuple[str, int], Any] = {}
     with bar:
-        for entry, learner, version, seed in plan:
+        for (entry, learner, version, seed), skip in zip(plan, done, strict=True):
             key = (entry.task, version)
             if key not in baselines:
                 bar.set_postfix_str(f"{entry.task} baselines")
@@ -247,9 +253,25 @@ def run_from_args(args: argparse.Namespace) -> int:
             bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
             record = run_one(entry, learner, version, seed, settings, baselines[key], args.restart)
             bar.update(1)
-            bar.write(_line(entry, learner.name, seed, record))
+            line = _line(entry, learner.name, seed, record)
+            bar.write(line + (" (done before: read from its file, not run again)" if skip else ""))
     _write_summary(args.out, [e.task for e, _ in selection])
     return 0
+
+
+def _skipped(out: Path, runs: Sequence[tuple[Any, Any, int, int]]) -> str:
+    """The line saying which runs a resumed benchmark finds done (``nav ppo v3 seeds 0, 1``)."""
+    seeds: dict[str, list[int]] = {}
+    for entry, learner, version, seed in runs:
+        seeds.setdefault(f"{entry.task} {learner.name} v{version}", []).append(seed)
+    listed = "; ".join(
+        f"{what} seed{'s' if len(s) > 1 else ''} {', '.join(map(str, s))}"
+        for what, s in seeds.items()
+    )
+    return (
+        f"resuming in {out}: {len(runs)} run{'s' if len(runs) > 1 else ''} done already, "
+        f"not run again: {listed}"
+    )
 
 
 def _line(entry: Any, learner: str, seed: int, record: dict[str, Any]) -> str:

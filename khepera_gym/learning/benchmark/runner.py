@@ -183,6 +183,49 @@ def judge(entry: TaskEntry, values: Mapping[str, float], baselines: Mapping[str,
     return all(c.holds(values.get(c.metric, math.nan), c.threshold(base)) for c in entry.criterion)
 
 
+def run_path(settings: Settings, task: str, version: int, learner: str, seed: int) -> Path:
+    """The results file of one (task, learner, seed)."""
+    return settings.out / "runs" / f"{_stem(task, version, learner, seed)}.json"
+
+
+def _stem(task: str, version: int, learner: str, seed: int) -> str:
+    return f"{task}-v{version}_{learner}_seed{seed}"
+
+
+def _run_key(
+    entry: TaskEntry, learner: Any, version: int, seed: int, settings: Settings
+) -> dict[str, Any]:
+    """What a run's file must hold for the run to be done already: its work but for the code."""
+    name = learner.env_name(entry.task, version)
+    recipe = learner.recipe(entry.task, version, settings.overrides)
+    if settings.timesteps is not None:
+        recipe["n_timesteps"] = settings.timesteps
+    return {
+        "task": entry.task,
+        "version": version,
+        "learner": learner.name,
+        "env": name,
+        "seed": seed,
+        "recipe": _fingerprint(recipe),
+        "episodes": settings.episodes,
+        "heldout_seed": settings.heldout_seed,
+        "criterion": [c.to_json() for c in entry.criterion],
+    }
+
+
+def finished(
+    entry: TaskEntry, learner: Any, version: int, seed: int, settings: Settings, restart: bool
+) -> dict[str, Any] | None:
+    """The record of one (task, learner, seed) if its file holds this very work from this code
+    (:func:`run_one` then returns it without training), else None.
+
+    Raises:
+        ConfigError: As :func:`run_one`.
+    """
+    key = _run_key(entry, learner, version, seed, settings)
+    return _reusable(run_path(settings, entry.task, version, learner.name, seed), key, restart)
+
+
 def run_one(
     entry: TaskEntry,
     learner: Any,
@@ -200,22 +243,9 @@ def run_one(
             the run's file comes from other code.
     """
     name = learner.env_name(entry.task, version)
-    recipe = learner.recipe(entry.task, version, settings.overrides)
-    if settings.timesteps is not None:
-        recipe["n_timesteps"] = settings.timesteps
-    key = {
-        "task": entry.task,
-        "version": version,
-        "learner": learner.name,
-        "env": name,
-        "seed": seed,
-        "recipe": _fingerprint(recipe),
-        "episodes": settings.episodes,
-        "heldout_seed": settings.heldout_seed,
-        "criterion": [c.to_json() for c in entry.criterion],
-    }
-    stem = f"{entry.task}-v{version}_{learner.name}_seed{seed}"
-    path = settings.out / "runs" / f"{stem}.json"
+    key = _run_key(entry, learner, version, seed, settings)
+    stem = _stem(entry.task, version, learner.name, seed)
+    path = run_path(settings, entry.task, version, learner.name, seed)
     done = _reusable(path, key, restart)
     if done is not None:
         return done
@@ -285,10 +315,12 @@ __all__ = [
     "Settings",
     "baseline_env_name",
     "baseline_policy",
+    "finished",
     "judge",
     "means",
     "play",
     "run_baselines",
     "run_one",
+    "run_path",
     "summarize",
 ]
