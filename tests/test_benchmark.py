@@ -195,6 +195,40 @@ def test_task_names_are_taken_in_any_case(tmp_path: Path, monkeypatch: pytest.Mo
     assert asked == [("nav", "ppo", 0)]
 
 
+def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    asked = _no_work(monkeypatch)
+    run = command.run_one
+
+    def interrupted_at_the_second(*args: Any) -> dict[str, Any]:
+        if asked:
+            raise KeyboardInterrupt
+        return run(*args)
+
+    monkeypatch.setattr(command, "run_one", interrupted_at_the_second)
+    # Caught here too, so that a KeyboardInterrupt escaping fails this test, not the session.
+    with pytest.raises((SystemExit, KeyboardInterrupt)) as caught:
+        cli.main(["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path)])
+    assert isinstance(caught.value, SystemExit), "Ctrl-C escaped as a KeyboardInterrupt"
+    assert caught.value.code == command.INTERRUPTED == 130
+    errors = capsys.readouterr().err
+    # The last line (the progress bar is on: its lines come first), and no traceback.
+    last = errors.rstrip("\n").split("\n")[-1]
+    assert last == (
+        f"khepera-gym benchmark: interrupted with 1 of 3 runs done in {tmp_path}; the same "
+        "command resumes (the runs done there are skipped)"
+    ), errors
+    assert "Traceback" not in errors and "KeyboardInterrupt" not in errors
+    # With --no-progress, that line is all of stderr.
+    asked.clear()
+    with pytest.raises((SystemExit, KeyboardInterrupt)):
+        cli.main(
+            ["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path), "--no-progress"]
+        )
+    assert capsys.readouterr().err == last + "\n"
+
+
 def test_a_misspelt_hp_key_fails_before_the_baselines_run(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

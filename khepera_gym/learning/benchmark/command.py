@@ -7,8 +7,9 @@ held-out episodes beside the baselines, and print and write the tables.
     khepera-gym benchmark --list                           # what the suite holds
 
 It shows its progress, writes each run's results file as the run ends (so after an
-interruption the same command resumes without repeating a finished run), and ends with one
-table per task and the command that reproduces each row. ``--device`` and ``--num-threads``
+interruption the same command resumes without repeating a finished run, and says which it
+skips; Ctrl-C stops with one line saying so, status 130), and ends with one table per task and
+the command that reproduces each row. ``--device`` and ``--num-threads``
 are honoured by every learner; ``--timesteps`` and ``--hp KEY=VALUE`` change every recipe (the
 results then record the recipe they ran).
 """
@@ -18,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -42,6 +44,8 @@ DEFAULT_EPISODES = 200
 DEFAULT_HELDOUT_SEED = 0
 #: Episodes of each evaluation while training without ``--eval-episodes``.
 DEFAULT_EVAL_EPISODES = 50
+#: Exit status after Ctrl-C (128 + SIGINT, as a shell reports it).
+INTERRUPTED = 130
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -199,6 +203,8 @@ def run_from_args(args: argparse.Namespace) -> int:
 
     Raises:
         ConfigError: Any bad argument or suite entry, before anything is trained.
+        SystemExit: Ctrl-C, with status :data:`INTERRUPTED` after one line on stderr saying
+            how many runs are done and that the same command resumes.
     """
     from tqdm import tqdm
 
@@ -244,17 +250,32 @@ def run_from_args(args: argparse.Namespace) -> int:
         print(_skipped(args.out, [run for run, skip in zip(plan, done, strict=True) if skip]))
     bar = tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress)
     baselines: dict[tuple[str, int], Any] = {}
-    with bar:
-        for (entry, learner, version, seed), skip in zip(plan, done, strict=True):
-            key = (entry.task, version)
-            if key not in baselines:
-                bar.set_postfix_str(f"{entry.task} baselines")
-                baselines[key] = run_baselines(entry, version, settings, args.restart)
-            bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
-            record = run_one(entry, learner, version, seed, settings, baselines[key], args.restart)
-            bar.update(1)
-            line = _line(entry, learner.name, seed, record)
-            bar.write(line + (" (done before: read from its file, not run again)" if skip else ""))
+    ended = 0  # runs whose file is written (or was there)
+    try:
+        with bar:
+            for (entry, learner, version, seed), skip in zip(plan, done, strict=True):
+                key = (entry.task, version)
+                if key not in baselines:
+                    bar.set_postfix_str(f"{entry.task} baselines")
+                    baselines[key] = run_baselines(entry, version, settings, args.restart)
+                bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
+                record = run_one(
+                    entry, learner, version, seed, settings, baselines[key], args.restart
+                )
+                ended += 1
+                bar.update(1)
+                line = _line(entry, learner.name, seed, record)
+                bar.write(
+                    line + (" (done before: read from its file, not run again)" if skip else "")
+                )
+    except KeyboardInterrupt:
+        # Ctrl-C: what is done is on disk (each file is written whole as its run ends).
+        print(
+            f"khepera-gym benchmark: interrupted with {ended} of {len(plan)} runs done in "
+            f"{args.out}; the same command resumes (the runs done there are skipped)",
+            file=sys.stderr,
+        )
+        raise SystemExit(INTERRUPTED) from None
     _write_summary(args.out, [e.task for e, _ in selection])
     return 0
 
@@ -303,4 +324,11 @@ def _write_summary(out: Path, tasks: Sequence[str]) -> None:
     print(f"\nwrote {out / 'benchmark.json'}")
 
 
-__all__ = ["DEFAULT_OUT", "add_arguments", "check_device", "reproduce", "run_from_args"]
+__all__ = [
+    "DEFAULT_OUT",
+    "INTERRUPTED",
+    "add_arguments",
+    "check_device",
+    "reproduce",
+    "run_from_args",
+]
