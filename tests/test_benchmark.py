@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import shlex
 from pathlib import Path
 from typing import Any
@@ -171,9 +172,12 @@ def test_bad_arguments_are_refused_before_anything_runs(
     assert "\n" not in str(caught.value) and not (tmp_path / "baselines").exists()
 
 
-def _no_work(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str, int]]:
-    """Replaces the baselines and the runs of the command with records made up on the spot;
-    returns the (task, learner, seed) of every run asked for."""
+def _no_work(
+    monkeypatch: pytest.MonkeyPatch, value: float | None = 0.5
+) -> list[tuple[str, str, int]]:
+    """Replaces the baselines and the runs of the command with records made up on the spot
+    (each criterion statistic's held-out mean ``value``); returns the (task, learner, seed) of
+    every run asked for."""
     asked: list[tuple[str, str, int]] = []
 
     def baselines(entry: Any, version: int, settings: Any, restart: bool) -> dict[str, Any]:
@@ -181,7 +185,7 @@ def _no_work(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, str, int]]:
 
     def run(entry: Any, learner: Any, version: int, seed: int, *args: Any) -> dict[str, Any]:
         asked.append((entry.task, learner.name, seed))
-        final = {c.metric: {"value": 0.5} for c in entry.criterion}
+        final = {c.metric: {"value": value} for c in entry.criterion}
         return {"final": final, "reached": None, "solved": False, "train_seconds": 1.0}
 
     monkeypatch.setattr(command, "run_baselines", baselines)
@@ -229,6 +233,16 @@ def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
     assert capsys.readouterr().err == last + "\n"
 
 
+def test_a_run_whose_held_out_episodes_gave_no_value_prints_no_nan(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _no_work(monkeypatch, value=None)  # how a NaN mean is written (strict JSON)
+    _run(["--tasks", "track", "--seeds", "1", "--out", str(tmp_path), "--no-progress"])
+    line = next(x for x in capsys.readouterr().out.splitlines() if "track ppo seed 0:" in x)
+    assert "track_error_rms none (no held-out episode gave a value)" in line, line
+    assert "nan" not in line.lower()
+
+
 def test_a_misspelt_hp_key_fails_before_the_baselines_run(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -258,7 +272,9 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
 ) -> None:
     out = tmp_path / "bench"
     _run(["--tasks", "nav", "--out", str(out), *TINY])
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
+    assert captured.err == ""  # --no-progress: no bar, and SB3 prints nothing of its own
     run_file = out / "runs" / f"nav-v{_core.LATEST_VERSION}_ppo_seed0.json"
     record = json.loads(run_file.read_text())
     assert record["format"] == FORMAT and record["meta"]["commit"] is not None
@@ -457,7 +473,9 @@ def test_a_recurrent_policy_trains_and_plays_the_held_out_episodes_with_its_stat
 # episode ended (a few frames of a long episode), are theirs.
 @pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
 @pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
-def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_mappo_trains_through_benchmarl(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
     import torch
     from benchmarl.experiment import Experiment
@@ -499,6 +517,10 @@ def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.Monk
             "sigma_min=0.25",
         ]
     )
+    # --no-progress: neither BenchMARL's bar nor torchrl's log lines, only the command's lines.
+    captured = capsys.readouterr()
+    assert captured.err == "", captured.err
+    assert "torchrl" not in captured.out and "mean return" not in captured.out, captured.out
     record = json.loads(next((out / "runs").glob("formation-*_mappo_seed0.json")).read_text())
     assert record["timesteps"] >= 1024 and "formation_error_mean" in record["final"]
     assert Path(record["files"]["policy"]).is_file()
@@ -515,6 +537,42 @@ def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.Monk
         ]
     assert record["recipe"]["sigma_min"] == 0.25
     assert scale.min().item() == pytest.approx(0.25)
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
+@pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
+def test_mappos_progress_bar_never_shows_nan(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Formation's episodes outlast a batch of 128 steps a world: in BenchMARL's own bar, both
+    batches read ``mean return = nan``."""
+    pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    import logging
+
+    argv = ["--tasks", "formation", "--learners", "mappo", "--out", str(tmp_path), "--seeds", "1"]
+    recipe = ["--hp", "frames_per_batch=512", "--hp", "minibatch_size=512", "--hp", "n_envs=4"]
+    # torchrl's log handler keeps the stdout of the test that imported torchrl, closed since.
+    torchrl_log = logging.getLogger("torchrl")
+    level = torchrl_log.level
+    torchrl_log.setLevel(logging.WARNING)
+    try:
+        _run([*argv, "--timesteps", "1024", "--episodes", "2", "--eval-episodes", "2", *recipe])
+    finally:
+        torchrl_log.setLevel(level)
+    shown = capsys.readouterr().err
+    assert "mean return: no episode ended yet" in shown, shown
+    assert re.search(r"\bnan\b", shown, re.IGNORECASE) is None, shown
+
+
+def test_the_progress_bar_says_the_last_known_return_when_no_episode_ended() -> None:
+    pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    from khepera_gym.learning.benchmark.marl import return_description
+
+    assert return_description(-12.5, -12.5) == "mean return = -12.5"
+    assert return_description(math.nan, -12.5) == (
+        "mean return = -12.5 (no episode ended in the last batch)"
+    )
+    assert return_description(math.nan, math.nan) == "mean return: no episode ended yet"
 
 
 @pytest.mark.parametrize("floor", [0.0, 1.0, "high", True])

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shlex
 import sys
 from collections.abc import Mapping, Sequence
@@ -106,7 +107,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="run everything again, replacing the folder's results",
     )
     parser.add_argument("--list", action="store_true", help="print the suite and stop")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar, the learners' own (BenchMARL's) included",
+    )
 
 
 def check_device(device: str) -> str:
@@ -234,6 +239,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         overrides=parse_key_values(args.hp, "--hp"),
         device=check_device(args.device),
         num_threads=args.num_threads,
+        progress=not args.no_progress,
     )
     plan = []
     for entry, learners in selection:
@@ -295,9 +301,17 @@ def _skipped(out: Path, runs: Sequence[tuple[Any, Any, int, int]]) -> str:
     )
 
 
+def _value(value: float | None) -> str:
+    """A held-out mean on a run's line: a number, or that no episode gave one (never nan)."""
+    number = math.nan if value is None else float(value)  # JSON: NaN is None, inf "inf"
+    if math.isnan(number):
+        return "none (no held-out episode gave a value)"
+    return f"{number:.4g}"
+
+
 def _line(entry: Any, learner: str, seed: int, record: dict[str, Any]) -> str:
     values = ", ".join(
-        f"{c.metric} {record['final'][c.metric]['value']:.4g}" for c in entry.criterion
+        f"{c.metric} {_value(record['final'][c.metric]['value'])}" for c in entry.criterion
     )
     reached = record["reached"]
     when = "never" if reached is None else f"at {reached['steps']:,} steps"

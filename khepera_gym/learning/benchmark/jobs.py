@@ -53,6 +53,8 @@ class Job:
         eval_points: Evaluations while training (evenly spaced, the last at the end).
         device: Torch device.
         num_threads: Threads of the Rust batches (None: all cores).
+        progress: Whether the learner may show its own progress (BenchMARL's bar); False: it
+            prints nothing.
     """
 
     task: str
@@ -65,6 +67,7 @@ class Job:
     eval_points: int = 10
     device: str = "cpu"
     num_threads: int | None = None
+    progress: bool = True
 
 
 def agents_of(task: str) -> list[tuple[str, int]]:

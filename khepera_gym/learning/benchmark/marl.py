@@ -15,10 +15,14 @@ rows of :func:`khepera_gym.learning.sb3.make_vec_env` of the task's PettingZoo m
 
 from __future__ import annotations
 
+import contextlib
+import io
+import logging
+import math
 import tempfile
 import time
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -69,6 +73,56 @@ def scale_mapping(sigma_min: float) -> str:
     if not SIGMA_MIN <= sigma_min < 1.0:
         raise ConfigError(f"sigma_min must be in [{SIGMA_MIN}, 1), got {sigma_min!r}")
     return f"biased_softplus_1.0_{float(sigma_min)!r}"
+
+
+def return_description(mean_return: float, last: float) -> str:
+    """What the progress bar says of a batch's mean episode return: the batch's, else (no
+    episode ended in it) the last known one, else that no episode has ended yet; never ``nan``,
+    which BenchMARL's own bar shows for a batch without an ended episode."""
+    if math.isfinite(mean_return):
+        return f"mean return = {mean_return:.4g}"
+    if math.isfinite(last):
+        return f"mean return = {last:.4g} (no episode ended in the last batch)"
+    return "mean return: no episode ended yet"
+
+
+@contextlib.contextmanager
+def _learner_output(experiment: Any, shown: bool) -> Iterator[None]:
+    """What BenchMARL and torchrl show while ``experiment`` runs.
+
+    ``shown``: BenchMARL's progress bar, described by :func:`return_description`. Not shown: no
+    bar, and torchrl's INFO lines (its ``torchrl`` logger, on stdout) held back. BenchMARL 1.5
+    has no option for its bar (its experiment module calls ``tqdm`` itself), so that name is
+    bound to a bar of ours for the run. Either way BenchMARL's lines on stdout as the run stops
+    (``Experiment was closed gracefully`` after Ctrl-C) are dropped: the benchmark says what
+    happened in one line.
+    """
+    from benchmarl.experiment import experiment as module
+    from tqdm import tqdm
+
+    known = [math.nan]
+
+    class Bar(tqdm):  # type: ignore[misc]
+        def set_description(self, desc: str | None = None, refresh: bool | None = True) -> None:
+            value = float(experiment.mean_return)
+            if math.isfinite(value):
+                known[0] = value
+            super().set_description(return_description(value, known[0]), refresh)
+
+    def bar(*args: Any, **kwargs: Any) -> Any:
+        return Bar(*args, **{**kwargs, "disable": not shown})
+
+    torchrl_log = logging.getLogger("torchrl")
+    level, original = torchrl_log.level, module.tqdm
+    module.tqdm = bar
+    if not shown:
+        torchrl_log.setLevel(max(level, logging.WARNING))
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            yield
+    finally:
+        module.tqdm = original
+        torchrl_log.setLevel(level)
 
 
 class _ActorOnRows:
@@ -232,7 +286,8 @@ class BenchMARLLearner:
                 # SB3's PPO does for a policy shared by its rows: on purpose, so torchrl's advice
                 # to keep the agents' dimension apart is not taken.
                 warnings.filterwarnings("ignore", "You requested advantage normalization")
-                experiment.run()
+                with _learner_output(experiment, job.progress):
+                    experiment.run()
             if not history or history[-1][0] != experiment.total_frames:
                 evaluate(experiment)
             wall = time.perf_counter() - clock["start"]
@@ -261,4 +316,10 @@ class BenchMARLLearner:
         )
 
 
-__all__ = ["RECIPE_KEYS", "SIGMA_MIN", "BenchMARLLearner", "scale_mapping"]
+__all__ = [
+    "RECIPE_KEYS",
+    "SIGMA_MIN",
+    "BenchMARLLearner",
+    "return_description",
+    "scale_mapping",
+]

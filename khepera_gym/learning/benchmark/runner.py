@@ -48,6 +48,8 @@ class Settings:
     overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     device: str = "cpu"
     num_threads: int | None = None
+    #: Whether the learners may show their own progress (``--no-progress``: they print nothing).
+    progress: bool = True
 
 
 def baseline_env_name(task: str, version: int) -> str:
@@ -259,6 +261,7 @@ def run_one(
         eval_episodes=settings.eval_episodes,
         device=settings.device,
         num_threads=settings.num_threads,
+        progress=settings.progress,
     )
     trained = learner.train(job, report)
     base = {n: means(s) for n, s in baselines["summaries"].items()}
