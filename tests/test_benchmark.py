@@ -303,9 +303,15 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     assert parse_key_values(again.hp, "--hp") == parse_key_values(ran.hp, "--hp")
     # The model has its run.json beside it, as `khepera-gym train` leaves one: load_policy
     # (compare, render) stacks its frames and export finds its env.
-    run = json.loads(Path(record["files"]["run"]).read_text())
+    # (Its files are named relative to the results folder, which may move to another machine.)
+    run = json.loads((out / record["files"]["run"]).read_text())
     assert run["env_id"] == record["key"]["env"] and run["hyperparams"] == record["recipe"]
-    assert frame_stack_of(record["files"]["model"]) == 2
+    assert frame_stack_of(out / record["files"]["model"]) == 2
+    # Nothing written carries this machine's paths: the files, the command (--out relative).
+    assert record["files"]["model"] == f"models/nav-v{_core.LATEST_VERSION}_ppo_seed0/model.zip"
+    for path in [*out.rglob("*.json")]:
+        assert str(tmp_path) not in path.read_text(), path
+    assert record["meta"]["command"].startswith("khepera-gym benchmark --tasks nav --out bench ")
 
     # Resumed: a finished run is not trained again.
     def no_training(*args: Any, **kwargs: Any) -> None:
@@ -523,7 +529,7 @@ def test_mappo_trains_through_benchmarl(
     assert "torchrl" not in captured.out and "mean return" not in captured.out, captured.out
     record = json.loads(next((out / "runs").glob("formation-*_mappo_seed0.json")).read_text())
     assert record["timesteps"] >= 1024 and "formation_error_mean" in record["final"]
-    assert Path(record["files"]["policy"]).is_file()
+    assert (out / record["files"]["policy"]).is_file()
     # The recipe's floor holds under the actor's σ, however far its outputs push it down.
     (experiment,) = experiments
     group = next(iter(experiment.group_map))
@@ -580,6 +586,64 @@ def test_a_wrong_sigma_floor_is_refused_before_training(floor: Any) -> None:
     pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
     with pytest.raises(ConfigError, match="sigma_min must be"):
         learners.learner("mappo").recipe("formation", _core.LATEST_VERSION, {"sigma_min": floor})
+
+
+def test_a_command_written_to_results_carries_no_absolute_path(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from khepera_gym.tooling.provenance import portable_command
+
+    monkeypatch.chdir(tmp_path / "..")
+    here = tmp_path.name
+    command = (
+        f"khepera-gym benchmark --out /home/someone/bench/final --suite {tmp_path}/suite.toml "
+        "--hp 'policy_kwargs={net_arch = [8, 8]}' --out=/tmp/elsewhere/x "
+        "--policy sb3:/home/someone/bench/final/models/a/model.zip"
+    )
+    assert portable_command(command, "/home/someone/bench/final") == (
+        f"khepera-gym benchmark --out final --suite {here}/suite.toml "
+        "--hp 'policy_kwargs={net_arch = [8, 8]}' --out=x "
+        "--policy sb3:final/models/a/model.zip"
+    )
+
+
+def _with_absolute_paths(source: Path, target: Path) -> Path:
+    """A copy of the results folder ``source`` whose every file's command and model files name
+    absolute paths of three machines (as the committed files may)."""
+    for path in source.rglob("*.json"):
+        record = json.loads(path.read_text())
+        record["meta"]["command"] = (
+            "khepera-gym benchmark --tasks nav --out /work/bench/final --suite "
+            "/home/someone/suite.toml --seed-list 0 --hp n_epochs=10"
+        )
+        if "files" in record:
+            record["files"] = {"model": "/tmp/bench/final/models/x/model.zip"}
+        copy = target / path.relative_to(source)
+        copy.parent.mkdir(parents=True, exist_ok=True)
+        copy.write_text(json.dumps(record))
+    return target
+
+
+def test_the_results_page_shows_no_absolute_path(tmp_path: Path) -> None:
+    from khepera_gym.analysis.docgen.benchmark_results import (
+        BENCHMARK_DIR,
+        RECIPE_BEFORE_DIR,
+        benchmark_fragment,
+        recipe_speed_fragment,
+    )
+
+    results = Path(__file__).resolve().parents[1] / "docs" / "results"
+    after = _with_absolute_paths(results / BENCHMARK_DIR, tmp_path / "after")
+    before = _with_absolute_paths(results / RECIPE_BEFORE_DIR, tmp_path / "before")
+    page = benchmark_fragment(after) + recipe_speed_fragment(before, after)
+    assert "| ppo (KheperaIV-Nav-v" in page and "--suite suite.toml --hp n_epochs=10" in page
+    for machine in ("/work/", "/home/", "/tmp/", str(tmp_path)):
+        assert machine not in page, machine
+    # The page of the committed files too.
+    page = benchmark_fragment(results / BENCHMARK_DIR) + recipe_speed_fragment(
+        results / RECIPE_BEFORE_DIR, results / BENCHMARK_DIR
+    )
+    assert re.search(r"(/work/|/home/|/tmp/|/Users/)", page) is None
 
 
 def test_the_recipe_speed_table_pairs_each_earlier_run_with_the_shipped_run_of_its_seed(

@@ -33,7 +33,7 @@ from khepera_gym.learning.benchmark.runner import Settings, finished, run_baseli
 from khepera_gym.learning.benchmark.suite import load_suite
 from khepera_gym.learning.benchmark.tables import load_records, markdown, task_rows
 from khepera_gym.tooling import arguments
-from khepera_gym.tooling.provenance import provenance
+from khepera_gym.tooling.provenance import current_command, portable_command, provenance
 
 #: Where the results go without ``--out``.
 DEFAULT_OUT = Path("benchmark_out")
@@ -240,6 +240,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         device=check_device(args.device),
         num_threads=args.num_threads,
         progress=not args.no_progress,
+        command=portable_command(current_command(), args.out),
     )
     plan = []
     for entry, learners in selection:
@@ -282,7 +283,7 @@ def run_from_args(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         raise SystemExit(INTERRUPTED) from None
-    _write_summary(args.out, [e.task for e, _ in selection])
+    _write_summary(args.out, [e.task for e, _ in selection], settings.command)
     return 0
 
 
@@ -322,7 +323,7 @@ def _line(entry: Any, learner: str, seed: int, record: dict[str, Any]) -> str:
     )
 
 
-def _write_summary(out: Path, tasks: Sequence[str]) -> None:
+def _write_summary(out: Path, tasks: Sequence[str], command: str | None) -> None:
     baselines, runs = load_records(out)
     tables = []
     for task in tasks:
@@ -333,7 +334,7 @@ def _write_summary(out: Path, tasks: Sequence[str]) -> None:
         print("\n" + markdown(table))
         for row in table["learners"]:
             print(f"  reproduce {row['learner']}: {row['reproduce']}")
-    summary = {"meta": provenance(), "tables": tables}
+    summary = {"meta": provenance(command), "tables": tables}
     (out / "benchmark.json").write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
     print(f"\nwrote {out / 'benchmark.json'}")
 

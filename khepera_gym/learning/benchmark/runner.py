@@ -9,9 +9,11 @@ Wilson), and the task's criterion is judged on those means.
 
 Files, under the output folder: ``baselines/<task>-v<N>.json`` and
 ``runs/<task>-v<N>_<learner>_seed<S>.json``, each with its provenance (date, commit, machine,
-command). A run whose file exists is not run again when the file comes from the same commit,
-version, held-out episodes and recipe; a file from another commit is refused (the message says
-to use another folder or ``--restart``), so results of different code are never mixed.
+command); a run's model files (``models/<stem>/``) are named relative to the folder, and the
+command without the machine's absolute paths, so the folder reads the same on another machine.
+A run whose file exists is not run again when the file comes from the same commit, version,
+held-out episodes and recipe; a file from another commit is refused (the message says to use
+another folder or ``--restart``), so results of different code are never mixed.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -50,6 +53,9 @@ class Settings:
     num_threads: int | None = None
     #: Whether the learners may show their own progress (``--no-progress``: they print nothing).
     progress: bool = True
+    #: The command the results files record (None: the one running, as typed); the benchmark
+    #: gives it without the machine's absolute paths.
+    command: str | None = None
 
 
 def baseline_env_name(task: str, version: int) -> str:
@@ -174,7 +180,8 @@ def run_baselines(entry: TaskEntry, version: int, settings: Settings, restart: b
         name: summarize(play(baseline_policy(name, rows), rows, settings))
         for name in entry.baselines
     }
-    record = {"format": FORMAT, "key": key, "meta": provenance(), "summaries": summaries}
+    meta = provenance(settings.command)
+    record = {"format": FORMAT, "key": key, "meta": meta, "summaries": summaries}
     _write(path, record)
     return record
 
@@ -285,7 +292,7 @@ def run_one(
     record = {
         "format": FORMAT,
         "key": key,
-        "meta": provenance(),
+        "meta": provenance(settings.command),
         "recipe": trained.recipe,
         # What the command changed from the recipe, so its row prints the command again.
         "settings": {
@@ -307,7 +314,11 @@ def run_one(
         "final_sampled": sampled,
         "solved": judge(entry, means(final), baselines),
         "solved_sampled": None if sampled is None else judge(entry, means(sampled), baselines),
-        "files": trained.files,
+        # Relative to the results folder, which can move to another machine (docs/results/).
+        "files": {
+            name: Path(os.path.relpath(path, settings.out)).as_posix()
+            for name, path in trained.files.items()
+        },
     }
     _write(path, record)
     return record
