@@ -102,7 +102,7 @@ def _learner_output(experiment: Any, shown: bool) -> Iterator[None]:
 
     known = [math.nan]
 
-    class Bar(tqdm):  # type: ignore[misc]
+    class Bar(tqdm):
         def set_description(self, desc: str | None = None, refresh: bool | None = True) -> None:
             value = float(experiment.mean_return)
             if math.isfinite(value):
