@@ -231,6 +231,14 @@ def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
             ["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path), "--no-progress"]
         )
     assert capsys.readouterr().err == last + "\n"
+    # A run further on that was done before counts as done.
+    asked.clear()
+    monkeypatch.setattr(command, "finished", lambda *run: {} if run[3] == 2 else None)
+    with pytest.raises((SystemExit, KeyboardInterrupt)):
+        cli.main(
+            ["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path), "--no-progress"]
+        )
+    assert "interrupted with 2 of 3 runs done" in capsys.readouterr().err
 
 
 def test_a_run_whose_held_out_episodes_gave_no_value_prints_no_nan(

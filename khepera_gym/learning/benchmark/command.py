@@ -9,9 +9,9 @@ held-out episodes beside the baselines, and print and write the tables.
 It shows its progress, writes each run's results file as the run ends (so after an
 interruption the same command resumes without repeating a finished run, and says which it
 skips; Ctrl-C stops with one line saying so, status 130), and ends with one table per task and
-the command that reproduces each row. ``--device`` and ``--num-threads``
-are honoured by every learner; ``--timesteps`` and ``--hp KEY=VALUE`` change every recipe (the
-results then record the recipe they ran).
+the command that reproduces each row. ``--device`` and ``--num-threads`` are honoured by every
+learner; ``--timesteps`` and ``--hp KEY=VALUE`` change every recipe (the results then record
+the recipe they ran).
 """
 
 from __future__ import annotations
@@ -255,11 +255,10 @@ def run_from_args(args: argparse.Namespace) -> int:
     ]
     if any(done):
         print(_skipped(args.out, [run for run, skip in zip(plan, done, strict=True) if skip]))
-    bar = tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress)
     baselines: dict[tuple[str, int], Any] = {}
-    ended = 0  # runs whose file is written (or was there)
+    ended = 0  # runs of the plan gone through, in order (their files are on disk)
     try:
-        with bar:
+        with tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress) as bar:
             for (entry, learner, version, seed), skip in zip(plan, done, strict=True):
                 key = (entry.task, version)
                 if key not in baselines:
@@ -275,15 +274,17 @@ def run_from_args(args: argparse.Namespace) -> int:
                 bar.write(
                     line + (" (done before: read from its file, not run again)" if skip else "")
                 )
+        _write_summary(args.out, [e.task for e, _ in selection], settings.command)
     except KeyboardInterrupt:
-        # Ctrl-C: what is done is on disk (each file is written whole as its run ends).
+        # Ctrl-C: what is done is on disk (each file is written whole as its run ends), and
+        # so are the runs further on that were done before.
         print(
-            f"khepera-gym benchmark: interrupted with {ended} of {len(plan)} runs done in "
+            f"khepera-gym benchmark: interrupted with {ended + sum(done[ended:])} of {len(plan)} "
+            f"runs done in "
             f"{args.out}; the same command resumes (the runs done there are skipped)",
             file=sys.stderr,
         )
         raise SystemExit(INTERRUPTED) from None
-    _write_summary(args.out, [e.task for e, _ in selection], settings.command)
     return 0
 
 
