@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import shlex
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,7 @@ pytest.importorskip(
 from khepera_gym import _core, cli
 from khepera_gym.config import parse_key_values
 from khepera_gym.errors import ConfigError
-from khepera_gym.learning.benchmark import learners, load_suite
+from khepera_gym.learning.benchmark import command, learners, load_suite
 from khepera_gym.learning.benchmark.command import add_arguments, reproduce
 from khepera_gym.learning.benchmark.jobs import gym_id
 from khepera_gym.learning.benchmark.runner import FORMAT, judge, means
@@ -140,6 +141,19 @@ def test_a_condition_holds_against_a_number_or_a_baselines_held_out_mean() -> No
         (["--tasks", "nav", "--device", "abacus"], "not a torch device"),
         (["--tasks", "nav", "--version", "9"], "nav has no behaviour version 9"),
         (["--tasks", "nav", "--episodes", "0"], "--episodes must be >= 1"),
+        (["--tasks", "nva"], "unknown task 'nva'; did you mean 'nav'? known: nav, "),
+        (["--tasks", "nav", "--learners", "ppo0"], "unknown learner 'ppo0'; did you mean 'ppo'?"),
+        (["--tasks", "nav", "--learners", "PPO"], "unknown learner 'PPO'; did you mean 'ppo'?"),
+        (
+            ["--tasks", "nav", "--hp", "n_step=64"],
+            "--hp n_step: learner 'ppo' (PPO) has no hyperparameter 'n_step'; did you mean "
+            "'n_steps'? known: n_envs, n_timesteps, ",
+        ),
+        (
+            ["--tasks", "formation", "--learners", "mappo", "--hp", "minibatch=256"],
+            "--hp minibatch: learner 'mappo' has no recipe key 'minibatch'; did you mean "
+            "'minibatch_size'?",
+        ),
     ],
 )
 def test_bad_arguments_are_refused_before_anything_runs(
@@ -154,6 +168,104 @@ def test_bad_arguments_are_refused_before_anything_runs(
         cli.main(["benchmark", "--out", str(tmp_path), *argv])
     assert message in str(caught.value)
     assert not (tmp_path / "runs").exists()
+    # One line, as every command's errors, and before the baselines ran too.
+    assert "\n" not in str(caught.value) and not (tmp_path / "baselines").exists()
+
+
+def _no_work(
+    monkeypatch: pytest.MonkeyPatch, value: float | None = 0.5
+) -> list[tuple[str, str, int]]:
+    """Replaces the baselines and the runs of the command with records made up on the spot
+    (each criterion statistic's held-out mean ``value``); returns the (task, learner, seed) of
+    every run asked for."""
+    asked: list[tuple[str, str, int]] = []
+
+    def baselines(entry: Any, version: int, settings: Any, restart: bool) -> dict[str, Any]:
+        return {"summaries": {}}
+
+    def run(entry: Any, learner: Any, version: int, seed: int, *args: Any) -> dict[str, Any]:
+        asked.append((entry.task, learner.name, seed))
+        final = {c.metric: {"value": value} for c in entry.criterion}
+        return {"final": final, "reached": None, "solved": False, "train_seconds": 1.0}
+
+    monkeypatch.setattr(command, "run_baselines", baselines)
+    monkeypatch.setattr(command, "run_one", run)
+    return asked
+
+
+def test_task_names_are_taken_in_any_case(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    asked = _no_work(monkeypatch)
+    _run(["--tasks", "Nav", "NAV", "--seeds", "1", "--out", str(tmp_path), "--no-progress"])
+    assert asked == [("nav", "ppo", 0)]
+
+
+def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    asked = _no_work(monkeypatch)
+    run = command.run_one
+
+    def interrupted_at_the_second(*args: Any) -> dict[str, Any]:
+        if asked:
+            raise KeyboardInterrupt
+        return run(*args)
+
+    monkeypatch.setattr(command, "run_one", interrupted_at_the_second)
+    # Caught here too, so that a KeyboardInterrupt escaping fails this test, not the session.
+    with pytest.raises((SystemExit, KeyboardInterrupt)) as caught:
+        cli.main(["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path)])
+    assert isinstance(caught.value, SystemExit), "Ctrl-C escaped as a KeyboardInterrupt"
+    assert caught.value.code == command.INTERRUPTED == 130
+    errors = capsys.readouterr().err
+    # The last line (the progress bar is on: its lines come first), and no traceback.
+    last = errors.rstrip("\n").split("\n")[-1]
+    assert last == (
+        f"khepera-gym benchmark: interrupted with 1 of 3 runs done in {tmp_path}; the same "
+        "command resumes (the runs done there are skipped)"
+    ), errors
+    assert "Traceback" not in errors and "KeyboardInterrupt" not in errors
+    # With --no-progress, that line is all of stderr.
+    asked.clear()
+    with pytest.raises((SystemExit, KeyboardInterrupt)):
+        cli.main(
+            ["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path), "--no-progress"]
+        )
+    assert capsys.readouterr().err == last + "\n"
+    # A run further on that was done before counts as done.
+    asked.clear()
+    monkeypatch.setattr(command, "finished", lambda *run: {} if run[3] == 2 else None)
+    with pytest.raises((SystemExit, KeyboardInterrupt)):
+        cli.main(
+            ["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path), "--no-progress"]
+        )
+    assert "interrupted with 2 of 3 runs done" in capsys.readouterr().err
+
+
+def test_a_run_whose_held_out_episodes_gave_no_value_prints_no_nan(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _no_work(monkeypatch, value=None)  # how a NaN mean is written (strict JSON)
+    _run(["--tasks", "track", "--seeds", "1", "--out", str(tmp_path), "--no-progress"])
+    line = next(x for x in capsys.readouterr().out.splitlines() if "track ppo seed 0:" in x)
+    assert "track_error_rms none (no held-out episode gave a value)" in line, line
+    assert "nan" not in line.lower()
+
+
+def test_a_misspelt_hp_key_fails_before_the_baselines_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    asked = _no_work(monkeypatch)
+
+    def no_baselines(*args: Any) -> None:
+        raise AssertionError("the baselines ran before the --hp keys were checked")
+
+    monkeypatch.setattr(command, "run_baselines", no_baselines)
+    argv = ["--tasks", "avoid", "--out", str(tmp_path), "--no-progress"]
+    misspelt = {"n_step=64": "n_steps", "gama=0.9": "gamma", "batchsize=8": "batch_size"}
+    for hp, near in misspelt.items():
+        with pytest.raises(SystemExit, match=f"did you mean '{near}'"):
+            cli.main(["benchmark", *argv, "--hp", hp])
+    assert not asked
 
 
 def test_a_learner_that_does_not_fit_the_task_says_why() -> None:
@@ -168,7 +280,9 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
 ) -> None:
     out = tmp_path / "bench"
     _run(["--tasks", "nav", "--out", str(out), *TINY])
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
+    assert captured.err == ""  # --no-progress: no bar, and SB3 prints nothing of its own
     run_file = out / "runs" / f"nav-v{_core.LATEST_VERSION}_ppo_seed0.json"
     record = json.loads(run_file.read_text())
     assert record["format"] == FORMAT and record["meta"]["commit"] is not None
@@ -196,15 +310,23 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     # The printed command is the command that ran: parsed again, it asks for the same work.
     again = _parsed(summary["tables"][0]["learners"][0]["reproduce"])
     ran = _parsed(" ".join(["khepera-gym benchmark", "--tasks nav", *TINY]))
-    for option in ("tasks", "timesteps", "episodes", "heldout_seed", "eval_episodes", "version"):
+    for option in ("tasks", "timesteps", "episodes", "heldout_seed", "eval_episodes"):
         assert getattr(again, option) == getattr(ran, option), option
+    # The same version: the one the run resolved (none given: the latest), now pinned.
+    assert again.version == (ran.version or _core.LATEST_VERSION) == _core.LATEST_VERSION
     assert again.seed_list == [0]
     assert parse_key_values(again.hp, "--hp") == parse_key_values(ran.hp, "--hp")
     # The model has its run.json beside it, as `khepera-gym train` leaves one: load_policy
     # (compare, render) stacks its frames and export finds its env.
-    run = json.loads(Path(record["files"]["run"]).read_text())
+    # (Its files are named relative to the results folder, which may move to another machine.)
+    run = json.loads((out / record["files"]["run"]).read_text())
     assert run["env_id"] == record["key"]["env"] and run["hyperparams"] == record["recipe"]
-    assert frame_stack_of(record["files"]["model"]) == 2
+    assert frame_stack_of(out / record["files"]["model"]) == 2
+    # Nothing written carries this machine's paths: the files, the command (--out relative).
+    assert record["files"]["model"] == f"models/nav-v{_core.LATEST_VERSION}_ppo_seed0/model.zip"
+    for path in [*out.rglob("*.json")]:
+        assert str(tmp_path) not in path.read_text(), path
+    assert record["meta"]["command"].startswith("khepera-gym benchmark --tasks nav --out bench ")
 
     # Resumed: a finished run is not trained again.
     def no_training(*args: Any, **kwargs: Any) -> None:
@@ -213,6 +335,13 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     monkeypatch.setattr(learners.SB3Learner, "train", no_training)
     _run(["--tasks", "nav", "--out", str(out), *TINY])
     assert json.loads(run_file.read_text())["meta"] == record["meta"]
+    # ... and it says so, before it starts and on the run's line.
+    printed = capsys.readouterr().out
+    assert printed.startswith(
+        f"resuming in {out}: 1 run done already, not run again: "
+        f"nav ppo v{_core.LATEST_VERSION} seed 0\n"
+    ), printed
+    assert "nav ppo seed 0: " in printed and "(done before: read from its file" in printed
 
     # A file written by other code is refused, never mixed in.
     record["meta"]["commit"] = {"id": "0" * 40, "dirty": False}
@@ -262,6 +391,8 @@ def test_the_printed_command_asks_for_the_rows_work_again(task: str, learner: st
         args = _parsed(reproduce(task, row))
         assert (args.tasks, args.learners, args.seed_list) == ([task], [learner], [3, 1])
         assert (_latest(task) if args.version is None else args.version) == version
+        # Pinned on the latest version too: the command must not run a later one some day.
+        assert args.version == version
         assert (args.timesteps, args.eval_episodes, args.episodes, args.heldout_seed) == (
             4096,
             7,
@@ -363,7 +494,9 @@ def test_a_recurrent_policy_trains_and_plays_the_held_out_episodes_with_its_stat
 # episode ended (a few frames of a long episode), are theirs.
 @pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
 @pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
-def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_mappo_trains_through_benchmarl(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
     import torch
     from benchmarl.experiment import Experiment
@@ -405,9 +538,13 @@ def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.Monk
             "sigma_min=0.25",
         ]
     )
+    # --no-progress: neither BenchMARL's bar nor torchrl's log lines, only the command's lines.
+    captured = capsys.readouterr()
+    assert captured.err == "", captured.err
+    assert "torchrl" not in captured.out and "mean return" not in captured.out, captured.out
     record = json.loads(next((out / "runs").glob("formation-*_mappo_seed0.json")).read_text())
     assert record["timesteps"] >= 1024 and "formation_error_mean" in record["final"]
-    assert Path(record["files"]["policy"]).is_file()
+    assert (out / record["files"]["policy"]).is_file()
     # The recipe's floor holds under the actor's σ, however far its outputs push it down.
     (experiment,) = experiments
     group = next(iter(experiment.group_map))
@@ -423,11 +560,105 @@ def test_mappo_trains_through_benchmarl(tmp_path: Path, monkeypatch: pytest.Monk
     assert scale.min().item() == pytest.approx(0.25)
 
 
+@pytest.mark.filterwarnings("ignore::DeprecationWarning:torchrl")
+@pytest.mark.filterwarnings("ignore:No episode terminated this iteration:UserWarning")
+def test_mappos_progress_bar_never_shows_nan(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Formation's episodes outlast a batch of 128 steps a world: in BenchMARL's own bar, both
+    batches read ``mean return = nan``."""
+    pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    import logging
+
+    argv = ["--tasks", "formation", "--learners", "mappo", "--out", str(tmp_path), "--seeds", "1"]
+    recipe = ["--hp", "frames_per_batch=512", "--hp", "minibatch_size=512", "--hp", "n_envs=4"]
+    # torchrl's log handler keeps the stdout of the test that imported torchrl, closed since.
+    torchrl_log = logging.getLogger("torchrl")
+    level = torchrl_log.level
+    torchrl_log.setLevel(logging.WARNING)
+    try:
+        _run([*argv, "--timesteps", "1024", "--episodes", "2", "--eval-episodes", "2", *recipe])
+    finally:
+        torchrl_log.setLevel(level)
+    shown = capsys.readouterr().err
+    assert "mean return: no episode ended yet" in shown, shown
+    assert re.search(r"\bnan\b", shown, re.IGNORECASE) is None, shown
+
+
+def test_the_progress_bar_says_the_last_known_return_when_no_episode_ended() -> None:
+    pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
+    from khepera_gym.learning.benchmark.marl import return_description
+
+    assert return_description(-12.5, -12.5) == "mean return = -12.5"
+    assert return_description(math.nan, -12.5) == (
+        "mean return = -12.5 (no episode ended in the last batch)"
+    )
+    assert return_description(math.nan, math.nan) == "mean return: no episode ended yet"
+
+
 @pytest.mark.parametrize("floor", [0.0, 1.0, "high", True])
 def test_a_wrong_sigma_floor_is_refused_before_training(floor: Any) -> None:
     pytest.importorskip("benchmarl", reason="needs the benchmarl extra")
     with pytest.raises(ConfigError, match="sigma_min must be"):
         learners.learner("mappo").recipe("formation", _core.LATEST_VERSION, {"sigma_min": floor})
+
+
+def test_a_command_written_to_results_carries_no_absolute_path(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from khepera_gym.tooling.provenance import portable_command
+
+    monkeypatch.chdir(tmp_path / "..")
+    here = tmp_path.name
+    command = (
+        f"khepera-gym benchmark --out /home/someone/bench/final --suite {tmp_path}/suite.toml "
+        "--hp 'policy_kwargs={net_arch = [8, 8]}' --out=/tmp/elsewhere/x "
+        "--policy sb3:/home/someone/bench/final/models/a/model.zip"
+    )
+    assert portable_command(command, "/home/someone/bench/final") == (
+        f"khepera-gym benchmark --out final --suite {here}/suite.toml "
+        "--hp 'policy_kwargs={net_arch = [8, 8]}' --out=x "
+        "--policy sb3:final/models/a/model.zip"
+    )
+
+
+def _with_absolute_paths(source: Path, target: Path) -> Path:
+    """A copy of the results folder ``source`` whose every file's command and model files name
+    absolute paths of three machines (as the committed files may)."""
+    for path in source.rglob("*.json"):
+        record = json.loads(path.read_text())
+        record["meta"]["command"] = (
+            "khepera-gym benchmark --tasks nav --out /work/bench/final --suite "
+            "/home/someone/suite.toml --seed-list 0 --hp n_epochs=10"
+        )
+        if "files" in record:
+            record["files"] = {"model": "/tmp/bench/final/models/x/model.zip"}
+        copy = target / path.relative_to(source)
+        copy.parent.mkdir(parents=True, exist_ok=True)
+        copy.write_text(json.dumps(record))
+    return target
+
+
+def test_the_results_page_shows_no_absolute_path(tmp_path: Path) -> None:
+    from khepera_gym.analysis.docgen.benchmark_results import (
+        BENCHMARK_DIR,
+        RECIPE_BEFORE_DIR,
+        benchmark_fragment,
+        recipe_speed_fragment,
+    )
+
+    results = Path(__file__).resolve().parents[1] / "docs" / "results"
+    after = _with_absolute_paths(results / BENCHMARK_DIR, tmp_path / "after")
+    before = _with_absolute_paths(results / RECIPE_BEFORE_DIR, tmp_path / "before")
+    page = benchmark_fragment(after) + recipe_speed_fragment(before, after)
+    assert "| ppo (KheperaIV-Nav-v" in page and "--suite suite.toml --hp n_epochs=10" in page
+    for machine in ("/work/", "/home/", "/tmp/", str(tmp_path)):
+        assert machine not in page, machine
+    # The page of the committed files too.
+    page = benchmark_fragment(results / BENCHMARK_DIR) + recipe_speed_fragment(
+        results / RECIPE_BEFORE_DIR, results / BENCHMARK_DIR
+    )
+    assert re.search(r"(/work/|/home/|/tmp/|/Users/)", page) is None
 
 
 def test_the_recipe_speed_table_pairs_each_earlier_run_with_the_shipped_run_of_its_seed(

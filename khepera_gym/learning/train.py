@@ -61,6 +61,8 @@ ALGORITHMS = {"ppo": "PPO", "sac": "SAC", "recurrent_ppo": "RecurrentPPO"}
 BACKENDS = ("sb3", "rllib")
 #: Keys of a hyperparameter table that configure the run rather than the SB3 algorithm.
 _RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "frame_stack", "env_kwargs")
+#: Keywords :func:`build_model` gives the algorithm itself, which a table therefore cannot set.
+_SET_BY_BUILD = ("env", "seed", "device", "verbose", "_init_setup_model")
 #: Activation functions by name, for ``policy_kwargs.activation_fn``.
 _ACTIVATIONS = ("tanh", "relu", "elu", "leaky_relu")
 
@@ -103,6 +105,27 @@ def _policy_kwargs(kwargs: Mapping[str, Any]) -> dict[str, Any]:
         names = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU"}
         result["activation_fn"] = getattr(torch.nn, names[activation])
     return result
+
+
+def hyperparameter_keys(algo: str) -> tuple[str, ...]:
+    """The keys a hyperparameter table of ``algo`` may hold: the run's (``n_envs``,
+    ``n_timesteps``, ``policy``, ``normalize``, ``frame_stack``, ``env_kwargs``), then the
+    keywords of the algorithm's constructor (``inspect.signature`` of SB3's class) but those
+    :func:`build_model` sets.
+
+    Raises:
+        ConfigError: Unknown algorithm.
+        ImportError: Its library is not installed.
+    """
+    import inspect
+
+    from khepera_gym.learning.sb3 import algorithm_class
+
+    if algo not in ALGORITHMS:
+        raise ConfigError(f"unknown algorithm {algo!r}; known: {sorted(ALGORITHMS)}")
+    parameters = inspect.signature(algorithm_class(ALGORITHMS[algo])).parameters
+    keywords = [name for name in parameters if name not in (*_RUN_KEYS, *_SET_BY_BUILD)]
+    return (*_RUN_KEYS, *keywords)
 
 
 def build_model(
@@ -561,6 +584,7 @@ __all__ = [
     "TrainResult",
     "add_arguments",
     "build_model",
+    "hyperparameter_keys",
     "load_hyperparams",
     "parse_override",
     "run_from_args",

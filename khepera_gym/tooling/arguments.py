@@ -10,6 +10,7 @@ traceback. Part of the tools layer: imports the faces, never the reverse.
 
 from __future__ import annotations
 
+import difflib
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -107,6 +108,15 @@ def input_file(path: str | os.PathLike[str] | None, option: str) -> None:
         raise ConfigError(f"{option}: no such file {path}")
 
 
+def did_you_mean(name: str, known: Sequence[str]) -> str:
+    """The end of a message refusing ``name``: the nearest of ``known`` if one is near (in any
+    case), then every one, ``did you mean 'nav'? known: nav, avoid, ...``."""
+    lowered = {choice.lower(): choice for choice in known}
+    near = difflib.get_close_matches(name.lower(), list(lowered), n=1, cutoff=0.6)
+    hint = f"did you mean {lowered[near[0]]!r}? " if near else ""
+    return f"{hint}known: {', '.join(known)}"
+
+
 def one_line(error: BaseException) -> str:
     """An error's message on one line (a ConfigError from a scenario file may span several)."""
     text = " ".join(str(error).split())
@@ -131,6 +141,7 @@ __all__ = [
     "USER_ERRORS",
     "all_at_least",
     "at_least",
+    "did_you_mean",
     "env_id",
     "input_file",
     "one_line",

@@ -17,6 +17,7 @@ import contextvars
 import datetime
 import os
 import platform
+import re
 import shlex
 import subprocess
 import sys
@@ -126,6 +127,42 @@ def running_command(argv: Sequence[str]) -> Iterator[None]:
         _COMMAND.reset(token)
 
 
+def current_command() -> str:
+    """The command being run: the one of the enclosing :func:`running_command`, else this
+    process's command line (:func:`command_line`)."""
+    return _COMMAND.get() or command_line()
+
+
+#: An absolute path in a command's word, after an optional ``--option=``, ``KEY=`` or
+#: ``sb3:`` (``--out=/a/b``, ``sb3:/a/model.zip``).
+_PATH_WORD = re.compile(r"^(?P<prefix>(?:[\w.-]+[:=])?)(?P<path>/.*)$")
+
+
+def portable_command(command: str, folder: str | os.PathLike[str]) -> str:
+    """``command`` without this machine's absolute paths, for a results file written under
+    ``folder``: a path below the current directory becomes relative to it, one below
+    ``folder``'s parent relative to that parent (``--out /work/bench/final`` from elsewhere is
+    ``--out final``, its models ``final/models/...``), and any other keeps its name only."""
+    here = Path.cwd()
+    anchor = Path(os.path.abspath(folder)).parent
+
+    def portable(word: str) -> str:
+        match = _PATH_WORD.match(word)
+        if match is None:
+            return word
+        path = Path(os.path.normpath(match["path"]))
+        for base in (here, anchor):
+            if path.is_relative_to(base) and path != base:
+                return match["prefix"] + path.relative_to(base).as_posix()
+        return match["prefix"] + (path.name or ".")
+
+    try:
+        words = shlex.split(command)
+    except ValueError:  # unbalanced quotes: not a command shlex.join wrote
+        return command
+    return shlex.join(portable(word) for word in words)
+
+
 def provenance(command: str | None = None) -> dict[str, Any]:
     """The ``"meta"`` record of a results file.
 
@@ -147,4 +184,12 @@ def provenance(command: str | None = None) -> dict[str, Any]:
     }
 
 
-__all__ = ["command_line", "commit", "machine", "provenance", "running_command"]
+__all__ = [
+    "command_line",
+    "commit",
+    "current_command",
+    "machine",
+    "portable_command",
+    "provenance",
+    "running_command",
+]

@@ -13,6 +13,7 @@ from typing import Any
 
 from khepera_gym import registry
 from khepera_gym.analysis.docgen.markdown import code, missing_results, table
+from khepera_gym.tooling.provenance import portable_command
 
 #: The learning benchmark's folder under docs/results/ (``khepera-gym benchmark --out``).
 BENCHMARK_DIR = "benchmark"
@@ -131,6 +132,8 @@ def recipe_speed_fragment(before_dir: Path, after_dir: Path) -> str:
             while end < len(words) and not words[end].startswith("--"):
                 end += 1
             del words[i:end]
+    # And no other path of the machine (a --suite file): its name is what a reader can use.
+    words = shlex.split(portable_command(shlex.join(words), before_dir))
     median = statistics.median(ratios)
     return (
         table(

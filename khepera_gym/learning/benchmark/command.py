@@ -7,17 +7,20 @@ held-out episodes beside the baselines, and print and write the tables.
     khepera-gym benchmark --list                           # what the suite holds
 
 It shows its progress, writes each run's results file as the run ends (so after an
-interruption the same command resumes without repeating a finished run), and ends with one
-table per task and the command that reproduces each row. ``--device`` and ``--num-threads``
-are honoured by every learner; ``--timesteps`` and ``--hp KEY=VALUE`` change every recipe (the
-results then record the recipe they ran).
+interruption the same command resumes without repeating a finished run, and says which it
+skips; Ctrl-C stops with one line saying so, status 130), and ends with one table per task and
+the command that reproduces each row. ``--device`` and ``--num-threads`` are honoured by every
+learner; ``--timesteps`` and ``--hp KEY=VALUE`` change every recipe (the results then record
+the recipe they ran).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import shlex
+import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -26,11 +29,11 @@ from khepera_gym import registry
 from khepera_gym.config import parse_key_values, toml_value
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.benchmark.learners import learner as make_learner
-from khepera_gym.learning.benchmark.runner import Settings, run_baselines, run_one
+from khepera_gym.learning.benchmark.runner import Settings, finished, run_baselines, run_one
 from khepera_gym.learning.benchmark.suite import load_suite
 from khepera_gym.learning.benchmark.tables import load_records, markdown, task_rows
 from khepera_gym.tooling import arguments
-from khepera_gym.tooling.provenance import provenance
+from khepera_gym.tooling.provenance import current_command, portable_command, provenance
 
 #: Where the results go without ``--out``.
 DEFAULT_OUT = Path("benchmark_out")
@@ -42,6 +45,8 @@ DEFAULT_EPISODES = 200
 DEFAULT_HELDOUT_SEED = 0
 #: Episodes of each evaluation while training without ``--eval-episodes``.
 DEFAULT_EVAL_EPISODES = 50
+#: Exit status after Ctrl-C (128 + SIGINT, as a shell reports it).
+INTERRUPTED = 130
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -102,7 +107,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="run everything again, replacing the folder's results",
     )
     parser.add_argument("--list", action="store_true", help="print the suite and stop")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar, the learners' own (BenchMARL's) included",
+    )
 
 
 def check_device(device: str) -> str:
@@ -127,10 +136,10 @@ def check_device(device: str) -> str:
 def _selection(args: argparse.Namespace, suite: dict[str, Any]) -> list[tuple[Any, list[str]]]:
     """(entry, learners) of every task to run, after checking every name."""
     tasks = registry.task_names()
-    chosen = args.tasks or list(suite)
+    chosen = list(suite)
+    if args.tasks:
+        chosen = list(dict.fromkeys(_task_name(name, tasks) for name in args.tasks))
     for task in chosen:
-        if task not in tasks:
-            raise ConfigError(f"unknown task {task!r}; tasks: {', '.join(tasks)}")
         if task not in suite:
             raise ConfigError(
                 f"the suite has no entry for {task!r} (entries: {', '.join(suite)}): add one to "
@@ -151,6 +160,17 @@ def _selection(args: argparse.Namespace, suite: dict[str, Any]) -> list[tuple[An
     return selection
 
 
+def _task_name(name: str, tasks: Sequence[str]) -> str:
+    """The core's task ``name`` names, in any case (``Nav``: ``nav``).
+
+    Raises:
+        ConfigError: No task of that name; the message suggests the nearest and lists them.
+    """
+    if name.lower() in tasks:
+        return name.lower()
+    raise ConfigError(f"unknown task {name!r}; {arguments.did_you_mean(name, tasks)}")
+
+
 def _version(task: str, version: int | None) -> int:
     versions = registry.task_versions(task)
     if version is None:
@@ -163,12 +183,11 @@ def _version(task: str, version: int | None) -> int:
 def reproduce(task: str, row: Mapping[str, Any]) -> str:
     """The command that runs one row of a task's table (:func:`task_rows`) again: its learner,
     seeds and version, and whatever its command changed (``--hp``, ``--timesteps``, held-out
-    and evaluation episodes)."""
-    latest = registry.latest_version(task)
+    and evaluation episodes). The version is always written: without it the command would run
+    the latest version of the day it is run, not the row's."""
     parts = ["khepera-gym benchmark", f"--tasks {task}", f"--learners {row['learner']}"]
     parts.append(f"--seed-list {' '.join(map(str, row['seeds']))}")
-    if row["version"] != latest:
-        parts.append(f"--version {row['version']}")
+    parts.append(f"--version {row['version']}")
     settings = row.get("settings") or {}
     if settings.get("timesteps") is not None:
         parts.append(f"--timesteps {settings['timesteps']}")
@@ -189,6 +208,8 @@ def run_from_args(args: argparse.Namespace) -> int:
 
     Raises:
         ConfigError: Any bad argument or suite entry, before anything is trained.
+        SystemExit: Ctrl-C, with status :data:`INTERRUPTED` after one line on stderr saying
+            how many runs are done and that the same command resumes.
     """
     from tqdm import tqdm
 
@@ -218,6 +239,8 @@ def run_from_args(args: argparse.Namespace) -> int:
         overrides=parse_key_values(args.hp, "--hp"),
         device=check_device(args.device),
         num_threads=args.num_threads,
+        progress=not args.no_progress,
+        command=portable_command(current_command(), args.out),
     )
     plan = []
     for entry, learners in selection:
@@ -226,25 +249,71 @@ def run_from_args(args: argparse.Namespace) -> int:
             learner = make_learner(name)
             learner.recipe(entry.task, version, settings.overrides)  # a missing recipe: now
             plan += [(entry, learner, version, seed) for seed in seeds]
-    bar = tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress)
+    done = [
+        finished(entry, learner, version, seed, settings, args.restart) is not None
+        for entry, learner, version, seed in plan
+    ]
+    if any(done):
+        print(_skipped(args.out, [run for run, skip in zip(plan, done, strict=True) if skip]))
     baselines: dict[tuple[str, int], Any] = {}
-    with bar:
-        for entry, learner, version, seed in plan:
-            key = (entry.task, version)
-            if key not in baselines:
-                bar.set_postfix_str(f"{entry.task} baselines")
-                baselines[key] = run_baselines(entry, version, settings, args.restart)
-            bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
-            record = run_one(entry, learner, version, seed, settings, baselines[key], args.restart)
-            bar.update(1)
-            bar.write(_line(entry, learner.name, seed, record))
-    _write_summary(args.out, [e.task for e, _ in selection])
+    ended = 0  # runs of the plan gone through, in order (their files are on disk)
+    try:
+        with tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress) as bar:
+            for (entry, learner, version, seed), skip in zip(plan, done, strict=True):
+                key = (entry.task, version)
+                if key not in baselines:
+                    bar.set_postfix_str(f"{entry.task} baselines")
+                    baselines[key] = run_baselines(entry, version, settings, args.restart)
+                bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
+                record = run_one(
+                    entry, learner, version, seed, settings, baselines[key], args.restart
+                )
+                ended += 1
+                bar.update(1)
+                line = _line(entry, learner.name, seed, record)
+                bar.write(
+                    line + (" (done before: read from its file, not run again)" if skip else "")
+                )
+        _write_summary(args.out, [e.task for e, _ in selection], settings.command)
+    except KeyboardInterrupt:
+        # Ctrl-C: what is done is on disk (each file is written whole as its run ends), and
+        # so are the runs further on that were done before.
+        print(
+            f"khepera-gym benchmark: interrupted with {ended + sum(done[ended:])} of {len(plan)} "
+            f"runs done in "
+            f"{args.out}; the same command resumes (the runs done there are skipped)",
+            file=sys.stderr,
+        )
+        raise SystemExit(INTERRUPTED) from None
     return 0
+
+
+def _skipped(out: Path, runs: Sequence[tuple[Any, Any, int, int]]) -> str:
+    """The line saying which runs a resumed benchmark finds done (``nav ppo v3 seeds 0, 1``)."""
+    seeds: dict[str, list[int]] = {}
+    for entry, learner, version, seed in runs:
+        seeds.setdefault(f"{entry.task} {learner.name} v{version}", []).append(seed)
+    listed = "; ".join(
+        f"{what} seed{'s' if len(s) > 1 else ''} {', '.join(map(str, s))}"
+        for what, s in seeds.items()
+    )
+    return (
+        f"resuming in {out}: {len(runs)} run{'s' if len(runs) > 1 else ''} done already, "
+        f"not run again: {listed}"
+    )
+
+
+def _value(value: float | None) -> str:
+    """A held-out mean on a run's line: a number, or that no episode gave one (never nan)."""
+    number = math.nan if value is None else float(value)  # JSON: NaN is None, inf "inf"
+    if math.isnan(number):
+        return "none (no held-out episode gave a value)"
+    return f"{number:.4g}"
 
 
 def _line(entry: Any, learner: str, seed: int, record: dict[str, Any]) -> str:
     values = ", ".join(
-        f"{c.metric} {record['final'][c.metric]['value']:.4g}" for c in entry.criterion
+        f"{c.metric} {_value(record['final'][c.metric]['value'])}" for c in entry.criterion
     )
     reached = record["reached"]
     when = "never" if reached is None else f"at {reached['steps']:,} steps"
@@ -255,7 +324,7 @@ def _line(entry: Any, learner: str, seed: int, record: dict[str, Any]) -> str:
     )
 
 
-def _write_summary(out: Path, tasks: Sequence[str]) -> None:
+def _write_summary(out: Path, tasks: Sequence[str], command: str | None) -> None:
     baselines, runs = load_records(out)
     tables = []
     for task in tasks:
@@ -266,9 +335,16 @@ def _write_summary(out: Path, tasks: Sequence[str]) -> None:
         print("\n" + markdown(table))
         for row in table["learners"]:
             print(f"  reproduce {row['learner']}: {row['reproduce']}")
-    summary = {"meta": provenance(), "tables": tables}
+    summary = {"meta": provenance(command), "tables": tables}
     (out / "benchmark.json").write_text(json.dumps(summary, indent=1) + "\n", encoding="utf-8")
     print(f"\nwrote {out / 'benchmark.json'}")
 
 
-__all__ = ["DEFAULT_OUT", "add_arguments", "check_device", "reproduce", "run_from_args"]
+__all__ = [
+    "DEFAULT_OUT",
+    "INTERRUPTED",
+    "add_arguments",
+    "check_device",
+    "reproduce",
+    "run_from_args",
+]

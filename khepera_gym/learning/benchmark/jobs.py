@@ -56,6 +56,8 @@ class Job:
         on_evaluation: Called after each evaluation while training with (steps, training
             seconds, means): ``khepera-gym tune`` reports them to its scheduler, which may stop
             the trial.
+        progress: Whether the learner may show its own progress (BenchMARL's bar); False: it
+            prints nothing.
     """
 
     task: str
@@ -69,6 +71,7 @@ class Job:
     device: str = "cpu"
     num_threads: int | None = None
     on_evaluation: Callable[[int, float, Means], None] | None = None
+    progress: bool = True
 
 
 def agents_of(task: str) -> list[tuple[str, int]]:

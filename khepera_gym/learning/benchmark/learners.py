@@ -36,6 +36,7 @@ from khepera_gym.learning.benchmark.jobs import (
     shares_rows,
 )
 from khepera_gym.learning.recipes import EVAL_SEED, load_hyperparams
+from khepera_gym.tooling.arguments import did_you_mean
 
 
 class SB3Learner:
@@ -75,8 +76,34 @@ class SB3Learner:
         name = self.env_name(task, version)
         return f"{name}-shared" if self.shared else name
 
+    def check_overrides(self, overrides: Mapping[str, Any]) -> None:
+        """Checks the keys of ``overrides`` (``--hp``) against those a table of the algorithm may
+        hold (:func:`khepera_gym.learning.train.hyperparameter_keys`: the run's keys and the
+        keywords of the SB3 class), so a misspelt key fails before anything runs.
+
+        Raises:
+            ConfigError: A key the algorithm does not take; the message suggests the nearest.
+        """
+        from khepera_gym.learning.train import ALGORITHMS, hyperparameter_keys
+
+        if not overrides:
+            return
+        keys = hyperparameter_keys(self.algo)
+        for key in overrides:
+            if key not in keys:
+                raise ConfigError(
+                    f"--hp {key}: learner {self.name!r} ({ALGORITHMS[self.algo]}) has no "
+                    f"hyperparameter {key!r}; {did_you_mean(key, keys)}"
+                )
+
     def recipe(self, task: str, version: int, overrides: Mapping[str, Any]) -> dict[str, Any]:
-        """The hyperparameter table with ``overrides``."""
+        """The hyperparameter table with ``overrides``.
+
+        Raises:
+            ConfigError: The learner does not apply to the task, its table is missing, or an
+                override's key is not one of the algorithm's (:meth:`check_overrides`).
+        """
+        self.check_overrides(overrides)
         recipe = load_hyperparams(self.algo, self.table(task, version))
         recipe.update(overrides)
         return recipe
@@ -214,10 +241,10 @@ def learner(name: str) -> Any:
     """The learner of a name.
 
     Raises:
-        ConfigError: An unknown name (the message lists the learners).
+        ConfigError: An unknown name (the message suggests the nearest and lists the learners).
     """
     if name not in LEARNERS:
-        raise ConfigError(f"unknown learner {name!r}; known: {', '.join(LEARNERS)}")
+        raise ConfigError(f"unknown learner {name!r}; {did_you_mean(name, list(LEARNERS))}")
     return LEARNERS[name]()
 
 

@@ -15,10 +15,14 @@ rows of :func:`khepera_gym.learning.sb3.make_vec_env` of the task's PettingZoo m
 
 from __future__ import annotations
 
+import contextlib
+import io
+import logging
+import math
 import tempfile
 import time
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -33,6 +37,7 @@ from khepera_gym.learning.benchmark.jobs import (
     shares_rows,
 )
 from khepera_gym.learning.recipes import EVAL_SEED, load_hyperparams
+from khepera_gym.tooling.arguments import did_you_mean
 
 #: Recipe keys this learner reads (any other is an error naming them).
 RECIPE_KEYS = (
@@ -68,6 +73,56 @@ def scale_mapping(sigma_min: float) -> str:
     if not SIGMA_MIN <= sigma_min < 1.0:
         raise ConfigError(f"sigma_min must be in [{SIGMA_MIN}, 1), got {sigma_min!r}")
     return f"biased_softplus_1.0_{float(sigma_min)!r}"
+
+
+def return_description(mean_return: float, last: float) -> str:
+    """What the progress bar says of a batch's mean episode return: the batch's, else (no
+    episode ended in it) the last known one, else that no episode has ended yet; never ``nan``,
+    which BenchMARL's own bar shows for a batch without an ended episode."""
+    if math.isfinite(mean_return):
+        return f"mean return = {mean_return:.4g}"
+    if math.isfinite(last):
+        return f"mean return = {last:.4g} (no episode ended in the last batch)"
+    return "mean return: no episode ended yet"
+
+
+@contextlib.contextmanager
+def _learner_output(experiment: Any, shown: bool) -> Iterator[None]:
+    """What BenchMARL and torchrl show while ``experiment`` runs.
+
+    ``shown``: BenchMARL's progress bar, described by :func:`return_description`. Not shown: no
+    bar, and torchrl's INFO lines (its ``torchrl`` logger, on stdout) held back. BenchMARL 1.5
+    has no option for its bar (its experiment module calls ``tqdm`` itself), so that name is
+    bound to a bar of ours for the run. Either way BenchMARL's lines on stdout as the run stops
+    (``Experiment was closed gracefully`` after Ctrl-C) are dropped: the benchmark says what
+    happened in one line.
+    """
+    from benchmarl.experiment import experiment as module
+    from tqdm import tqdm
+
+    known = [math.nan]
+
+    class Bar(tqdm):
+        def set_description(self, desc: str | None = None, refresh: bool | None = True) -> None:
+            value = float(experiment.mean_return)
+            if math.isfinite(value):
+                known[0] = value
+            super().set_description(return_description(value, known[0]), refresh)
+
+    def bar(*args: Any, **kwargs: Any) -> Any:
+        return Bar(*args, **{**kwargs, "disable": not shown})
+
+    torchrl_log = logging.getLogger("torchrl")
+    level, original = torchrl_log.level, module.tqdm
+    module.tqdm = bar
+    if not shown:
+        torchrl_log.setLevel(max(level, logging.WARNING))
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            yield
+    finally:
+        module.tqdm = original
+        torchrl_log.setLevel(level)
 
 
 class _ActorOnRows:
@@ -106,13 +161,34 @@ class BenchMARLLearner:
             )
         return module
 
+    def check_overrides(self, overrides: Mapping[str, Any]) -> None:
+        """Checks the keys of ``overrides`` (``--hp``) against :data:`RECIPE_KEYS`.
+
+        Raises:
+            ConfigError: A key the learner does not read; the message suggests the nearest.
+        """
+        for key in overrides:
+            if key not in RECIPE_KEYS:
+                raise ConfigError(
+                    f"--hp {key}: learner {self.name!r} has no recipe key {key!r}; "
+                    f"{did_you_mean(key, RECIPE_KEYS)}"
+                )
+
     def recipe(self, task: str, version: int, overrides: Mapping[str, Any]) -> dict[str, Any]:
+        """The recipe table with ``overrides``.
+
+        Raises:
+            ConfigError: The learner does not apply to the task, its table is missing, or a key
+                (of the table or an override) is not one it reads, or ``sigma_min`` is wrong.
+        """
+        self.check_overrides(overrides)
         recipe = load_hyperparams(self.name, self.env_name(task, version))
         recipe.update(overrides)
         unknown = sorted(set(recipe) - set(RECIPE_KEYS))
         if unknown:
             raise ConfigError(
-                f"{self.name} recipe: unknown key {unknown[0]!r}; known: {', '.join(RECIPE_KEYS)}"
+                f"{self.name} recipe: unknown key {unknown[0]!r}; "
+                f"{did_you_mean(unknown[0], RECIPE_KEYS)}"
             )
         scale_mapping(recipe.get("sigma_min", SIGMA_MIN))  # a wrong floor: now, not after training
         return recipe
@@ -212,7 +288,8 @@ class BenchMARLLearner:
                 # SB3's PPO does for a policy shared by its rows: on purpose, so torchrl's advice
                 # to keep the agents' dimension apart is not taken.
                 warnings.filterwarnings("ignore", "You requested advantage normalization")
-                experiment.run()
+                with _learner_output(experiment, job.progress):
+                    experiment.run()
             if not history or history[-1][0] != experiment.total_frames:
                 evaluate(experiment)
             wall = time.perf_counter() - clock["start"]
@@ -241,4 +318,10 @@ class BenchMARLLearner:
         )
 
 
-__all__ = ["RECIPE_KEYS", "SIGMA_MIN", "BenchMARLLearner", "scale_mapping"]
+__all__ = [
+    "RECIPE_KEYS",
+    "SIGMA_MIN",
+    "BenchMARLLearner",
+    "return_description",
+    "scale_mapping",
+]

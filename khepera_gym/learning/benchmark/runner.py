@@ -9,9 +9,11 @@ Wilson), and the task's criterion is judged on those means.
 
 Files, under the output folder: ``baselines/<task>-v<N>.json`` and
 ``runs/<task>-v<N>_<learner>_seed<S>.json``, each with its provenance (date, commit, machine,
-command). A run whose file exists is not run again when the file comes from the same commit,
-version, held-out episodes and recipe; a file from another commit is refused (the message says
-to use another folder or ``--restart``), so results of different code are never mixed.
+command); a run's model files (``models/<stem>/``) are named relative to the folder, and the
+command without the machine's absolute paths, so the folder reads the same on another machine.
+A run whose file exists is not run again when the file comes from the same commit, version,
+held-out episodes and recipe; a file from another commit is refused (the message says to use
+another folder or ``--restart``), so results of different code are never mixed.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -48,6 +51,11 @@ class Settings:
     overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     device: str = "cpu"
     num_threads: int | None = None
+    #: Whether the learners may show their own progress (``--no-progress``: they print nothing).
+    progress: bool = True
+    #: The command the results files record (None: the one running, as typed); the benchmark
+    #: gives it without the machine's absolute paths.
+    command: str | None = None
 
 
 def baseline_env_name(task: str, version: int) -> str:
@@ -192,7 +200,8 @@ def run_baselines(entry: TaskEntry, version: int, settings: Settings, restart: b
         name: summarize(play(baseline_policy(name, rows), rows, settings))
         for name in baseline_names(entry)
     }
-    record = {"format": FORMAT, "key": key, "meta": provenance(), "summaries": summaries}
+    meta = provenance(settings.command)
+    record = {"format": FORMAT, "key": key, "meta": meta, "summaries": summaries}
     _write(path, record)
     return record
 
@@ -201,6 +210,49 @@ def judge(entry: TaskEntry, values: Mapping[str, float], baselines: Mapping[str,
     """Whether means ``values`` meet the task's criterion."""
     base = {name: means(summary) for name, summary in baselines["summaries"].items()}
     return all(c.holds(values.get(c.metric, math.nan), c.threshold(base)) for c in entry.criterion)
+
+
+def run_path(settings: Settings, task: str, version: int, learner: str, seed: int) -> Path:
+    """The results file of one (task, learner, seed)."""
+    return settings.out / "runs" / f"{_stem(task, version, learner, seed)}.json"
+
+
+def _stem(task: str, version: int, learner: str, seed: int) -> str:
+    return f"{task}-v{version}_{learner}_seed{seed}"
+
+
+def _run_key(
+    entry: TaskEntry, learner: Any, version: int, seed: int, settings: Settings
+) -> dict[str, Any]:
+    """What a run's file must hold for the run to be done already: its work but for the code."""
+    name = learner.env_name(entry.task, version)
+    recipe = learner.recipe(entry.task, version, settings.overrides)
+    if settings.timesteps is not None:
+        recipe["n_timesteps"] = settings.timesteps
+    return {
+        "task": entry.task,
+        "version": version,
+        "learner": learner.name,
+        "env": name,
+        "seed": seed,
+        "recipe": _fingerprint(recipe),
+        "episodes": settings.episodes,
+        "heldout_seed": settings.heldout_seed,
+        "criterion": [c.to_json() for c in entry.criterion],
+    }
+
+
+def finished(
+    entry: TaskEntry, learner: Any, version: int, seed: int, settings: Settings, restart: bool
+) -> dict[str, Any] | None:
+    """The record of one (task, learner, seed) if its file holds this very work from this code
+    (:func:`run_one` then returns it without training), else None.
+
+    Raises:
+        ConfigError: As :func:`run_one`.
+    """
+    key = _run_key(entry, learner, version, seed, settings)
+    return _reusable(run_path(settings, entry.task, version, learner.name, seed), key, restart)
 
 
 def run_one(
@@ -220,22 +272,9 @@ def run_one(
             the run's file comes from other code.
     """
     name = learner.env_name(entry.task, version)
-    recipe = learner.recipe(entry.task, version, settings.overrides)
-    if settings.timesteps is not None:
-        recipe["n_timesteps"] = settings.timesteps
-    key = {
-        "task": entry.task,
-        "version": version,
-        "learner": learner.name,
-        "env": name,
-        "seed": seed,
-        "recipe": _fingerprint(recipe),
-        "episodes": settings.episodes,
-        "heldout_seed": settings.heldout_seed,
-        "criterion": [c.to_json() for c in entry.criterion],
-    }
-    stem = f"{entry.task}-v{version}_{learner.name}_seed{seed}"
-    path = settings.out / "runs" / f"{stem}.json"
+    key = _run_key(entry, learner, version, seed, settings)
+    stem = _stem(entry.task, version, learner.name, seed)
+    path = run_path(settings, entry.task, version, learner.name, seed)
     done = _reusable(path, key, restart)
     if done is not None:
         return done
@@ -249,6 +288,7 @@ def run_one(
         eval_episodes=settings.eval_episodes,
         device=settings.device,
         num_threads=settings.num_threads,
+        progress=settings.progress,
     )
     trained = learner.train(job, report)
     base = {n: means(s) for n, s in baselines["summaries"].items()}
@@ -272,7 +312,7 @@ def run_one(
     record = {
         "format": FORMAT,
         "key": key,
-        "meta": provenance(),
+        "meta": provenance(settings.command),
         "recipe": trained.recipe,
         # What the command changed from the recipe, so its row prints the command again.
         "settings": {
@@ -294,7 +334,11 @@ def run_one(
         "final_sampled": sampled,
         "solved": judge(entry, means(final), baselines),
         "solved_sampled": None if sampled is None else judge(entry, means(sampled), baselines),
-        "files": trained.files,
+        # Relative to the results folder, which can move to another machine (docs/results/).
+        "files": {
+            name: Path(os.path.relpath(path, settings.out)).as_posix()
+            for name, path in trained.files.items()
+        },
     }
     _write(path, record)
     # The folder's runs in marl-eval's format as well, for the field's plotting tools.
@@ -309,10 +353,12 @@ __all__ = [
     "Settings",
     "baseline_env_name",
     "baseline_policy",
+    "finished",
     "judge",
     "means",
     "play",
     "run_baselines",
     "run_one",
+    "run_path",
     "summarize",
 ]

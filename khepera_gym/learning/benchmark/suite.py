@@ -21,7 +21,6 @@ skipped silently.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -32,6 +31,7 @@ from khepera_gym.config import tomllib
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.policies import VARIANTS
 from khepera_gym.learning.recipes import HYPERPARAMS_DIR
+from khepera_gym.tooling.arguments import did_you_mean
 
 #: The suite file of a source checkout.
 SUITE_PATH = HYPERPARAMS_DIR.parent / "benchmark.toml"
@@ -41,12 +41,6 @@ COMMON_STATS = ("success", "return", "length", "path_length", "collisions")
 BOUNDS = ("at_least", "at_most")
 #: Keys of a task's entry.
 ENTRY_KEYS = ("learners", "baselines", "criterion", "why", "tried")
-
-
-def _choices(name: str, known: Sequence[str]) -> str:
-    near = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
-    hint = f"did you mean {near[0]!r}? " if near else ""
-    return f"{hint}known: {', '.join(known)}"
 
 
 def all_baselines() -> dict[str, type]:
@@ -138,7 +132,7 @@ def _condition(task: str, where: str, table: Any, baselines: Sequence[str]) -> C
     stats = task_stats(task)
     if metric not in stats:
         raise ConfigError(
-            f"{where}: {task} has no statistic {metric!r}; {_choices(str(metric), stats)}"
+            f"{where}: {task} has no statistic {metric!r}; {did_you_mean(str(metric), stats)}"
         )
     bounds = [b for b in BOUNDS if b in table]
     if len(bounds) != 1:
@@ -149,7 +143,7 @@ def _condition(task: str, where: str, table: Any, baselines: Sequence[str]) -> C
         if value not in baselines:
             raise ConfigError(
                 f"{where}: {bound} = {value!r} is not a baseline of the entry; "
-                f"{_choices(value, baselines)}"
+                f"{did_you_mean(value, baselines)}"
             )
         return Condition(metric, bound, reference=value)
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
@@ -166,7 +160,7 @@ def _entry(task: str, table: Any, where: str, learners: Sequence[str]) -> TaskEn
     if unknown:
         raise ConfigError(
             f"{where}: [{task}] has an unknown key {unknown[0]!r}; "
-            f"{_choices(unknown[0], ENTRY_KEYS)}"
+            f"{did_you_mean(unknown[0], ENTRY_KEYS)}"
         )
     names = table.get("learners", [])
     if not isinstance(names, list) or not names:
@@ -174,7 +168,7 @@ def _entry(task: str, table: Any, where: str, learners: Sequence[str]) -> TaskEn
     for name in names:
         if name not in learners:
             raise ConfigError(
-                f"{where}: [{task}] unknown learner {name!r}; {_choices(str(name), learners)}"
+                f"{where}: [{task}] unknown learner {name!r}; {did_you_mean(str(name), learners)}"
             )
     known_baselines = [*all_baselines(), *VARIANTS]
     baselines = table.get("baselines", [])
@@ -182,7 +176,7 @@ def _entry(task: str, table: Any, where: str, learners: Sequence[str]) -> TaskEn
         if name not in known_baselines:
             raise ConfigError(
                 f"{where}: [{task}] unknown baseline {name!r}; "
-                f"{_choices(str(name), known_baselines)}"
+                f"{did_you_mean(str(name), known_baselines)}"
             )
     conditions = table.get("criterion")
     if not isinstance(conditions, list) or not conditions:
@@ -222,7 +216,7 @@ def load_suite(path: str | Path | None = None) -> dict[str, TaskEntry]:
     for name in tables:
         if name not in tasks:
             raise ConfigError(
-                f"{file}: [{name}] is not a task of the core; {_choices(name, tasks)}"
+                f"{file}: [{name}] is not a task of the core; {did_you_mean(name, tasks)}"
             )
     return {t: _entry(t, tables[t], str(file), list(LEARNERS)) for t in tasks if t in tables}
 
