@@ -627,6 +627,8 @@ def _with_absolute_paths(source: Path, target: Path) -> Path:
     absolute paths of three machines (as the committed files may)."""
     for path in source.rglob("*.json"):
         record = json.loads(path.read_text())
+        if "meta" not in record:  # marl_eval.json: runs in marl-eval's format, no command
+            continue
         record["meta"]["command"] = (
             "khepera-gym benchmark --tasks nav --out /work/bench/final --suite "
             "/home/someone/suite.toml --seed-list 0 --hp n_epochs=10"
