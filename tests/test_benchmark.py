@@ -698,3 +698,19 @@ def test_the_recipe_speed_table_pairs_each_earlier_run_with_the_shipped_run_of_i
     assert "| 2 |" not in page
     assert "150 s against 30 s" in page and "(5.0x; median ratio 5.2)" in page
     assert str(tmp_path) not in page and "--hp n_epochs=10 --seed-list S" in page
+
+
+def test_every_shipped_recipe_says_how_it_was_chosen(tmp_path: Path) -> None:
+    # Issue 52: each recipe names the search that chose it, or says it was not searched.
+    for task, entry in load_suite().items():
+        assert set(entry.searched) == set(entry.learners), task
+        for name in entry.learners:
+            how = entry.search_of(name)
+            assert how.startswith("not searched") or "tune" in how, (task, name, how)
+    suite = tmp_path / "suite.toml"
+    suite.write_text(
+        '[nav]\nlearners = ["ppo"]\nbaselines = ["vfh"]\n'
+        'criterion = [{ metric = "success", at_least = 0.9 }]\nsearched = { pppo = "x" }\n'
+    )
+    with pytest.raises(ConfigError, match=r"searched names 'pppo'.*did you mean 'ppo'"):
+        load_suite(suite)

@@ -186,6 +186,17 @@ def reliable_fragment(folder: Path, images: Path, image_prefix: str) -> str:
         + code("khepera-gym benchmark --out docs/results/benchmark")
         + ".",
         *curve_links,
+        "How each learner's recipe was chosen (``searched`` in configs/benchmark.toml; "
+        + code("khepera-gym tune")
+        + " reruns a search):",
+        table(
+            ["task", "learner", "recipe"],
+            [
+                [task, name, entry.search_of(name)]
+                for task, entry in suite.items()
+                for name in entry.learners
+            ],
+        ),
     ]
     return "\n\n".join(p for p in parts if p)
 

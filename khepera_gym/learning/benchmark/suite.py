@@ -40,7 +40,9 @@ COMMON_STATS = ("success", "return", "length", "path_length", "collisions")
 #: The two bounds a condition may set.
 BOUNDS = ("at_least", "at_most")
 #: Keys of a task's entry.
-ENTRY_KEYS = ("learners", "baselines", "criterion", "why", "tried")
+ENTRY_KEYS = ("learners", "baselines", "criterion", "why", "tried", "searched")
+#: What a learner's recipe says of its search when the suite names none.
+NOT_SEARCHED = "not searched"
 
 
 def all_baselines() -> dict[str, type]:
@@ -115,6 +117,12 @@ class TaskEntry:
     criterion: tuple[Condition, ...]
     why: str
     tried: str = ""
+    searched: Mapping[str, str] = dataclasses.field(default_factory=dict)
+
+    def search_of(self, learner: str) -> str:
+        """How ``learner``'s recipe for this task was chosen: the ``khepera-gym tune`` results
+        file whose search chose it, or why it was not searched."""
+        return self.searched.get(learner, NOT_SEARCHED)
 
     def describe_criterion(self) -> str:
         return " and ".join(c.describe() for c in self.criterion)
@@ -188,8 +196,23 @@ def _entry(task: str, table: Any, where: str, learners: Sequence[str]) -> TaskEn
     tried = table.get("tried", "")
     if not isinstance(tried, str):
         raise ConfigError(f"{where}: [{task}] tried must be a string, got {tried!r}")
+    searched = table.get("searched", {})
+    if not isinstance(searched, dict) or not all(isinstance(v, str) for v in searched.values()):
+        raise ConfigError(f'{where}: [{task}] searched must be a table of learner = "..."')
+    for name in searched:
+        if name not in names:
+            raise ConfigError(
+                f"{where}: [{task}] searched names {name!r}, not a learner of the task; "
+                f"{did_you_mean(str(name), names)}"
+            )
     return TaskEntry(
-        task, tuple(names), tuple(baselines), criterion, str(table.get("why", "")), tried
+        task,
+        tuple(names),
+        tuple(baselines),
+        criterion,
+        str(table.get("why", "")),
+        tried,
+        dict(searched),
     )
 
 
