@@ -543,3 +543,22 @@ def test_the_guides_quote_no_measured_time_of_their_own() -> None:
         for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
             if duration.search(line) and not any(a in line for a in allowed):
                 pytest.fail(f"{path.name}:{number} quotes a measured time: {line.strip()}")
+
+
+def test_the_guide_names_every_extra_and_what_make_test_installs() -> None:
+    # Facts written twice: pyproject.toml's extras and the Makefile's `make test` extras, in
+    # getting-started's table and its `make test` line.
+    import re
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    page = (ROOT / "docs" / "getting-started.md").read_text()
+    rows = set(re.findall(r"^\| `([\w-]+)` \|", page, re.MULTILINE))
+    assert rows == set(project["optional-dependencies"])
+    makefile = (ROOT / "Makefile").read_text()
+    installed = re.search(r"--extras ([\w,]+)\n\ttouch \$@ \$\(BUILT\)", makefile)
+    assert installed is not None
+    extras = [e for e in installed.group(1).split(",") if e != "test"]
+    line = next(li for li in page.splitlines() if li.startswith("make test    # installs"))
+    named = re.search(r"installs the (.*) extras too", line)
+    assert named is not None
+    assert set(re.split(r", | and ", named.group(1))) == set(extras)
