@@ -115,6 +115,11 @@ def score(metric: TaskMetric, means: Mapping[str, float]) -> float:
     return value if metric.higher_is_better else -value
 
 
+def _rank(row: Mapping[str, Any]) -> tuple[float, float]:
+    scores = [point[SCORE] for point in row["evaluations"]]
+    return scores[-1], sum(scores) / len(scores)
+
+
 def _trial(config: Mapping[str, Any], settings: Mapping[str, Any]) -> None:
     """One trial (runs on a Ray worker): trains with the config's keys, reporting every
     evaluation; the scheduler may stop it after any."""
@@ -247,7 +252,9 @@ def tune_recipe(
     finished = [r for r in rows if r["evaluations"]]
     if not finished:
         raise KheperaError("no trial of the search reported an evaluation")
-    best = max(finished, key=lambda r: r["evaluations"][-1][SCORE])
+    # The best last evaluation; among equals, the best mean over the evaluations (the one that
+    # got there sooner: the area under its learning curve).
+    best = max(finished, key=_rank)
     table = learner(learner_name).recipe(task, version, {**fixed, **best["config"]})
     document = {
         "format": FORMAT,
