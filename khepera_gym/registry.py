@@ -353,7 +353,7 @@ def history_lines(task: str) -> list[str]:
         if version.number != numbers[0]:
             text = f"{version.title}. {version.summary}"
         elif version.number == 0:
-            text = f"Initial version. {version.title}: {version.summary}"
+            text = f"Initial version: {version.summary}"
         else:
             older = ", ".join(f"v{n}" for n in range(version.number))
             text = (

@@ -61,7 +61,14 @@ us_acceptance = 1.5707963267948966 # v0: an echo from any incidence angle
         title: "One robot in the simulator and on the bench",
         summary: "The wheels follow K-Team's speed profile as the firmware computes it, at \
                   Acc_Inc 40 (2.71 m/s²), which the program `khepera-gym export` writes sets on \
-                  the robot; v1's 0.203 m/s² ramp was not what that program set.",
+                  the robot; v1's 0.203 m/s² ramp was not what that program set. Contacts \
+                  changed with it: robots roll substep by substep, each one's path its own, not \
+                  one arc over the step (`physics.whole_step_arc`); a contact is made at 1.25 x \
+                  what two robots at full speed close in a substep, not rapier's 0.02 m, so \
+                  head-on impacts meet it before the robots overlap \
+                  (`physics.contact_prediction`); a slipping robot with nothing to touch moves \
+                  by its tyres' impulses, not rapier's step of the world \
+                  (`physics.slip_solver`).",
         before: r#"
 [motors]
 mode = "ramp"                # v1: the wheels ramp at robot.wheel_accel_limit (0.203 m/s^2, K-Team's default profile rate) without the profile's minimum speed
