@@ -1,7 +1,8 @@
 """``khepera-gym benchmark --ray ADDRESS`` on a Ray cluster of a head and a worker on this
-machine: its run equals the local run of the same seed bit for bit (held-out results, training
-history, the model's parameters), ran on the worker (the head has no CPU), and its files are
-where a local run writes them; a second command resumes; a bad address fails at once.
+machine: its runs equal the local runs of the same seeds bit for bit (held-out results,
+training history, the model's parameters), ran on the worker (the head has no CPU), and their
+files are where a local run writes them; a second command resumes; a run whose worker process
+is killed is run again, to the same bits; a bad address fails at once.
 
 The cluster lives in namespaces of its own (``unshare --net --pid --fork --mount-proc``): a
 network with only loopback up, so nothing leaves the machine and no other Ray is seen, and a
@@ -25,6 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +81,8 @@ def _wait_for_port(port: int, head: subprocess.Popen[bytes]) -> None:
 def _cluster_part(out: Path) -> None:
     """Inside the namespaces: a head (no CPU) and a worker (1 CPU); the benchmark run on them
     twice into ``out`` (the second resumes); the nodes in ``out/nodes.json``."""
+    if os.getpid() != 1:
+        raise SystemExit("run in a PID namespace of its own: unshare --pid --fork --mount-proc")
     subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
     temp = tempfile.mkdtemp(prefix="kgray")  # short: Ray's socket paths must fit in 107 bytes
     env = {
@@ -108,24 +112,9 @@ def _cluster_part(out: Path) -> None:
         start("head", "--head", "--num-cpus=0", f"--port={port}", "--disable-usage-stats")
         _wait_for_port(port, nodes[0])
         start("worker", f"--address={address}", "--num-cpus=1")
-        driver = (
-            "import json, sys, time\n"
-            "import ray\n"
-            "from khepera_gym import cli\n"
-            f"argv = ['benchmark', '--ray', {address!r}, '--out', {str(out)!r}, *{RUN!r}]\n"
-            "ray.init(address=sys.argv[1])  # wait for the worker to join\n"
-            "while ray.cluster_resources().get('CPU', 0) < 1:\n"
-            "    time.sleep(0.2)\n"
-            "nodes = [{'id': n['NodeID'], 'cpus': n['Resources'].get('CPU', 0)}\n"
-            "         for n in ray.nodes() if n['Alive']]\n"
-            "ray.shutdown()\n"
-            "for _ in range(2):\n"
-            "    assert cli.main(argv) == 0\n"
-            f"open({str(out.parent / 'nodes.json')!r}, 'w').write(json.dumps(nodes))\n"
-        )
         with (out.parent / "driver.log").open("wb") as log:
             subprocess.run(
-                [sys.executable, "-c", driver, address],
+                [sys.executable, __file__, "driver", address, str(out)],
                 env=env,
                 stdout=log,
                 stderr=subprocess.STDOUT,
@@ -137,6 +126,51 @@ def _cluster_part(out: Path) -> None:
             os.killpg(node.pid, signal.SIGKILL)
             node.wait()
         shutil.rmtree(temp, ignore_errors=True)
+
+
+def _driver_part(address: str, out: Path) -> None:
+    """The driver, in the namespaces: waits for the worker, notes the nodes, runs seed 0 twice
+    (the second finds it done) and seed 1 with its first worker process killed mid-run."""
+    import threading
+
+    import ray
+
+    from khepera_gym import cli
+
+    ray.init(address=address)
+    while ray.cluster_resources().get("CPU", 0) < 1:  # the worker has not joined yet
+        time.sleep(0.2)
+    nodes = [
+        {"id": node["NodeID"], "cpus": node["Resources"].get("CPU", 0)}
+        for node in ray.nodes()
+        if node["Alive"]
+    ]
+    (out.parent / "nodes.json").write_text(json.dumps(nodes))
+    ray.shutdown()
+    argv = ["benchmark", "--ray", address, "--out", str(out), *RUN]
+    for _ in range(2):
+        assert cli.main(argv) == 0
+    killer = threading.Thread(target=_kill_first_run, args=(out.parent / "killed.txt",))
+    killer.start()
+    assert cli.main([*argv, "--seed-list", "1"]) == 0
+    killer.join()
+
+
+def _kill_first_run(note: Path) -> None:
+    """SIGKILLs the first worker process seen running a run, as a lost worker; notes its pid.
+    Only in the PID namespace, whose ``/proc`` shows the cluster's processes alone."""
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        for process in Path("/proc").iterdir():
+            try:
+                title = (process / "cmdline").read_bytes() if process.name.isdigit() else b""
+            except OSError:
+                continue
+            if title.startswith(b"ray::train_on_worker"):
+                os.kill(int(process.name), signal.SIGKILL)
+                note.write_text(process.name)
+                return
+        time.sleep(0.05)
 
 
 def _namespaces() -> list[str]:
@@ -176,9 +210,6 @@ def test_a_run_on_a_ray_cluster_equals_the_local_run_and_ran_on_the_worker(
 ) -> None:
     pytest.importorskip("ray", reason="needs Ray: pip install 'khepera-gym[rllib]'")
     pytest.importorskip("stable_baselines3", reason="needs the sb3 extra")
-    import torch
-    from stable_baselines3 import PPO
-
     from khepera_gym import cli
 
     on_ray, here = tmp_path / "ray" / "out", tmp_path / "local"
@@ -190,7 +221,7 @@ def test_a_run_on_a_ray_cluster_equals_the_local_run_and_ran_on_the_worker(
         stderr=subprocess.STDOUT,
     )
     try:
-        assert cli.main(["benchmark", "--out", str(here), *RUN]) == 0  # meanwhile, locally
+        assert cli.main(["benchmark", "--out", str(here), *RUN, "--seed-list", "0", "1"]) == 0
         output, _ = cluster.communicate(timeout=CLUSTER_SECONDS)
     finally:
         if cluster.poll() is None:
@@ -203,13 +234,39 @@ def test_a_run_on_a_ray_cluster_equals_the_local_run_and_ran_on_the_worker(
     assert cluster.returncode == 0, output.decode(errors="replace") + logs
     print(f"cluster part and local run: {time.perf_counter() - started:.1f} s")
 
-    (run_file,) = (here / "runs").glob("*.json")
-    local = json.loads(run_file.read_text())
-    remote_text = (on_ray / "runs" / run_file.name).read_text()
-    remote = json.loads(remote_text)
-    assert "khepera-gym-benchmark-" not in remote_text  # no path of the worker's folder
-    assert _only_results(remote) == _only_results(local)
-    # The files are where a local run writes them, named by the driver's paths.
+    nodes = json.loads((on_ray.parent / "nodes.json").read_text())
+    assert sorted(node["cpus"] for node in nodes) == [0, 1]  # the head has no CPU
+    (worker,) = (node["id"] for node in nodes if node["cpus"] == 1)
+    run_files = sorted((here / "runs").glob("*.json"))
+    assert [f.name for f in run_files] == [f.name for f in sorted((on_ray / "runs").glob("*"))]
+    for run_file in run_files:  # seed 0, and seed 1 whose first worker was killed
+        local = json.loads(run_file.read_text())
+        remote_text = (on_ray / "runs" / run_file.name).read_text()
+        remote = json.loads(remote_text)
+        assert "khepera-gym-benchmark-" not in remote_text  # no path of the worker's folder
+        assert _only_results(remote) == _only_results(local), run_file.name
+        _assert_same_model(local, here, remote, on_ray)
+        # Made on the worker, by the same code, with the driver's command.
+        assert remote["meta"]["ray_node"] == worker
+        assert remote["meta"]["commit"] == local["meta"]["commit"]
+        assert "--ray 127.0.0.1:" in remote["meta"]["command"]
+    assert (on_ray / "baselines").is_dir() and (on_ray / "benchmark.json").is_file()
+    driver_log = (on_ray.parent / "driver.log").read_text()
+    # The second command found seed 0 done and did not submit it again; seed 1's run was
+    # retried after its worker was killed, and nothing was reported lost.
+    assert "done before: read from its file, not run again" in driver_log, driver_log
+    assert (on_ray.parent / "killed.txt").is_file(), driver_log
+    assert "failed on the cluster" not in driver_log, driver_log
+
+
+def _assert_same_model(
+    local: dict[str, Any], here: Path, remote: dict[str, Any], on_ray: Path
+) -> None:
+    """The files are where a local run writes them (the record names the driver's paths) and
+    hold the same parameters and normaliser statistics."""
+    import torch
+    from stable_baselines3 import PPO
+
     assert remote["files"].keys() == local["files"].keys()
     for name, path in remote["files"].items():
         assert path == str(on_ray / Path(local["files"][name]).relative_to(here)), name
@@ -219,21 +276,10 @@ def test_a_run_on_a_ray_cluster_equals_the_local_run_and_ran_on_the_worker(
     assert ours.keys() == theirs.keys()
     for key in ours:
         assert torch.equal(ours[key], theirs[key]), key
-    if "vecnormalize" in local["files"]:  # the observation normaliser's statistics too
+    if "vecnormalize" in local["files"]:
         stats = [_normalizer(r["files"]["vecnormalize"]) for r in (local, remote)]
         for ours_stats, theirs_stats in zip(*stats, strict=True):
             assert np.array_equal(ours_stats, theirs_stats)
-    # Made on the worker: the head has no CPU, and the record names the worker's node.
-    nodes = json.loads((on_ray.parent / "nodes.json").read_text())
-    assert sorted(node["cpus"] for node in nodes) == [0, 1]
-    (worker,) = (node["id"] for node in nodes if node["cpus"] == 1)
-    assert remote["meta"]["ray_node"] == worker
-    assert remote["meta"]["commit"] == local["meta"]["commit"]
-    assert "--ray 127.0.0.1:" in remote["meta"]["command"]
-    assert (on_ray / "baselines").is_dir() and (on_ray / "benchmark.json").is_file()
-    # The second command found the run done and did not submit it again.
-    driver_log = (on_ray.parent / "driver.log").read_text()
-    assert "done before: read from its file, not run again" in driver_log, driver_log
 
 
 def test_a_bad_ray_address_fails_at_once_naming_it(tmp_path: Path) -> None:
@@ -251,7 +297,57 @@ def test_a_bad_ray_address_fails_at_once_naming_it(tmp_path: Path) -> None:
     assert "\n" not in message and not (tmp_path / "baselines").exists()
 
 
+class _LosingCluster:
+    """Stands in for :class:`~khepera_gym.learning.benchmark.cluster.RayRuns` where every run is
+    lost (as when Ray's retries are spent)."""
+
+    def __init__(self) -> None:
+        self.runs: list[Any] = []
+
+    def __enter__(self) -> _LosingCluster:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pass
+
+    @property
+    def running(self) -> int:
+        return len(self.runs)
+
+    def submit(self, run: Any, baselines: Any) -> None:
+        self.runs.append(run)
+
+    def ended(self) -> Iterator[tuple[Any, None, str]]:
+        while self.runs:
+            yield self.runs.pop(0), None, "WorkerCrashedError: the worker died"
+
+
+def test_a_run_lost_on_the_cluster_is_named_and_the_command_fails(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("ray", reason="needs Ray: pip install 'khepera-gym[rllib]'")
+    from khepera_gym import cli
+    from khepera_gym.learning.benchmark import cluster, command
+
+    monkeypatch.setattr(cluster, "start", lambda address, settings: _LosingCluster())
+    monkeypatch.setattr(command, "run_baselines", lambda *args: {"summaries": {}})
+    with pytest.raises(SystemExit) as caught:
+        cli.main(["benchmark", "--ray", "--out", str(tmp_path), *RUN, "--seed-list", "0", "1"])
+    assert str(caught.value) == (
+        f"khepera-gym benchmark: 2 of 2 runs failed on the cluster and are not in {tmp_path}: "
+        "nav ppo seed 0 (WorkerCrashedError: the worker died); nav ppo seed 1 "
+        "(WorkerCrashedError: the worker died); the same command runs them again"
+    )
+    assert "nav ppo seed 1 (WorkerCrashedError: the worker died): failed on the cluster" in (
+        capsys.readouterr().out
+    )
+    assert not (tmp_path / "runs").exists()
+
+
 if __name__ == "__main__":
-    if sys.argv[1:2] != ["cluster"]:
+    if sys.argv[1:2] == ["cluster"]:
+        _cluster_part(Path(sys.argv[2]))
+    elif sys.argv[1:2] == ["driver"]:
+        _driver_part(sys.argv[2], Path(sys.argv[3]))
+    else:
         raise SystemExit("usage: python tests/test_benchmark_ray.py cluster OUT")
-    _cluster_part(Path(sys.argv[2]))
