@@ -12,9 +12,9 @@ submitted) and its tables are those of a local benchmark. The baselines play the
 episodes on the driver: no training, and their file is needed before any run is judged.
 
 Provenance: a record's ``meta`` is the worker's (date, commit, machine; and ``ray_node``, the
-Ray node id it ran on) with the driver's command. A record whose commit differs from the
-driver's is not written (the folder would refuse it on resumption): install the same code on
-every node.
+Ray node id it ran on) with the driver's command. Every node must run the driver's commit (the
+folder would refuse a record of other code on resumption): :func:`check_code` asks each node
+before any work, and a record of other code (from a node that joined later) is not written.
 
 Same results as a local run: a run computes with torch on
 :data:`~khepera_gym.learning.benchmark.runner.TORCH_THREADS` threads wherever it runs, the
@@ -47,6 +47,8 @@ from khepera_gym.tooling.provenance import commit
 
 #: How long the driver tries to reach the head's address before saying it cannot (s).
 CONNECT_SECONDS = 10.0
+#: How long every node has to say which code it runs, before any work (s).
+PROBE_SECONDS = 120.0
 #: Times Ray runs a run again whose worker died (a lost node, a killed process).
 MAX_RETRIES = 3
 #: The folder, under a worker's temporary folder, that the driver's ``--out`` stands for.
@@ -108,6 +110,62 @@ def check_gpus(device: str, address: str | None) -> None:
         raise ConfigError(f"--device {device}: {where} has no GPU")
 
 
+def _code_here() -> dict[str, Any] | None:
+    """On a node: the commit of the khepera_gym it imports (None: an installed wheel)."""
+    return commit()
+
+
+def _short(code: dict[str, Any] | None) -> str:
+    if code is None:
+        return "no git commit (an installed package)"
+    return f"commit {code['id'][:12]}{' (dirty)' if code.get('dirty') else ''}"
+
+
+def check_code(address: str | None) -> None:
+    """Whether every node of the cluster imports khepera_gym from the driver's commit (a run of
+    other code could not be written to the folder): one small task a node, before any work.
+
+    Raises:
+        ConfigError: A node that cannot import khepera_gym, runs other code, or does not
+            answer within :data:`PROBE_SECONDS`; the message names the node.
+    """
+    import ray
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+    here = commit()
+    probe = ray.remote(_code_here)
+    asked = {
+        probe.options(
+            num_cpus=0, scheduling_strategy=NodeAffinitySchedulingStrategy(node["NodeID"], False)
+        ).remote(): node
+        for node in ray.nodes()
+        if node["Alive"]
+    }
+    where = f"the Ray cluster at {address}" if address else "the Ray on this machine"
+    ready, late = ray.wait(list(asked), num_returns=len(asked), timeout=PROBE_SECONDS)
+    if late:
+        node = asked[late[0]]
+        raise ConfigError(
+            f"--ray: node {node['NodeID']} ({node['NodeManagerAddress']}) of {where} did not "
+            f"answer within {PROBE_SECONDS:.0f} s"
+        )
+    for ref in ready:
+        node = asked[ref]
+        name = f"node {node['NodeID']} ({node['NodeManagerAddress']}) of {where}"
+        try:
+            there = ray.get(ref)
+        except ray.exceptions.RayError as error:
+            raise ConfigError(
+                f"--ray: {name} cannot run khepera_gym ({_why(error)}); install the driver's "
+                "khepera_gym on every node"
+            ) from None
+        if there != here:
+            raise ConfigError(
+                f"--ray: {name} runs khepera_gym of {_short(there)}, this driver {_short(here)}; "
+                "install the same code on every node (results of different code are not mixed)"
+            )
+
+
 def start(address: str | None, settings: Settings) -> RayRuns:
     """Joins the cluster at ``address`` (None: starts a Ray here) and checks it can run the
     runs of ``settings``; leave the :class:`RayRuns` (a context manager) to disconnect.
@@ -118,6 +176,7 @@ def start(address: str | None, settings: Settings) -> RayRuns:
     connect(address)
     try:
         check_gpus(settings.device, address)
+        check_code(address)
         return RayRuns(settings)
     except BaseException:
         import ray
@@ -230,12 +289,11 @@ class RayRuns:
         entry, learner, version, seed = run
         record = result["record"]
         meta = record["meta"]
-        if meta.get("commit") != self._commit:
+        if meta.get("commit") != self._commit:  # a node that joined after check_code
             raise ConfigError(
-                f"the worker on Ray node {meta.get('ray_node')} runs commit "
-                f"{(meta.get('commit') or {}).get('id', '?')[:12]}, this driver "
-                f"{(self._commit or {}).get('id', '?')[:12]}: install the same code on every "
-                "node (results of different code are not mixed)"
+                f"the worker on Ray node {meta.get('ray_node')} runs khepera_gym of "
+                f"{_short(meta.get('commit'))}, this driver {_short(self._commit)}: install the "
+                "same code on every node (results of different code are not mixed)"
             )
         for relative, data in result["files"].items():
             path = self.settings.out / relative
@@ -259,7 +317,9 @@ def _why(error: Exception) -> str:
 __all__ = [
     "CONNECT_SECONDS",
     "MAX_RETRIES",
+    "PROBE_SECONDS",
     "RayRuns",
+    "check_code",
     "check_gpus",
     "connect",
     "start",
