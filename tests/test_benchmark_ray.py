@@ -2,7 +2,8 @@
 machine: its runs equal the local runs of the same seeds bit for bit (held-out results,
 training history, the model's parameters), ran on the worker (the head has no CPU), and their
 files are where a local run writes them; a second command resumes; a run whose worker process
-is killed is run again, to the same bits; a bad address fails at once.
+is killed is run again, to the same bits; ``--ray`` alone (a Ray started here) gives the same
+bits too; a bad address fails at once.
 
 The cluster lives in namespaces of its own (``unshare --net --pid --fork --mount-proc``): a
 network with only loopback up, so nothing leaves the machine and no other Ray is seen, and a
@@ -109,6 +110,17 @@ def _cluster_part(out: Path) -> None:
         )
 
     try:
+        # First without an address, before the cluster exists: a Ray of its own here.
+        with (out.parent / "driver_here.log").open("wb") as log:
+            here = ["benchmark", "--ray", "--out", str(out.parent / "here"), *RUN]
+            subprocess.run(
+                [sys.executable, "-m", "khepera_gym.cli", *here],
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                check=True,
+                timeout=CLUSTER_SECONDS // 2,
+            )
         start("head", "--head", "--num-cpus=0", f"--port={port}", "--disable-usage-stats")
         _wait_for_port(port, nodes[0])
         start("worker", f"--address={address}", "--num-cpus=1")
@@ -251,6 +263,12 @@ def test_a_run_on_a_ray_cluster_equals_the_local_run_and_ran_on_the_worker(
         assert remote["meta"]["commit"] == local["meta"]["commit"]
         assert "--ray 127.0.0.1:" in remote["meta"]["command"]
     assert (on_ray / "baselines").is_dir() and (on_ray / "benchmark.json").is_file()
+    # `--ray` without an address: a Ray started here, the same bits again.
+    on_local_ray = on_ray.parent / "here"
+    local = json.loads(run_files[0].read_text())
+    remote = json.loads((on_local_ray / "runs" / run_files[0].name).read_text())
+    assert _only_results(remote) == _only_results(local)
+    _assert_same_model(local, here, remote, on_local_ray)
     driver_log = (on_ray.parent / "driver.log").read_text()
     # The second command found seed 0 done and did not submit it again; seed 1's run was
     # retried after its worker was killed, and nothing was reported lost.
