@@ -190,7 +190,7 @@ def _namespaces() -> list[str]:
     return prefix if os.geteuid() == 0 else [*prefix, "--map-root-user"]
 
 
-def _normalizer(path: str) -> list[Any]:
+def _normalizer(path: Path) -> list[Any]:
     """The running statistics of a saved VecNormalize (observations and returns)."""
     with open(path, "rb") as file:
         normalizer = pickle.load(file)
@@ -280,22 +280,20 @@ def test_a_run_on_a_ray_cluster_equals_the_local_run_and_ran_on_the_worker(
 def _assert_same_model(
     local: dict[str, Any], here: Path, remote: dict[str, Any], on_ray: Path
 ) -> None:
-    """The files are where a local run writes them (the record names the driver's paths) and
-    hold the same parameters and normaliser statistics."""
+    """The files are where a local run writes them (the records name them alike, relative to
+    the results folder) and hold the same parameters and normaliser statistics."""
     import torch
     from stable_baselines3 import PPO
 
-    assert remote["files"].keys() == local["files"].keys()
-    for name, path in remote["files"].items():
-        assert path == str(on_ray / Path(local["files"][name]).relative_to(here)), name
-        assert Path(path).is_file(), name
-    models = [PPO.load(r["files"]["model"], device="cpu") for r in (local, remote)]
+    assert remote["files"] == local["files"]
+    assert all((on_ray / path).is_file() for path in remote["files"].values())
+    models = [PPO.load(folder / local["files"]["model"], device="cpu") for folder in (here, on_ray)]
     ours, theirs = (m.policy.state_dict() for m in models)
     assert ours.keys() == theirs.keys()
     for key in ours:
         assert torch.equal(ours[key], theirs[key]), key
     if "vecnormalize" in local["files"]:
-        stats = [_normalizer(r["files"]["vecnormalize"]) for r in (local, remote)]
+        stats = [_normalizer(folder / local["files"]["vecnormalize"]) for folder in (here, on_ray)]
         for ours_stats, theirs_stats in zip(*stats, strict=True):
             assert np.array_equal(ours_stats, theirs_stats)
 
@@ -332,10 +330,10 @@ class _LosingCluster:
     def running(self) -> int:
         return len(self.runs)
 
-    def submit(self, run: Any, baselines: Any) -> None:
-        self.runs.append(run)
+    def submit(self, index: int, run: Any, baselines: Any) -> None:
+        self.runs.append(index)
 
-    def ended(self) -> Iterator[tuple[Any, None, str]]:
+    def ended(self) -> Iterator[tuple[int, None, str]]:
         while self.runs:
             yield self.runs.pop(0), None, "WorkerCrashedError: the worker died"
 
