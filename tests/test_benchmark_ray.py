@@ -34,6 +34,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+pytest.importorskip("ray", reason="needs Ray: pip install 'khepera-gym[rllib]'")
+pytest.importorskip(
+    "stable_baselines3", reason="needs the sb3 extra: pip install 'khepera-gym[sb3]'"
+)
+
 ROOT = Path(__file__).resolve().parents[1]
 #: One tiny run (as tests/test_benchmark.py's TINY): nav, ppo, seed 0, a few updates.
 RUN = [
@@ -220,8 +225,6 @@ def _only_results(record: dict[str, Any]) -> dict[str, Any]:
 def test_a_run_on_a_ray_cluster_equals_the_local_run_and_ran_on_the_worker(
     tmp_path: Path,
 ) -> None:
-    pytest.importorskip("ray", reason="needs Ray: pip install 'khepera-gym[rllib]'")
-    pytest.importorskip("stable_baselines3", reason="needs the sb3 extra")
     from khepera_gym import cli
 
     on_ray, here = tmp_path / "ray" / "out", tmp_path / "local"
@@ -299,7 +302,6 @@ def _assert_same_model(
 
 
 def test_a_bad_ray_address_fails_at_once_naming_it(tmp_path: Path) -> None:
-    pytest.importorskip("ray", reason="needs Ray: pip install 'khepera-gym[rllib]'")
     from khepera_gym import cli
     from khepera_gym.learning.benchmark.cluster import CONNECT_SECONDS
 
@@ -313,18 +315,30 @@ def test_a_bad_ray_address_fails_at_once_naming_it(tmp_path: Path) -> None:
     assert "\n" not in message and not (tmp_path / "baselines").exists()
 
 
-class _LosingCluster:
-    """Stands in for :class:`~khepera_gym.learning.benchmark.cluster.RayRuns` where every run is
-    lost (as when Ray's retries are spent)."""
+#: A run's record as far as the command's lines read it.
+_RECORD = {
+    "final": {"success": {"value": 0.5}},
+    "reached": None,
+    "solved": False,
+    "train_seconds": 1.0,
+}
 
-    def __init__(self) -> None:
-        self.runs: list[Any] = []
 
-    def __enter__(self) -> _LosingCluster:
+class _StandInCluster:
+    """Stands in for :class:`~khepera_gym.learning.benchmark.cluster.RayRuns`: the first run
+    ends with a record, every other is lost (as when Ray's retries are spent), or with
+    ``interrupt`` Ctrl-C comes after the first."""
+
+    def __init__(self, interrupt: bool = False) -> None:
+        self.runs: list[int] = []
+        self.interrupt = interrupt
+        self.left = False  # whether the command left it (cancelling what runs, disconnecting)
+
+    def __enter__(self) -> _StandInCluster:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        pass
+        self.left = True
 
     @property
     def running(self) -> int:
@@ -333,31 +347,64 @@ class _LosingCluster:
     def submit(self, index: int, run: Any, baselines: Any) -> None:
         self.runs.append(index)
 
-    def ended(self) -> Iterator[tuple[int, None, str]]:
+    def ended(self) -> Iterator[tuple[int, dict[str, Any] | None, str | None]]:
+        yield self.runs.pop(0), _RECORD, None
         while self.runs:
+            if self.interrupt:
+                raise KeyboardInterrupt
             yield self.runs.pop(0), None, "WorkerCrashedError: the worker died"
+
+
+def _stand_in(monkeypatch: pytest.MonkeyPatch, interrupt: bool = False) -> _StandInCluster:
+    from khepera_gym.learning.benchmark import cluster, command
+
+    stand_in = _StandInCluster(interrupt)
+    monkeypatch.setattr(cluster, "start", lambda address, settings: stand_in)
+    monkeypatch.setattr(command, "run_baselines", lambda *args: {"summaries": {}})
+    monkeypatch.setattr(command, "_write_summary", lambda *args: None)
+    return stand_in
 
 
 def test_a_run_lost_on_the_cluster_is_named_and_the_command_fails(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    pytest.importorskip("ray", reason="needs Ray: pip install 'khepera-gym[rllib]'")
     from khepera_gym import cli
-    from khepera_gym.learning.benchmark import cluster, command
 
-    monkeypatch.setattr(cluster, "start", lambda address, settings: _LosingCluster())
-    monkeypatch.setattr(command, "run_baselines", lambda *args: {"summaries": {}})
+    stand_in = _stand_in(monkeypatch)
+    seeds = ["--seed-list", "0", "1", "2"]
     with pytest.raises(SystemExit) as caught:
-        cli.main(["benchmark", "--ray", "--out", str(tmp_path), *RUN, "--seed-list", "0", "1"])
+        cli.main(["benchmark", "--ray", "--out", str(tmp_path), *RUN, *seeds])
     assert str(caught.value) == (
-        f"khepera-gym benchmark: 2 of 2 runs failed on the cluster and are not in {tmp_path}: "
-        "nav ppo seed 0 (WorkerCrashedError: the worker died); nav ppo seed 1 "
+        f"khepera-gym benchmark: 2 of 3 runs failed on the cluster and are not in {tmp_path}: "
+        "nav ppo seed 1 (WorkerCrashedError: the worker died); nav ppo seed 2 "
         "(WorkerCrashedError: the worker died); the same command runs them again"
     )
-    assert "nav ppo seed 1 (WorkerCrashedError: the worker died): failed on the cluster" in (
-        capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "nav ppo seed 0: success 0.5" in out
+    assert "nav ppo seed 2 (WorkerCrashedError: the worker died): failed on the cluster" in out
+    assert stand_in.left
+
+
+def test_ctrl_c_on_the_cluster_cancels_its_runs_and_says_the_command_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from khepera_gym import cli
+    from khepera_gym.learning.benchmark import command
+
+    stand_in = _stand_in(monkeypatch, interrupt=True)
+    # Seed 3 was done before: it counts as done, though the cluster ends runs in any order.
+    monkeypatch.setattr(command, "finished", lambda *run: {} if run[3] == 3 else None)
+    monkeypatch.setattr(command, "run_one", lambda *args: _RECORD)  # seed 3's, from its file
+    seeds = ["--seed-list", "0", "1", "2", "3"]
+    with pytest.raises((SystemExit, KeyboardInterrupt)) as caught:
+        cli.main(["benchmark", "--ray", "--out", str(tmp_path), *RUN, *seeds])
+    assert isinstance(caught.value, SystemExit), "Ctrl-C escaped as a KeyboardInterrupt"
+    assert caught.value.code == command.INTERRUPTED
+    assert capsys.readouterr().err == (
+        f"khepera-gym benchmark: interrupted with 2 of 4 runs done in {tmp_path}; the same "
+        "command resumes (the runs done there are skipped)\n"
     )
-    assert not (tmp_path / "runs").exists()
+    assert stand_in.left
 
 
 if __name__ == "__main__":
