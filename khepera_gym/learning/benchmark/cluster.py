@@ -94,7 +94,11 @@ def connect(address: str | None) -> None:
         ray.init(address=address or None, logging_level=logging.WARNING)
     except (ConnectionError, RuntimeError, ValueError) as error:
         where = f"the Ray cluster at {address}" if address else "a Ray on this machine"
-        raise ConfigError(f"--ray {address or ''}: cannot join {where}: {error}") from None
+        raise ConfigError(
+            f"--ray {address or ''}: cannot join {where}: {error}; where Ray's token "
+            "authentication is on, set RAY_AUTH_MODE=token and give this machine the head's "
+            "token (RAY_AUTH_TOKEN or ~/.ray/auth_token)"
+        ) from None
 
 
 def check_gpus(device: str, address: str | None) -> None:
