@@ -114,8 +114,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         const="",
         default=None,
         metavar="ADDRESS",
-        help="run each (task, learner, seed) as a Ray task: on the cluster whose head is at "
-        "ADDRESS (host:port), or without ADDRESS on a Ray started on this machine",
+        help="run each (task, learner, seed) as a Ray task asking for --num-threads CPUs (1) "
+        "and a GPU with --device cuda: on the cluster whose head is at ADDRESS (host:port), "
+        "or without ADDRESS on a Ray started on this machine",
     )
     parser.add_argument("--list", action="store_true", help="print the suite and stop")
     parser.add_argument(
