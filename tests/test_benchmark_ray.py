@@ -17,6 +17,7 @@ Run as a script (``python tests/test_benchmark_ray.py cluster OUT``), this file 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pickle
@@ -94,6 +95,7 @@ def _cluster_part(out: Path) -> None:
     env = {
         **os.environ,
         "RAY_AUTH_MODE": "disabled",
+        "RAY_USAGE_STATS_ENABLED": "0",
         "RAY_TMPDIR": temp,  # Ray's sessions and its ray_current_cluster file, ours alone
         "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
     }
@@ -101,9 +103,11 @@ def _cluster_part(out: Path) -> None:
     port = _free_port()
     address = f"127.0.0.1:{port}"
     nodes: list[subprocess.Popen[bytes]] = []
+    logs: list[Any] = []
 
     def start(name: str, *flags: str) -> None:
         log = (out.parent / f"{name}.log").open("wb")
+        logs.append(log)
         nodes.append(
             subprocess.Popen(
                 [ray, "start", *flags, "--node-ip-address=127.0.0.1", "--block"],
@@ -140,8 +144,11 @@ def _cluster_part(out: Path) -> None:
             )
     finally:
         for node in nodes:
-            os.killpg(node.pid, signal.SIGKILL)
+            with contextlib.suppress(ProcessLookupError):  # ended already
+                os.killpg(node.pid, signal.SIGKILL)
             node.wait()
+        for log in logs:
+            log.close()
         shutil.rmtree(temp, ignore_errors=True)
 
 
