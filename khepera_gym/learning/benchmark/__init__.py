@@ -10,7 +10,8 @@ task has a criterion, written in ``configs/benchmark.toml``
 share held to a number or to a baseline's mean on the same episodes. The tables
 (:mod:`~khepera_gym.learning.benchmark.tables`) report, per task and learner, the held-out means
 over seeds with 95 % intervals, the seeds that met the criterion and the training time and steps to
-meet it.
+meet it. With ``--ray`` the runs are Ray tasks on a cluster, their results written to the same
+folder (:mod:`~khepera_gym.learning.benchmark.cluster`).
 
 Needs the ``sb3`` extra (stable-baselines3, torch); ``mappo`` and ``ippo`` the ``benchmarl``
 extra. Training runs are benchmarks, not tests: the tests run the wiring on tiny budgets.

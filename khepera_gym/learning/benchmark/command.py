@@ -4,14 +4,16 @@ held-out episodes beside the baselines, and print and write the tables.
     khepera-gym benchmark                                  # the whole suite, 5 seeds
     khepera-gym benchmark --tasks track seek --seeds 5     # a part of it
     khepera-gym benchmark --tasks avoid --learners ppo --seed-list 5 6 7
+    khepera-gym benchmark --tasks avoid --ray HEAD_IP:6379  # each run a Ray task on a cluster
     khepera-gym benchmark --list                           # what the suite holds
 
 It shows its progress, writes each run's results file as the run ends (so after an
 interruption the same command resumes without repeating a finished run, and says which it
 skips; Ctrl-C stops with one line saying so, status 130), and ends with one table per task and
-the command that reproduces each row. ``--device`` and ``--num-threads`` are honoured by every
-learner; ``--timesteps`` and ``--hp KEY=VALUE`` change every recipe (the results then record
-the recipe they ran).
+the command that reproduces each row. With ``--ray [ADDRESS]`` every run is a Ray task
+(:mod:`khepera_gym.learning.benchmark.cluster`), its files written here as a local run's.
+``--device`` and ``--num-threads`` are honoured by every learner; ``--timesteps`` and
+``--hp KEY=VALUE`` change every recipe (the results then record the recipe they ran).
 """
 
 from __future__ import annotations
@@ -106,6 +108,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="run everything again, replacing the folder's results",
     )
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="ADDRESS",
+        help="run each (task, learner, seed) as a Ray task asking for --num-threads CPUs (1) "
+        "and a GPU with --device cuda: on the cluster whose head is at ADDRESS (host:port), "
+        "or without ADDRESS on a Ray started on this machine",
+    )
     parser.add_argument("--list", action="store_true", help="print the suite and stop")
     parser.add_argument(
         "--no-progress",
@@ -114,8 +126,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def check_device(device: str) -> str:
-    """``device`` if torch can use it here.
+def check_device(device: str, here: bool = True) -> str:
+    """``device`` if torch can use it (``here``: on this machine; else a name the learners take,
+    the cluster's GPUs checked once joined).
 
     Raises:
         ConfigError: An unknown device, or CUDA asked for where torch has none.
@@ -126,7 +139,7 @@ def check_device(device: str) -> str:
         parsed = torch.device(device)
     except (RuntimeError, TypeError) as error:
         raise ConfigError(f"--device {device!r} is not a torch device: {error}") from None
-    if parsed.type == "cuda" and not torch.cuda.is_available():
+    if here and parsed.type == "cuda" and not torch.cuda.is_available():
         raise ConfigError(f"--device {device}: torch sees no CUDA device on this machine")
     if parsed.type not in ("cpu", "cuda"):
         raise ConfigError(f"--device {device}: the learners run on cpu or cuda")
@@ -237,7 +250,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         eval_episodes=args.eval_episodes,
         timesteps=args.timesteps,
         overrides=parse_key_values(args.hp, "--hp"),
-        device=check_device(args.device),
+        device=check_device(args.device, here=args.ray is None),
         num_threads=args.num_threads,
         progress=not args.no_progress,
         command=portable_command(current_command(), args.out),
@@ -253,38 +266,78 @@ def run_from_args(args: argparse.Namespace) -> int:
         finished(entry, learner, version, seed, settings, args.restart) is not None
         for entry, learner, version, seed in plan
     ]
+    cluster = None
+    if args.ray is not None:
+        from khepera_gym.learning.benchmark.cluster import start
+
+        cluster = start(args.ray or None, settings)  # a bad address fails here, before any work
     if any(done):
         print(_skipped(args.out, [run for run, skip in zip(plan, done, strict=True) if skip]))
     baselines: dict[tuple[str, int], Any] = {}
-    ended = 0  # runs of the plan gone through, in order (their files are on disk)
+    bar = tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress)
+    gone_through: set[int] = set()  # runs of the plan whose file is on disk (or was there)
+    failed: list[str] = []  # runs lost on the cluster, and why
+
+    def baselines_of(entry: Any, version: int) -> Any:
+        key = (entry.task, version)
+        if key not in baselines:
+            bar.set_postfix_str(f"{entry.task} baselines")
+            baselines[key] = run_baselines(entry, version, settings, args.restart)
+        return baselines[key]
+
+    def show(index: int, record: dict[str, Any]) -> None:
+        entry, learner, _, seed = plan[index]
+        gone_through.add(index)
+        bar.update(1)
+        line = _line(entry, learner.name, seed, record)
+        skip = done[index]
+        bar.write(line + (" (done before: read from its file, not run again)" if skip else ""))
+
     try:
-        with tqdm(total=len(plan), desc="benchmark", unit="run", disable=args.no_progress) as bar:
-            for (entry, learner, version, seed), skip in zip(plan, done, strict=True):
-                key = (entry.task, version)
-                if key not in baselines:
-                    bar.set_postfix_str(f"{entry.task} baselines")
-                    baselines[key] = run_baselines(entry, version, settings, args.restart)
-                bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
-                record = run_one(
-                    entry, learner, version, seed, settings, baselines[key], args.restart
-                )
-                ended += 1
-                bar.update(1)
-                line = _line(entry, learner.name, seed, record)
-                bar.write(
-                    line + (" (done before: read from its file, not run again)" if skip else "")
-                )
+        with bar:
+            if cluster is None:
+                for index, (entry, learner, version, seed) in enumerate(plan):
+                    base = baselines_of(entry, version)
+                    bar.set_postfix_str(f"{entry.task} {learner.name} seed {seed}")
+                    show(
+                        index,
+                        run_one(entry, learner, version, seed, settings, base, args.restart),
+                    )
+            else:
+                with cluster:
+                    for index, (entry, learner, version, seed) in enumerate(plan):
+                        base = baselines_of(entry, version)
+                        if done[index]:
+                            show(index, run_one(entry, learner, version, seed, settings, base))
+                        else:
+                            cluster.submit(index, plan[index], base)
+                    bar.set_postfix_str(f"{cluster.running} runs on Ray")
+                    for index, record, why in cluster.ended():
+                        if record is None:
+                            entry, learner, _, seed = plan[index]
+                            failed.append(f"{entry.task} {learner.name} seed {seed} ({why})")
+                            bar.write(f"{failed[-1]}: failed on the cluster, nothing written")
+                            bar.update(1)
+                        else:
+                            show(index, record)
+                        bar.set_postfix_str(f"{cluster.running} runs on Ray")
         _write_summary(args.out, [e.task for e, _ in selection], settings.command)
     except KeyboardInterrupt:
         # Ctrl-C: what is done is on disk (each file is written whole as its run ends), and
         # so are the runs further on that were done before.
         print(
-            f"khepera-gym benchmark: interrupted with {ended + sum(done[ended:])} of {len(plan)} "
-            f"runs done in "
-            f"{args.out}; the same command resumes (the runs done there are skipped)",
+            f"khepera-gym benchmark: interrupted with "
+            f"{len(gone_through | {i for i, skip in enumerate(done) if skip})} of {len(plan)} "
+            f"runs done in {args.out}; the same command resumes (the runs done there are "
+            "skipped)",
             file=sys.stderr,
         )
         raise SystemExit(INTERRUPTED) from None
+    if failed:
+        raise SystemExit(
+            f"khepera-gym benchmark: {len(failed)} of {len(plan)} runs failed on the cluster "
+            f"and are not in {args.out}: {'; '.join(failed)}; the same command runs them again"
+        )
     return 0
 
 

@@ -19,11 +19,11 @@ from khepera_gym.learning.benchmark.runner import (
     FORMAT,
     RANDOM,
     Settings,
-    _write,
     baseline_env_name,
     baseline_policy,
     play,
     summarize,
+    write_record,
 )
 from khepera_gym.learning.benchmark.suite import load_suite
 from khepera_gym.tooling.provenance import provenance
@@ -55,7 +55,7 @@ def write_random_rows(out: Path, tasks: Sequence[str] | None = None) -> list[Pat
         summary = summarize(play(baseline_policy(RANDOM, rows), rows, settings))
         row_key = {**key, "baselines": [RANDOM]}
         target = out / RANDOM_DIR / path.name
-        _write(
+        write_record(
             target,
             {
                 "format": FORMAT,

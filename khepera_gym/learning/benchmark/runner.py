@@ -18,12 +18,13 @@ another folder or ``--restart``), so results of different code are never mixed.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +38,11 @@ from khepera_gym.tooling.stats import bootstrap_interval, json_number, wilson_in
 
 #: Results file format, in every file (a reader refuses another).
 FORMAT = 1
+#: Torch's intra-op threads during a run, its training and its held-out evaluation alike. One
+#: count everywhere, because a float sum's order follows the thread count: with it, a run gives
+#: the same bits on any machine and in a Ray worker (which starts with ``OMP_NUM_THREADS=1``);
+#: and the networks are small, so more threads would only synchronise.
+TORCH_THREADS = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -153,11 +159,12 @@ def _fingerprint(record: Mapping[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _write(path: Path, record: dict[str, Any]) -> None:
+def write_record(path: Path, record: dict[str, Any]) -> None:
+    """Writes a results file whole (a run interrupted while writing leaves no half file)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(record, indent=1, default=json_number) + "\n", encoding="utf-8")
-    tmp.replace(path)  # a run interrupted while writing leaves no half file
+    tmp.replace(path)
 
 
 def _reusable(path: Path, key: Mapping[str, Any], restart: bool) -> dict[str, Any] | None:
@@ -202,7 +209,7 @@ def run_baselines(entry: TaskEntry, version: int, settings: Settings, restart: b
     }
     meta = provenance(settings.command)
     record = {"format": FORMAT, "key": key, "meta": meta, "summaries": summaries}
-    _write(path, record)
+    write_record(path, record)
     return record
 
 
@@ -210,6 +217,19 @@ def judge(entry: TaskEntry, values: Mapping[str, float], baselines: Mapping[str,
     """Whether means ``values`` meet the task's criterion."""
     base = {name: means(summary) for name, summary in baselines["summaries"].items()}
     return all(c.holds(values.get(c.metric, math.nan), c.threshold(base)) for c in entry.criterion)
+
+
+@contextlib.contextmanager
+def torch_threads(count: int) -> Iterator[None]:
+    """Within the block, torch computes on ``count`` threads (the former count restored)."""
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 def run_path(settings: Settings, task: str, version: int, learner: str, seed: int) -> Path:
@@ -290,7 +310,13 @@ def run_one(
         num_threads=settings.num_threads,
         progress=settings.progress,
     )
-    trained = learner.train(job, report)
+    with torch_threads(TORCH_THREADS):
+        trained = learner.train(job, report)
+        final = summarize(play(trained.policy, name, settings))
+        sampled = None
+        if trained.sample is not None:
+            policy = trained.sample(settings.heldout_seed)
+            sampled = summarize(play(policy, name, settings, sampled=True))
     base = {n: means(s) for n, s in baselines["summaries"].items()}
     thresholds = [c.threshold(base) for c in entry.criterion]
     reached = next(
@@ -304,11 +330,6 @@ def run_one(
         ),
         None,
     )
-    final = summarize(play(trained.policy, name, settings))
-    sampled = None
-    if trained.sample is not None:
-        policy = trained.sample(settings.heldout_seed)
-        sampled = summarize(play(policy, name, settings, sampled=True))
     record = {
         "format": FORMAT,
         "key": key,
@@ -340,7 +361,7 @@ def run_one(
             for name, path in trained.files.items()
         },
     }
-    _write(path, record)
+    write_record(path, record)
     # The folder's runs in marl-eval's format as well, for the field's plotting tools.
     from khepera_gym.learning.benchmark.marl_eval import write_marl_eval
 
@@ -350,6 +371,7 @@ def run_one(
 
 __all__ = [
     "FORMAT",
+    "TORCH_THREADS",
     "Settings",
     "baseline_env_name",
     "baseline_policy",
@@ -361,4 +383,6 @@ __all__ = [
     "run_one",
     "run_path",
     "summarize",
+    "torch_threads",
+    "write_record",
 ]
