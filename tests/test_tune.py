@@ -74,3 +74,11 @@ def test_a_tiny_search_writes_every_trial_and_the_best_table(tmp_path: Path) -> 
     assert best["n_envs"] == 8 and best["n_steps"] == 128
     assert best["n_epochs"] == document["best"]["config"]["n_epochs"]
     assert document["meta"]["commit"] is not None and "10000" in document["evaluation_seeds"]
+    # The results page shows the search, its best configuration and the shipped one.
+    from khepera_gym.analysis.docgen.benchmark_reliable import tune_fragment
+
+    page = tune_fragment(tmp_path)
+    assert "**nav-v3, ppo**" in page.replace(f"v{document['version']}", "v3")
+    assert f'best `{{"n_epochs": {document["best"]["config"]["n_epochs"]}}}`' in page
+    assert "| n_epochs | evaluations | last score | mean score |" in page
+    assert str(tmp_path) not in page

@@ -50,12 +50,13 @@ def write_all(docs_dir: str | Path) -> list[Path]:
         write(f"{name}.md", text)
     for name, text in results.fragments(docs / "results").items():
         write(f"results-{name}.md", text)
-    from khepera_gym.analysis.docgen.benchmark_reliable import reliable_fragment
+    from khepera_gym.analysis.docgen.benchmark_reliable import reliable_fragment, tune_fragment
 
     benchmark = reliable_fragment(
         docs / "results" / "benchmark", out / "benchmark", f"{GENERATED}/benchmark"
     )
     write("results-benchmark-reliable.md", benchmark + "\n")
+    write("results-tune.md", tune_fragment(docs / "results" / "tune") + "\n")
     return written
 
 

@@ -201,6 +201,50 @@ def reliable_fragment(folder: Path, images: Path, image_prefix: str) -> str:
     return "\n\n".join(p for p in parts if p)
 
 
+def tune_fragment(folder: Path) -> str:
+    """The recipe searches (``khepera-gym tune``'s files in ``folder``): what was searched, the
+    best configuration against the shipped table, and every trial's last evaluation."""
+    from khepera_gym.analysis.docgen.results import provenance_line
+    from khepera_gym.tooling.provenance import portable_command
+
+    files = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    if not files:
+        return missing_results("khepera-gym tune --task TASK --learner LEARNER --space ... --out")
+    parts = []
+    for path in files:
+        document = json.loads(path.read_text(encoding="utf-8"))
+        keys = sorted({k for trial in document["trials"] for k in trial["config"]})
+        rows = []
+        for trial in document["trials"]:
+            scores = [p["score"] for p in trial["evaluations"]]
+            rows.append(
+                [
+                    *(
+                        f"{trial['config'].get(k, ''):.3g}"
+                        if isinstance(trial["config"].get(k), float)
+                        else str(trial["config"].get(k, ""))
+                        for k in keys
+                    ),
+                    str(len(scores)),
+                    f"{scores[-1]:.3g}" if scores else "–",
+                    f"{sum(scores) / len(scores):.3g}" if scores else "–",
+                ]
+            )
+        shipped = {k: document["shipped_table"].get(k) for k in keys}
+        meta = dict(document.get("meta") or {})
+        meta["command"] = portable_command(str(meta.get("command", "?")), str(folder))
+        parts.append(
+            f"**{document['task']}-v{document['version']}, {document['learner']}**: "
+            f"{len(document['trials'])} trials scored by {document['metric']} on the training's "
+            f"evaluation seeds ({document['evaluation_seeds']}); best "
+            f"{code(json.dumps(document['best']['config']))}, shipped {code(json.dumps(shipped))}. "
+            + provenance_line(meta)
+            + "\n\n"
+            + table([*keys, "evaluations", "last score", "mean score"], rows)
+        )
+    return "\n\n".join(parts)
+
+
 def curves_figure(
     found: Sequence[aggregate.Curve], metric: aggregate.TaskMetric, scale: float, unit: str
 ) -> Figure | None:
@@ -249,4 +293,4 @@ def profile_figure(normalised: Mapping[str, Mapping[str, np.ndarray]]) -> Figure
     return figure
 
 
-__all__ = ["curves_figure", "profile_figure", "reliable_fragment"]
+__all__ = ["curves_figure", "profile_figure", "reliable_fragment", "tune_fragment"]
