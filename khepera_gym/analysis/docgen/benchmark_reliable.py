@@ -262,7 +262,12 @@ def curves_figure(
             seconds = np.nanmedian(curve.seconds, axis=0)
         for ax, x in ((left, steps), (right, seconds)):
             (line,) = ax.plot(x, middle, label=f"{curve.learner} ({len(values)} seeds)")
-            ax.fill_between(x, low, high, color=line.get_color(), alpha=0.25, linewidth=0)
+            # An explicit `where`: matplotlib 3.6.0 (the floor) fails without one on arrays
+            # with no NaN.
+            where = np.isfinite(x) & np.isfinite(low) & np.isfinite(high)
+            ax.fill_between(
+                x, low, high, where=where, color=line.get_color(), alpha=0.25, linewidth=0
+            )
     left.xaxis.set_major_formatter(EngFormatter())
     if metric.log_scale:
         left.set_yscale("log")
