@@ -2,7 +2,12 @@
 
 Version 2: One robot in the simulator and on the bench: The wheels follow K-Team's speed profile as
 the firmware computes it, at Acc_Inc 40 (2.71 m/s²), which the program `khepera-gym export` writes
-sets on the robot; v1's 0.203 m/s² ramp was not what that program set.
+sets on the robot; v1's 0.203 m/s² ramp was not what that program set. Contacts changed with it:
+robots roll substep by substep, each one's path its own, not one arc over the step
+(`physics.whole_step_arc`); a contact is made at 1.25 x what two robots at full speed close in a
+substep, not rapier's 0.02 m, so head-on impacts meet it before the robots overlap
+(`physics.contact_prediction`); a slipping robot with nothing to touch moves by its tyres'
+impulses, not rapier's step of the world (`physics.slip_solver`).
 
 The Version History of the manual and the dynamics page of the documentation say what each version
 changed::
