@@ -489,6 +489,7 @@ macro_rules! task_registry {
     };
 }
 
+// New tasks go at the end: saved states name a task by its place in this list.
 task_registry! {
     Nav(nav::Nav) = nav::NAV,
     Avoid(nav::Nav) = nav::AVOID,
