@@ -166,7 +166,14 @@ def pettingzoo_module(family: str, module: str, cls: type, version: int) -> str:
 #: Public names each file with a generated block defines by hand (its ``__all__`` is generated:
 #: these, then the generated ones, so that static tools read it as a literal).
 HAND_WRITTEN_NAMES = {
-    "pettingzoo/__init__.py": ("FAMILIES", "KheperaParallelEnv", "VERSIONED_MODULES", "modules"),
+    "pettingzoo/__init__.py": (
+        "FAMILIES",
+        "KheperaParallelEnv",
+        "PettingZooModule",
+        "VERSIONED_MODULES",
+        "module_infos",
+        "modules",
+    ),
     "envs/__init__.py": ("ACTION_TYPES", "ENV_CLASSES", "KheperaEnv"),
     "vector.py": (
         "AUTORESET_MODES",

@@ -32,7 +32,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import khepera_gym
-from khepera_gym import registry
+from khepera_gym import pettingzoo, registry
 from khepera_gym.analysis import compare, record, throughput
 from khepera_gym.config import check_version
 from khepera_gym.errors import KheperaError
@@ -79,7 +79,7 @@ def list_catalog(topics: Sequence[str] = LIST_TOPICS) -> str:
         sections.append("\n".join(lines))
     if "pettingzoo" in topics:
         lines = ["PettingZoo modules (khepera_gym.pettingzoo.<name>.parallel_env()):"]
-        for module in registry.pettingzoo_modules():
+        for module in pettingzoo.module_infos():
             lines.append(f"  {module.name:<20} task {module.task}")
         sections.append("\n".join(lines))
     if "scenes" in topics:

@@ -1,6 +1,7 @@
 """What khepera_gym has, asked of the Rust core's registries: the tasks (their ids, versions,
 agents, statistics and scoring), the behaviour versions and their history, the controllers,
-default scenarios, built-in scenes, sensors and PettingZoo modules.
+default scenarios, built-in scenes and sensors (the PettingZoo modules are
+:func:`khepera_gym.pettingzoo.module_infos`).
 
 This is the one module that asks ``_core`` which tasks, versions, agents, baselines, metrics and
 criteria exist (``_core.tasks()``, ``_core.task_versions``, ``_core.task_agents``,
@@ -17,7 +18,6 @@ import functools
 import re
 import sys
 import textwrap
-from types import ModuleType
 from typing import Any
 
 from khepera_gym import _core
@@ -271,49 +271,6 @@ def sensors() -> list[Sensor]:
     ]
 
 
-@dataclasses.dataclass(frozen=True)
-class PettingZooModule:
-    """A module ``khepera_gym.pettingzoo.<family>_v<version>``.
-
-    Attributes:
-        name: Its name (``"formation_v1"``).
-        family: The name without the version (``"formation"``).
-        version: Its behaviour version.
-        task: The core's task it runs.
-        module: The module itself (``parallel_env``, ``env``, maybe ``array_env``).
-        env_class: Its ``ParallelEnv`` class.
-    """
-
-    name: str
-    family: str
-    version: int
-    task: str
-    module: ModuleType
-    env_class: type
-
-
-def pettingzoo_modules() -> list[PettingZooModule]:
-    """Every ``*_vN`` module of :mod:`khepera_gym.pettingzoo` (one per family and behaviour
-    version, :func:`khepera_gym.pettingzoo.modules`), sorted by family then version."""
-    import khepera_gym.pettingzoo as package
-
-    found = []
-    for name, module in package.modules().items():
-        family, _, version = name.rpartition("_v")
-        env_class = getattr(module, package.FAMILIES[family].__name__)
-        found.append(
-            PettingZooModule(
-                name=name,
-                family=family,
-                version=int(version),
-                task=env_class.TASK,
-                module=module,
-                env_class=env_class,
-            )
-        )
-    return found
-
-
 # The behaviour versions. Each is an entry of the core (``src/scenario/versions.rs``): its number,
 # a title, one line of what changed and why, and the previous version's values of the keys it
 # changed. The registered ids, the PettingZoo modules, every manual's Version History
@@ -390,7 +347,6 @@ def with_history(doc: str | None, task: str, indent: str = "    ") -> str:
 
 __all__ = [
     "LATEST_VERSION",
-    "PettingZooModule",
     "Sensor",
     "TaskInfo",
     "Version",
@@ -399,7 +355,6 @@ __all__ = [
     "default_config",
     "history_lines",
     "latest_version",
-    "pettingzoo_modules",
     "scene_config",
     "scenes",
     "sensors",

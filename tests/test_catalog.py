@@ -7,7 +7,7 @@ import gymnasium as gym
 import pytest
 
 import khepera_gym
-from khepera_gym import _core, cli, registry
+from khepera_gym import _core, cli, pettingzoo, registry
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.policies import POLICY_NAMES
 from khepera_gym.registration import registered_ids
@@ -69,7 +69,7 @@ def test_sensors_are_the_cores_with_their_blocks_and_keys() -> None:
 def test_pettingzoo_modules_are_every_versioned_module_of_the_package() -> None:
     import khepera_gym.pettingzoo as package
 
-    modules = registry.pettingzoo_modules()
+    modules = pettingzoo.module_infos()
     assert {m.name for m in modules} == {n for n in package.__all__ if "_v" in n}
     for module in modules:
         assert module.env_class.metadata["name"] == module.name
@@ -85,7 +85,7 @@ def test_list_prints_every_id_module_scene_sensor_and_policy(capsys) -> None:
     for ids in registered_ids().values():
         for env_id in ids:
             assert env_id in text
-    for module in registry.pettingzoo_modules():
+    for module in pettingzoo.module_infos():
         assert module.name in text
     for name in (*khepera_gym.scenes(), *(s.name for s in registry.sensors()), *POLICY_NAMES):
         assert f"  {name} " in text, name

@@ -232,7 +232,7 @@ def _table_rows(markdown: str) -> list[list[str]]:
 def test_every_task_with_an_id_or_a_module_has_a_page(generated: Path) -> None:
     from khepera_gym.registration import registered_ids
 
-    tasks = set(registered_ids()) | {m.task for m in khepera_gym.registry.pettingzoo_modules()}
+    tasks = set(registered_ids()) | {m.task for m in khepera_gym.pettingzoo.module_infos()}
     assert {path.stem for path in (generated / "envs").glob("*.md")} == tasks
     table = (generated / "env-table.md").read_text(encoding="utf-8")
     for ids in registered_ids().values():

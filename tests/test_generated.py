@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from khepera_gym import _generate, registry
+from khepera_gym import _generate, pettingzoo, registry
 from khepera_gym.envs import ENV_CLASSES
 from khepera_gym.pettingzoo import VERSIONED_MODULES, modules
 from khepera_gym.vector import VECTOR_ENV_CLASSES
@@ -21,7 +21,7 @@ def test_generated_files_match_what_make_generated_writes() -> None:
 
 
 def test_one_pettingzoo_file_per_family_and_version_of_its_task() -> None:
-    families = {module.family: module.task for module in registry.pettingzoo_modules()}
+    families = {module.family: module.task for module in pettingzoo.module_infos()}
     expected = {
         f"{family}_v{version}"
         for family, task in families.items()
@@ -35,7 +35,7 @@ def test_one_pettingzoo_file_per_family_and_version_of_its_task() -> None:
         assert module.__file__ is not None and Path(module.__file__).parent == folder
         name = module.__name__.rpartition(".")[2]
         version = name.rpartition("_v")[2]
-        env_class = next(m.env_class for m in registry.pettingzoo_modules() if m.name == name)
+        env_class = next(m.env_class for m in pettingzoo.module_infos() if m.name == name)
         assert int(version) == env_class.VERSION
         assert env_class.metadata["name"] == name
         assert env_class.__module__ == module.__name__

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from khepera_gym import registry
+from khepera_gym import pettingzoo, registry
 from khepera_gym.envs import ENV_CLASSES
 from khepera_gym.vector import VECTOR_ENV_CLASSES
 
@@ -43,7 +43,7 @@ def _user_scripts() -> dict[str, str]:
         name = Path(page).stem.replace("-", "_")
         scripts[f"user_{name}.py"] = "\n".join(snippets)
     lines = []
-    modules = registry.pettingzoo_modules()
+    modules = pettingzoo.module_infos()
     lines += [f"from khepera_gym.pettingzoo import {m.name}" for m in modules]
     envs = sorted(cls.__name__ for cls in ENV_CLASSES.values())
     vectors = sorted(cls.__name__ for cls in VECTOR_ENV_CLASSES.values())

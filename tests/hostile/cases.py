@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from khepera_gym import registry
+from khepera_gym import pettingzoo as pettingzoo_package
 from khepera_gym.registration import registered_ids
 
 from .schema import GARBAGE, SPECIAL_NUMBERS, key_value, task_keys
@@ -102,8 +102,8 @@ def gym_ids() -> tuple[tuple[str, str, int], ...]:
 
 @functools.cache
 def pettingzoo() -> tuple[Any, ...]:
-    """Every PettingZoo module of khepera_gym (``registry.pettingzoo_modules``)."""
-    return tuple(registry.pettingzoo_modules())
+    """Every PettingZoo module of khepera_gym (``khepera_gym.pettingzoo.module_infos``)."""
+    return tuple(pettingzoo_package.module_infos())
 
 
 def pettingzoo_module(name: str) -> Any:

@@ -2,7 +2,7 @@
 class docstring), the spaces and layout of a freshly made env and the core's scenario keys.
 
 A task has a page when it has a Gymnasium id (:func:`khepera_gym.registration.registered_ids`)
-or a PettingZoo module (:func:`khepera_gym.registry.pettingzoo_modules`); the page of a task with
+or a PettingZoo module (:func:`khepera_gym.pettingzoo.module_infos`); the page of a task with
 both also holds the PettingZoo module's manual. Nothing lists tasks here.
 """
 
@@ -17,7 +17,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from khepera_gym import _core, registry
+from khepera_gym import _core, pettingzoo, registry
 from khepera_gym.analysis.docgen.markdown import (
     code,
     docstring_markdown,
@@ -63,7 +63,7 @@ class EnvPage:
 
     task: str
     ids: tuple[str, ...]
-    modules: tuple[registry.PettingZooModule, ...]
+    modules: tuple[pettingzoo.PettingZooModule, ...]
     env_class: type
 
     @property
@@ -113,7 +113,7 @@ class EnvPage:
         return line if not ends else line[: min(ends)] + "."
 
 
-def _family_module_doc(module: registry.PettingZooModule) -> str:
+def _family_module_doc(module: pettingzoo.PettingZooModule) -> str:
     """The docstring of ``khepera_gym.pettingzoo.<family>`` when that module exists (the manual
     shared by its versions), else the versioned module's."""
     try:
@@ -126,7 +126,7 @@ def _family_module_doc(module: registry.PettingZooModule) -> str:
 def env_pages() -> list[EnvPage]:
     """One page per task that has a Gymnasium id or a PettingZoo module, in the core's order."""
     ids = registered_ids()
-    modules = registry.pettingzoo_modules()
+    modules = pettingzoo.module_infos()
     pages = []
     for task in registry.task_names():
         own = tuple(m for m in modules if m.task == task)

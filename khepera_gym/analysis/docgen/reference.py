@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import inspect
 
-from khepera_gym import registry
+from khepera_gym import pettingzoo, registry
 from khepera_gym.analysis.docgen.envs import baselines, env_pages
 from khepera_gym.analysis.docgen.markdown import code, escape_cell, link_citations, table
 from khepera_gym.analysis.docgen.scenario import header, key_histories
@@ -131,7 +131,7 @@ def pettingzoo_table(prefix: str = "generated/envs/") -> str:
     """The PettingZoo modules: task, default agents, page."""
     pages = {page.task: page for page in env_pages()}
     rows = []
-    for module in registry.pettingzoo_modules():
+    for module in pettingzoo.module_infos():
         env = module.module.parallel_env()
         agents = env.possible_agents
         shown = ", ".join(code(a) for a in agents[:4]) + (", …" if len(agents) > 4 else "")

@@ -43,7 +43,13 @@ from typing import Any
 
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.benchmark.marl_eval import write_marl_eval
-from khepera_gym.learning.benchmark.runner import Settings, run_one, run_path, write_record
+from khepera_gym.learning.benchmark.runner import (
+    Settings,
+    load_records,
+    run_one,
+    run_path,
+    write_record,
+)
 from khepera_gym.tooling.provenance import commit
 
 #: How long the driver tries to reach the head's address before saying it cannot (s).
@@ -309,7 +315,7 @@ class RayRuns:
             tmp.write_bytes(data)
             tmp.replace(path)
         write_record(run_path(self.settings, entry.task, version, learner.name, seed), record)
-        write_marl_eval(self.settings.out)  # as a local run does
+        write_marl_eval(self.settings.out, load_records(self.settings.out)[1])  # as run_one
         return record
 
 

@@ -60,11 +60,8 @@ def marl_eval_document(runs: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     return {ENVIRONMENT: tasks}
 
 
-def write_marl_eval(out: Path) -> Path:
-    """Writes ``out/marl_eval.json`` from the run records of ``out/runs/``."""
-    from khepera_gym.learning.benchmark.tables import load_records
-
-    _, runs = load_records(out)
+def write_marl_eval(out: Path, runs: Sequence[Mapping[str, Any]]) -> Path:
+    """Writes ``out/marl_eval.json`` from the folder's run records (``runs/*.json``)."""
     path = out / MARL_EVAL_FILE
     text = json.dumps(marl_eval_document(runs), indent=1, allow_nan=False) + "\n"
     tmp = path.with_suffix(".tmp")

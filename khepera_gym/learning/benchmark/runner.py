@@ -32,6 +32,7 @@ import numpy as np
 
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.benchmark.jobs import Job, Means, gym_id, module_of, shares_rows
+from khepera_gym.learning.benchmark.marl_eval import write_marl_eval
 from khepera_gym.learning.benchmark.suite import TaskEntry
 from khepera_gym.tooling.provenance import provenance
 from khepera_gym.tooling.stats import bootstrap_interval, json_number, wilson_interval
@@ -165,6 +166,20 @@ def write_record(path: Path, record: dict[str, Any]) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(record, indent=1, default=json_number) + "\n", encoding="utf-8")
     tmp.replace(path)
+
+
+def load_records(out: Path) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The baseline records and run records of a benchmark folder."""
+
+    def read(folder: str) -> list[dict[str, Any]]:
+        records = []
+        for path in sorted((out / folder).glob("*.json")):
+            record = json.loads(path.read_text(encoding="utf-8"))
+            if record.get("format") == FORMAT:
+                records.append(record)
+        return records
+
+    return read("baselines"), read("runs")
 
 
 def _reusable(path: Path, key: Mapping[str, Any], restart: bool) -> dict[str, Any] | None:
@@ -363,9 +378,7 @@ def run_one(
     }
     write_record(path, record)
     # The folder's runs in marl-eval's format as well, for the field's plotting tools.
-    from khepera_gym.learning.benchmark.marl_eval import write_marl_eval
-
-    write_marl_eval(settings.out)
+    write_marl_eval(settings.out, load_records(settings.out)[1])
     return record
 
 
@@ -377,6 +390,7 @@ __all__ = [
     "baseline_policy",
     "finished",
     "judge",
+    "load_records",
     "means",
     "play",
     "run_baselines",

@@ -10,29 +10,13 @@ results page (``docs/results``) and ``khepera-gym benchmark`` print the same thi
 
 from __future__ import annotations
 
-import json
 import math
 import statistics
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
-from khepera_gym.learning.benchmark.runner import FORMAT, means
+from khepera_gym.learning.benchmark.runner import load_records, means
 from khepera_gym.tooling.stats import bootstrap_interval
-
-
-def load_records(out: Path) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """The baseline records and run records of a benchmark folder."""
-
-    def read(folder: str) -> list[dict[str, Any]]:
-        records = []
-        for path in sorted((out / folder).glob("*.json")):
-            record = json.loads(path.read_text(encoding="utf-8"))
-            if record.get("format") == FORMAT:
-                records.append(record)
-        return records
-
-    return read("baselines"), read("runs")
 
 
 def _work(run: Mapping[str, Any]) -> tuple[Any, ...]:

@@ -32,7 +32,7 @@ import gymnasium as gym
 from ray.rllib.env.env_context import EnvContext
 from ray.tune.registry import register_env
 
-from khepera_gym import registry
+from khepera_gym import pettingzoo, registry
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.rllib.followers import FormationFollowersVectorEnv
 from khepera_gym.learning.rllib.multi_agent import KheperaMultiAgentEnv
@@ -56,7 +56,7 @@ FOLLOWERS_ENV = max(FOLLOWERS_ENVS, key=FOLLOWERS_ENVS.__getitem__)
 #: configurations is made for them.
 NOT_MULTI_AGENT = frozenset(
     module.family
-    for module in registry.pettingzoo_modules()
+    for module in pettingzoo.module_infos()
     if not registry.task(module.task).alike_agents
 )
 #: Multi-agent env names → the PettingZoo module whose ``parallel_env`` they wrap: every
