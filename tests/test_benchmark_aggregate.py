@@ -74,13 +74,16 @@ def test_normalised_scores_put_random_at_0_and_the_best_baseline_at_1() -> None:
     assert learned < 0.5 < (random - 0.021) / (random - best)
 
 
-def test_the_task_metric_is_the_criterions_error_else_its_first() -> None:
-    suite = load_suite()
-    assert aggregate.task_metric(suite["nav"]).metric == "success"
-    path = aggregate.task_metric(suite["pathfollow"])
-    assert path.metric == "path_error_rms" and not path.higher_is_better
-    multinav = aggregate.task_metric(suite["multinav"])
-    assert multinav.metric == "success" and multinav.higher_is_better
+@pytest.mark.parametrize("task", list(load_suite()))
+def test_the_task_metric_is_the_criterions_error_else_its_first(task: str) -> None:
+    entry = load_suite()[task]
+    metric = aggregate.task_metric(entry)
+    errors = [c for c in entry.criterion if "error" in c.metric]
+    chosen = errors[0] if errors else entry.criterion[0]
+    assert metric.metric == chosen.metric
+    # Lower is better exactly where the criterion bounds the metric from above.
+    assert metric.higher_is_better == (chosen.bound == "at_least")
+    assert metric.log_scale == (not metric.higher_is_better)
 
 
 def test_probability_of_improvement() -> None:
