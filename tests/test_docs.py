@@ -562,3 +562,22 @@ def test_the_guide_names_every_extra_and_what_make_test_installs() -> None:
     named = re.search(r"installs the (.*) extras too", line)
     assert named is not None
     assert set(re.split(r", | and ", named.group(1))) == set(extras)
+
+
+def test_the_results_page_shows_commands_and_labels_as_a_user_types_them() -> None:
+    # The results files record the machine's paths (/work/..., /tmp/...); the page shows the
+    # commands relative to a checkout and each table's model files from their common folder.
+    from khepera_gym.analysis.docgen.results import as_typed, fragments, portable_labels
+
+    for name, text in fragments(ROOT / "docs" / "results").items():
+        for machine in ("/work/", "/home/", "/tmp/", "khepera_gym/cli.py"):
+            assert machine not in text, (name, machine)
+    assert as_typed("python /x/khepera_gym/learning/benchmark/random_rows.py --out /y/z") == (
+        "python -m khepera_gym.learning.benchmark.random_rows --out z"
+    )
+    labels = ["vfh", "sb3:/a/runs/s0/model.zip", "sb3:/a/runs/s1/model.zip (sampled)"]
+    assert portable_labels(labels) == [
+        "vfh",
+        "sb3:runs/s0/model.zip",
+        "sb3:runs/s1/model.zip (sampled)",
+    ]

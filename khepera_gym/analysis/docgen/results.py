@@ -13,10 +13,11 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
 import re
 import shlex
 from collections.abc import Callable
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 from khepera_gym import registry
@@ -26,6 +27,7 @@ from khepera_gym.analysis.docgen.markdown import code, escape_cell, missing_resu
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.policies import SAMPLED_SUFFIX, SB3_PREFIX
 from khepera_gym.learning.recipes import load_hyperparams
+from khepera_gym.tooling.provenance import portable_command
 from khepera_gym.tooling.stats import Estimate
 
 #: Episodes per policy of a full comparison (the project's published tables).
@@ -69,13 +71,22 @@ def kind(document: Any) -> str:
 _CLI = re.compile(r"^python3? (?:\S*/)?khepera_gym/cli\.py\b|^python3? -m khepera_gym\.cli\b")
 #: A script of the repository run by its absolute path: a user types it from the checkout.
 _SCRIPT = re.compile(r"^(python3?) \S*/((?:examples|tests)/\S+\.py)\b")
+#: The checkout the documentation is built from.
+_CHECKOUT = Path(__file__).resolve().parents[3]
+#: A module of the package run by its file's path: a user types ``python -m`` and its name.
+_MODULE = re.compile(r"^(python3?) \S*/khepera_gym/(\S+)\.py\b")
 
 
 def as_typed(command: str) -> str:
     """A recorded command as a user types it in a checkout: ``khepera-gym train ...`` for the
-    package's command line however it was started, ``python examples/x.py ...`` for a script."""
+    package's command line however it was started, ``python examples/x.py ...`` for a script,
+    ``python -m khepera_gym.<module>`` for a module of the package; paths of the machine that
+    ran it are made relative to the checkout or cut to their names
+    (:func:`khepera_gym.tooling.provenance.portable_command`)."""
     command = _CLI.sub("khepera-gym", command)
-    return _SCRIPT.sub(r"\1 \2", command)
+    command = _SCRIPT.sub(r"\1 \2", command)
+    command = _MODULE.sub(lambda m: f"{m[1]} -m khepera_gym.{m[2].replace('/', '.')}", command)
+    return portable_command(command, _CHECKOUT / "docs")
 
 
 def provenance_line(meta: dict[str, Any] | None) -> str:
@@ -100,9 +111,34 @@ def _version(env_id: str) -> int:
     return int(env_id.rsplit("-v", 1)[1])
 
 
+#: A policy label naming a file by its absolute path (``sb3:/work/runs/s0/model.zip``).
+_PATH_LABEL = re.compile(r"^(?P<prefix>[\w.-]+:)(?P<path>/\S+?)(?P<rest>(?: \(.*\))?)$")
+
+
+def portable_labels(labels: list[str]) -> list[str]:
+    """Policy labels without the absolute paths of the machine that ran them: each path from
+    the folder that holds all of the table's paths (``sb3:/work/runs/v3/s0/model.zip`` and
+    ``.../s1/model.zip`` are ``sb3:v3/s0/model.zip`` and ``sb3:v3/s1/model.zip``), so the rows
+    stay apart."""
+    matches = [_PATH_LABEL.match(label) for label in labels]
+    paths = [PurePosixPath(m["path"]) for m in matches if m is not None]
+    if not paths:
+        return labels
+    common = PurePosixPath(os.path.commonpath([str(p.parent) for p in paths]))
+    base = common.parent
+    return [
+        label
+        if m is None
+        else f"{m['prefix']}{PurePosixPath(m['path']).relative_to(base)}{m['rest']}"
+        for label, m in zip(labels, matches, strict=True)
+    ]
+
+
 def _compare_section(document: dict[str, Any]) -> str:
     comparison = Comparison.from_json(document)
     rows = table_rows(comparison)
+    labels = portable_labels([row[0] for row in rows[1:]])
+    rows = [rows[0], *([label, *row[1:]] for label, row in zip(labels, rows[1:], strict=True))]
     cells = [[escape_cell(cell) for cell in row] for row in rows]
     title = f"`{comparison.env_id}`" + escape_cell(comparison.scenario)
     note = ""
