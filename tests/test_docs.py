@@ -581,3 +581,20 @@ def test_the_results_page_shows_commands_and_labels_as_a_user_types_them() -> No
         "sb3:runs/s0/model.zip",
         "sb3:runs/s1/model.zip (sampled)",
     ]
+
+
+def test_no_tracked_text_file_keeps_a_merge_conflict() -> None:
+    """A merge once left ``<<<<<<<``/``>>>>>>>`` lines in the changelog."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    found = subprocess.run(
+        ["git", "grep", "-n", "-I", "-E", r"^(<{7}|>{7})( |$)"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if found.returncode not in (0, 1):
+        pytest.skip(f"not a git checkout: {found.stderr.strip()}")
+    assert found.stdout == "", f"merge conflict markers:\n{found.stdout}"
