@@ -161,7 +161,8 @@ clean:
 	rm -f khepera_gym/_core*.so khepera_gym/_core*.pyd
 
 # An abi3 wheel (one wheel for every CPython >= 3.10) and the sdist in dist/, then a smoke test:
-# the wheel installed in a fresh venv, run with no Rust toolchain on PATH.
+# the wheel installed in a fresh venv, run with no Rust toolchain on PATH. Both must carry
+# Cargo.toml's version, in their names and as khepera_gym.__version__ (tests/test_release.py).
 wheel: $(TOOLS)
 	rm -rf dist
 	$(IN_VENV) $(VENV)/bin/maturin build --release --out dist
@@ -172,3 +173,7 @@ wheel: $(TOOLS)
 	e = gym.make('KheperaIV-Avoid-v1', render_mode='rgb_array'); o, _ = e.reset(seed=0); \
 	o, r, t, u, i = e.step(e.action_space.sample()); f = e.render(); \
 	print('wheel smoke test ok:', khepera_gym.__version__, o.shape, f.shape)"
+	version=$$($(PYTHON) -c "import tomllib; print(tomllib.load(open('Cargo.toml', 'rb'))['package']['version'])"); \
+	ls dist/khepera_gym-$$version-*.whl dist/khepera_gym-$$version.tar.gz && \
+	cd dist && smoke-venv/bin/python -c "import khepera_gym, sys; v = khepera_gym.__version__; \
+	sys.exit(0 if v == '$$version' else f'the wheel says {v}, Cargo.toml $$version')"
