@@ -508,9 +508,10 @@ def _sentences(text: str) -> list[str]:
     return sentences
 
 
-def test_no_page_says_v1_drives_on_k_teams_profile() -> None:
-    """Item 1: v1's wheels ramp at the profile's *rate* (``motors.mode = "ramp"``); v2 on drives
-    on the profile, at Acc_Inc 40."""
+def _profile_claims(text: str) -> list[str]:
+    """The sentences of a text that say a version drives on K-Team's speed profile while that
+    version's ``motors.mode`` is not ``"profile"`` (v1: ``"ramp"``, a plain limit at the
+    profile's rate), unless the sentence says it is a ramp."""
     from khepera_gym.config import tomllib
 
     modes = {
@@ -518,21 +519,33 @@ def test_no_page_says_v1_drives_on_k_teams_profile() -> None:
         for version in registry.task_versions("nav")
     }
     says_profile = re.compile(
-        r"(?:drives? on|follows?|on) (?:K-Team's )?(?:default )?(?:speed )?profile"
+        r"(?:drives? on|follows?) (?:the |K-Team's )?(?:default )?(?:speed )?profile"
         r"|the profile of §1"
     )
     names_version = re.compile(r"\b(?:v|[Vv]ersion )(?P<version>\d+)\b")
+    wrong = []
+    for sentence in _sentences(text):
+        if not says_profile.search(sentence) or "ramp" in sentence:
+            continue
+        named = {int(m.group("version")) for m in names_version.finditer(sentence)}
+        if any(modes.get(version, "profile") != "profile" for version in named):
+            wrong.append(sentence)
+    return wrong
+
+
+def test_the_profile_claim_check_catches_the_old_sentences() -> None:
+    old_drive = "Behaviour version 1 drives on the profile at `Acc_Inc` 3 (0.203 m/s²)."
+    old_fidelity = "**Now**: from v1 on, the wheels follow K-Team's default speed profile."
+    assert _profile_claims(f"{old_drive} {old_fidelity}") == [old_drive, old_fidelity]
+    assert _profile_claims("From v2 on the wheels follow the profile at Acc_Inc 40.") == []
+
+
+def test_no_page_says_v1_drives_on_k_teams_profile() -> None:
+    """Item 1: v1's wheels ramp at the profile's *rate* (``motors.mode = "ramp"``); v2 on drives
+    on the profile, at Acc_Inc 40."""
     for page in ("drive.md", "fidelity.md", "dynamics.md"):
-        for sentence in _sentences((DOCS / page).read_text(encoding="utf-8")):
-            if not says_profile.search(sentence):
-                continue
-            named = {int(m.group("version")) for m in names_version.finditer(sentence)}
-            for version in named & set(modes):
-                if modes[version] != "profile" and "ramp" not in sentence:
-                    pytest.fail(
-                        f"{page}: says v{version} drives on the profile, but its motors.mode "
-                        f"is {modes[version]!r}: {sentence}"
-                    )
+        wrong = _profile_claims((DOCS / page).read_text(encoding="utf-8"))
+        assert not wrong, f"{page}: {wrong}"
 
 
 def test_the_training_page_says_which_tables_normalise() -> None:
@@ -584,3 +597,21 @@ def test_the_readme_env_table_links_each_env_to_its_docs_page() -> None:
     table = readme.split("<!-- env-table:start -->")[1].split("<!-- env-table:end -->")[0]
     links = re.findall(r"^\| \[[^\]]+\]\(([^)]+)\)", table, re.MULTILINE)
     assert links == [f"docs/generated/envs/{page.slug}.md" for page in env_pages()]
+
+
+def test_the_demo_runs_every_task_the_docs_name_on_its_latest_version() -> None:
+    """Item 4: the demo ran consensus on v1 while the docs said every task's latest; the pages
+    say it runs every task with a Gymnasium id and consensus's triggers, on the latest."""
+    from khepera_gym.analysis.compare.command import CONSENSUS, demo_runs
+    from khepera_gym.analysis.compare.consensus import check_version
+    from khepera_gym.registration import latest_ids, task_of
+
+    runs = demo_runs()
+    assert {task_of(run[1]) for run in runs} == set(latest_ids())
+    for run in runs:
+        assert run[1] == latest_ids()[task_of(run[1])], run
+    assert check_version(None) == registry.latest_version(CONSENSUS)
+    page = (DOCS / "baselines.md").read_text(encoding="utf-8")
+    claim = " ".join(page.split("`make demo` (`khepera-gym demo`) runs", 1)[1].split()[:30])
+    assert "every task with a Gymnasium id" in claim and "consensus" in claim
+    assert "all on the latest version" in claim
