@@ -615,3 +615,111 @@ def test_the_demo_runs_every_task_the_docs_name_on_its_latest_version() -> None:
     claim = " ".join(page.split("`make demo` (`khepera-gym demo`) runs", 1)[1].split()[:30])
     assert "every task with a Gymnasium id" in claim and "consensus" in claim
     assert "all on the latest version" in claim
+
+
+def _number(text: str) -> int:
+    return int(text.replace(",", ""))
+
+
+def _prose(page: str) -> str:
+    return " ".join((DOCS / page).read_text(encoding="utf-8").split())
+
+
+def _tables(algo: str) -> dict[str, dict]:
+    from khepera_gym.config import tomllib
+
+    return tomllib.loads((ROOT / "configs" / "hyperparams" / f"{algo}.toml").read_text())
+
+
+def test_the_recipe_settings_the_training_page_quotes_are_the_tables() -> None:
+    """Prose that quotes a recipe's setting is checked against configs/hyperparams/."""
+    from khepera_gym.learning.recipes import load_hyperparams
+    from khepera_gym.registration import latest_ids
+
+    text = _prose("training.md")
+    # The single-agent recipes: "(256 worlds x 32 steps), minibatches of 1,024, 4 or 5 epochs
+    # and two 64 x 64 networks, observations normalised": every normalising latest table.
+    single = re.search(
+        r"\((?P<worlds>[\d,]+) worlds x (?P<steps>\d+) steps\), minibatches of (?P<batch>[\d,]+), "
+        r"(?P<epochs>\d+(?: or \d+)*) epochs and two (?P<width>\d+) x (?P=width) networks",
+        text,
+    )
+    assert single is not None
+    epochs = {int(n) for n in single.group("epochs").split(" or ")}
+    shaped = 0
+    for env_id in latest_ids().values():
+        table = load_hyperparams("ppo", env_id)
+        if not table.get("normalize", False):
+            continue
+        shaped += 1
+        assert table["n_envs"] == _number(single.group("worlds")), env_id
+        assert table["n_steps"] == int(single.group("steps")), env_id
+        assert table["batch_size"] == _number(single.group("batch")), env_id
+        assert table["n_epochs"] in epochs, env_id
+        width = int(single.group("width"))
+        assert table["policy_kwargs"]["net_arch"] == [width, width], env_id
+    assert shaped
+    # The multi-agent recipes: shared PPO's "(8 worlds x 128 steps, minibatches of 512, 10
+    # epochs)", MAPPO's "batches of 8,192 env steps from 32 worlds in minibatches of 512 for 10
+    # epochs".
+    shared = re.search(
+        r"shared PPO trains in formation-followers' shape \((?P<worlds>\d+) worlds x "
+        r"(?P<steps>\d+) steps, minibatches of (?P<batch>[\d,]+), (?P<epochs>\d+) epochs\)",
+        text,
+    )
+    assert shared is not None
+    for name, table in _tables("ppo").items():
+        if name.endswith("-shared") or name == "formation-followers":
+            assert table["n_envs"] == int(shared.group("worlds")), name
+            assert table["n_steps"] == int(shared.group("steps")), name
+            assert table["batch_size"] == _number(shared.group("batch")), name
+            assert table["n_epochs"] == int(shared.group("epochs")), name
+    mappo = re.search(
+        r"MAPPO on batches of (?P<frames>[\d,]+) env steps from (?P<worlds>\d+) worlds in "
+        r"minibatches of (?P<batch>[\d,]+) for (?P<epochs>\d+) epochs",
+        text,
+    )
+    assert mappo is not None
+    for name, table in _tables("mappo").items():
+        assert table["frames_per_batch"] == _number(mappo.group("frames")), name
+        assert table["n_envs"] == int(mappo.group("worlds")), name
+        assert table["minibatch_size"] == _number(mappo.group("batch")), name
+        assert table["n_epochs"] == int(mappo.group("epochs")), name
+    steps = re.search(r"\((?P<steps>\d+) gradient steps a batch of (?P<frames>[\d,]+)\)", text)
+    assert steps is not None
+    table = next(iter(_tables("mappo").values()))
+    assert _number(steps.group("frames")) == table["frames_per_batch"]
+    gradient_steps = table["frames_per_batch"] // table["minibatch_size"] * table["n_epochs"]
+    assert int(steps.group("steps")) == gradient_steps
+    # RLlib's Nav recipe: "4096 steps per update, minibatches of 256, 10 epochs, 64-64 tanh".
+    rllib = re.search(
+        r"(?P<batch>\d+) steps per update, minibatches of (?P<mini>\d+), (?P<epochs>\d+) "
+        r"epochs, (?P<width>\d+)-(?P=width) (?P<activation>\w+) networks",
+        text,
+    )
+    assert rllib is not None
+    nav = _tables("rllib_ppo")["KheperaIV-Nav"]
+    assert nav["train_batch_size_per_learner"] == int(rllib.group("batch"))
+    assert nav["minibatch_size"] == int(rllib.group("mini"))
+    assert nav["num_epochs"] == int(rllib.group("epochs"))
+    width = int(rllib.group("width"))
+    assert nav["model"]["fcnet_hiddens"] == [width, width]
+    assert nav["model"]["fcnet_activation"] == rllib.group("activation")
+
+
+def test_each_version_history_line_says_it_once_and_v2_names_its_contact_keys() -> None:
+    """Item 9: v0's line read "Initial version. The paper's V-REP dynamics: The KH4VREP paper's
+    V-REP-like dynamics: ..."; v2's left out the three contact keys it changed."""
+    from khepera_gym.config import tomllib
+
+    for task in registry.task_names():
+        for line in registry.history_lines(task):
+            assert line.count("V-REP") <= 1, line
+            assert line.count("Initial version") <= 1, line
+    versions = {version.number: version for version in registry.versions()}
+    if 2 not in versions:
+        return
+    contact_keys = [f"physics.{key}" for key in tomllib.loads(versions[2].before)["physics"]]
+    line = next(li for li in registry.history_lines("nav") if li.startswith("* v2:"))
+    for key in contact_keys:
+        assert f"`{key}`" in line, (key, line)
