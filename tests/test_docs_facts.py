@@ -723,3 +723,81 @@ def test_each_version_history_line_says_it_once_and_v2_names_its_contact_keys() 
     line = next(li for li in registry.history_lines("nav") if li.startswith("* v2:"))
     for key in contact_keys:
         assert f"`{key}`" in line, (key, line)
+
+
+#: The core's refusal of a value outside a string key's members (serde's message).
+_VARIANTS = re.compile(r"unknown variant `[^`]*`, expected (?:one of )?(?P<members>.*)$")
+#: A member quoted in prose (`ring`, "cross"), not a value set (`= "ramp"`).
+_QUOTED_MEMBER = re.compile(r"(?<!= )[`\"](?P<member>[a-z_]+)[`\"]")
+
+
+def _enum_keys() -> dict[str, tuple[str, ...]]:
+    """Every string scenario key of every task with the members the core accepts, asked of the
+    core by giving it a value it refuses."""
+    from khepera_gym import _core
+    from khepera_gym.config import tomllib
+    from khepera_gym.errors import ConfigError
+
+    found: dict[str, tuple[str, ...]] = {}
+    for task in registry.task_names():
+        for section, keys in tomllib.loads(registry.default_config(task)).items():
+            for key, value in keys.items():
+                if not isinstance(value, str) or f"{section}.{key}" in found:
+                    continue
+                try:
+                    _core.Batch(task, 1, overrides={f"{section}.{key}": "not a member"})
+                except ConfigError as error:
+                    match = _VARIANTS.search(str(error))
+                    if match is not None:
+                        members = tuple(re.findall(r"`([^`]+)`", match.group("members")))
+                        found[f"{section}.{key}"] = members
+    return found
+
+
+def enum_listings_missing_members(
+    text: str, keys: dict[str, tuple[str, ...]]
+) -> list[tuple[str, list[str], str]]:
+    """The sentences that list a key's members (they name the key and quote at least two of
+    its members, and at least half) but leave some out: (key, left out, sentence)."""
+    wrong = []
+    for sentence in _sentences(text):
+        quoted = {m.group("member") for m in _QUOTED_MEMBER.finditer(sentence)}
+        for dotted, members in keys.items():
+            short = dotted.split(".")[1]
+            if dotted not in sentence and not re.search(rf"\b{short}\b", sentence):
+                continue
+            named = quoted & set(members)
+            if len(named) >= 2 and 2 * len(named) >= len(members) and named != set(members):
+                wrong.append((dotted, sorted(set(members) - named), sentence))
+    return wrong
+
+
+def test_the_enum_listing_check_finds_a_listing_that_leaves_a_member_out() -> None:
+    keys = {"consensus.graph": ("ring", "line", "complete", "geometric", "edges")}
+    full = "A graph: `ring`, `line`, `complete`, `geometric` or your own `edges`."
+    short = "A graph: `ring`, `line`, `complete` or `geometric`."
+    assert enum_listings_missing_members(full, keys) == []
+    assert enum_listings_missing_members(short, keys) == [("consensus.graph", ["edges"], short)]
+    # One example, or values set, are not listings.
+    assert enum_listings_missing_members('The graph `ring` (`graph = "line"`).', keys) == []
+
+
+def test_every_listing_of_a_keys_members_in_the_docs_and_manuals_is_complete() -> None:
+    """Prose that quotes an enum's members (a formation's shapes, a consensus graph, a drive
+    mode) names them all, as the core accepts them."""
+    from khepera_gym.analysis.docgen.envs import env_pages
+
+    keys = _enum_keys()
+    assert {"formation.shape", "consensus.graph", "motors.mode"} <= set(keys)
+    texts = [
+        (page.name, page.read_text(encoding="utf-8"))
+        for page in _pages()
+        if page.name not in ("changelog.md", "history.md")
+    ]
+    texts += [(f"the {page.task} manual", page.manual) for page in env_pages()]
+    wrong = [
+        f"{name}: lists {key} without {', '.join(missing)}: {sentence}"
+        for name, text in texts
+        for key, missing, sentence in enum_listings_missing_members(text, keys)
+    ]
+    assert not wrong, "\n".join(wrong)
