@@ -801,3 +801,18 @@ def test_every_listing_of_a_keys_members_in_the_docs_and_manuals_is_complete() -
         for key, missing, sentence in enum_listings_missing_members(text, keys)
     ]
     assert not wrong, "\n".join(wrong)
+
+
+def test_the_readme_names_every_extra_of_the_package() -> None:
+    """The README's list of extras is pyproject.toml's (getting-started's table is checked in
+    tests/test_docs.py)."""
+    from khepera_gym.config import tomllib
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    paragraph = " ".join(readme.split("\nExtras: ", 1)[1].split("\n\n", 1)[0].split())
+    listed = re.sub(r"\([^)]*\)", "", paragraph)  # the names, without what each brings
+    named = set(re.findall(r"`([a-z0-9_-]+)`", listed))
+    assert named == set(extras), paragraph
