@@ -727,8 +727,8 @@ def test_each_version_history_line_says_it_once_and_v2_names_its_contact_keys() 
 
 #: The core's refusal of a value outside a string key's members (serde's message).
 _VARIANTS = re.compile(r"unknown variant `[^`]*`, expected (?:one of )?(?P<members>.*)$")
-#: A member quoted in prose (`ring`, "cross"), not a value set (`= "ramp"`).
-_QUOTED_MEMBER = re.compile(r"(?<!= )[`\"](?P<member>[a-z_]+)[`\"]")
+#: A member quoted in prose (`ring`, "cross"), or as a value set (`= "ramp"`: `assigned`).
+_QUOTED_MEMBER = re.compile(r"(?P<assigned>= )?[`\"](?P<member>[a-z_]+)[`\"]")
 
 
 def _enum_keys() -> dict[str, tuple[str, ...]]:
@@ -758,16 +758,24 @@ def enum_listings_missing_members(
     text: str, keys: dict[str, tuple[str, ...]]
 ) -> list[tuple[str, list[str], str]]:
     """The sentences that list a key's members (they name the key and quote at least two of
-    its members, and at least half) but leave some out: (key, left out, sentence)."""
+    its members other than as a value set, and at least half of them in all) but leave some
+    out: (key, left out, sentence). ``mode = "ramp"`` and ``mode = "profile"`` in one sentence
+    are two values, not a list."""
     wrong = []
     for sentence in _sentences(text):
-        quoted = {m.group("member") for m in _QUOTED_MEMBER.finditer(sentence)}
+        found = list(_QUOTED_MEMBER.finditer(sentence))
+        quoted = {m.group("member") for m in found}
+        listed = {m.group("member") for m in found if not m.group("assigned")}
         for dotted, members in keys.items():
             short = dotted.split(".")[1]
             if dotted not in sentence and not re.search(rf"\b{short}\b", sentence):
                 continue
             named = quoted & set(members)
-            if len(named) >= 2 and 2 * len(named) >= len(members) and named != set(members):
+            if (
+                len(listed & set(members)) >= 2
+                and 2 * len(named) >= len(members)
+                and named != set(members)
+            ):
                 wrong.append((dotted, sorted(set(members) - named), sentence))
     return wrong
 
@@ -778,8 +786,11 @@ def test_the_enum_listing_check_finds_a_listing_that_leaves_a_member_out() -> No
     short = "A graph: `ring`, `line`, `complete` or `geometric`."
     assert enum_listings_missing_members(full, keys) == []
     assert enum_listings_missing_members(short, keys) == [("consensus.graph", ["edges"], short)]
-    # One example, or values set, are not listings.
+    # One example, or values set, are not listings; a value set counts as named.
     assert enum_listings_missing_members('The graph `ring` (`graph = "line"`).', keys) == []
+    assert enum_listings_missing_members('`graph = "ring"` and `graph = "line"`.', keys) == []
+    drawn = '`graph = "edges"`; `ring`, `line`, `complete` or `geometric` fix it.'
+    assert enum_listings_missing_members(drawn, keys) == []
 
 
 def test_every_listing_of_a_keys_members_in_the_docs_and_manuals_is_complete() -> None:
