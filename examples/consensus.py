@@ -1,11 +1,11 @@
-"""Consensus with real messages (``consensus_v1``): six Khepera IVs on a ring agree on a hexagon
+"""Consensus with real messages (``consensus_v3``): six Khepera IVs on a ring agree on a hexagon
 from their neighbours' broadcasts, once with periodic messages (every 50 ms) and once
 event-triggered (when a robot has moved 1 cm since its last message). Prints each run's final
 error and messages; saves a figure of both runs: the paths with a dot wherever a robot
 broadcast, and the disagreement over time.
 
 Usage: ``python examples/consensus.py [--robots 6] [--seed 3]
-[--figure docs/images/consensus_v1.png]``.
+[--figure consensus.png]``.
 """
 
 from __future__ import annotations
@@ -17,14 +17,14 @@ from matplotlib.figure import Figure
 
 from khepera_gym.analysis.plots import plot_trajectories
 from khepera_gym.baselines import ConsensusLaw
-from khepera_gym.pettingzoo import consensus_v1
+from khepera_gym.pettingzoo import consensus_v3
 
 DT = 0.05
 
 
 def run(trigger: str, robots: int, seed: int, radius: float) -> dict:
     """One episode with the consensus law: poses, broadcast points, error over time, stats."""
-    env = consensus_v1.parallel_env(
+    env = consensus_v3.parallel_env(
         n_robots=robots, trigger=trigger, formation_radius=radius, max_cycles=800
     )
     policy = ConsensusLaw.for_env(env)
@@ -91,7 +91,7 @@ def main() -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     figure.suptitle(
-        f"consensus_v1: {args.robots} robots on a ring agree on a hexagon of radius "
+        f"consensus_v3: {args.robots} robots on a ring agree on a hexagon of radius "
         f"{args.radius} m (seed {args.seed}); dots: where a robot broadcast",
         fontsize=11,
     )

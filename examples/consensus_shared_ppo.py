@@ -1,8 +1,9 @@
-"""PPO with one policy shared by every robot of ``consensus_v1`` (parameter sharing), against the
-consensus law: trains on :class:`khepera_gym.learning.sb3.SharedAgentsVecEnv` (each row one robot of
-one world, with its own observation and the shared reward −error), then plays the same seeded
-episodes with both policies and prints the final error, the share of episodes that converged
-(below 3 cm for good), the messages per robot per second and the steps in contact.
+"""PPO with one policy shared by every robot of the latest ``consensus_vN`` (parameter
+sharing), against the consensus law: trains on
+:class:`khepera_gym.learning.sb3.SharedAgentsVecEnv` (each row one robot of one world, with its
+own observation and the shared reward −error), then plays the same seeded episodes with both
+policies and prints the final error, the share of episodes that converged (below 3 cm for good),
+the messages per robot per second and the steps in contact.
 
 Usage: ``python examples/consensus_shared_ppo.py [--timesteps 1000000] [--episodes 200]``
 (timesteps count robot-steps, summed over the rows).

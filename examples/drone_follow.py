@@ -1,8 +1,8 @@
-"""The quadcopter of the KH4VREP paper's Fig. 8 following a Khepera IV (KheperaIV-DroneFollow-v1):
+"""The quadcopter of the KH4VREP paper's Fig. 8 following a Khepera IV (KheperaIV-DroneFollow):
 PD pursuit against a random command, over seeded episodes, with 95 % intervals; saves a frame.
 
 Usage: ``python examples/drone_follow.py [--episodes 200]
-[--frame docs/images/dronefollow_v1.png]``.
+[--frame dronefollow.png]``.
 """
 
 from __future__ import annotations
@@ -14,9 +14,10 @@ import numpy as np
 
 import khepera_gym  # noqa: F401  (registers the envs)
 from khepera_gym.envs import dronefollow_heuristic
+from khepera_gym.registration import latest_ids
 from khepera_gym.tooling.stats import bootstrap_interval, wilson_interval
 
-ENV_ID = "KheperaIV-DroneFollow-v1"
+ENV_ID = latest_ids()["dronefollow"]  # the latest version, as gym.make("KheperaIV-DroneFollow")
 
 
 def run(policy_name: str, episodes: int) -> list[dict]:

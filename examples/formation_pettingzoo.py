@@ -13,7 +13,7 @@ import argparse
 import numpy as np
 
 from khepera_gym.envs import formation_follower_heuristic
-from khepera_gym.pettingzoo import formation_v1
+from khepera_gym.pettingzoo import formation_v3
 
 
 def main() -> int:
@@ -21,7 +21,7 @@ def main() -> int:
     parser.add_argument("--episodes", type=int, default=3, help="episodes to run (3)")
     args = parser.parse_args()
 
-    env = formation_v1.parallel_env(config="paper_fig7")
+    env = formation_v3.parallel_env(config="paper_fig7")
     shape = env.observation_space("follower_0").shape
     print(f"agents: {env.possible_agents}, observation shape {shape} each")
     for seed in range(args.episodes):

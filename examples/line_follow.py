@@ -1,4 +1,4 @@
-"""Line following with the ground sensors (KheperaIV-LineFollow-v1): K-Team's threshold follower
+"""Line following with the ground sensors (KheperaIV-LineFollow): K-Team's threshold follower
 laps a random spline track drawn on the floor; prints the lap and saves a frame.
 
 Usage: ``python examples/line_follow.py [--track spline] [--seed 3] [--frame out.png] [--camera]``.
@@ -13,6 +13,7 @@ import gymnasium as gym
 
 import khepera_gym  # noqa: F401  (registers the envs)
 from khepera_gym.envs import linefollow_heuristic
+from khepera_gym.registration import latest_ids
 
 
 def main() -> None:
@@ -27,7 +28,7 @@ def main() -> None:
     mode = "rgb_array" if args.frame else None
     carry = ["ir", "us", "gyro", "ground"] + (["camera"] if args.camera else [])
     env = gym.make(
-        "KheperaIV-LineFollow-v1",
+        latest_ids()["linefollow"],  # the latest version, as gym.make("KheperaIV-LineFollow")
         track=args.track,
         carry=carry,
         render_mode=mode,

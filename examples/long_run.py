@@ -6,7 +6,7 @@ the first) shows.
 Usage::
 
     python examples/long_run.py                       # 10^8 Nav env-steps, 1024 worlds
-    python examples/long_run.py --env KheperaIV-Avoid-v1 --steps 2e7
+    python examples/long_run.py --env KheperaIV-Avoid --steps 2e7
 
 The actions are a fixed cycle of 64 seeded random batches, drawn once, so the loop measures the
 simulator and not NumPy's random generator.
@@ -22,6 +22,7 @@ import numpy as np
 
 import khepera_gym  # noqa: F401  (registers the envs)
 from khepera_gym.analysis.throughput import _resident_bytes
+from khepera_gym.registration import resolve_env_id
 
 
 def _mib(value: int | None) -> str:
@@ -30,14 +31,15 @@ def _mib(value: int | None) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--env", default="KheperaIV-Nav-v1")
+    parser.add_argument("--env", default="KheperaIV-Nav")
     parser.add_argument("--steps", type=float, default=1e8, help="total env-steps")
     parser.add_argument("--num-envs", type=int, default=1024)
     parser.add_argument("--num-threads", type=int, default=None)
     parser.add_argument("--segments", type=int, default=10)
     args = parser.parse_args()
 
-    envs = gym.make_vec(args.env, num_envs=args.num_envs, num_threads=args.num_threads)
+    env_id = resolve_env_id(args.env)  # an id without its version: the latest
+    envs = gym.make_vec(env_id, num_envs=args.num_envs, num_threads=args.num_threads)
     envs.reset(seed=0)
     rng = np.random.default_rng(0)
     shape = envs.action_space.shape

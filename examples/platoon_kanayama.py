@@ -1,6 +1,6 @@
 """Kanayama's tracking controller on every agent of the PettingZoo platoon: per-robot tracking
 errors over seeded episodes, the figures of the manual of
-:class:`khepera_gym.pettingzoo.platoon_v1.PlatoonParallelEnv`.
+:class:`khepera_gym.pettingzoo.platoon_v3.PlatoonParallelEnv`.
 
 Each robot's error is the distance from its centre to its own reference point after every step
 (``env.poses()`` against ``env.goals()``, m); its RMS and maximum are taken after the transient
@@ -16,7 +16,7 @@ import argparse
 import numpy as np
 
 from khepera_gym.baselines import Kanayama
-from khepera_gym.pettingzoo import platoon_v1
+from khepera_gym.pettingzoo import platoon_v3
 
 #: Seconds excluded from the RMS and maximum (the scenario's ``platoon.transient``).
 TRANSIENT = 5.0
@@ -26,7 +26,7 @@ DT = 0.05
 
 def run(episodes: int, robots: int, reference: str) -> None:
     """Runs ``episodes`` episodes seeded 0.. and prints per-robot and platoon figures."""
-    env = platoon_v1.parallel_env(robots=robots, reference=reference)
+    env = platoon_v3.parallel_env(robots=robots, reference=reference)
     policy = Kanayama()
     skip = round(TRANSIENT / DT) - 1  # errors[i] is after step i + 1: from t = TRANSIENT on
     rms = np.zeros((episodes, robots))
@@ -47,7 +47,7 @@ def run(episodes: int, robots: int, reference: str) -> None:
         peak[seed] = after.max(axis=0)
         stats.append(next(iter(infos.values()))["world_episode_stats"])
     print(
-        f"platoon_v1, {robots} robots on the {reference}, Kanayama on every agent, "
+        f"platoon_v3, {robots} robots on the {reference}, Kanayama on every agent, "
         f"{episodes} episodes seeded 0..{episodes - 1}; {lost} agents lost"
     )
     for k in range(robots):

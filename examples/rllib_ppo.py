@@ -28,9 +28,11 @@ import torch
 from ray.rllib.algorithms.ppo import PPOConfig
 from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
-from khepera_gym.learning import rllib  # registers "khepera_gym/KheperaIV-Nav-v1" with Ray Tune
+from khepera_gym.learning import rllib  # registers "khepera_gym/<id>" names with Ray Tune
+from khepera_gym.registration import latest_ids
 
-ENV = "khepera_gym/KheperaIV-Nav-v1"
+NAV_ID = latest_ids()["nav"]  # the latest version, as gym.make("KheperaIV-Nav")
+ENV = f"khepera_gym/{NAV_ID}"
 
 
 def main() -> None:
@@ -94,9 +96,7 @@ def main() -> None:
     elapsed = time.perf_counter() - start
     print(f"{steps:,} steps in {elapsed:.1f} s: {steps / elapsed:,.0f} env-steps/s")
 
-    evaluation = rllib.evaluate_policy(
-        rllib.module_policy(algo.get_module()), "KheperaIV-Nav-v1", episodes=100
-    )
+    evaluation = rllib.evaluate_policy(rllib.module_policy(algo.get_module()), NAV_ID, episodes=100)
     print(
         f"evaluation on seeds 10000..10099: success {100 * evaluation.success_rate:.0f} %, "
         f"mean return {evaluation.mean_return:.2f}, mean length {evaluation.mean_length:.1f}"

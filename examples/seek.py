@@ -1,4 +1,4 @@
-"""Seek a red pillar with the colour camera (KheperaIV-Seek-v1): colour-blob servoing on one
+"""Seek a red pillar with the colour camera (KheperaIV-Seek): colour-blob servoing on one
 seeded episode; prints the outcome and the scanline at the start, saves a frame.
 
 Usage: ``python examples/seek.py [--seed 11] [--distractors 2] [--frame out.png]``.
@@ -13,6 +13,7 @@ import gymnasium as gym
 
 import khepera_gym  # noqa: F401  (registers the envs)
 from khepera_gym.envs import seek_heuristic
+from khepera_gym.registration import latest_ids
 
 
 def main() -> None:
@@ -23,7 +24,7 @@ def main() -> None:
     parser.add_argument("--frame", default=None, help="save a frame to this PNG")
     args = parser.parse_args()
     env = gym.make(
-        "KheperaIV-Seek-v1",
+        latest_ids()["seek"],  # the latest version, as gym.make("KheperaIV-Seek")
         distractors=args.distractors,
         render_mode="rgb_array" if args.frame else None,
         frame_size=(600, 600),

@@ -4,7 +4,7 @@
 at once. Prints how many arrived, the contacts and the speed; saves the last frame.
 
 Usage: ``python examples/swarm.py [--robots 1000] [--steps 600]
-[--frame docs/images/swarm_v1.png]``.
+[--frame swarm.png]``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from khepera_gym.envs import avoid_heuristic
-from khepera_gym.pettingzoo import multinav_v1
+from khepera_gym.pettingzoo import multinav_v3
 
 
 def main() -> None:
@@ -26,7 +26,7 @@ def main() -> None:
     parser.add_argument("--frame", default=None, help="save the last frame to this PNG")
     args = parser.parse_args()
     side = 20.0 * (args.robots / 1000) ** 0.5  # the swarm scene's density, 2.5 robots per m²
-    env = multinav_v1.array_env(
+    env = multinav_v3.array_env(
         config="swarm",
         n_robots=args.robots,
         width=side,

@@ -24,8 +24,9 @@ from stable_baselines3.common.vec_env import VecMonitor
 
 import khepera_gym  # noqa: F401  (registers the environments)
 from khepera_gym.learning.sb3 import SuccessEvalCallback, evaluate_episodes, make_vec_env
+from khepera_gym.registration import latest_ids
 
-ENV_ID = "KheperaIV-Nav-v1"
+ENV_ID = latest_ids()["nav"]  # the latest version, as gym.make("KheperaIV-Nav")
 #: Evaluation episodes are seeded EVAL_SEED + i, away from the training worlds' seeds.
 EVAL_SEED = 10_000
 

@@ -278,3 +278,30 @@ def test_a_function_that_takes_neither_batches_nor_observations_is_named(tmp_pat
     ):
         make_policy(f"{controller}:bad", envs)(observations)
     envs.close()
+
+
+def test_train_refuses_worlds_that_break_the_recipes_minibatches(tmp_path: Path) -> None:
+    # Issue 53, item 6: --n-envs 16 on a recipe of 256 worlds x 32 steps in minibatches of
+    # 1,024 made 512-step rollouts that SB3 cut into a truncated minibatch, with a warning.
+    pytest.importorskip("stable_baselines3")
+    from khepera_gym.learning.recipes import load_hyperparams
+    from khepera_gym.registration import latest_ids
+
+    env_id = latest_ids()["nav"]
+    table = load_hyperparams("ppo", env_id)
+    worlds = next(n for n in range(1, 4096) if n * table["n_steps"] % table["batch_size"] and n > 8)
+    out = tmp_path / "run"
+    message = _user_error(["train", "--env", env_id, "--n-envs", str(worlds), "--out", str(out)])
+    assert f"batch_size {table['batch_size']} does not divide" in message, message
+    assert f"the table's {table['n_envs']} worlds" in message and "--hp n_steps=" in message
+    assert not (out / "run.json").exists()
+
+
+def test_a_controller_that_raises_is_named_in_one_line(tmp_path: Path) -> None:
+    controller = tmp_path / "broken.py"
+    controller.write_text("def drive(obs):\n    raise RuntimeError('the motors are off')\n")
+    out = tmp_path / "broken.gif"
+    argv = ["render", "--steps", "3", "--no-progress", "--out", str(out)]
+    message = _user_error([*argv, "--policy", f"{controller}:drive"])
+    assert "drive" in message and "RuntimeError" in message, message
+    assert "the motors are off" in message, message

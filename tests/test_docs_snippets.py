@@ -7,7 +7,9 @@ A block is marked as not run by an HTML comment on the line before its fence,
 * ``bash`` blocks line by line, each a ``khepera-gym ...`` command (run as ``python -m
   khepera_gym.cli``); any other command must be marked;
 * ``toml`` blocks are parsed; one whose first line is a comment naming a ``.toml`` file
-  (``# my_arena.toml``) is written to that file, for the blocks after it to load.
+  (``# my_arena.toml``) is written to that file, for the blocks after it to load;
+* a ``python`` block whose first line is a comment naming a ``.py`` file (``# mine.py``) is run
+  and also written to that file, for the commands after it (``--policy mine.py:function``).
 
 ``text`` blocks (layouts, output) and MyST directives (```` ```{note} ````) are not code. The
 generated pages' examples come from the env manuals and run as doctests (tests/test_docs.py).
@@ -154,6 +156,9 @@ def test_the_code_blocks_of_the_page_run(
         if block.language == "python":
             code = compile(block.code, f"{page.name}:{block.line}", "exec")
             exec(code, namespace)
+            first = block.code.splitlines()[0] if block.code else ""
+            if first.startswith("# ") and first.removeprefix("# ").strip().endswith(".py"):
+                (tmp_path / first.removeprefix("# ").strip()).write_text(block.code)
         elif block.language == "bash":
             _run_bash(block, tmp_path)
         else:

@@ -47,7 +47,7 @@ class DroneFollowEnv(KheperaEnv):
     waypoint (progress, time cost, collision penalty) plus `task.success_bonus` at each waypoint
     reached. Its episode ends with the drone's. The joint env then takes (4,) actions (the drone's,
     then the robot's) and returns the mean of the two rewards; the PettingZoo form
-    (`drone_follow_v1.parallel_env(driver="agent")`) keeps them apart. An agent applying the
+    (`drone_follow_vN.parallel_env(driver="agent")`) keeps them apart. An agent applying the
     script's own law (:class:`khepera_gym.baselines.Braitenberg` with `vmax=0.15, wmax=1.0, kr=0.15,
     stop_radius=0`) reaches the same waypoints as the script (tests).
 
@@ -99,7 +99,7 @@ class DroneFollowEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-DroneFollow-v1")
+    >>> env = gym.make("KheperaIV-DroneFollow")
     >>> env.action_space.shape, env.observation_space.shape
     ((2,), (8,))
     >>> obs, info = env.reset(seed=0)
@@ -118,12 +118,12 @@ class DroneFollowEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-DroneFollow-v1", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-DroneFollow", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.DroneFollowVectorEnv` (world i reset with seed s ≡ this env
     reset with seed s + i).
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-DroneFollow-v1", num_envs=4)
+    >>> envs = gym.make_vec("KheperaIV-DroneFollow", num_envs=4)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (4, 8)

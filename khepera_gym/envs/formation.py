@@ -112,13 +112,13 @@ class FormationEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-Formation-v1", config="paper_fig7")
+    >>> env = gym.make("KheperaIV-Formation", config="paper_fig7")
     >>> env.action_space.shape, env.observation_space.shape
     ((8,), (92,))
     >>> obs, info = env.reset(seed=0)
     >>> env.unwrapped.poses().shape, env.unwrapped.formation_targets().shape
     ((5, 3), (4, 2))
-    >>> gym.make("KheperaIV-Formation-v1", leader="agent", n_followers=2).action_space.shape
+    >>> gym.make("KheperaIV-Formation", leader="agent", n_followers=2).action_space.shape
     (6,)
 
     ```
@@ -132,13 +132,13 @@ class FormationEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Formation-v1", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-Formation", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.FormationVectorEnv` (NEXT_STEP autoreset or DISABLED with resets
     by mask, episode statistics with masks, world i reset with seed s ≡ this env reset with seed
     s + i); its `formation_targets()` has shape (N, K, 2).
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Formation-v1", num_envs=8)
+    >>> envs = gym.make_vec("KheperaIV-Formation", num_envs=8)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape, envs.formation_targets().shape
     ((8, 92), (8, 4, 2))
@@ -146,7 +146,7 @@ class FormationEnv(KheperaEnv):
     ```
 
     For one agent per follower use the PettingZoo environment
-    :mod:`khepera_gym.pettingzoo.formation_v1`.
+    :mod:`khepera_gym.pettingzoo.formation` (its `formation_vN` modules).
 
     ## Robot model
 

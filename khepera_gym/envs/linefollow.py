@@ -89,7 +89,7 @@ class LineFollowEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-LineFollow-v1", track="spline")
+    >>> env = gym.make("KheperaIV-LineFollow", track="spline")
     >>> env.action_space.shape, env.observation_space.shape
     ((2,), (14,))
     >>> obs, info = env.reset(seed=0)
@@ -105,12 +105,12 @@ class LineFollowEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-LineFollow-v1", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-LineFollow", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.LineFollowVectorEnv` (world i reset with seed s ≡ this env reset
     with seed s + i).
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-LineFollow-v1", num_envs=4)
+    >>> envs = gym.make_vec("KheperaIV-LineFollow", num_envs=4)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (4, 14)

@@ -108,9 +108,9 @@ class NavEnv(KheperaEnv):
     ```python
     >>> import gymnasium as gym
     >>> import khepera_gym
-    >>> env = gym.make("KheperaIV-Nav-v1", max_steps=200, goal_radius=0.1)
+    >>> env = gym.make("KheperaIV-Nav", max_steps=200, goal_radius=0.1)
     >>> env
-    <OrderEnforcing<PassiveEnvChecker<NavEnv<KheperaIV-Nav-v1>>>>
+    <OrderEnforcing<PassiveEnvChecker<NavEnv<KheperaIV-Nav-v...>>>>
     >>> obs, info = env.reset(seed=0)
 
     ```
@@ -128,7 +128,7 @@ class NavEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Nav-v1", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-Nav", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.NavVectorEnv`: N worlds stepped in one Rust call on a thread pool
     (None = all cores), autoreset mode NEXT_STEP, episode statistics in
     `infos["episode_stats"]` with `_`-prefixed masks at steps where some world ended. World i
@@ -138,7 +138,7 @@ class NavEnv(KheperaEnv):
     (in either mode) resets only the masked worlds, seeded as a full reset would seed them.
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Nav-v1", num_envs=1024, num_threads=2)
+    >>> envs = gym.make_vec("KheperaIV-Nav", num_envs=1024, num_threads=2)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (1024, 18)
@@ -268,7 +268,7 @@ class AvoidEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-Avoid-v1", config="paper_fig6", max_steps=300)
+    >>> env = gym.make("KheperaIV-Avoid", config="paper_fig6", max_steps=300)
     >>> obs, info = env.reset(seed=0)
     >>> [obstacle["kind"] for obstacle in env.unwrapped.scene()["obstacles"]]
     ['box', 'box']
@@ -280,17 +280,17 @@ class AvoidEnv(KheperaEnv):
     The parameters are those of :class:`NavEnv` (`render_mode`, `config`, `action_type`,
     `**overrides`); `config` is None (the Avoid defaults), a built-in scenario name such as
     `"paper_fig6"`, or a path to a TOML file, and keyword overrides are merged on top, e.g.
-    `gym.make("KheperaIV-Avoid-v1", count=20, kinds=["circle"])`.
+    `gym.make("KheperaIV-Avoid", count=20, kinds=["circle"])`.
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Avoid-v1", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-Avoid", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.AvoidVectorEnv` (same semantics as Nav's: NEXT_STEP autoreset or
     DISABLED with resets by mask, `infos["episode_stats"]` with masks, world i reset with seed
     s ≡ this env reset with seed s + i, bit for bit). `envs.scene(i)` is the geometry of world i.
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Avoid-v1", num_envs=16, num_threads=2)
+    >>> envs = gym.make_vec("KheperaIV-Avoid", num_envs=16, num_threads=2)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (16, 18)

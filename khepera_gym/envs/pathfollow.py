@@ -126,7 +126,7 @@ class PathFollowEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-PathFollow-v1", path="lemniscate")
+    >>> env = gym.make("KheperaIV-PathFollow", path="lemniscate")
     >>> env.action_space.shape, env.observation_space.shape
     ((2,), (31,))
     >>> obs, info = env.reset(seed=0)
@@ -145,13 +145,13 @@ class PathFollowEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-PathFollow-v1", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-PathFollow", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.PathFollowVectorEnv` (NEXT_STEP autoreset or DISABLED with
     resets by mask, episode statistics with masks, world i reset with seed s ≡ this env reset
     with seed s + i).
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-PathFollow-v1", num_envs=4)
+    >>> envs = gym.make_vec("KheperaIV-PathFollow", num_envs=4)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (4, 31)

@@ -73,7 +73,7 @@ class SeekEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-Seek-v1", distractors=2)
+    >>> env = gym.make("KheperaIV-Seek", distractors=2)
     >>> env.observation_space.shape
     (138,)
     >>> obs, info = env.reset(seed=0)
@@ -89,11 +89,11 @@ class SeekEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Seek-v1", num_envs=N)` returns the native
+    `gym.make_vec("KheperaIV-Seek", num_envs=N)` returns the native
     :class:`khepera_gym.vector.SeekVectorEnv`.
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Seek-v1", num_envs=4)
+    >>> envs = gym.make_vec("KheperaIV-Seek", num_envs=4)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape
     (4, 138)

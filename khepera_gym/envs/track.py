@@ -102,7 +102,7 @@ class TrackEnv(KheperaEnv):
 
     ```python
     >>> import gymnasium as gym
-    >>> env = gym.make("KheperaIV-Track-v1", reference="lemniscate")
+    >>> env = gym.make("KheperaIV-Track", reference="lemniscate")
     >>> env.action_space.shape, env.observation_space.shape
     ((2,), (29,))
     >>> obs, info = env.reset(seed=0)
@@ -119,13 +119,13 @@ class TrackEnv(KheperaEnv):
 
     ## Vectorized environment
 
-    `gym.make_vec("KheperaIV-Track-v1", num_envs=N, num_threads=None)` returns the native
+    `gym.make_vec("KheperaIV-Track", num_envs=N, num_threads=None)` returns the native
     :class:`khepera_gym.vector.TrackVectorEnv` (NEXT_STEP autoreset or DISABLED with resets by
     mask, episode statistics with masks, world i reset with seed s ≡ this env reset with seed
     s + i).
 
     ```python
-    >>> envs = gym.make_vec("KheperaIV-Track-v1", num_envs=4)
+    >>> envs = gym.make_vec("KheperaIV-Track", num_envs=4)
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape, envs.goals().shape
     ((4, 29), (4, 1, 2))

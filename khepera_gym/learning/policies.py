@@ -267,8 +267,21 @@ class UserPolicy:
         #: Whether the function takes one observation at a time (found on the first call).
         self._per_row: bool | None = None
 
+    def _called(self, observations: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        """The function's answer, an error of its own as one line naming it (a ConfigError),
+        not a traceback through this package."""
+        try:
+            return np.asarray(self._function(observations), dtype=np.float32)
+        except ConfigError:
+            raise
+        except Exception as error:
+            raise ConfigError(
+                f"policy {self.name!r} raised {type(error).__name__}: {error} (for observations "
+                f"of shape {observations.shape})"
+            ) from error
+
     def _one(self, observation: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        action = np.asarray(self._function(observation), dtype=np.float32)
+        action = self._called(observation)
         if action.shape != (self.act_dim,):
             raise ConfigError(
                 f"policy {self.name!r} returned an action of shape {action.shape} for one "
@@ -284,7 +297,7 @@ class UserPolicy:
         if self._per_row is None:
             try:
                 actions = np.asarray(self._function(observations), dtype=np.float32)
-            except (IndexError, ValueError, TypeError) as error:
+            except Exception as error:  # a single-observation function may fail on a batch
                 batch_answer = f"raised {type(error).__name__}: {error}"
             else:
                 if actions.shape == expected:
@@ -293,11 +306,12 @@ class UserPolicy:
                 batch_answer = f"returned actions of shape {actions.shape}"
             try:
                 first = self._one(observations.reshape(-1, observations.shape[-1])[0])
-            except Exception as error:
+            except ConfigError as error:
+                cause = error.__cause__ if error.__cause__ is not None else error
                 raise ConfigError(
                     f"policy {self.name!r} takes neither a batch of observations (for "
                     f"{observations.shape} it {batch_answer}; expected {expected}) nor one "
-                    f"observation ({type(error).__name__}: {error})"
+                    f"observation ({type(cause).__name__}: {cause})"
                 ) from error
             self._per_row = True
             rows = observations.reshape(-1, observations.shape[-1])
@@ -306,7 +320,7 @@ class UserPolicy:
         if self._per_row:
             rows = observations.reshape(-1, observations.shape[-1])
             return np.stack([self._one(row) for row in rows]).reshape(expected)
-        actions = np.asarray(self._function(observations), dtype=np.float32)
+        actions = self._called(observations)
         if actions.shape != expected:
             raise ConfigError(
                 f"policy {self.name!r} returned actions of shape {actions.shape} for observations "

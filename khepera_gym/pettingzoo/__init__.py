@@ -119,7 +119,7 @@ __all__ = [
 
 
 def modules() -> dict[str, ModuleType]:
-    """Every versioned module of this package (``formation_v2`` → its module), sorted by family
+    """Every versioned module of this package (``formation_vN`` → its module), sorted by family
     then version: one per family and behaviour version its task exists in."""
     return {module.__name__.rpartition(".")[2]: module for module in VERSIONED_MODULES}
 
@@ -129,7 +129,7 @@ class PettingZooModule:
     """A module ``khepera_gym.pettingzoo.<family>_v<version>``.
 
     Attributes:
-        name: Its name (``"formation_v1"``).
+        name: Its name (``"formation_vN"``, N its version).
         family: The name without the version (``"formation"``).
         version: Its behaviour version.
         task: The core's task it runs.

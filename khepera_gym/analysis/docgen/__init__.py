@@ -62,14 +62,14 @@ def write_all(docs_dir: str | Path) -> list[Path]:
 
 def readme_env_table() -> str:
     """The README's table of every env: its id and PettingZoo modules (from which version),
-    what it is, its manual's source file (the README must read on its own, without the built
-    site)."""
+    what it is, and a link to its docs page (``docs/generated/envs/<task>.md``, which
+    :func:`write_all` writes at every docs build)."""
     from khepera_gym.analysis.docgen.envs import baselines, env_pages
     from khepera_gym.analysis.docgen.markdown import code, escape_cell, table
 
     rows = []
     for page in env_pages():
-        source = page.manual_module.replace(".", "/") + ".py"
+        source = f"docs/{GENERATED}/envs/{page.slug}.md"
         # Version-free, so that a new version leaves the README as it is: the id without its
         # version (the latest) and the module family, with the task's first version.
         names = [code(page.ids[0].rsplit("-v", 1)[0])] if page.ids else []
@@ -83,7 +83,7 @@ def readme_env_table() -> str:
                 ", ".join(code(cls.__name__) for cls in baselines(page.task)) or "–",
             ]
         )
-    return table(["Env (manual)", "Id and PettingZoo modules", "What", "Baselines"], rows)
+    return table(["Env (its page)", "Id and PettingZoo modules", "What", "Baselines"], rows)
 
 
 __all__ = ["GENERATED", "readme_env_table", "write_all"]

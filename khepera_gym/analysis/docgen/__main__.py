@@ -1,5 +1,6 @@
 """``python -m khepera_gym.analysis.docgen [DOCS_DIR]`` writes the generated pages without Sphinx;
-``--readme`` rewrites the README's env table from the registries instead, and ``--configs DIR``
+``--readme`` rewrites the README's env table from the registries instead, and the generated
+blocks of the README and docs/*.md (:mod:`khepera_gym.analysis.docgen.facts`), and ``--configs DIR``
 writes every task's default scenario file (``configs/<task>.toml``) from the core (``make
 configs``)."""
 
@@ -9,7 +10,7 @@ import argparse
 from pathlib import Path
 
 from khepera_gym import _core, registry
-from khepera_gym.analysis.docgen import readme_env_table, write_all
+from khepera_gym.analysis.docgen import facts, readme_env_table, write_all
 
 #: The markers around the README's env table.
 START, END = "<!-- env-table:start -->", "<!-- env-table:end -->"
@@ -37,6 +38,8 @@ def main() -> int:
     _, tail = rest.split(END, 1)
     args.readme.write_text(f"{head}{START}\n{readme_env_table()}\n{END}{tail}", encoding="utf-8")
     print(f"wrote the env table of {args.readme}")
+    for path in facts.refresh(args.readme.resolve().parent):
+        print(f"wrote the generated blocks of {path}")
     return 0
 
 
