@@ -5,11 +5,12 @@ Importing the package registers the environments with Gymnasium::
     import gymnasium as gym
     import khepera_gym
 
-    env = gym.make("KheperaIV-Nav-v1")                      # one world
-    envs = gym.make_vec("KheperaIV-Nav-v1", num_envs=1024)  # native Rust batch
+    env = gym.make("KheperaIV-Nav")                      # one world, the latest version
+    envs = gym.make_vec("KheperaIV-Nav", num_envs=1024)  # native Rust batch
 
-Registered ids (``gym.make("KheperaIV-Nav")`` picks the latest version, with Gymnasium's warning
-that it did so), made from the task list the Rust core exports (:mod:`khepera_gym.registration`):
+An unversioned id picks the latest behaviour version, with Gymnasium's note that it did so; pin
+one (``"KheperaIV-Nav-v<n>"``) in anything you publish. The registered ids are made from the
+task list the Rust core exports (:mod:`khepera_gym.registration`):
 
 ``KheperaIV-<Task>-v<n>`` for every task the core exports with a Gymnasium id and every
 behaviour version it exists in, each with its single env (:mod:`khepera_gym.envs`) and its native
