@@ -267,27 +267,34 @@ class BenchMARLLearner:
         previous = torch.get_num_threads()
         torch.set_num_threads(1)
         try:
-            experiment = Experiment(
-                task=member.get_task(config=task_config),
-                algorithm_config=algorithm,
-                model_config=model,
-                critic_model_config=model,
-                seed=job.seed,
-                config=config,
-            )
-            # Added after construction: BenchMARL pickles the callbacks it is given.
-            evaluations = Evaluations()
-            evaluations.experiment = experiment
-            experiment.callbacks.append(evaluations)
-            if recipe.get("normalize_advantage", True):
-                for loss in experiment.losses.values():
-                    loss.normalize_advantage = True  # torchrl's ClipPPOLoss option
-            clock["start"] = time.perf_counter()
             with warnings.catch_warnings():
                 # The advantages are standardised over every agent of the minibatch together, as
                 # SB3's PPO does for a policy shared by its rows: on purpose, so torchrl's advice
                 # to keep the agents' dimension apart is not taken.
                 warnings.filterwarnings("ignore", "You requested advantage normalization")
+                # BenchMARL's note that a batch in which no episode ended has a NaN mean return
+                # (the progress line says so in words: return_description), and torchrl's, made
+                # with the collector, that the last batch overshoots the steps (the record's
+                # timesteps say how many ran): printed by Python on stderr, they reached the user
+                # whatever --no-progress said.
+                warnings.filterwarnings("ignore", "No episode terminated this iteration")
+                warnings.filterwarnings("ignore", r"total_frames \(\d+\) is not exactly divisible")
+                experiment = Experiment(
+                    task=member.get_task(config=task_config),
+                    algorithm_config=algorithm,
+                    model_config=model,
+                    critic_model_config=model,
+                    seed=job.seed,
+                    config=config,
+                )
+                # Added after construction: BenchMARL pickles the callbacks it is given.
+                evaluations = Evaluations()
+                evaluations.experiment = experiment
+                experiment.callbacks.append(evaluations)
+                if recipe.get("normalize_advantage", True):
+                    for loss in experiment.losses.values():
+                        loss.normalize_advantage = True  # torchrl's ClipPPOLoss option
+                clock["start"] = time.perf_counter()
                 with _learner_output(experiment, job.progress):
                     experiment.run()
             if not history or history[-1][0] != experiment.total_frames:
