@@ -14,8 +14,9 @@ width (the article's), and for each table its wrapper's ``clientWidth`` and ``sc
 clientWidth`` is a table the reader must scroll, or that is cut off), the table's laid-out width,
 and its min-content and max-content widths (the table set to ``width: min-content`` /
 ``max-content`` for the measurement, then restored). The min-content widths are what
-tests/test_docs_width.py estimates from the Markdown; ``--json`` writes them, and ``--estimate
-docs`` prints the test's estimate of every table against them (its calibration).
+khepera_gym.analysis.docgen.width estimates from the Markdown (tests/test_docs_width.py's budget);
+``--json`` writes them, and ``--estimate docs`` prints the estimate of every table against them
+(its calibration).
 Exits 1 if a table overflows at a width of at least ``--fit-from`` px (default 800: below 48em
 Furo's content column is the window less its margins, and a wide table scrolls in its wrapper by
 design).
@@ -108,8 +109,8 @@ def main() -> int:
         type=Path,
         default=None,
         metavar="DOCS",
-        help="compare tests/test_docs_width.py's estimates (of the Sphinx source DOCS) with "
-        "the browser's min-content widths at the first window width",
+        help="compare the width budget's estimates (of the Sphinx source DOCS) with the "
+        "browser's min-content widths at the first window width",
     )
     args = parser.parse_args()
     pages = sorted(
@@ -157,13 +158,13 @@ def main() -> int:
 
 
 def calibrate(report: dict[str, dict[str, Any]], docs: Path, width: str) -> None:
-    """Prints tests/test_docs_width.py's estimate of every table against the browser's
-    min-content width (``docs``: the Sphinx source the build read, its generated/ included)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
-    import test_docs_width as budget
+    """Prints the width budget's estimate of every table against the browser's min-content
+    width (``docs``: the Sphinx source the build read, its generated/ included)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+    from khepera_gym.analysis.docgen.width import page_tables
 
     ratios = []
-    for page, found in budget.page_tables(docs).items():
+    for page, found in page_tables(docs).items():
         measured = report.get(page[: -len(".md")] + ".html", {}).get(width, {}).get("tables")
         if measured is None or len(measured) != len(found):
             print(f"not compared: {page} ({len(found)} tables in the Markdown)")
