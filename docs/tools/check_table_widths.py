@@ -25,6 +25,7 @@ design).
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import statistics
 import sys
@@ -160,12 +161,20 @@ def main() -> int:
 def calibrate(report: dict[str, dict[str, Any]], docs: Path, width: str) -> None:
     """Prints the width budget's estimate of every table against the browser's min-content
     width (``docs``: the Sphinx source the build read, its generated/ included)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-    from khepera_gym.analysis.docgen.width import page_tables
+    # The module alone (standard library only), so that this venv needs no khepera_gym.
+    path = Path(__file__).resolve().parents[2] / "khepera_gym" / "analysis" / "docgen" / "width.py"
+    spec = importlib.util.spec_from_file_location("width", path)
+    assert spec is not None and spec.loader is not None
+    width_module = importlib.util.module_from_spec(spec)
+    sys.modules["width"] = width_module  # dataclasses look their module up
+    spec.loader.exec_module(width_module)
+    page_tables = width_module.page_tables
 
     ratios = []
     for page, found in page_tables(docs).items():
         measured = report.get(page[: -len(".md")] + ".html", {}).get(width, {}).get("tables")
+        if not found:
+            continue
         if measured is None or len(measured) != len(found):
             print(f"not compared: {page} ({len(found)} tables in the Markdown)")
             continue
