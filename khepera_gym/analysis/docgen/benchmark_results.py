@@ -66,9 +66,10 @@ def benchmark_fragment(folder: Path) -> str:
             markdown(table)
             + f"\n\nMeasured {', '.join(dates)} at commit {', '.join(f'`{c}`' for c in commits)}"
             + f" on {mine[0]['meta']['machine'].get('cpu', '?')} "
-            + f"({mine[0]['meta']['machine'].get('cpus', '?')} CPUs). The rows again:"
+            + f"({mine[0]['meta']['machine'].get('cpus', '?')} CPUs)."
+            + (f" {not_run}" if not_run else "")
+            + " The rows again:"
             + f"\n\n```bash\n{commands}\n```"
-            + (f"\n\n{not_run}" if not_run else "")
             + (f"\n\nTried: {entry.tried}" if entry and entry.tried else "")
         )
     return "\n\n".join(parts)
