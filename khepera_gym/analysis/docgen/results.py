@@ -219,6 +219,8 @@ def consensus_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
             + note
             + "\n\n"
             + table(header, rows)
+            + "\n\nEach cell: the estimate over the episodes [95 % interval]: mean final error "
+            "and messages (bootstrap), share converged (Wilson), median converge time."
         )
     return "\n\n".join(parts)
 
