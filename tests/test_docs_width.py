@@ -52,7 +52,8 @@ def built(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_the_estimate_flags_a_table_too_wide_and_passes_a_narrow_one() -> None:
-    # A path breaks at no hyphen or space: one piece of 84 characters of code at 7.8 px, wider than the column.
+    # A path breaks at no hyphen or space: one piece of 84 characters of code at 7.8 px,
+    # wider than the column on its own.
     command = "`sb3:runs/pathfollow_v3/seed_0/checkpoints/best_model_after_500000_steps_of_ppo.zip`"
     wide = tables(
         "| env | run |\n|---|---|\n| `KheperaIV-PathFollow-v3` | " + command + " |\n",
