@@ -20,6 +20,7 @@ from matplotlib.ticker import EngFormatter
 
 from khepera_gym import registry
 from khepera_gym.analysis.docgen.markdown import code, missing_results, table
+from khepera_gym.analysis.docgen.width import split_table
 from khepera_gym.learning.benchmark import aggregate
 from khepera_gym.learning.benchmark.random_rows import RANDOM_DIR
 from khepera_gym.learning.benchmark.suite import load_suite
@@ -158,7 +159,8 @@ def reliable_fragment(folder: Path, images: Path, image_prefix: str) -> str:
         f"metric: {metrics}. The normalised score is 0 for the random policy and 1 for the best "
         "classical baseline, on a log scale for lower-is-better metrics; the ratio is the "
         "learned mean over the best baseline's (below 1 is better for a lower-is-better metric).",
-        table(
+        # Task and learner, then the statistics: in two tables if one is wider than the page.
+        *split_table(
             [
                 "task",
                 "learner",
@@ -170,6 +172,7 @@ def reliable_fragment(folder: Path, images: Path, image_prefix: str) -> str:
                 "normalised IQM",
             ],
             per_task_rows,
+            keep=2,
         ),
         "Normalised scores aggregated across tasks (each task's seeds resampled apart):",
         table(["learner", "tasks", "runs", "IQM [95 % CI]", "mean [95 % CI]"], aggregate_rows)

@@ -61,14 +61,15 @@ def benchmark_fragment(folder: Path) -> str:
                 for r in mine
             }
         )
+        commands = "\n".join(reproduce(task, row) for row in table["learners"])
         parts.append(
             markdown(table)
             + f"\n\nMeasured {', '.join(dates)} at commit {', '.join(f'`{c}`' for c in commits)}"
             + f" on {mine[0]['meta']['machine'].get('cpu', '?')} "
-            + f"({mine[0]['meta']['machine'].get('cpus', '?')} CPUs); rows again: "
-            + "; ".join(f"{code(reproduce(task, row))}" for row in table["learners"])
-            + "."
+            + f"({mine[0]['meta']['machine'].get('cpus', '?')} CPUs)."
             + (f" {not_run}" if not_run else "")
+            + " The rows again:"
+            + f"\n\n```bash\n{commands}\n```"
             + (f"\n\nTried: {entry.tried}" if entry and entry.tried else "")
         )
     return "\n\n".join(parts)
@@ -82,8 +83,8 @@ RECIPE_BEFORE_DIR = "benchmark_recipe_before"
 
 def recipe_speed_fragment(before_dir: Path, after_dir: Path) -> str:
     """The shipped recipe's training time against an earlier recipe's, seed by seed, from the
-    runs of both in one session: per seed, each one's training time (evaluations excluded) and
-    held-out success, and the ratio."""
+    runs of both in one session: per seed, each one's training time (evaluations excluded), the
+    ratio, and each one's held-out success (one statistic a column)."""
     from khepera_gym.learning.benchmark.runner import means
     from khepera_gym.learning.benchmark.tables import load_records
 
@@ -113,11 +114,11 @@ def recipe_speed_fragment(before_dir: Path, after_dir: Path) -> str:
             [
                 f"{task} {learner} v{version}",
                 str(seed),
-                f"{run['train_seconds']:.0f} s, "
-                f"{100 * means(run['final']).get('success', 0):.1f} %",
-                f"{other['train_seconds']:.0f} s, "
-                f"{100 * means(other['final']).get('success', 0):.1f} %",
+                f"{run['train_seconds']:.0f}",
+                f"{other['train_seconds']:.0f}",
                 f"{ratio:.1f}",
+                f"{100 * means(run['final']).get('success', 0):.1f}",
+                f"{100 * means(other['final']).get('success', 0):.1f}",
             ]
         )
     if not rows:
@@ -137,7 +138,15 @@ def recipe_speed_fragment(before_dir: Path, after_dir: Path) -> str:
     median = statistics.median(ratios)
     return (
         table(
-            ["task", "seed", "earlier recipe: training, success", "shipped recipe", "ratio"],
+            [
+                "task",
+                "seed",
+                "training s, earlier recipe",
+                "training s, shipped",
+                "ratio",
+                "success %, earlier",
+                "success %, shipped",
+            ],
             rows,
         )
         + f"\n\nIn all, {totals[0]:.0f} s against {totals[1]:.0f} s of training "
@@ -145,5 +154,6 @@ def recipe_speed_fragment(before_dir: Path, after_dir: Path) -> str:
         + "held-out episodes with mean actions. Run interleaved, seed by seed, on "
         + f"{meta['date'][:10]} at commit `{(meta.get('commit') or {}).get('id', '?')[:10]}` on "
         + f"{meta['machine'].get('cpu', '?')} ({meta['machine'].get('cpus', '?')} CPUs). "
-        + f"The earlier recipe's runs: {code(shlex.join(words) + ' --seed-list S')}."
+        + "The earlier recipe's runs:"
+        + f"\n\n```bash\n{shlex.join(words)} --seed-list S\n```"
     )

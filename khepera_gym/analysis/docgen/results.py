@@ -24,6 +24,7 @@ from khepera_gym import registry
 from khepera_gym.analysis.compare.report import table_notes, table_rows
 from khepera_gym.analysis.compare.run import Comparison
 from khepera_gym.analysis.docgen.markdown import code, escape_cell, missing_results, table
+from khepera_gym.analysis.docgen.width import split_table
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.policies import SAMPLED_SUFFIX, SB3_PREFIX
 from khepera_gym.learning.recipes import load_hyperparams
@@ -151,7 +152,8 @@ def _compare_section(document: dict[str, Any]) -> str:
     notes = escape_cell(table_notes(comparison).replace("\n", "; "))
     return (
         f"#### {title}\n\n{provenance_line(document.get('meta'))}{note}\n\n"
-        + table(cells[0], cells[1:])
+        # Track's 12 statistics do not fit the page's column in one table.
+        + "\n\n".join(split_table(cells[0], cells[1:]))
         + f"\n\n{notes}."
     )
 
@@ -217,6 +219,8 @@ def consensus_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
             + note
             + "\n\n"
             + table(header, rows)
+            + "\n\nEach cell: the estimate over the episodes [95 % interval]: mean final error "
+            "and messages (bootstrap), share converged (Wilson), median converge time."
         )
     return "\n\n".join(parts)
 
@@ -238,40 +242,58 @@ def table_changes(document: dict[str, Any]) -> dict[str, Any]:
 
 
 def train_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
-    """The training runs: env, algorithm, steps, observations stacked (``frame_stack``), seed,
-    final success on the mean action and sampling actions (runs that recorded it), wall time,
-    steps/s."""
+    """The training runs, one table an env and algorithm: steps, observations stacked
+    (``frame_stack``), what differs from the shipped table, seed, final success on the mean
+    action and sampling actions (runs that recorded it), wall time, steps/s. Each row's number
+    refers to the list of runs under the table: where and how it was measured (the command is
+    too long for a cell of a table that fits the page)."""
     documents = [d for _, d in files if kind(d) == "train"]
     if not documents:
         return missing_results(
             "khepera-gym train --env KheperaIV-Nav --algo ppo --seed 0 --out runs/ppo-nav",
             "run.json",
         )
-    rows = []
-    for document in sorted(documents, key=lambda d: (d["env_id"], d["algo"], d["seed"])):
-        final = document["final"]
-        sampled = document.get("final_sampled")
-        rows.append(
-            [
-                code(document["env_id"]),
-                document.get("backend", "sb3") + " " + document["algo"].upper(),
-                f"{document['timesteps']:,}",
-                str((document.get("hyperparams") or {}).get("frame_stack", 1)),
-                escape_cell(
-                    ", ".join(f"{k} {v}" for k, v in table_changes(document).items()) or "–"
-                ),
-                str(document["seed"]),
-                f"{100 * final['success_rate']:.0f} of {final['episodes']}",
-                "–" if sampled is None else f"{100 * sampled['success_rate']:.0f}",
-                f"{document['wall_time']:.0f} s",
-                f"{document['steps_per_second']:,.0f}",
-                provenance_line(document.get("meta")),
-            ]
-        )
-    header = ["env", "algorithm", "steps", "frames", "changed from the shipped table", "seed"]
+    header = ["run", "steps", "frames", "changed from the shipped table", "seed"]
     header += ["success %", "sampled %", "wall time", "steps/s"]
-    header.append("run")
-    return table(header, rows)
+    parts = []
+    number = 0
+
+    def algorithm(document: dict[str, Any]) -> str:
+        return document.get("backend", "sb3") + " " + document["algo"].upper()
+
+    documents = sorted(documents, key=lambda d: (d["env_id"], algorithm(d), d["seed"]))
+    for (env_id, learner), group in itertools.groupby(
+        documents, key=lambda d: (d["env_id"], algorithm(d))
+    ):
+        rows, runs = [], []
+        for document in group:
+            number += 1
+            final = document["final"]
+            sampled = document.get("final_sampled")
+            rows.append(
+                [
+                    str(number),
+                    f"{document['timesteps']:,}",
+                    str((document.get("hyperparams") or {}).get("frame_stack", 1)),
+                    escape_cell(
+                        ", ".join(f"{k} {v}" for k, v in table_changes(document).items()) or "–"
+                    ),
+                    str(document["seed"]),
+                    f"{100 * final['success_rate']:.0f} of {final['episodes']}",
+                    "–" if sampled is None else f"{100 * sampled['success_rate']:.0f}",
+                    f"{document['wall_time']:.0f} s",
+                    f"{document['steps_per_second']:,.0f}",
+                ]
+            )
+            runs.append(f"{number}. {provenance_line(document.get('meta'))}")
+        parts.append(
+            f"**{code(env_id)}, {learner}**: success on the final model's evaluation episodes "
+            "(mean actions; sampled: sampling them):\n\n"
+            + table(header, rows)
+            + "\n\nThe runs:\n\n"
+            + "\n".join(runs)
+        )
+    return "\n\n".join(parts)
 
 
 def learning_seed(document: dict[str, Any]) -> int | None:

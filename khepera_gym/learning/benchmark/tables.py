@@ -137,8 +137,18 @@ def _scale(metric: str) -> tuple[float, str]:
     return 1.0, ""
 
 
+def _label(row: Mapping[str, Any]) -> str:
+    """A learner row's name: learner, env and what tells it from the learner's other rows."""
+    return f"{row['learner']} ({row['env']}" + (
+        f", {row['variant']})" if row.get("variant") else ")"
+    )
+
+
 def markdown(table: Mapping[str, Any]) -> str:
-    """One task's table as Markdown."""
+    """One task's tables as Markdown: the held-out results (a row per baseline, and per learner
+    one on its mean actions and one sampling them), then the learners' training (the criterion
+    met during training, and how long it took). Every cell holds one statistic, named by its
+    column, so that each table fits a page's content column."""
     criterion = " and ".join(
         f"{c['metric']} {'≥' if c['bound'] == 'at_least' else '≤'} {c['reference'] or c['value']}"
         for c in table.get("criterion", [])
@@ -146,37 +156,47 @@ def markdown(table: Mapping[str, Any]) -> str:
     metrics = list(dict.fromkeys(c["metric"] for c in table.get("criterion", []))) or ["success"]
     heads = [f"{m}{_scale(m)[1]}" for m in metrics]
     lines = [
-        f"**{table['task']}**, solved when {criterion or '–'}",
+        f"**{table['task']}**, solved when {criterion or '–'}: held-out mean [95 % interval]",
         "",
-        "| policy | seeds | " + " | ".join(heads) + " | sampled | solved (mean / sampled) "
-        "| time to criterion | training |",
-        "|---" * (6 + len(metrics)) + "|",
+        "| policy | actions | seeds | " + " | ".join(heads) + " | solved |",
+        "|---" * (4 + len(metrics)) + "|",
     ]
     for row in table["baselines"]:
         cells = [_cell(row["metrics"].get(m), _scale(m)[0]) for m in metrics]
-        lines.append(
-            f"| {row['policy']} (baseline) | – | " + " | ".join(cells) + " | – | – | – | – |"
-        )
+        lines.append(f"| {row['policy']} (baseline) | – | – | " + " | ".join(cells) + " | – |")
     for row in table["learners"]:
-        mean_cells = [_cell(row["metrics"][m]["final"], _scale(m)[0]) for m in metrics]
-        sampled = " / ".join(
-            _cell(row["metrics"][m].get("final_sampled"), _scale(m)[0]) for m in metrics
-        )
+        n = len(row["seeds"])
+        for kind, actions, solved in (
+            ("final", "mean", row["solved"]),
+            ("final_sampled", "sampled", row["solved_sampled"]),
+        ):
+            cells = [_cell(row["metrics"][m].get(kind), _scale(m)[0]) for m in metrics]
+            lines.append(
+                f"| {_label(row)} | {actions} | {n} | " + " | ".join(cells) + f" | {solved}/{n} |"
+            )
+    if not table["learners"]:
+        return "\n".join(lines)
+    lines += [
+        "",
+        "Training, medians over the seeds (to the criterion: over the seeds that met it on the "
+        "training's own evaluations):",
+        "",
+        "| learner | seeds that met it | time to it | steps to it | training time "
+        "| training steps |",
+        "|---" * 6 + "|",
+    ]
+    for row in table["learners"]:
         n = len(row["seeds"])
         time_to = row["median_seconds_to_criterion"]
-        reached = (
-            f"{time_to:.0f} s, {row['median_steps_to_criterion'] / 1e3:.0f}k steps "
-            f"({row['reached']}/{n} seeds)"
-            if math.isfinite(time_to)
-            else f"never ({row['reached']}/{n})"
-        )
+        met = math.isfinite(time_to)
         lines.append(
-            f"| {row['learner']} ({row['env']}"
-            + (f", {row['variant']}" if row.get("variant") else "")
-            + f") | {n} | "
-            + " | ".join(mean_cells)
-            + f" | {sampled} | {row['solved']}/{n} / {row['solved_sampled']}/{n} | {reached} "
-            f"| {row['median_train_seconds']:.0f} s, {row['median_steps'] / 1e3:.0f}k steps |"
+            f"| {_label(row)} | {row['reached']}/{n} "
+            + (
+                f"| {time_to:.0f} s | {row['median_steps_to_criterion'] / 1e3:.0f}k "
+                if met
+                else "| never | – "
+            )
+            + f"| {row['median_train_seconds']:.0f} s | {row['median_steps'] / 1e3:.0f}k |"
         )
     return "\n".join(lines)
 
