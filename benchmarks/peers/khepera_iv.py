@@ -7,37 +7,38 @@ taken from the project's spec dossier (docs/robot.md, written from the K-Team ma
 circular obstacles added as the comparison in issue 54 asks.
 
 Units: metres, seconds, radians, m/s. Frames: world x right, y up, the arena centred at the
-origin; robot frame x forward, y left, angles counter-clockwise (spec, "Frame used").
+origin; robot frame x forward, y left, angles counter-clockwise (robot.md, "Frame used").
 """
 
 from __future__ import annotations
 
 import math
 
-# --- The robot (docs/robot.md = shared/khepera4_spec.md) -------------------------------------
-#: Body radius (m): 140.8 mm diameter, K-Team manual fig. 8.1 [C] (spec §1).
+# --- The robot (docs/robot.md) ------------------------------------------------------------------
+#: Body radius (m): 140.8 mm diameter, K-Team manual fig. 8.1 [C] (robot.md §1).
 ROBOT_RADIUS = 0.0704
-#: Wheel separation (m): 105.4 mm, KH4_WHEELS_DISTANCE [C] (spec §1).
+#: Wheel separation (m): 105.4 mm, KH4_WHEELS_DISTANCE [C] (robot.md §1).
 AXLE_LENGTH = 0.1054
-#: Largest wheel speed (m/s): about 1200 speed units of 0.678 mm/s in closed loop [C] (spec §1).
+#: Largest wheel speed (m/s): about 1200 speed units of 0.678 mm/s in closed loop [C]
+#: (robot.md §1).
 MAX_WHEEL_SPEED = 0.813
 #: Largest yaw rate (rad/s) spinning in place at MAX_WHEEL_SPEED: 2 · 0.813 / 0.1054 = 15.4 [D]
-#: (spec §1).
+#: (robot.md §1).
 MAX_YAW_RATE = 2.0 * MAX_WHEEL_SPEED / AXLE_LENGTH
-#: Mass (kg): K-Team's usual figure, not in the manual [E] (spec §1, §11); VMAS turns the
+#: Mass (kg): K-Team's usual figure, not in the manual [E] (robot.md §1, §11); VMAS turns the
 #: commanded velocity into a force with it.
 ROBOT_MASS = 0.54
 #: The 8 range rays: the infrared ring's bearings in the robot frame, K-Team order back-left,
-#: left, front-left, front, front-right, right, back-right, back: 45° apart [C] (spec §2).
+#: left, front-left, front, front-right, right, back-right, back: 45° apart [C] (robot.md §2).
 RAY_BEARINGS = tuple(math.radians(b) for b in (135.0, 90.0, 45.0, 0.0, -45.0, -90.0, -135.0, 180.0))
-#: How far a ray sees beyond the shell (m): the infrared range 2-250 mm [C] (spec §2), Nav's
+#: How far a ray sees beyond the shell (m): the infrared range 2-250 mm [C] (robot.md §2), Nav's
 #: ``sensors.ir_range`` 0.25.
 RAY_RANGE_BEYOND_SHELL = 0.25
 #: How far a ray sees from the robot's centre (m), where both peers cast it from.
 RAY_MAX_RANGE = ROBOT_RADIUS + RAY_RANGE_BEYOND_SHELL
 
 # --- The scene (KheperaIV-Nav-v3, configs/nav.toml) -------------------------------------------
-#: Control step (s): Nav's ``physics.dt`` (V-REP's default, spec §9).
+#: Control step (s): Nav's ``physics.dt`` (V-REP's default, robot.md §9).
 DT = 0.05
 #: Physics substeps per control step: Nav-v3's ``physics.substeps`` (and VMAS' navigation
 #: scenario's ``substeps``).

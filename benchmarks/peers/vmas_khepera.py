@@ -80,7 +80,7 @@ class Scenario(BaseScenario):
             sensors=[
                 Lidar(
                     world,
-                    # 135° first, then clockwise by 45°: K-Team's order (spec §2).
+                    # 135° first, then clockwise by 45°: K-Team's order (robot.md §2).
                     angle_start=3 * math.pi / 4,
                     angle_end=3 * math.pi / 4 - 2 * math.pi,
                     n_rays=len(k4.RAY_BEARINGS),
