@@ -148,13 +148,13 @@ lint: develop
 	cargo fmt --check
 	cargo clippy --release -- -D warnings
 	cargo clippy --release --features python -- -D warnings
-	$(VENV)/bin/ruff check khepera_gym tests examples
-	$(VENV)/bin/ruff format --check khepera_gym tests examples
+	$(VENV)/bin/ruff check khepera_gym tests examples benchmarks
+	$(VENV)/bin/ruff format --check khepera_gym tests examples benchmarks
 
 format: develop
 	cargo fmt
-	$(VENV)/bin/ruff format khepera_gym tests examples
-	$(VENV)/bin/ruff check --fix khepera_gym tests examples
+	$(VENV)/bin/ruff format khepera_gym tests examples benchmarks
+	$(VENV)/bin/ruff check --fix khepera_gym tests examples benchmarks
 
 clean:
 	rm -rf $(BUILT) demo_out docs/_build docs/generated

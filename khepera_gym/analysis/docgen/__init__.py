@@ -4,7 +4,8 @@ from the results data at docs build time (``make docs``; docs/conf.py calls :fun
 Everything a reader needs to list is generated here rather than copied by hand: the env table
 and one page per env (:mod:`khepera_gym.analysis.docgen.envs`), the scenes, sensors, baselines and
 policies (:mod:`khepera_gym.analysis.docgen.reference`), and the results tables from the JSON files
-in docs/results/ (:mod:`khepera_gym.analysis.docgen.results`). The output goes to docs/generated/,
+in docs/results/ (:mod:`khepera_gym.analysis.docgen.results`; the side-by-side run beside
+VMAS and NumPy: :mod:`khepera_gym.analysis.docgen.peers`). The output goes to docs/generated/,
 which is not kept in git. ``python -m khepera_gym.analysis.docgen [DOCS_DIR]`` writes it without
 Sphinx, and
 ``python -m khepera_gym.analysis.docgen --readme`` refreshes the README's env table.
@@ -57,6 +58,9 @@ def write_all(docs_dir: str | Path) -> list[Path]:
     )
     write("results-benchmark-reliable.md", benchmark + "\n")
     write("results-tune.md", tune_fragment(docs / "results" / "tune") + "\n")
+    from khepera_gym.analysis.docgen.peers import PEERS_DIR, peers_fragment
+
+    write("results-peers.md", peers_fragment(docs / "results" / PEERS_DIR) + "\n")
     return written
 
 
