@@ -611,3 +611,16 @@ def test_no_tracked_text_file_keeps_a_merge_conflict() -> None:
     if found.returncode not in (0, 1):
         pytest.skip(f"not a git checkout: {found.stderr.strip()}")
     assert found.stdout == "", f"merge conflict markers:\n{found.stdout}"
+
+
+def test_a_learned_formation_recorded_before_v3_names_v2_not_the_latest() -> None:
+    """Files of 2026-11-28 before v3 say "formation (latest)", which a reader today takes for v3."""
+    from khepera_gym.analysis.docgen.results import learning_fragment
+
+    root = Path(__file__).resolve().parents[1] / "docs" / "results"
+    files = [(p, json.loads(p.read_text(encoding="utf-8"))) for p in root.glob("learning_*.json")]
+    unversioned = [d for _, d in files if not d["formation_learning"].get("version")]
+    assert unversioned, "the check needs a file recorded before v3"
+    page = learning_fragment(files)
+    assert "(latest)" not in page
+    assert page.count("formation v2,") == len(unversioned)

@@ -329,8 +329,10 @@ def learning_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
         ]
         header = ["policy", "formation error mean", "max per episode", "leader arrived %"]
         header.append("steps in contact")
+        # A file without its version is from before v3, when "formation (latest)" meant v2.
+        env = run["env"] if run.get("version") else run["env"].replace("(latest)", "v2")
         note = (
-            f" {escape_cell(run['env'])}; {run['steps']:,} training steps in "
+            f" {escape_cell(env)}; {run['steps']:,} training steps in "
             f"{run['train_seconds']:.0f} s"
             + ("" if (seed := learning_seed(document)) is None else f", training seed {seed}")
             + f"; {run['episodes']} episodes from seed {run['eval_seed']}."
