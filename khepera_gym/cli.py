@@ -94,7 +94,10 @@ def list_catalog(topics: Sequence[str] = LIST_TOPICS) -> str:
             lines.append(f"  {sensor.name:<8} {values:>10}   default: {default}")
         sections.append("\n".join(lines))
     if "policies" in topics:
-        lines = ["Policies (khepera-gym compare --policy, render --policy):"]
+        lines = [
+            "Policies (khepera-gym compare --policy and render --policy on the Gymnasium tasks;"
+            " khepera-gym benchmark plays them on the multi-agent ones too):"
+        ]
         for name in POLICY_NAMES:
             controller = VARIANTS.get(name, (name, {}))[0]
             cls = BASELINES.get(controller)
