@@ -386,7 +386,7 @@ impl World {
         let mut step = || physics.step_traction(traction, active, grip, parallel);
         if let Some(h) = roll_others {
             let (robots, drive) = (&mut self.robots, &self.drive);
-            let mut roll = || roll_left_out(robots, &self.active, drive, h);
+            let mut roll = || roll_left_out(robots, &self.active, drive, h, parallel);
             if rayon::current_thread_index().is_some() {
                 rayon::join(step, roll);
             } else {
@@ -428,12 +428,30 @@ impl World {
     }
 }
 
-/// Rolls every robot `active` does not mark on its exact arc over `h` seconds.
-pub(super) fn roll_left_out(robots: &mut [Robot], active: &[bool], drive: &Drive, h: f32) {
-    for (r, _) in robots.iter_mut().zip(active).filter(|(_, &a)| !a) {
-        let (v, w) = drive.twist(r.wheel_speeds);
-        roll_arc(r, v, w, h);
-        r.step_travel += v.abs() * h;
+/// Rolls every robot `active` does not mark on its exact arc over `h` seconds; with `parallel`
+/// (a swarm inside a batch's pool) robot by robot on the pool's threads, with the same results.
+pub(super) fn roll_left_out(
+    robots: &mut [Robot],
+    active: &[bool],
+    drive: &Drive,
+    h: f32,
+    parallel: bool,
+) {
+    let roll = |(r, &a): (&mut Robot, &bool)| {
+        if !a {
+            let (v, w) = drive.twist(r.wheel_speeds);
+            roll_arc(r, v, w, h);
+            r.step_travel += v.abs() * h;
+        }
+    };
+    if parallel {
+        robots
+            .par_iter_mut()
+            .zip(active.par_iter())
+            .with_min_len(MIN_ROBOTS_PER_TASK)
+            .for_each(roll);
+    } else {
+        robots.iter_mut().zip(active).for_each(roll);
     }
 }
 
