@@ -1,5 +1,5 @@
 //! Throughput of one world of many robots (the swarm scale of issue 16): world-steps/s and
-//! robot-steps/s of MultiNav worlds of 4 to 1,000 robots with IR, sonar and contacts, random
+//! robot-steps/s of MultiNav worlds of 4 to 10,000 robots with IR, sonar and contacts, random
 //! actions, in arenas scaled to keep multinav's density (4 robots in 2 m x 2 m), then the
 //! built-in `swarm` scene (1,000 robots in 20 m x 20 m, 2.5 times as dense). Worlds per batch:
 //! 1,024 robots' worth. `cargo bench --bench swarm_scale` prints figures and asserts nothing;
@@ -29,7 +29,7 @@ fn main() {
         .ok()
         .and_then(|n| n.parse().ok());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-    let scaled = [4usize, 16, 32, 100, 300, 1000].map(|n| (n, false));
+    let scaled = [4usize, 16, 32, 100, 300, 1000, 10000].map(|n| (n, false));
     let cases = scaled
         .into_iter()
         .chain([(1000, true)])

@@ -1,10 +1,11 @@
 """A swarm of Khepera IVs: 1,000 robots drive to their own goals across a 20 m arena (the built-in
-``swarm`` scene), each with the KH4VREP paper's position control and Braitenberg avoidance
+``swarm`` scene; ``--robots`` up to 10,000 widens the arena at the same density), each with the
+KH4VREP paper's position control and Braitenberg avoidance
 (:func:`khepera_gym.envs.avoid_heuristic`), through the array env that returns every agent's data
 at once. Prints how many arrived, the contacts and the speed; saves the last frame.
 
 Usage: ``python examples/swarm.py [--robots 1000] [--steps 600]
-[--frame swarm.png]``.
+[--frame swarm.png] [--frame-size 900]``.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=600, help="control steps of 0.05 s")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--frame", default=None, help="save the last frame to this PNG")
+    parser.add_argument("--frame-size", type=int, default=900, help="its side in pixels")
     args = parser.parse_args()
     side = 20.0 * (args.robots / 1000) ** 0.5  # the swarm scene's density, 2.5 robots per m²
     env = multinav_v3.array_env(
@@ -32,7 +34,7 @@ def main() -> None:
         width=side,
         height=side,
         render_mode="rgb_array" if args.frame else None,
-        frame_size=(900, 900),
+        frame_size=(args.frame_size, args.frame_size),
     )
     obs, _ = env.reset(seed=args.seed)
     arrived = np.zeros(env.n_agents, bool)

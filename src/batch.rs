@@ -148,10 +148,12 @@ impl Batch {
             twin.reset(&mut scratch);
             twin.step(&actions, &mut scratch);
         });
+        // A world builds its rapier side at the first substep that needs it: count it as built.
+        let rapier = twin.world.unbuilt_physics_bytes();
         drop(twin);
         let buffers =
             (obs_dim * 4 + std::mem::size_of::<StepOutcome>() + std::mem::size_of::<Env>()) as u64;
-        let per_world = built + grown + buffers;
+        let per_world = built + grown + rapier + buffers;
         let total = per_world.saturating_mul(num_worlds as u64);
         if total > memory::MAX_BATCH_BYTES {
             return Err(Error::config(

@@ -1,5 +1,5 @@
-//! Swarm specification (issue 16): worlds of up to 1,024 robots spawn without overlaps and step
-//! with finite observations; finding neighbours through the grid gives the very results of
+//! Swarm specification (issues 16 and 54): worlds of up to 10,000 robots spawn without overlaps
+//! and step with finite observations; finding neighbours through the grid gives the very results of
 //! looking at every robot; too many robots for the arena is a configuration error that says how
 //! many fit.
 //!
@@ -125,16 +125,81 @@ fn test_too_many_robots_for_the_arena_says_how_many_fit() {
     assert!(err.contains("fits about"), "{err}");
     let source = Source {
         file: None,
-        overrides: "n_robots = 1025".parse().expect("overrides"),
+        overrides: "n_robots = 10001\nwidth = 200.0\nheight = 200.0"
+            .parse()
+            .expect("overrides"),
         version: None,
     };
     let err = load_scenario("multinav", &source)
-        .expect_err("past the limit")
+        .expect_err("past the limit, though the arena would hold them")
         .to_string();
     assert!(
-        err.contains("multinav.n_robots: must be >= 1, <= 1024, got 1025"),
+        err.contains("multinav.n_robots: must be >= 1, <= 10000, got 10001"),
         "{err}"
     );
+}
+
+#[test]
+fn test_ten_thousand_robots_load_and_ten_thousand_and_one_are_refused() {
+    // 10,000 robots (MAX_ROBOTS) in a 63 m arena, the swarm scene's density (2.5 per m²).
+    let overrides = "n_robots = 10000\nwidth = 63.0\nheight = 63.0";
+    let source = Source {
+        file: Some((
+            scene("swarm").expect("the swarm scene is built in"),
+            "swarm",
+        )),
+        overrides: overrides.parse().expect("overrides"),
+        version: None,
+    };
+    let cfg = load_scenario("multinav", &source).expect("10,000 robots are allowed");
+    assert_eq!(
+        _core::tasks::multinav::MAX_ROBOTS,
+        10_000,
+        "the documented cap"
+    );
+    // The arena still bounds them: 10,000 robots do not fit in the swarm scene's 20 m arena.
+    let source = Source {
+        file: Some((scene("swarm").expect("built in"), "swarm")),
+        overrides: "n_robots = 10000".parse().expect("overrides"),
+        version: None,
+    };
+    let err = load_scenario("multinav", &source)
+        .expect_err("10,000 robots in 20 m x 20 m")
+        .to_string();
+    assert!(err.contains("fits about"), "{err}");
+    // And a batch of such worlds beyond the memory bound is refused before it is built.
+    let err = match _core::batch::Batch::new(
+        TaskKind::MultiNav,
+        cfg,
+        1 << 20,
+        ActionType::Wheels,
+        Some(1),
+        true,
+    ) {
+        Ok(_) => panic!("a million worlds of 10,000 robots were built"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("num_envs"), "{err}");
+}
+
+#[test]
+fn test_a_world_of_10000_robots_spawns_apart_and_steps_with_finite_observations() {
+    let mut env = swarm("n_robots = 10000\nwidth = 63.0\nheight = 63.0", 4);
+    let robots = &env.world.robots;
+    assert_eq!(robots.len(), 10_000);
+    // Spawned at least two radii + obstacles.spawn_clearance (5 cm) apart: every pair, checked
+    // through a sort along x (a pair closer than `least` is closer than it along x).
+    let least = 2.0 * env.world.drive.radius + 0.05;
+    let mut centres: Vec<_> = robots.iter().map(|r| r.position).collect();
+    centres.sort_by(|a, b| a.x.total_cmp(&b.x));
+    for (i, a) in centres.iter().enumerate() {
+        for b in centres[i + 1..].iter().take_while(|b| b.x - a.x < least) {
+            assert!((*a - *b).length() >= least - 1e-5, "{a:?} {b:?}");
+        }
+    }
+    for obs in run(&mut env, 3, 5) {
+        assert!(obs.iter().all(|v| v.is_finite()));
+    }
 }
 
 /// A batch of `worlds` swarm worlds (`overrides` on the built-in scene) on `threads` threads.

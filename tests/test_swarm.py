@@ -63,8 +63,19 @@ def test_bad_actions_raise_action_error() -> None:
 def test_too_many_robots_for_the_arena_says_how_many_fit() -> None:
     with pytest.raises(ConfigError, match=r"multinav\.n_robots.*fits about \d+"):
         multinav_v1.array_env(n_robots=500)
-    with pytest.raises(ConfigError, match=r"multinav\.n_robots: must be >= 1, <= 1024"):
-        multinav_v1.array_env(config="swarm", n_robots=2000)
+    with pytest.raises(ConfigError, match=r"multinav\.n_robots: must be >= 1, <= 10000, got 10001"):
+        multinav_v1.array_env(config="swarm", n_robots=10001, width=200.0, height=200.0)
+
+
+def test_ten_thousand_robots_are_allowed_where_the_arena_holds_them() -> None:
+    """The cap is 10,000 robots (issue 54); the arena still bounds them."""
+    with pytest.raises(ConfigError, match=r"multinav\.n_robots.*fits about \d+"):
+        multinav_v1.array_env(config="swarm", n_robots=10000)
+    env = multinav_v1.array_env(config="swarm", n_robots=10000, width=63.0, height=63.0)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape[:2] == (1, 10000)
+    obs, rewards, *_ = env.step(np.full((1, 10000, 2), 0.5, np.float32))
+    assert np.isfinite(obs).all() and np.isfinite(rewards).all()
 
 
 def test_split_by_robot_is_a_scenario_key_with_typed_errors() -> None:

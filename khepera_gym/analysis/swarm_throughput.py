@@ -1,4 +1,4 @@
-"""Swarm scale: world-steps/s and robot-steps/s of multinav worlds of 4 to 1,000
+"""Swarm scale: world-steps/s and robot-steps/s of multinav worlds of 4 to 10,000
 robots with IR, sonar and contacts, through the array env
 (:func:`khepera_gym.pettingzoo.multinav_v1.array_env`), uniform random actions.
 

@@ -6,7 +6,7 @@ Measures env-steps per second of
   n in 1, 64, 1024, 4096 and t in 1, 2; then every other task with a Gymnasium env (from the
   registry: :data:`OTHER_TASKS`) and Nav with the camera (4 rays a pixel, and 1) for n = 1024;
 * the single env through ``gym.make`` with its wrappers (env checker, order enforcing);
-* (v1) world-steps/s of swarms of 4 to 1,000 robots per world
+* (v1) world-steps/s of swarms of 4 to 10,000 robots per world
 (:mod:`khepera_gym.analysis.swarm_throughput`);
 
 with uniform random actions generated beforehand, a warm-up, then a fixed wall time per
@@ -358,7 +358,7 @@ def run_from_args(args: argparse.Namespace) -> int:
         single=not args.no_single,
         memory=not args.no_memory,
         version=args.version,
-        swarm=(4, 1000) if quick else (4, 32, 100, 300, 1000),
+        swarm=(4, 1000) if quick else (4, 32, 100, 300, 1000, 10000),
         json_path=args.json,
     )
     return 0

@@ -24,7 +24,7 @@ remaining ones' infos also hold the world's ``"world_episode_stats"`` ("success"
 arrived). ``state()`` is the joint observation. The scenario is configs/multinav.toml: Nav's
 keys with Avoid's defaults for
 ``spawn.min_goal_distance`` (1 m), ``task.max_steps`` (600) and ``task.collision_penalty`` (0.5),
-plus ``[multinav] n_robots`` (4, 1 to 1024 as the arena fits); ``spawn.start`` then lists N poses
+plus ``[multinav] n_robots`` (4, 1 to 10,000 as the arena fits); ``spawn.start`` then lists N poses
 ``[x, y, heading, ...]`` and ``spawn.goal`` N points ``[x, y, ...]``.
 
 ``env(**kwargs)`` is the AEC version (``parallel_to_aec`` with its order-enforcing wrapper), and
@@ -44,7 +44,7 @@ class MultiNavParallelEnv(KheperaParallelEnv):
     """N robots with their own goals as PettingZoo parallel agents.
 
     Args:
-        n_robots: N, 1..1024 (as many as the arena fits; a swarm needs a larger arena, see
+        n_robots: N, 1..10000 (as many as the arena fits; a swarm needs a larger arena, see
             the scene "swarm"); None keeps the scenario's (4 by default).
         config: None, a built-in scenario name or a path to a TOML file.
         max_cycles: Steps before truncation; None keeps the scenario's ``task.max_steps``.

@@ -326,6 +326,27 @@ impl World {
         }
     }
 
+    /// Builds this world's rapier side now rather than at the first substep that needs it
+    /// (what worlds did before issue 54; the tests compare both ways).
+    pub fn build_physics_now(&mut self) {
+        self.physics.build_now();
+    }
+
+    /// Whether this world's rapier side has been built (some substep needed it).
+    pub fn physics_built(&self) -> bool {
+        self.physics.is_built()
+    }
+
+    /// Heap bytes this world's rapier side would still take if a substep needed it: 0 once
+    /// built (see [`Physics`]).
+    pub fn unbuilt_physics_bytes(&self) -> u64 {
+        if self.physics.is_built() {
+            0
+        } else {
+            self.physics.built_bytes(&self.scene)
+        }
+    }
+
     /// Control step length (s).
     pub fn dt(&self) -> f32 {
         self.dt

@@ -6,8 +6,10 @@
 
 use rapier2d::math::Vector;
 
+use rayon::prelude::*;
+
 use super::physics::{slip_freely, BodyState, Grip, TractionBody, GRAVITY};
-use super::{Robot, World};
+use super::{Robot, World, MIN_ROBOTS_PER_TASK};
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::DriveModel;
 
@@ -166,20 +168,29 @@ impl World {
     }
 
     fn finish_step(&mut self) {
-        let inertial = self.sensors.imu.is_some();
-        for r in &mut self.robots {
+        let (inertial, dt) = (self.sensors.imu.is_some(), self.dt);
+        let finish = |r: &mut Robot| {
             r.heading = wrap_angle(r.heading);
-            r.yaw_rate = wrap_angle(r.heading - r.step_start_heading) / self.dt;
+            r.yaw_rate = wrap_angle(r.heading - r.step_start_heading) / dt;
             if inertial {
                 // The difference of the mean velocities of the last two steps is the mean
                 // acceleration around their boundary, the start of this step: rotated into the
                 // robot's frame at that moment.
-                let velocity = (r.position - r.step_start_position) / self.dt;
+                let velocity = (r.position - r.step_start_position) / dt;
                 let (s, c) = r.step_start_heading.sin_cos();
-                let a = (velocity - r.step_velocity) / self.dt;
+                let a = (velocity - r.step_velocity) / dt;
                 r.acceleration = Vector::new(c * a.x + s * a.y, c * a.y - s * a.x);
                 r.step_velocity = velocity;
             }
+        };
+        // Robot by robot, so a swarm shares it among the batch's threads.
+        if self.share_robots() {
+            self.robots
+                .par_iter_mut()
+                .with_min_len(MIN_ROBOTS_PER_TASK)
+                .for_each(finish);
+        } else {
+            self.robots.iter_mut().for_each(finish);
         }
     }
 
@@ -240,20 +251,33 @@ impl World {
             // robot in `self.active` (what `slip_substep` reads), and for the whole world.
             let grip = self.tyre_friction * GRAVITY * h;
             let ratio = self.inertia_per_mass() / self.drive.axle_length;
+            let share = self.share_robots();
             let (drive, keeps_rolling) = (&self.drive, &mut self.active);
             keeps_rolling.clear();
-            let mut rolls = true;
-            for r in &mut self.robots {
+            keeps_rolling.resize(self.robots.len(), false);
+            // Robot by robot, so a swarm shares it among the batch's threads.
+            let pass = |(r, keeps): (&mut Robot, &mut bool)| {
                 let rolling = is_rolling(drive, r);
                 let before = r.wheel_speeds;
                 (r.wheel_setpoint, r.wheel_speeds) =
                     drive.motors(r.wheel_setpoint, r.wheel_speeds, r.wheel_command, h);
                 r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
                 r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
-                let keeps = rolling && within_grip(drive, before, r.wheel_speeds, ratio, grip, h);
-                keeps_rolling.push(keeps);
-                rolls &= keeps;
+                *keeps = rolling && within_grip(drive, before, r.wheel_speeds, ratio, grip, h);
+            };
+            if share {
+                self.robots
+                    .par_iter_mut()
+                    .zip(keeps_rolling.par_iter_mut())
+                    .with_min_len(MIN_ROBOTS_PER_TASK)
+                    .for_each(pass);
+            } else {
+                self.robots
+                    .iter_mut()
+                    .zip(keeps_rolling.iter_mut())
+                    .for_each(pass);
             }
+            let rolls = keeps_rolling.iter().all(|&keeps| keeps);
             let reach = if far {
                 Reach::Nothing
             } else {
@@ -362,7 +386,7 @@ impl World {
         let mut step = || physics.step_traction(traction, active, grip, parallel);
         if let Some(h) = roll_others {
             let (robots, drive) = (&mut self.robots, &self.drive);
-            let mut roll = || roll_left_out(robots, &self.active, drive, h);
+            let mut roll = || roll_left_out(robots, &self.active, drive, h, parallel);
             if rayon::current_thread_index().is_some() {
                 rayon::join(step, roll);
             } else {
@@ -372,15 +396,30 @@ impl World {
         } else {
             step();
         }
-        for (i, (r, state)) in self.robots.iter_mut().zip(&self.traction).enumerate() {
+        // Robot by robot, so a swarm shares it among the batch's threads.
+        let take = |(i, (r, state)): (usize, (&mut Robot, &TractionBody))| {
             if active.is_some_and(|a| !a[i]) {
-                continue;
+                return;
             }
             r.step_travel += (state.position - r.position).length();
             r.position = state.position;
             r.heading = wrap_angle(state.heading);
             r.velocity = state.velocity;
             r.spin = state.spin;
+        };
+        if parallel {
+            self.robots
+                .par_iter_mut()
+                .zip(self.traction.par_iter())
+                .enumerate()
+                .with_min_len(MIN_ROBOTS_PER_TASK)
+                .for_each(take);
+        } else {
+            self.robots
+                .iter_mut()
+                .zip(&self.traction)
+                .enumerate()
+                .for_each(take);
         }
         // Split by robot, `split_substep` marks the contacts (and checks its bounds held).
         if !only {
@@ -389,12 +428,30 @@ impl World {
     }
 }
 
-/// Rolls every robot `active` does not mark on its exact arc over `h` seconds.
-pub(super) fn roll_left_out(robots: &mut [Robot], active: &[bool], drive: &Drive, h: f32) {
-    for (r, _) in robots.iter_mut().zip(active).filter(|(_, &a)| !a) {
-        let (v, w) = drive.twist(r.wheel_speeds);
-        roll_arc(r, v, w, h);
-        r.step_travel += v.abs() * h;
+/// Rolls every robot `active` does not mark on its exact arc over `h` seconds; with `parallel`
+/// (a swarm inside a batch's pool) robot by robot on the pool's threads, with the same results.
+pub(super) fn roll_left_out(
+    robots: &mut [Robot],
+    active: &[bool],
+    drive: &Drive,
+    h: f32,
+    parallel: bool,
+) {
+    let roll = |(r, &a): (&mut Robot, &bool)| {
+        if !a {
+            let (v, w) = drive.twist(r.wheel_speeds);
+            roll_arc(r, v, w, h);
+            r.step_travel += v.abs() * h;
+        }
+    };
+    if parallel {
+        robots
+            .par_iter_mut()
+            .zip(active.par_iter())
+            .with_min_len(MIN_ROBOTS_PER_TASK)
+            .for_each(roll);
+    } else {
+        robots.iter_mut().zip(active).for_each(roll);
     }
 }
 

@@ -28,16 +28,82 @@ use crate::geometry::scene::{Geometry, Scene};
 /// Rapier state of one world. It serialises whole (bodies, colliders, broad phase, contact
 /// manifolds with their warm-start impulses), so a restored world steps bit for bit as the
 /// original.
-#[derive(serde::Serialize, serde::Deserialize)]
+///
+/// The rapier world is built at the first substep that needs it, not with the world: a Nav
+/// world of v3 never needs it (one robot, its contacts with the scene solved as a disc's), and
+/// its rapier sets were two thirds of a world's memory (21 KiB of 31; issue 54). Building it
+/// then is building it at construction: nothing reads or changes a rapier world before its
+/// first step but `set_mass` and `set_friction`, whose values the build takes from `params`
+/// (a collider built with a mass and friction is one given them later: rapier stores them
+/// and derives the body's mass at the step), and `set_scene`, which builds anew. Saved, an
+/// unbuilt world is written as the world it would build, so the state's format is unchanged.
 pub struct Physics {
-    world: PhysicsWorld,
-    robots: Vec<RigidBodyHandle>,
-    /// What the world was built with, to build it again for a new scene.
+    rapier: Rapier,
+    /// What the world is built with, to build it (again, for a new scene).
     params: PhysicsParams,
     /// Scratch of `step_traction`: each body's pose, velocity and yaw rate to hand to rapier
     /// (None: left out of the substep).
-    #[serde(skip)]
     targets: Vec<Option<(Pose, Vector, f32)>>,
+}
+
+/// A world's rapier side: not built yet (the scene to build it for), or built.
+enum Rapier {
+    Unbuilt(Scene),
+    Built(Box<Built>),
+}
+
+/// A built rapier world: the bodies and colliders, and each robot's body.
+struct Built {
+    world: PhysicsWorld,
+    robots: Vec<RigidBodyHandle>,
+}
+
+/// What a [`Physics`] saves (the fields it had when it was built with the world, in the same
+/// order, so that states keep their format).
+#[derive(serde::Serialize)]
+struct SavedRef<'a> {
+    world: &'a PhysicsWorld,
+    robots: &'a [RigidBodyHandle],
+    params: &'a PhysicsParams,
+}
+
+/// What a [`Physics`] loads ([`SavedRef`]'s fields).
+#[derive(serde::Deserialize)]
+struct Saved {
+    world: PhysicsWorld,
+    robots: Vec<RigidBodyHandle>,
+    params: PhysicsParams,
+}
+
+impl serde::Serialize for Physics {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let save = |built: &Built| {
+            SavedRef {
+                world: &built.world,
+                robots: &built.robots,
+                params: &self.params,
+            }
+            .serialize(serializer)
+        };
+        match &self.rapier {
+            Rapier::Built(built) => save(built),
+            Rapier::Unbuilt(scene) => save(&Built::new(scene, &self.params)),
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Physics {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let saved = Saved::deserialize(deserializer)?;
+        Ok(Self {
+            rapier: Rapier::Built(Box::new(Built {
+                world: saved.world,
+                robots: saved.robots,
+            })),
+            params: saved.params,
+            targets: Vec::new(),
+        })
+    }
 }
 
 /// One substep of `h` seconds of a body that slips and touches nothing, without rapier: the
@@ -167,13 +233,9 @@ pub struct BodyState {
     pub twist: (f32, f32),
 }
 
-impl Physics {
-    /// Builds the rapier world for `scene` with `params.n_robots` discs.
-    pub fn new(scene: &Scene, params: PhysicsParams) -> Self {
-        Self::build(scene, params)
-    }
-
-    fn build(scene: &Scene, params: PhysicsParams) -> Self {
+impl Built {
+    /// The rapier world for `scene` with `params.n_robots` discs.
+    fn new(scene: &Scene, params: &PhysicsParams) -> Self {
         let mut world = PhysicsWorld {
             gravity: Vector::ZERO,
             ..PhysicsWorld::default()
@@ -212,26 +274,66 @@ impl Physics {
                 .restitution(0.0);
             world.colliders.insert(collider);
         }
+        Self { world, robots }
+    }
+}
+
+impl Physics {
+    /// The rapier side of a world of `params.n_robots` discs in `scene` (built at its first
+    /// substep: see the type's doc).
+    pub fn new(scene: &Scene, params: PhysicsParams) -> Self {
         Self {
-            world,
-            robots,
+            rapier: Rapier::Unbuilt(scene.clone()),
             params,
             targets: Vec::new(),
         }
     }
 
+    /// The built rapier world, built now if it was not.
+    fn built(&mut self) -> &mut Built {
+        if let Rapier::Unbuilt(scene) = &self.rapier {
+            self.rapier = Rapier::Built(Box::new(Built::new(scene, &self.params)));
+        }
+        match &mut self.rapier {
+            Rapier::Built(built) => built,
+            Rapier::Unbuilt(_) => unreachable!("built just above"),
+        }
+    }
+
+    /// Builds the rapier world now if it was not.
+    pub fn build_now(&mut self) {
+        self.built();
+    }
+
+    /// Whether the rapier world has been built (a substep needed it).
+    pub fn is_built(&self) -> bool {
+        matches!(self.rapier, Rapier::Built(_))
+    }
+
+    /// Heap bytes a built rapier world of this one's scene and robots takes (measured by
+    /// building one): what a world may grow by when a substep first needs rapier.
+    pub fn built_bytes(&self, scene: &Scene) -> u64 {
+        let (built, bytes) = crate::memory::measure(|| Built::new(scene, &self.params));
+        drop(built);
+        bytes + std::mem::size_of::<Built>() as u64
+    }
+
     /// Sets every robot's mass (kg).
     pub fn set_mass(&mut self, mass: f32) {
         self.params.mass = mass;
-        for handle in &self.robots {
-            let colliders: Vec<ColliderHandle> = self
+        // Unbuilt, the build takes it from `params`.
+        let Rapier::Built(built) = &mut self.rapier else {
+            return;
+        };
+        for handle in &built.robots {
+            let colliders: Vec<ColliderHandle> = built
                 .world
                 .bodies
                 .get(*handle)
                 .map(|b| b.colliders().to_vec())
                 .unwrap_or_default();
             for c in colliders {
-                if let Some(collider) = self.world.colliders.get_mut(c) {
+                if let Some(collider) = built.world.colliders.get_mut(c) {
                     collider.set_mass(mass);
                 }
             }
@@ -248,13 +350,17 @@ impl Physics {
         } else {
             ActiveHooks::empty()
         };
-        let robot_colliders: Vec<ColliderHandle> = self
+        // Unbuilt, the build takes them from `params`.
+        let Rapier::Built(built) = &mut self.rapier else {
+            return;
+        };
+        let robot_colliders: Vec<ColliderHandle> = built
             .robots
             .iter()
-            .filter_map(|h| self.world.bodies.get(*h))
+            .filter_map(|h| built.world.bodies.get(*h))
             .flat_map(|b| b.colliders().to_vec())
             .collect();
-        for (handle, collider) in self.world.colliders.iter_mut() {
+        for (handle, collider) in built.world.colliders.iter_mut() {
             collider.set_friction(wall);
             if robot_colliders.contains(&handle) {
                 collider.set_active_hooks(hooks);
@@ -273,18 +379,20 @@ impl Physics {
     }
 
     /// Replaces the fixed colliders with `scene`'s shapes. The rapier world is built anew (robots
-    /// included; the caller places them): removing and inserting colliders in place left rapier's
-    /// pending-removal lists and broad phase growing by ~35 bytes per episode, since the removals
-    /// are only processed by a rapier step, which an episode without contacts never takes.
+    /// included; the caller places them), at the next substep that needs it: removing and
+    /// inserting colliders in place left rapier's pending-removal lists and broad phase growing
+    /// by ~35 bytes per episode, since the removals are only processed by a rapier step, which
+    /// an episode without contacts never takes.
     pub fn set_scene(&mut self, scene: &Scene) {
-        *self = Self::build(scene, self.params);
+        self.rapier = Rapier::Unbuilt(scene.clone());
     }
 
     /// One rapier substep: sets every robot's pose and velocity, steps, and writes the resolved
     /// poses back into `states`.
     pub fn step(&mut self, states: &mut [BodyState]) {
-        for (state, handle) in states.iter().zip(&self.robots) {
-            if let Some(body) = self.world.bodies.get_mut(*handle) {
+        let built = self.built();
+        for (state, handle) in states.iter().zip(&built.robots) {
+            if let Some(body) = built.world.bodies.get_mut(*handle) {
                 let (v, w) = state.twist;
                 let (s, c) = state.heading.sin_cos();
                 body.set_position(Pose::new(state.position, state.heading), true);
@@ -292,9 +400,9 @@ impl Physics {
                 body.set_angvel(w, true);
             }
         }
-        step_world(&mut self.world, &());
-        for (state, handle) in states.iter_mut().zip(&self.robots) {
-            if let Some(body) = self.world.bodies.get(*handle) {
+        step_world(&mut built.world, &());
+        for (state, handle) in states.iter_mut().zip(&built.robots) {
+            if let Some(body) = built.world.bodies.get(*handle) {
                 let pose = body.position();
                 state.position = pose.translation;
                 state.heading = pose.rotation.angle();
@@ -344,24 +452,27 @@ impl Physics {
         } else {
             self.targets.extend(bodies.iter().enumerate().map(target));
         }
-        for (target, handle) in self.targets.iter().zip(&self.robots) {
+        let friction = (self.params.friction, self.params.robot_friction);
+        let targets = std::mem::take(&mut self.targets);
+        let built = self.built();
+        for (target, handle) in targets.iter().zip(&built.robots) {
             let Some((pose, velocity, spin)) = target else {
                 // A body already disabled is left untouched: `get_mut` would put it on rapier's
                 // list of modified bodies, which the step then walks for nothing (in a swarm
                 // split by robot, most of the bodies every substep).
-                let enabled = self
+                let enabled = built
                     .world
                     .bodies
                     .get(*handle)
                     .is_some_and(|b| b.is_enabled());
                 if enabled {
-                    if let Some(body) = self.world.bodies.get_mut(*handle) {
+                    if let Some(body) = built.world.bodies.get_mut(*handle) {
                         body.set_enabled(false);
                     }
                 }
                 continue;
             };
-            let Some(body) = self.world.bodies.get_mut(*handle) else {
+            let Some(body) = built.world.bodies.get_mut(*handle) else {
                 continue;
             };
             body.set_enabled(true);
@@ -370,13 +481,13 @@ impl Physics {
             body.set_angvel(*spin, true);
         }
         let hooks = PairFriction {
-            wall: self.params.friction,
-            robot: self.params.robot_friction,
+            wall: friction.0,
+            robot: friction.1,
         };
-        step_world(&mut self.world, &hooks);
+        step_world(&mut built.world, &hooks);
         // Reading the poses back (an atan2 each) only reads rapier's bodies: robot by robot, so
         // a swarm shares it among the batch's threads.
-        let rapier_bodies = &self.world.bodies;
+        let rapier_bodies = &built.world.bodies;
         let read = |(i, (state, handle)): (usize, (&mut TractionBody, &RigidBodyHandle))| {
             if !takes_part(i) {
                 return;
@@ -392,17 +503,19 @@ impl Physics {
         if parallel {
             bodies
                 .par_iter_mut()
-                .zip(self.robots.par_iter())
+                .zip(built.robots.par_iter())
                 .enumerate()
                 .with_min_len(PARALLEL_MIN_BODIES)
                 .for_each(read);
         } else {
             bodies
                 .iter_mut()
-                .zip(&self.robots)
+                .zip(&built.robots)
                 .enumerate()
                 .for_each(read);
         }
+        // The scratch goes back, with its capacity.
+        self.targets = targets;
     }
 }
 

@@ -100,7 +100,8 @@ impl World {
         self.start.extend(self.robots.iter().map(Start::of));
         for round in 0.. {
             if !self.active.contains(&true) {
-                roll_left_out(&mut self.robots, &self.active, &self.drive, h);
+                let parallel = self.share_robots();
+                roll_left_out(&mut self.robots, &self.active, &self.drive, h, parallel);
                 return;
             }
             self.traction_substep(Some(h));
