@@ -8,13 +8,14 @@
 use crate::common;
 
 use _core::robot::ActionType;
-use _core::scenario::{scene, Source};
+use _core::error::Error;
+use _core::scenario::{scene, Scenario, Source};
 use _core::tasks::load_scenario;
 use _core::tasks::{Env, TaskKind};
 use rand::{Rng, SeedableRng};
 
-/// A multinav env on the built-in `swarm` scene with `overrides`, seeded and reset.
-fn swarm(overrides: &str, seed: u64) -> Env {
+/// The built-in `swarm` scene with `overrides`, loaded as multinav's scenario.
+fn swarm_scenario(overrides: &str) -> Result<Scenario, Error> {
     let source = Source {
         file: Some((
             scene("swarm").expect("the swarm scene is built in"),
@@ -23,7 +24,12 @@ fn swarm(overrides: &str, seed: u64) -> Env {
         overrides: overrides.parse().expect("overrides"),
         version: None,
     };
-    let cfg = load_scenario("multinav", &source).expect("scenario");
+    load_scenario("multinav", &source)
+}
+
+/// A multinav env on the built-in `swarm` scene with `overrides`, seeded and reset.
+fn swarm(overrides: &str, seed: u64) -> Env {
+    let cfg = swarm_scenario(overrides).expect("scenario");
     common::env(TaskKind::MultiNav, cfg, seed).0
 }
 
@@ -142,28 +148,15 @@ fn test_too_many_robots_for_the_arena_says_how_many_fit() {
 #[test]
 fn test_ten_thousand_robots_load_and_ten_thousand_and_one_are_refused() {
     // 10,000 robots (MAX_ROBOTS) in a 63 m arena, the swarm scene's density (2.5 per m²).
-    let overrides = "n_robots = 10000\nwidth = 63.0\nheight = 63.0";
-    let source = Source {
-        file: Some((
-            scene("swarm").expect("the swarm scene is built in"),
-            "swarm",
-        )),
-        overrides: overrides.parse().expect("overrides"),
-        version: None,
-    };
-    let cfg = load_scenario("multinav", &source).expect("10,000 robots are allowed");
+    let cfg = swarm_scenario("n_robots = 10000\nwidth = 63.0\nheight = 63.0")
+        .expect("10,000 robots are allowed");
     assert_eq!(
         _core::tasks::multinav::MAX_ROBOTS,
         10_000,
         "the documented cap"
     );
     // The arena still bounds them: 10,000 robots do not fit in the swarm scene's 20 m arena.
-    let source = Source {
-        file: Some((scene("swarm").expect("built in"), "swarm")),
-        overrides: "n_robots = 10000".parse().expect("overrides"),
-        version: None,
-    };
-    let err = load_scenario("multinav", &source)
+    let err = swarm_scenario("n_robots = 10000")
         .expect_err("10,000 robots in 20 m x 20 m")
         .to_string();
     assert!(err.contains("fits about"), "{err}");
@@ -204,15 +197,7 @@ fn test_a_world_of_10000_robots_spawns_apart_and_steps_with_finite_observations(
 
 /// A batch of `worlds` swarm worlds (`overrides` on the built-in scene) on `threads` threads.
 fn batch(overrides: &str, worlds: usize, threads: usize) -> _core::batch::Batch {
-    let source = Source {
-        file: Some((
-            scene("swarm").expect("the swarm scene is built in"),
-            "swarm",
-        )),
-        overrides: overrides.parse().expect("overrides"),
-        version: None,
-    };
-    let cfg = load_scenario("multinav", &source).expect("scenario");
+    let cfg = swarm_scenario(overrides).expect("scenario");
     let mut batch = _core::batch::Batch::new(
         TaskKind::MultiNav,
         cfg,
