@@ -196,7 +196,20 @@ def _no_work(
 
 def test_task_names_are_taken_in_any_case(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     asked = _no_work(monkeypatch)
-    _run(["--tasks", "Nav", "NAV", "--seeds", "1", "--out", str(tmp_path), "--no-progress"])
+    _run(
+        [
+            "--tasks",
+            "Nav",
+            "NAV",
+            "--learners",
+            "ppo",
+            "--seeds",
+            "1",
+            "--out",
+            str(tmp_path),
+            "--no-progress",
+        ]
+    )
     assert asked == [("nav", "ppo", 0)]
 
 
@@ -214,7 +227,19 @@ def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
     monkeypatch.setattr(command, "run_one", interrupted_at_the_second)
     # Caught here too, so that a KeyboardInterrupt escaping fails this test, not the session.
     with pytest.raises((SystemExit, KeyboardInterrupt)) as caught:
-        cli.main(["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path)])
+        cli.main(
+            [
+                "benchmark",
+                "--tasks",
+                "nav",
+                "--learners",
+                "ppo",
+                "--seeds",
+                "3",
+                "--out",
+                str(tmp_path),
+            ]
+        )
     assert isinstance(caught.value, SystemExit), "Ctrl-C escaped as a KeyboardInterrupt"
     assert caught.value.code == command.INTERRUPTED == 130
     errors = capsys.readouterr().err
@@ -229,7 +254,18 @@ def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
     asked.clear()
     with pytest.raises((SystemExit, KeyboardInterrupt)):
         cli.main(
-            ["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path), "--no-progress"]
+            [
+                "benchmark",
+                "--tasks",
+                "nav",
+                "--learners",
+                "ppo",
+                "--seeds",
+                "3",
+                "--out",
+                str(tmp_path),
+                "--no-progress",
+            ]
         )
     assert capsys.readouterr().err == last + "\n"
     # A run further on that was done before counts as done.
@@ -237,7 +273,18 @@ def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
     monkeypatch.setattr(command, "finished", lambda *run: {} if run[3] == 2 else None)
     with pytest.raises((SystemExit, KeyboardInterrupt)):
         cli.main(
-            ["benchmark", "--tasks", "nav", "--seeds", "3", "--out", str(tmp_path), "--no-progress"]
+            [
+                "benchmark",
+                "--tasks",
+                "nav",
+                "--learners",
+                "ppo",
+                "--seeds",
+                "3",
+                "--out",
+                str(tmp_path),
+                "--no-progress",
+            ]
         )
     assert "interrupted with 2 of 3 runs done" in capsys.readouterr().err
 
@@ -280,7 +327,7 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     out = tmp_path / "bench"
-    _run(["--tasks", "nav", "--out", str(out), *TINY])
+    _run(["--tasks", "nav", "--learners", "ppo", "--out", str(out), *TINY])
     captured = capsys.readouterr()
     printed = captured.out
     assert captured.err == ""  # --no-progress: no bar, and SB3 prints nothing of its own
@@ -310,7 +357,7 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     assert summary["tables"][0]["learners"][0]["seeds"] == [0]
     # The printed command is the command that ran: parsed again, it asks for the same work.
     again = _parsed(summary["tables"][0]["learners"][0]["reproduce"])
-    ran = _parsed(" ".join(["khepera-gym benchmark", "--tasks nav", *TINY]))
+    ran = _parsed(" ".join(["khepera-gym benchmark", "--tasks nav --learners ppo", *TINY]))
     for option in ("tasks", "timesteps", "episodes", "heldout_seed", "eval_episodes"):
         assert getattr(again, option) == getattr(ran, option), option
     # The same version: the one the run resolved (none given: the latest), now pinned.
@@ -327,14 +374,16 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     assert record["files"]["model"] == f"models/nav-v{_core.LATEST_VERSION}_ppo_seed0/model.zip"
     for path in [*out.rglob("*.json")]:
         assert str(tmp_path) not in path.read_text(), path
-    assert record["meta"]["command"].startswith("khepera-gym benchmark --tasks nav --out bench ")
+    assert record["meta"]["command"].startswith(
+        "khepera-gym benchmark --tasks nav --learners ppo --out bench "
+    )
 
     # Resumed: a finished run is not trained again.
     def no_training(*args: Any, **kwargs: Any) -> None:
         raise AssertionError("a finished run was trained again")
 
     monkeypatch.setattr(learners.SB3Learner, "train", no_training)
-    _run(["--tasks", "nav", "--out", str(out), *TINY])
+    _run(["--tasks", "nav", "--learners", "ppo", "--out", str(out), *TINY])
     assert json.loads(run_file.read_text())["meta"] == record["meta"]
     # ... and it says so, before it starts and on the run's line.
     printed = capsys.readouterr().out
@@ -348,7 +397,7 @@ def test_a_benchmark_writes_its_results_resumes_and_refuses_other_code(
     record["meta"]["commit"] = {"id": "0" * 40, "dirty": False}
     run_file.write_text(json.dumps(record))
     with pytest.raises(SystemExit, match="comes from commit 000000000000"):
-        cli.main(["benchmark", "--tasks", "nav", "--out", str(out), *TINY])
+        cli.main(["benchmark", "--tasks", "nav", "--learners", "ppo", "--out", str(out), *TINY])
 
 
 def _parsed(command: str) -> argparse.Namespace:
@@ -406,8 +455,22 @@ def test_the_printed_command_asks_for_the_rows_work_again(task: str, learner: st
 def test_runs_of_another_recipe_in_the_folder_get_their_own_row(tmp_path: Path) -> None:
     out = tmp_path / "bench"
     task = _single_agent_task()
-    _run(["--tasks", task, "--out", str(out), *TINY])
-    _run(["--tasks", task, "--out", str(out), *TINY, "--seed-list", "1", "--hp", "gamma=0.9"])
+    _run(["--tasks", task, "--learners", "ppo", "--out", str(out), *TINY])
+    _run(
+        [
+            "--tasks",
+            task,
+            "--learners",
+            "ppo",
+            "--out",
+            str(out),
+            *TINY,
+            "--seed-list",
+            "1",
+            "--hp",
+            "gamma=0.9",
+        ]
+    )
     baselines, runs = load_records(out)
     rows = task_rows(task, baselines, runs)["learners"]
     # Two recipes, two rows: seed 1's gamma is never averaged with seed 0's.
@@ -421,7 +484,21 @@ def test_runs_of_another_recipe_in_the_folder_get_their_own_row(tmp_path: Path) 
     )
     assert parse_key_values(_parsed(reproduce(task, rows[1])).hp, "--hp")["gamma"] == 0.9
     # Other held-out episodes, the same recipe: a row of its own too, labelled by them.
-    _run(["--tasks", task, "--out", str(out), *TINY, "--seed-list", "2", "--episodes", "4"])
+    _run(
+        [
+            "--tasks",
+            task,
+            "--learners",
+            "ppo",
+            "--out",
+            str(out),
+            *TINY,
+            "--seed-list",
+            "2",
+            "--episodes",
+            "4",
+        ]
+    )
     rows = task_rows(task, *load_records(out))["learners"]
     assert [row["seeds"] for row in rows] == [[0], [1], [2]]
     recipe_of = [row["variant"].split(", ")[0] for row in rows]
