@@ -2,13 +2,16 @@
 //! actions, per thread count. `cargo bench --bench core_step` prints figures and asserts nothing.
 //! `cargo bench --bench core_step -- nav` runs only the tasks whose name contains "nav";
 //! `CORE_STEP_VERSION=0` measures behaviour version 0's defaults (the latest otherwise);
-//! `CORE_STEP_OVERRIDES='substeps = 8'` overrides scenario keys (TOML).
+//! `CORE_STEP_OVERRIDES='substeps = 8'` overrides scenario keys (TOML);
+//! `KHEPERA_GYM_SIMD=portable` (or `avx2`, `avx512`) runs the kernels on that vector path (the
+//! widest this CPU has otherwise). The path is printed first.
 
 use std::time::Instant;
 
 use _core::batch::Batch;
 use _core::robot::ActionType;
 use _core::scenario::Source;
+use _core::simd;
 use _core::tasks::load_scenario;
 use _core::tasks::TaskKind;
 use rand::{Rng, SeedableRng};
@@ -22,6 +25,11 @@ fn main() {
     let filter = args.first().cloned();
     let only_n: Option<usize> = args.get(1).and_then(|a| a.parse().ok());
     let only_t: Option<usize> = args.get(2).and_then(|a| a.parse().ok());
+    if let Ok(name) = std::env::var("KHEPERA_GYM_SIMD") {
+        let path = simd::Path::parse(&name).expect("KHEPERA_GYM_SIMD");
+        simd::force(path).expect("KHEPERA_GYM_SIMD");
+    }
+    println!("vector path: {}", simd::path().name());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let cases = [
         (TaskKind::Nav, 256usize, 1usize),

@@ -28,6 +28,8 @@ on top; to change the episode length of the simulator itself pass ``max_steps=k`
 
 from __future__ import annotations
 
+import os
+
 from khepera_gym import _core, _moved, errors
 from khepera_gym.observations import obs_layout
 from khepera_gym.registration import register_envs
@@ -38,6 +40,13 @@ speed_to_units = _core.speed_to_units
 units_to_speed = _core.units_to_speed
 
 __version__: str = _core.__version__
+
+#: The vector path of the hot kernels (``portable``, ``avx2``, ``avx512``): the widest this CPU
+#: has, or the one named by the environment variable ``KHEPERA_GYM_SIMD`` (a ConfigError here if
+#: the CPU lacks it). Every path gives the same results bit for bit; only the speed differs.
+simd_path = _core.simd_path
+if os.environ.get("KHEPERA_GYM_SIMD"):
+    _core.force_simd(os.environ["KHEPERA_GYM_SIMD"])
 
 
 def motor_presets() -> dict[str, dict[str, str]]:
@@ -60,6 +69,7 @@ __all__ = [
     "motor_presets",
     "obs_layout",
     "scenes",
+    "simd_path",
     "speed_to_units",
     "units_to_speed",
 ]

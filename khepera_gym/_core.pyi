@@ -271,3 +271,13 @@ def speed_to_units(speed: float) -> int:
 
 def units_to_speed(units: int) -> float:
     """``kh4_set_speed`` units as a wheel speed in m/s."""
+
+def simd_paths() -> list[tuple[str, bool]]:
+    """The vector paths of the hot kernels, narrowest first: (name, whether this CPU has it)."""
+
+def simd_path() -> str:
+    """The vector path the kernels run now: ``portable``, ``avx2`` or ``avx512``."""
+
+def force_simd(name: str) -> None:
+    """Runs the kernels on the path ``name`` from now on (the same results on every path);
+    ConfigError for an unknown path or one this CPU lacks."""

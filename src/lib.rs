@@ -7,6 +7,7 @@
 //! its own line, never one below (`tests/layers.rs` reads this list and holds every `crate::`
 //! path of `src/` to it, test modules aside; docs/extending.md walks through the layers):
 //! * `error` (the core's error type);
+//! * `simd` (which of the CPU's vector units run the hot kernels, chosen at run time);
 //! * `config` (how scenario tables are declared, overlaid and checked), `obs` (observation
 //!   layouts by name), `draw` (what tasks and sensors ask the renderer to draw), `memory` (what
 //!   a batch takes, and the check that a request fits), `geometry` (the scene and its exact ray
@@ -36,6 +37,7 @@ pub mod render;
 pub mod robot;
 pub mod scenario;
 pub mod sensors;
+pub mod simd;
 pub mod tasks;
 pub mod world;
 

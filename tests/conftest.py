@@ -92,3 +92,16 @@ def random_actions(seed: int, steps: int, shape: tuple[int, ...]) -> np.ndarray:
     """Uniform actions in [-1, 1], float32, reproducible from ``seed``."""
     rng = np.random.default_rng(seed)
     return rng.uniform(-1.0, 1.0, size=(steps, *shape)).astype(np.float32)
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """Names the vector paths whose golden digests ran (tests/test_simd_paths.py), so that the
+    CI log says which of the CPU's paths were checked and which this machine lacks."""
+    import sys
+
+    module = sys.modules.get("test_simd_paths")
+    ran = getattr(module, "RAN", None)
+    if ran:
+        terminalreporter.write_line(
+            "vector paths: " + "; ".join(f"{path}: {what}" for path, what in ran.items())
+        )

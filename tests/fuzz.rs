@@ -44,7 +44,7 @@ static REJECTED: AtomicU64 = AtomicU64::new(0);
 fn count(counter: &AtomicU64, other: &AtomicU64, what: &str) {
     let n = counter.fetch_add(1, Ordering::Relaxed) + 1;
     let m = other.load(Ordering::Relaxed);
-    if std::env::var_os("FUZZ_STATS").is_some() && (n + m) % 10_000 == 0 {
+    if std::env::var_os("FUZZ_STATS").is_some() && (n + m).is_multiple_of(10_000) {
         eprintln!("{what}: {n} of {} cases", n + m);
     }
 }

@@ -58,22 +58,6 @@ ACTION_SETS = 8
 WARMUP_SECONDS = 1.0
 #: Fewest steps in the warm-up and in the timed window.
 MIN_STEPS = 3
-#: The CPU flags recorded beside the figures (/proc/cpuinfo), the vector extensions first.
-CPU_FLAGS = (
-    "sse4_2",
-    "avx",
-    "avx2",
-    "fma",
-    "avx512f",
-    "avx512dq",
-    "avx512cd",
-    "avx512bw",
-    "avx512vl",
-    "avx512_vnni",
-    "avx512_bf16",
-    "avx512_fp16",
-    "amx_tile",
-)
 #: The scene overrides of Nav-v3 that give it the peers' five circular obstacles.
 FIVE_CIRCLES: dict[str, Any] = {"count": 5, "kinds": ["circle"]}
 
@@ -211,15 +195,6 @@ def _child(index: int, duration: float) -> None:
 
 
 # --- parent: the interleaved rounds ------------------------------------------------------------
-def cpu_flags() -> dict[str, bool]:
-    """Which of :data:`CPU_FLAGS` the CPU has (Linux /proc/cpuinfo; empty elsewhere)."""
-    try:
-        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
-    except OSError:
-        return {}
-    line = next((line for line in text.splitlines() if line.startswith("flags")), "")
-    present = set(line.split(":", 1)[-1].split())
-    return {flag: flag in present for flag in CPU_FLAGS}
 
 
 def software(python: str) -> dict[str, Any]:
@@ -384,6 +359,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "samples": samples[run.key],
             }
         )
+    from khepera_gym.tooling.provenance import cpu_flags  # the flags every results file records
+
     document = {
         "peers": 1,
         "meta": meta,

@@ -83,8 +83,38 @@ def _memory_bytes() -> int | None:
     return None
 
 
+#: The CPU flags recorded beside speed figures (/proc/cpuinfo), the vector extensions first.
+CPU_FLAGS = (
+    "sse4_2",
+    "avx",
+    "avx2",
+    "fma",
+    "avx512f",
+    "avx512dq",
+    "avx512cd",
+    "avx512bw",
+    "avx512vl",
+    "avx512_vnni",
+    "avx512_bf16",
+    "avx512_fp16",
+    "amx_tile",
+)
+
+
+def cpu_flags() -> dict[str, bool]:
+    """Which of :data:`CPU_FLAGS` the CPU has (Linux /proc/cpuinfo; empty elsewhere)."""
+    try:
+        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
+    except OSError:
+        return {}
+    line = next((line for line in text.splitlines() if line.startswith("flags")), "")
+    present = set(line.split(":", 1)[-1].split())
+    return {flag: flag in present for flag in CPU_FLAGS}
+
+
 def machine() -> dict[str, Any]:
-    """What the figures were measured on: CPU model, logical CPUs, memory, OS and the load
+    """What the figures were measured on: CPU model, its vector extensions and the path the
+    kernels ran on (:func:`khepera_gym.simd_path`), logical CPUs, memory, OS and the load
     average when asked (a shared machine's figures are low; the load says how shared)."""
     try:
         load = [round(x, 2) for x in os.getloadavg()]
@@ -92,6 +122,8 @@ def machine() -> dict[str, Any]:
         load = None
     return {
         "cpu": _cpu_model(),
+        "cpu_flags": cpu_flags(),
+        "simd_path": khepera_gym.simd_path(),
         "cpus": os.cpu_count(),
         "memory_bytes": _memory_bytes(),
         "platform": platform.platform(),

@@ -160,9 +160,9 @@ impl LeaderFollowerPolicy {
     /// (leader block present, followers) of a joint observation of length `obs_dim`.
     fn split(&self, obs_dim: usize) -> Result<(bool, usize)> {
         let (f, l) = (self.blocks.len, self.leader_dim);
-        if obs_dim > 0 && obs_dim % f == 0 {
+        if obs_dim > 0 && obs_dim.is_multiple_of(f) {
             Ok((false, obs_dim / f))
-        } else if self.leader.is_some() && obs_dim > l && (obs_dim - l) % f == 0 {
+        } else if self.leader.is_some() && obs_dim > l && (obs_dim - l).is_multiple_of(f) {
             Ok((true, (obs_dim - l) / f))
         } else {
             Err(Error::Action(format!(

@@ -375,8 +375,8 @@ impl Scene {
 
     /// Distance along a unit ray to the walls: where it leaves the inner rectangle (0 when it
     /// starts outside it, i.e. inside a wall).
-    #[inline]
-    fn cast_walls(&self, o: Vector, d: Vector) -> f32 {
+    #[inline(always)]
+    pub fn cast_walls(&self, o: Vector, d: Vector) -> f32 {
         if !self.walled {
             return f32::INFINITY;
         }

@@ -15,6 +15,7 @@ use super::errors::{guard, to_py};
 use crate::controllers::Policy;
 use crate::error::Error;
 use crate::scenario::{self, Source};
+use crate::simd;
 use crate::tasks::formation::FormationShape;
 use crate::tasks::TaskKind;
 
@@ -227,4 +228,28 @@ pub fn speed_to_units(speed: f32) -> PyResult<i32> {
 #[pyfunction]
 pub fn units_to_speed(units: i32) -> f32 {
     crate::robot::units_to_speed(units)
+}
+
+/// The vector paths of the hot kernels, narrowest first: (name, whether this CPU has it).
+#[pyfunction]
+pub fn simd_paths() -> Vec<(&'static str, bool)> {
+    simd::PATHS
+        .iter()
+        .map(|p| (p.name(), p.available()))
+        .collect()
+}
+
+/// The vector path the kernels run now.
+#[pyfunction]
+pub fn simd_path() -> &'static str {
+    simd::path().name()
+}
+
+/// Runs the kernels on the path `name` from now on, in every thread (the results are the same
+/// on every path); a ConfigError for an unknown path or one this CPU lacks.
+#[pyfunction]
+pub fn force_simd(py: Python<'_>, name: &str) -> PyResult<()> {
+    simd::Path::parse(name)
+        .and_then(simd::force)
+        .map_err(|e| to_py(py, e))
 }

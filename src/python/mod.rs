@@ -40,6 +40,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(functions::builtin_configs, m)?)?;
     m.add_function(wrap_pyfunction!(functions::speed_to_units, m)?)?;
     m.add_function(wrap_pyfunction!(functions::units_to_speed, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::simd_paths, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::simd_path, m)?)?;
+    m.add_function(wrap_pyfunction!(functions::force_simd, m)?)?;
     m.add_function(wrap_pyfunction!(functions::_panic_for_test, m)?)?;
     m.add("LATEST_VERSION", crate::scenario::LATEST_VERSION)?;
     m.add("MAX_WHEEL_SPEED", crate::robot::MAX_WHEEL_SPEED)?;

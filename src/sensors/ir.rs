@@ -12,6 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use rapier2d::math::Vector;
 
+use super::ir_lanes::{read_ring, Ring};
 use super::{rotate, unit, DrawContext, Readout, SenseContext, Sensor};
 use crate::config::{Domain, Param};
 use crate::draw::Mark;
@@ -115,6 +116,12 @@ impl IrModel {
         rng: &mut R,
     ) -> u16 {
         let noise: f32 = rng.sample(StandardNormal);
+        self.surface_raw(distance, reflectance, noise)
+    }
+
+    /// [`IrModel::read_surface`] with its standard normal draw `noise` given.
+    #[inline]
+    pub fn surface_raw(&self, distance: Option<f32>, reflectance: f32, noise: f32) -> u16 {
         let white = self.mean_raw(distance);
         let mean = if reflectance == 1.0 {
             white
@@ -229,27 +236,27 @@ impl Sensor for IrRing {
                 self.near_shapes.push(k);
             }
         }
-        let (s, c) = ctx.sin_cos;
-        for k in 0..IR_COUNT {
-            let dir = rotate(self.dirs[k], c, s);
-            let origin = pos + radius * dir;
-            let near = self.near_shapes.iter().map(|&n| &ctx.scene.shapes[n]);
-            let hit = ctx.scene.cast_hit(
-                origin,
-                dir,
-                self.model.range,
-                near,
-                &self.near_others,
-                // Every robot's shell reflects alike: which of two robots met at the same
-                // distance is hit does not change the reading, so their order does not matter.
-                &[],
-                radius,
-            );
-            let reflectance = hit.map_or(1.0, |h| h.reflectance(ctx.scene, ctx.robot_reflectance));
-            let distance = hit.map(|h| h.distance);
-            reading.raw[k] = self.model.read_surface(distance, reflectance, rng);
-            reading.hit[k] = distance.unwrap_or(self.model.range);
+        // The rays draw nothing: the noise of the eight readings comes first, in K-Team order,
+        // as each reading drew its own before.
+        let mut noise = [0.0f32; IR_COUNT];
+        for n in &mut noise {
+            *n = rng.sample(StandardNormal);
         }
+        let ring = Ring {
+            model: &self.model,
+            dirs: &self.dirs,
+            position: pos,
+            radius,
+            sin_cos: ctx.sin_cos,
+            scene: ctx.scene,
+            shapes: &self.near_shapes,
+            // Every robot's shell reflects alike: which of two robots met at the same distance
+            // is hit does not change the reading, so their order does not matter.
+            others: &self.near_others,
+            robot_reflectance: ctx.robot_reflectance,
+            noise: &noise,
+        };
+        read_ring(&ring, reading);
     }
 
     fn block(&self) -> Block {

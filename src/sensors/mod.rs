@@ -21,6 +21,7 @@ pub mod ground;
 pub mod gyro;
 pub mod imu;
 pub mod ir;
+mod ir_lanes;
 pub mod ultrasonic;
 
 use rand_chacha::ChaCha8Rng;

@@ -214,7 +214,7 @@ impl Consensus {
 
     fn fires(&self, world: &World, i: usize) -> bool {
         match self.cfg.trigger {
-            Trigger::Periodic => self.step % self.period_steps == 0,
+            Trigger::Periodic => self.step.is_multiple_of(self.period_steps),
             Trigger::Event => {
                 (world.believed_pose(i).0 - self.sent[i].position).length() > self.cfg.threshold
             }
