@@ -11,6 +11,7 @@ This module reads files only (no simulation, no threads).
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -90,3 +91,31 @@ def parse_override(text: str) -> tuple[str, Any]:
 
 
 __all__ = ["EVAL_SEED", "HYPERPARAMS_DIR", "load_hyperparams", "parse_override"]
+
+
+def check_rollout_shape(
+    env_id: str, worlds: int, hyperparams: Mapping[str, Any], table_worlds: Any = None
+) -> None:
+    """Refuses a PPO-style rollout (``n_envs`` x ``n_steps`` env steps) that the table's
+    ``batch_size`` does not divide: SB3 would train on a truncated last minibatch and warn, and
+    the recipe's shape (``--n-envs`` changed it) would not be what its table says.
+
+    Raises:
+        ConfigError: The rollout is not a multiple of ``batch_size``; the message names the
+            settings that fit.
+    """
+    if "n_steps" not in hyperparams or "batch_size" not in hyperparams:
+        return
+    steps, batch = int(hyperparams["n_steps"]), int(hyperparams["batch_size"])
+    rollout = worlds * steps
+    if batch < 1 or rollout % batch == 0:
+        return
+    fitting_steps = -(-batch // worlds)
+    while worlds * fitting_steps % batch:
+        fitting_steps += 1
+    hint = f"the table's {table_worlds} worlds (no --n-envs), " if table_worlds else ""
+    raise ConfigError(
+        f"{env_id}: {worlds} worlds x n_steps {steps} = {rollout} env steps a rollout, which "
+        f"batch_size {batch} does not divide; train with {hint}or --hp n_steps={fitting_steps}, "
+        f"or a batch_size that divides {rollout} (--hp batch_size=...)"
+    )

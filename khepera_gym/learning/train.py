@@ -43,6 +43,7 @@ from khepera_gym.errors import ConfigError
 from khepera_gym.learning.recipes import (
     EVAL_SEED,
     HYPERPARAMS_DIR,
+    check_rollout_shape,
     load_hyperparams,
     parse_override,
 )
@@ -270,34 +271,6 @@ def train(
         torch.set_num_threads(previous_threads)
 
 
-def _check_rollout_shape(
-    env_id: str, worlds: int, hyperparams: Mapping[str, Any], table_worlds: Any = None
-) -> None:
-    """Refuses a PPO-style rollout (``n_envs`` x ``n_steps`` env steps) that the table's
-    ``batch_size`` does not divide: SB3 would train on a truncated last minibatch and warn, and
-    the recipe's shape (``--n-envs`` changed it) would not be what its table says.
-
-    Raises:
-        ConfigError: The rollout is not a multiple of ``batch_size``; the message names the
-            settings that fit.
-    """
-    if "n_steps" not in hyperparams or "batch_size" not in hyperparams:
-        return
-    steps, batch = int(hyperparams["n_steps"]), int(hyperparams["batch_size"])
-    rollout = worlds * steps
-    if batch < 1 or rollout % batch == 0:
-        return
-    fitting_steps = -(-batch // worlds)
-    while worlds * fitting_steps % batch:
-        fitting_steps += 1
-    hint = f"the table's {table_worlds} worlds (no --n-envs), " if table_worlds else ""
-    raise ConfigError(
-        f"{env_id}: {worlds} worlds x n_steps {steps} = {rollout} env steps a rollout, which "
-        f"batch_size {batch} does not divide; train with {hint}or --hp n_steps={fitting_steps}, "
-        f"or a batch_size that divides {rollout} (--hp batch_size=...)"
-    )
-
-
 def _train(
     env_id: str,
     algo: str,
@@ -340,7 +313,7 @@ def _train(
     worlds = int(hyperparams.get("n_envs", 1))
     if total < 1 or worlds < 1:
         raise ConfigError(f"timesteps and n_envs must be >= 1, got {total} and {worlds}")
-    _check_rollout_shape(env_id, worlds, hyperparams, table_worlds)
+    check_rollout_shape(env_id, worlds, hyperparams, table_worlds)
     frame_stack = hyperparams.get("frame_stack", 1)
     if isinstance(frame_stack, bool) or not isinstance(frame_stack, int) or frame_stack < 1:
         raise ConfigError(f"frame_stack must be an integer >= 1, got {frame_stack!r}")

@@ -31,6 +31,7 @@ mod motion;
 pub mod physics;
 pub mod scene_contacts;
 pub mod scenery;
+mod spacing;
 mod split;
 mod swarm;
 

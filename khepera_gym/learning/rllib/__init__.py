@@ -4,15 +4,15 @@ Importing this package registers these names with ``ray.tune.registry.register_e
 ``config.environment(NAME, env_config={...})``; ``env_config`` takes the keyword arguments of the
 env, e.g. ``{"max_steps": 300, "config": "paper_fig6"}``):
 
-* ``khepera_gym/KheperaIV-Nav-v1``, ``.../KheperaIV-Avoid-v1``, ``.../KheperaIV-Formation-v1``
-  (every registered id, ``-v0`` too): each EnvRunner gets ONE native vector env of
+* ``khepera_gym/KheperaIV-Nav-v3``, ``.../KheperaIV-Avoid-v3``, ``.../KheperaIV-Formation-v3``
+  (every registered id, the older versions too): each EnvRunner gets ONE native vector env of
   ``num_envs_per_env_runner`` worlds (``khepera_gym.vector.VECTOR_ENV_CLASSES``), a single Rust
   batch, through RLlib's ``VECTOR_ENTRY_POINT`` mode (no N Python env copies);
-* ``khepera_gym/formation_followers_v1`` (and ``_v0``): the followers of
+* ``khepera_gym/formation_followers_v3`` (and the older versions): the followers of
   ``num_envs_per_env_runner / K`` Formation worlds as the rows of one vector env
   (:class:`FormationFollowersVectorEnv`), for one policy shared by every follower;
-* ``khepera_gym/formation_v1``, ``khepera_gym/multinav_v1`` (and their ``_v0``),
-  ``khepera_gym/platoon_v1``, ``khepera_gym/consensus_v1``: one
+* ``khepera_gym/formation_v3``, ``khepera_gym/multinav_v3``, ``khepera_gym/platoon_v3``,
+  ``khepera_gym/consensus_v3`` (and their older versions): one
   :class:`KheperaMultiAgentEnv` (one world) per env copy, run by RLlib's
   ``MultiAgentEnvRunner``, with the agents of :mod:`khepera_gym.pettingzoo` (shared or
   separate policies: :func:`policy_mapping`).

@@ -8,7 +8,7 @@ arguments of the env, e.g. ``{"max_steps": 300, "config": "paper_fig6"}``):
   ONE native vector env of its task (``khepera_gym.vector.VECTOR_ENV_CLASSES``, through the id's
   ``vector_entry_point``) of ``num_envs_per_env_runner`` worlds, a single Rust batch, in RLlib's
   ``VECTOR_ENTRY_POINT`` mode (no N Python env copies);
-* :data:`FOLLOWERS_ENVS` (``formation_followers_v0``, ``_v1``): the followers of
+* :data:`FOLLOWERS_ENVS` (``formation_followers_v0`` to ``_v3``, one a version): the followers of
   ``num_envs_per_env_runner / K`` Formation worlds as the rows of one
   :class:`~khepera_gym.learning.rllib.FormationFollowersVectorEnv`;
 * :data:`MULTI_AGENT_ENVS`: one :class:`~khepera_gym.learning.rllib.KheperaMultiAgentEnv` (one

@@ -509,7 +509,7 @@ def make_vec_env(
     """An SB3 ``VecEnv`` of ``n_envs`` worlds of a khepera_gym env, stepped by the Rust batch.
 
     Args:
-        env_id: A Gymnasium id (``"KheperaIV-Nav-v1"``; an unversioned id picks the latest
+        env_id: A Gymnasium id (``"KheperaIV-Nav-v3"``; an unversioned id picks the latest
             version): one row per world. Or a PettingZoo module's name (``"multinav_v3"``): one
             row per agent of every world (:class:`SharedAgentsVecEnv`, parameter sharing), for
             a family whose agents observe blocks of one length.
@@ -529,7 +529,7 @@ def make_vec_env(
 
     Example:
         >>> from stable_baselines3 import PPO
-        >>> envs = make_vec_env("KheperaIV-Nav-v1", n_envs=16, seed=0)
+        >>> envs = make_vec_env("KheperaIV-Nav", n_envs=16, seed=0)
         >>> model = PPO("MlpPolicy", envs)  # doctest: +SKIP
     """
     from khepera_gym.pettingzoo import modules
