@@ -37,7 +37,8 @@ def registered_ids() -> dict[str, list[str]]:
 
 
 def latest_ids() -> dict[str, str]:
-    """The latest id of each task with a Gymnasium env: ``{"nav": "KheperaIV-Nav-v1", ...}``."""
+    """The latest id of each task with a Gymnasium env: ``{"nav": "KheperaIV-Nav-v3", ...}``
+    while v3 is the latest."""
     return {task: ids[-1] for task, ids in registered_ids().items()}
 
 

@@ -242,7 +242,7 @@ def record_rollout(
     """Runs one seeded episode and records the poses after every step.
 
     Args:
-        env_id_or_env: A registered id (e.g. ``"KheperaIV-Avoid-v1"``), made with
+        env_id_or_env: A registered id (e.g. ``"KheperaIV-Avoid"``), made with
             ``gym.make(id, config=config, max_steps=max_steps, **overrides)`` and closed
             afterwards, or a single-world env (not closed).
         policy: Maps one observation to one action (a baseline of

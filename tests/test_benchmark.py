@@ -542,6 +542,9 @@ def test_a_shared_policy_trains_on_the_agents_of_a_multi_agent_task(tmp_path: Pa
         "--tasks consensus", ""
     )
     assert "**nav**: no learned run recorded yet. Not run yet: ppo" in page
+    # The suite's wall-clock on one machine: the records' training and evaluation times.
+    hours = (record["train_seconds"] + record["eval_seconds"]) / 3600
+    assert f"The 1 run above took {hours:.1f} h of training and evaluation" in page
 
 
 def test_a_recurrent_policy_trains_and_plays_the_held_out_episodes_with_its_state(

@@ -1,6 +1,6 @@
 """Swarm scale: world-steps/s and robot-steps/s of multinav worlds of 4 to 10,000
-robots with IR, sonar and contacts, through the array env
-(:func:`khepera_gym.pettingzoo.multinav_v1.array_env`), uniform random actions.
+robots with IR, sonar and contacts, through the array env (the ``array_env`` of the latest
+:mod:`khepera_gym.pettingzoo` multinav module), uniform random actions.
 
 Arenas grow with √robots to keep multinav's density (4 robots in 2 m × 2 m); a batch holds 1,024
 robots' worth of worlds. The last row is the built-in ``swarm`` scene (1,000 robots in a 20 m

@@ -72,6 +72,13 @@ def benchmark_fragment(folder: Path) -> str:
             + f"\n\n```bash\n{commands}\n```"
             + (f"\n\nTried: {entry.tried}" if entry and entry.tried else "")
         )
+    seconds = sum(r["train_seconds"] + (r.get("eval_seconds") or 0.0) for r in runs)
+    parts.append(
+        f"The {len(runs)} run{'s' if len(runs) != 1 else ''} above took {seconds / 3600:.1f} h "
+        "of training and evaluation "
+        "(the baselines aside), one after another on the machines named, which were shared: "
+        "the suite's wall-clock on one machine. `--ray` spreads the runs over a cluster's CPUs."
+    )
     return "\n\n".join(parts)
 
 

@@ -121,7 +121,7 @@ def policy_mapping(
     """``policies`` and ``policy_mapping_fn`` for ``config.multi_agent(**policy_mapping(...))``.
 
     Args:
-        name: A multi-agent env name (``"khepera_gym/formation_v1"``, ``".../multinav_v1"``).
+        name: A multi-agent env name (``"khepera_gym/formation_v3"``, ``".../multinav_v3"``).
         env_config: The env's ``env_config`` (the agents depend on it: ``n_followers``,
             ``n_robots``, ``leader``).
         shared: One module for every agent (parameter sharing), else one module per agent

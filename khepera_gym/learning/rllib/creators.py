@@ -79,7 +79,7 @@ def env_names() -> list[str]:
 
 def env_name(env_id: str) -> str:
     """The RLlib env name of a khepera_gym Gymnasium id: ``"KheperaIV-Nav"`` →
-    ``"khepera_gym/KheperaIV-Nav-v1"`` (the latest version); names of this package are returned
+    ``"khepera_gym/KheperaIV-Nav-v3"`` while v3 is the latest; names of this package are returned
     unchanged.
 
     Raises:
@@ -107,7 +107,7 @@ class VectorEnvCreator:
     ``num_threads`` threads (default: the runner's CPUs), wrapped in :class:`SeedPerRunner`.
 
     Args:
-        name: The registered name (``"khepera_gym/KheperaIV-Nav-v1"`` or a key of
+        name: The registered name (``"khepera_gym/KheperaIV-Nav-v3"`` or a key of
             :data:`FOLLOWERS_ENVS`).
     """
 
