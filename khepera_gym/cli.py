@@ -95,8 +95,8 @@ def list_catalog(topics: Sequence[str] = LIST_TOPICS) -> str:
         sections.append("\n".join(lines))
     if "policies" in topics:
         lines = [
-            "Policies (khepera-gym compare --policy and render --policy on the Gymnasium tasks;"
-            " khepera-gym benchmark plays them on the multi-agent ones too):"
+            "Policies (khepera-gym compare --policy on the Gymnasium tasks; render --policy and"
+            " khepera-gym benchmark on the multi-agent ones too, every robot acting):"
         ]
         for name in POLICY_NAMES:
             controller = VARIANTS.get(name, (name, {}))[0]

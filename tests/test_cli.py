@@ -56,6 +56,9 @@ def _user_error(argv: list[str]) -> str:
         (["--out", "run"], "no suffix"),
         (["--out", f"{UNWRITABLE}/run.gif"], "cannot create the folder"),
         (["--policy", "nosuch"], "unknown policy 'nosuch'"),
+        (["--env", "multinv"], "did you mean 'multinav'?"),
+        (["--env", "multinav", "--policy", "kanayama"], "does not act on 'multinav'"),
+        (["--env", "platoon_v3", "--size", "5", "5"], "frame_size width must be an int"),
         (["--size", "5", "5"], "frame_size width must be an int in 16..=4096, got 5"),
         (["--fps", "0"], "--fps must be >= 1"),
         (["--seed", "-1"], "--seed must be in [0, 2**64)"),
@@ -84,6 +87,36 @@ def test_render_creates_the_output_folder_and_shows_progress(
     captured = capsys.readouterr()
     assert "wrote 4 frames" in captured.out
     assert "render KheperaIV-Nav" in captured.err and "step" in captured.err  # tqdm's bar
+
+
+def test_render_plays_a_multi_agent_task_with_every_robot_acting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Multinav has no Gymnasium id: its PettingZoo module's world, each robot driven by the
+    # baseline on its own observation.
+    out = tmp_path / "multinav.gif"
+    argv = ["render", "--env", "multinav", "--policy", "braitenberg", "--steps", "3"]
+    assert cli.main([*argv, "--out", str(out), "--no-progress"]) == 0
+    assert out.is_file() and out.stat().st_size > 0
+    assert "wrote 4 frames of multinav (braitenberg, seed 0)" in capsys.readouterr().out
+
+
+def test_a_policy_on_every_agent_is_the_baseline_on_each_agents_block() -> None:
+    from khepera_gym.baselines import PositionControl
+    from khepera_gym.config import make_batch
+    from khepera_gym.learning.policies import make_agents_policy
+
+    batch = make_batch("multinav", 3, None, {}, num_threads=1)
+    observation = batch.reset(7)
+    joint = make_agents_policy("position_control", batch)(observation)
+    agents = batch.agents()
+    assert joint.shape == (3, 2 * len(agents)) and len(agents) >= 2
+    one = PositionControl()
+    for index, (_, _, start, stop, _) in enumerate(agents):
+        want = one(observation[:, start:stop])
+        np.testing.assert_array_equal(joint[:, 2 * index : 2 * index + 2], want)
+    # Distinct robots see distinct goals: the agents' actions are not one copy.
+    assert not np.array_equal(joint[:, 0:2], joint[:, 2:4])
 
 
 #: A user's controller in a file of their own: drive straight at half speed.

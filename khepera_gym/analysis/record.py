@@ -1,24 +1,40 @@
 """The ``khepera-gym render`` command: one seeded episode of a policy recorded to a GIF or MP4.
 
 Frames are drawn in software by the Rust core (no display); the episode is run by the shared
-loop :func:`khepera_gym.rollout.run_episodes` on a one-world native vector env. Every argument
-(the env id, the policy, the output's format and folder, the frame's size and view) is checked
-before the first step, and a progress bar counts the steps.
+loop :func:`khepera_gym.rollout.run_episodes` on a one-world native vector env. A PettingZoo
+module (``multinav_v3``) or a task without a Gymnasium env (``multinav``, ``platoon``,
+``consensus``) is recorded on one world of the core's batch, every agent acting with the policy
+on its own observation (:func:`khepera_gym.learning.policies.make_agents_policy`). Every
+argument (the env, the policy, the output's format and folder, the frame's size and view) is
+checked before the first step, and a progress bar counts the steps.
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from tqdm import tqdm
 
 from khepera_gym.analysis.compare import make_policy
-from khepera_gym.registration import resolve_env_id
-from khepera_gym.render import VIDEO_SUFFIXES, check_frame_size, check_video, check_view, save_video
+from khepera_gym.config import make_batch
+from khepera_gym.errors import ConfigError
+from khepera_gym.learning.policies import make_agents_policy
+from khepera_gym.pettingzoo import modules
+from khepera_gym.registration import registered_ids, resolve_env_id, task_and_version
+from khepera_gym.render import (
+    VIDEO_SUFFIXES,
+    Renderer,
+    check_frame_size,
+    check_video,
+    check_view,
+    save_video,
+)
 from khepera_gym.rollout import run_episodes
 from khepera_gym.tooling import arguments
 
@@ -50,7 +66,9 @@ def record_video(
     checked before the first step.
 
     Args:
-        env_id: A khepera_gym id (without its version: the latest).
+        env_id: A khepera_gym id (without its version: the latest), a PettingZoo module's name
+            (``multinav_v3``) or a task of the core without a Gymnasium id (``multinav``: its
+            latest version), whose agents all act with ``policy``.
         policy: A baseline's name, "random", ``sb3:path/to/model.zip``, or a function of one's
             own as ``module:function`` or ``path/to/file.py:function`` that maps observations
             (N, D) to actions (N, A).
@@ -70,12 +88,26 @@ def record_video(
             output folder that cannot be written.
         KheperaError: MP4 without its writer installed.
     """
-    env_id = resolve_env_id(env_id)
+    agents_of = _agents_task(env_id)
+    if agents_of is None:
+        try:
+            env_id = resolve_env_id(env_id)
+        except ConfigError as error:
+            near = difflib.get_close_matches(env_id, [*modules(), *_tasks()], n=1)
+            hint = f"; did you mean {near[0]!r}?" if near else ""
+            raise ConfigError(
+                f"{error}; or a PettingZoo module ({', '.join(modules())}){hint}"
+            ) from None
     out = arguments.output_file(out, VIDEO_SUFFIXES, "output")
     check_video(out, fps)
     if frame_size is not None:
         frame_size = check_frame_size(frame_size)
     zoom, center = check_view(zoom, center)
+    if agents_of is not None:
+        frames = _agents_episode(
+            *agents_of, policy, seed, config, max_steps, frame_size, zoom, center, progress, algo
+        )
+        return save_video(frames, out, fps=fps), len(frames)
     envs = gym.make_vec(
         env_id,
         num_envs=1,
@@ -112,10 +144,63 @@ def record_video(
     return save_video(frames, out, fps=fps), len(frames)
 
 
+def _agents_task(name: str) -> tuple[str, int] | None:
+    """(task, version) when ``name`` is a PettingZoo module or a task without a Gymnasium id
+    (recorded on the core's batch, every agent acting), else None."""
+    with_ids = registered_ids()
+    if name in modules() or (name not in with_ids and name in _tasks()):
+        return task_and_version(name)
+    return None
+
+
+def _tasks() -> list[str]:
+    from khepera_gym import registry
+
+    return registry.task_names()
+
+
+def _agents_episode(
+    task: str,
+    version: int,
+    policy: str,
+    seed: int,
+    config: str | None,
+    max_steps: int | None,
+    frame_size: Sequence[int] | None,
+    zoom: float,
+    center: Sequence[float] | None,
+    progress: bool,
+    algo: str | None,
+) -> list[Any]:
+    """One seeded episode of one world of ``task`` (every agent acting with ``policy``): its
+    frames, from the reset to the last step."""
+    batch = make_batch(task, 1, config, {}, num_threads=1, autoreset=False, version=version)
+    act = make_agents_policy(policy, batch, seed=seed, algo=algo)
+    renderer = Renderer(batch, "rgb_array", frame_size, zoom=zoom, center=center)
+    total = int(batch.max_episode_steps)
+    total = total if max_steps is None else min(total, max_steps)
+    observation = batch.reset(seed)
+    frames = [renderer.frame()]
+    label = f"render {task}_v{version}"
+    with tqdm(total=total, desc=label, unit="step", disable=not progress) as bar:
+        for _ in range(total):
+            observation, _, terminated, truncated = batch.step(
+                np.ascontiguousarray(act(observation), dtype=np.float32)
+            )
+            frames.append(renderer.frame())
+            bar.update(1)
+            if terminated[0] or truncated[0]:
+                break
+    return frames
+
+
 def add_arguments(parser: Any) -> None:
     """The options of ``khepera-gym render``."""
     parser.add_argument(
-        "--env", default=DEFAULT_ENV, help=f"environment id ({DEFAULT_ENV}, the latest version)"
+        "--env",
+        default=DEFAULT_ENV,
+        help=f"environment id ({DEFAULT_ENV}, the latest version), or a PettingZoo module or "
+        "task (multinav_v3, multinav: every robot acts with --policy)",
     )
     parser.add_argument(
         "--policy",

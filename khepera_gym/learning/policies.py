@@ -388,6 +388,61 @@ def make_policy(
         ) from error
 
 
+class _BatchView:
+    """What :func:`make_policy` reads of an env (its task, one agent's action space, its
+    scenario and the agents' layouts), over a bare ``_core.Batch`` of any task."""
+
+    def __init__(self, batch: Any) -> None:
+        self._batch = batch
+        self.unwrapped = self
+        self.task = batch.task
+        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (batch.agent_act_dim,), np.float32)
+
+    def config_toml(self) -> str:
+        return str(self._batch.config_toml())
+
+    def agent_layouts(self) -> dict[str, dict[str, slice]]:
+        from khepera_gym.observations import layout_dict
+
+        return {name: layout_dict(own) for name, _, _, _, own in self._batch.agents()}
+
+    def obs_layout(self) -> dict[str, slice]:
+        return next(iter(self.agent_layouts().values()))
+
+
+def make_agents_policy(
+    name: str, batch: Any, seed: int = 0, algo: str | None = None
+) -> Callable[[npt.NDArray[np.float32]], npt.NDArray[np.float32]]:
+    """The policy of a name (as :func:`make_policy`'s) on the joint observation of a batch of
+    any task, a multi-agent one included: a policy that reads the joint observation (Formation's
+    followers) acts on it whole; any other acts on each agent's block (every agent of a default
+    scenario has the first one's layout), and its actions are put side by side.
+
+    Raises:
+        ConfigError: As :func:`make_policy`.
+    """
+    from khepera_gym.errors import ActionError
+
+    policy = make_policy(name, _BatchView(batch), seed=seed, algo=algo)  # type: ignore[arg-type]
+    try:
+        actions = policy(np.zeros((1, batch.obs_dim), dtype=np.float32))
+    except (ActionError, ConfigError):
+        pass
+    else:
+        if np.shape(actions) == (1, batch.act_dim):
+            return policy
+    agents = batch.agents()
+    width = batch.agent_act_dim
+
+    def act(observation: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+        actions = np.zeros((observation.shape[0], width * len(agents)), dtype=np.float32)
+        for index, (_, _, start, stop, _) in enumerate(agents):
+            actions[:, width * index : width * (index + 1)] = policy(observation[:, start:stop])
+        return actions
+
+    return act
+
+
 __all__ = [
     "DEFAULT_POLICIES",
     "POLICY_NAMES",
@@ -400,5 +455,6 @@ __all__ = [
     "UserPolicy",
     "is_user_policy",
     "load_sb3_policy",
+    "make_agents_policy",
     "make_policy",
 ]
