@@ -11,8 +11,8 @@ env, e.g. ``{"max_steps": 300, "config": "paper_fig6"}``):
 * ``khepera_gym/formation_followers_v3`` (and the older versions): the followers of
   ``num_envs_per_env_runner / K`` Formation worlds as the rows of one vector env
   (:class:`FormationFollowersVectorEnv`), for one policy shared by every follower;
-* ``khepera_gym/formation_v3``, ``khepera_gym/multinav_v3``, ``khepera_gym/platoon_v3``,
-  ``khepera_gym/consensus_v3`` (and their older versions): one
+* ``khepera_gym/formation_v3``, ``khepera_gym/multinav_v3``, ... (the PettingZoo modules of
+  :data:`~khepera_gym.learning.rllib.creators.MULTI_AGENT_ENVS`, older versions too): one
   :class:`KheperaMultiAgentEnv` (one world) per env copy, run by RLlib's
   ``MultiAgentEnvRunner``, with the agents of :mod:`khepera_gym.pettingzoo` (shared or
   separate policies: :func:`policy_mapping`).
