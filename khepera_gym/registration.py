@@ -37,8 +37,7 @@ def registered_ids() -> dict[str, list[str]]:
 
 
 def latest_ids() -> dict[str, str]:
-    """The latest id of each task with a Gymnasium env: ``{"nav": "KheperaIV-Nav-v3", ...}``
-    while v3 is the latest."""
+    """The latest id of each task with a Gymnasium env: ``{"nav": "KheperaIV-Nav-v3", ...}``."""
     return {task: ids[-1] for task, ids in registered_ids().items()}
 
 
@@ -59,7 +58,7 @@ def _first_versions() -> dict[str, tuple[int, int]]:
 
 def _check_our_version_exists(check: Callable[..., Any]) -> Callable[..., Any]:
     """Gymnasium's check that an id's version exists, which would call a version our task never
-    had (``KheperaIV-Track-v0``) "deprecated", made to say what is true of our ids first."""
+    had (Track's v0) "deprecated", made to say what is true of our ids first."""
 
     @functools.wraps(check)
     def wrapper(ns: str | None, name: str, version: int | None) -> Any:

@@ -171,8 +171,8 @@ def default_config(task: str, version: int | None = None) -> str:
 
     Args:
         task: A task of the core (``"nav"``, ``"avoid"``, ..., see ``khepera-gym list``).
-        version: The behaviour version whose defaults to give (None: the latest); the id
-            ``KheperaIV-Nav-v0`` uses version 0's.
+        version: The behaviour version whose defaults to give (None: the latest); an id
+            gives its own (``KheperaIV-Nav-v0`` → version 0's).
 
     Returns:
         The TOML text.

@@ -4,7 +4,7 @@ recipe's setting or an enum's members are generated from the code (docgen's ``fa
 the issue-53 contradictions stay fixed.
 
 **What is read**: the README, every docs/*.md page, examples/*.py (all of the text: a user copies
-the code), and the docstrings of khepera_gym/envs/*.py and khepera_gym/pettingzoo/*.py.
+the code), and the docstrings of every module of the package.
 
 **What counts as a versioned id** (:func:`versioned_ids`): a task's Gymnasium id with or
 without its prefix, a task or PettingZoo family name, then ``-vN`` or ``_vN``, case-insensitive:
@@ -24,6 +24,8 @@ latest version by number goes stale at the next one. Figures named ``..._vN.png`
   it measured;
 * v0, the paper's dynamics, in a paragraph that names the paper (the README's reproduction);
 * a versioned PettingZoo module's own name in its own file;
+* an example of reading a version from a name, the name followed by an arrow
+  (``"KheperaIV-Nav-v0" → 0``), which must name an old version to show it;
 * generated blocks (``<!-- generated: NAME -->`` ... ``<!-- end generated: NAME -->``, the
   README's env table), which are checked against the code instead;
 * **a pin on purpose, under a marker**: in Markdown an HTML comment on the line before,
@@ -64,6 +66,9 @@ EXEMPT_PAGES = {
 #: The marker of a pin on purpose, in Markdown and in Python.
 PIN_MD = re.compile(r"^\s*<!-- pinned-version: (?P<why>\S.*?) -->\s*$")
 PIN_PY = re.compile(r"#\s*pinned-version: (?P<why>\S.*)$")
+#: A name shown mapped to what is read from it (``"KheperaIV-Nav-v0"`` → 0): the name and
+#: the arrow.
+PARSE_EXAMPLE = re.compile(r"\S+\s*→")
 #: A dated measurement's date.
 DATE = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")
 #: Link targets and figure paths (their text is not prose); figures are checked on their own.
@@ -256,6 +261,9 @@ def problems(lines: list[Line]) -> list[str]:
                     "shows, or mark it <!-- pinned-version: why -->"
                 )
         text = FIGURE.sub("", text)
+        # How a version is read from a name ("KheperaIV-Nav-v0" → 0): an example of parsing,
+        # which must name an old version to show it.
+        text = PARSE_EXAMPLE.sub("→", text)
         for name, version in versioned_ids(text):
             if version == LATEST or name == _own_module(line.path):
                 continue
@@ -289,9 +297,8 @@ def _read_python() -> list[Line]:
     lines = []
     for path in sorted((ROOT / "examples").glob("*.py")):
         lines += python_lines(path, path.read_text(encoding="utf-8"))
-    for folder in ("envs", "pettingzoo"):
-        for path in sorted((ROOT / "khepera_gym" / folder).glob("*.py")):
-            lines += python_docstring_lines(path, path.read_text(encoding="utf-8"))
+    for path in sorted((ROOT / "khepera_gym").rglob("*.py")):
+        lines += python_docstring_lines(path, path.read_text(encoding="utf-8"))
     return lines
 
 
@@ -320,6 +327,14 @@ def test_the_versioned_id_pattern_finds_ids_and_module_names_and_nothing_else() 
         "Cargo v2, khepera_gym_v2, navigation-v1"
     )
     assert versioned_ids(not_ids) == []
+
+
+def test_a_name_shown_mapped_to_its_version_is_an_example_of_parsing(tmp_path: Path) -> None:
+    old = f"KheperaIV-Nav-v{LATEST - 1}"
+    parsing = Line(tmp_path / "x.py", 1, f'an id\'s own ("{old}" → {LATEST - 1})')
+    example = Line(tmp_path / "x.py", 2, f'an id such as "{old}"')
+    assert problems([parsing]) == []
+    assert [p.split(": ", 1)[1].split(" ")[0] for p in problems([example])] == [old]
 
 
 def test_the_bare_version_pattern_finds_version_words_only() -> None:

@@ -164,7 +164,7 @@ def _resident_bytes() -> int | None:
 def memory_per_world(num_worlds: int = _MEMORY_WORLDS) -> float | None:
     """Resident bytes per world added by creating, resetting and stepping a batch of Nav worlds,
     measured in a fresh Python process: in this one, memory that earlier measurements freed is
-    reused and the growth reads as 0 (the v2 and first v3 benchmark runs recorded 0.0 KiB). None
+    reused and the growth reads as 0 (two benchmark runs of 2026-11-28 recorded 0.0 KiB). None
     where the resident set cannot be read or the child fails."""
     code = (
         "import sys; from khepera_gym.analysis.throughput import _memory_here; "

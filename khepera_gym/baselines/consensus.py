@@ -1,6 +1,6 @@
-"""The consensus baseline for ``consensus_v1`` (docs/task-design.md §8): the consensus law on what
-the neighbours broadcast, with periodic or event-triggered messages (the scenario's
-``consensus.trigger``). Units: metres, seconds; robot frame x forward, y left."""
+"""The consensus baseline for the consensus task, every version (docs/task-design.md §8): the
+consensus law on what the neighbours broadcast, with periodic or event-triggered messages (the
+scenario's ``consensus.trigger``). Units: metres, seconds; robot frame x forward, y left."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ class ConsensusLaw(BaselinePolicy):
     round one another: keep it for formations, turn it off for a rendezvous (where the robots
     must come into contact).
 
-    The two baselines of consensus_v1 are this law with ``consensus.trigger = "periodic"``
+    The two baselines of consensus are this law with ``consensus.trigger = "periodic"``
     (every ``period``) and with ``"event"`` (when the estimate moved ``threshold`` from the last
     broadcast): the trigger is the robots' radio firmware, set in the scenario.
     ``ConsensusLaw.for_env(env)`` reads any number of robots; without it the policy reads the
@@ -31,12 +31,12 @@ class ConsensusLaw(BaselinePolicy):
     """
 
     CONTROLLER: ClassVar[str] = "consensus"
-    #: consensus_v1 is PettingZoo-only: ``khepera-gym compare --task consensus`` runs this law.
+    #: consensus is PettingZoo-only: ``khepera-gym compare --task consensus`` runs this law.
     COMPARABLE: ClassVar[bool] = False
 
     @classmethod
     def for_env(cls, env: Any, **params: Any) -> BaselinePolicy:
-        """The law reading one agent's observation of ``env`` (a ``consensus_v1`` parallel env
+        """The law reading one agent's observation of ``env`` (a ``consensus_v3`` parallel env
         or a :class:`khepera_gym.pettingzoo.arrays.MultiAgentArrayEnv` of task "consensus")."""
         layouts = getattr(getattr(env, "unwrapped", env), "agent_layouts", None)
         if layouts is None:

@@ -36,8 +36,8 @@ class BlobVFH(BaselinePolicy):
     and both are enlarged by ``robot_radius`` + ``safety_distance``. The camera sees the thin
     walls the IR ring's eight rays miss. With no target pixel in view it explores toward the
     farthest surface the camera shows. Needs the camera's depth (``sensors.camera_depth =
-    true``, Seek's default). Reaches about 80% of Seek-v2's targets among 10 obstacles (200
-    seeds), every one in an empty arena.
+    true``, Seek's default). Reaches about 80% of Seek's targets among 10 obstacles (200 seeds,
+    measured on v2), every one in an empty arena.
     """
 
     CONTROLLER: ClassVar[str] = "blob_vfh"

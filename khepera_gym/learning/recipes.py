@@ -36,10 +36,10 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     Args:
         algo: "ppo", "sac" or "rllib_ppo"; names the default file
             ``configs/hyperparams/<algo>.toml``.
-        env_id: The table's name (a registered id such as "KheperaIV-Nav-v1", or another
-            table such as "formation_v1-followers"); a table named without the version
+        env_id: The table's name (a registered id such as "KheperaIV-Nav-v3", or another
+            table such as "formation_v3-followers"); a table named without the version
             ("KheperaIV-Nav") serves every version, one named with a version
-            ("KheperaIV-Avoid-v2") that version and the later ones until a table of a later
+            ("KheperaIV-Avoid-v2" → v2) that version and the later ones until a table of a later
             version.
         path: Another TOML file to read instead.
 

@@ -443,8 +443,8 @@ def compare(
     """Runs every policy on the same N seeded episodes and summarises them.
 
     Args:
-        env_id: Registered id (e.g. ``"KheperaIV-Avoid"``, the latest version, or
-            ``"KheperaIV-Avoid-v1"``).
+        env_id: Registered id (e.g. ``"KheperaIV-Avoid"``, the latest version, or one with
+            its version).
         policies: Policy names (see the module docstring) or ``sb3:path.zip``.
         episodes: N, the number of worlds (one episode each) per policy.
         seed: World i is reset with seed + i, for every policy.

@@ -118,8 +118,8 @@ _PATH_LABEL = re.compile(r"^(?P<prefix>[\w.-]+:)(?P<path>/\S+?)(?P<rest>(?: \(.*
 
 def portable_labels(labels: list[str]) -> list[str]:
     """Policy labels without the absolute paths of the machine that ran them: each path from
-    the folder that holds all of the table's paths (``sb3:/work/runs/v3/s0/model.zip`` and
-    ``.../s1/model.zip`` are ``sb3:v3/s0/model.zip`` and ``sb3:v3/s1/model.zip``), so the rows
+    the folder that holds all of the table's paths (``sb3:/work/runs/nav/s0/model.zip`` and
+    ``.../s1/model.zip`` are ``sb3:nav/s0/model.zip`` and ``sb3:nav/s1/model.zip``), so the rows
     stay apart."""
     matches = [_PATH_LABEL.match(label) for label in labels]
     paths = [PurePosixPath(m["path"]) for m in matches if m is not None]

@@ -342,7 +342,7 @@ def run_from_args(args: argparse.Namespace) -> int:
 
 
 def _skipped(out: Path, runs: Sequence[tuple[Any, Any, int, int]]) -> str:
-    """The line saying which runs a resumed benchmark finds done (``nav ppo v3 seeds 0, 1``)."""
+    """The line saying which runs a resumed benchmark finds done (``nav ppo v2 seeds 0, 1``)."""
     seeds: dict[str, list[int]] = {}
     for entry, learner, version, seed in runs:
         seeds.setdefault(f"{entry.task} {learner.name} v{version}", []).append(seed)

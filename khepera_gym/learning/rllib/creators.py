@@ -4,7 +4,8 @@ Names (``config.environment(NAME, env_config={...})``; ``env_config`` takes the 
 arguments of the env, e.g. ``{"max_steps": 300, "config": "paper_fig6"}``):
 
 * ``khepera_gym/<id>`` for every registered Gymnasium id (:func:`khepera_gym.registration.
-  registered_ids`: ``KheperaIV-Nav-v0``, ``-v1``, ``-Avoid-v0``, ...): each EnvRunner gets
+  registered_ids`: ``KheperaIV-Nav-v3``, ``KheperaIV-Avoid-v3``, ..., every
+  version): each EnvRunner gets
   ONE native vector env of its task (``khepera_gym.vector.VECTOR_ENV_CLASSES``, through the id's
   ``vector_entry_point``) of ``num_envs_per_env_runner`` worlds, a single Rust batch, in RLlib's
   ``VECTOR_ENTRY_POINT`` mode (no N Python env copies);
@@ -79,7 +80,7 @@ def env_names() -> list[str]:
 
 def env_name(env_id: str) -> str:
     """The RLlib env name of a khepera_gym Gymnasium id: ``"KheperaIV-Nav"`` →
-    ``"khepera_gym/KheperaIV-Nav-v3"`` while v3 is the latest; names of this package are returned
+    ``"khepera_gym/KheperaIV-Nav-v3"`` (the latest version); names of this package are returned
     unchanged.
 
     Raises:

@@ -99,7 +99,7 @@ def evaluate_policy(
 
     Args:
         policy: Observations (N, D) → actions (N, 2).
-        env_id: A khepera_gym Gymnasium id or its RLlib name ("khepera_gym/KheperaIV-Nav-v0").
+        env_id: A khepera_gym Gymnasium id or its RLlib name ("khepera_gym/KheperaIV-Nav-v3").
         episodes: Worlds, one episode each.
         seed: Seed of world 0's episode.
         env_kwargs: Keyword arguments of the env (``max_steps``, ``config``, ...).

@@ -1,7 +1,7 @@
 """A khepera_gym PettingZoo world as a native RLlib ``MultiAgentEnv``, and the policy mappings.
 
 :class:`KheperaMultiAgentEnv` is a face over the ``_core.Batch`` of one PettingZoo parallel env
-(:mod:`khepera_gym.pettingzoo`: ``formation_v0``, ``multinav_v0``): the PettingZoo env steps the
+(:mod:`khepera_gym.pettingzoo`: ``formation_v3``, ``multinav_v3``): the PettingZoo env steps the
 world and keeps the agents' bookkeeping, :class:`khepera_gym.batch_face.BatchFace` shows the world
 (ground truth, layouts, saved state, episode statistics), and this module adds RLlib's
 conventions (``"__all__"`` flags, the seed of each runner's copy). :class:`SharedPolicy` and
@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 class KheperaMultiAgentEnv(BatchFace, MultiAgentEnv):
     """A khepera_gym PettingZoo parallel env (one world) as a native RLlib ``MultiAgentEnv``.
 
-    Semantics are those of :mod:`khepera_gym.pettingzoo` (``formation_v0``, ``multinav_v0``):
+    Semantics are those of :mod:`khepera_gym.pettingzoo` (``formation_v3``, ``multinav_v3``):
     each agent observes its own block and acts with ``Box(-1, 1, (2,))`` (``(5,)`` with
     ``task.led_action``: its LEDs' colour too); an agent that
     terminates (a multinav robot on its goal) gets its last observation with
@@ -43,7 +43,7 @@ class KheperaMultiAgentEnv(BatchFace, MultiAgentEnv):
     ``get_state()``, ...).
 
     Args:
-        parallel_env: The PettingZoo env, e.g. ``formation_v0.parallel_env(n_followers=3)``.
+        parallel_env: The PettingZoo env, e.g. ``formation_v3.parallel_env(n_followers=3)``.
         worker_index: The EnvRunner's index when RLlib builds the env: an int reset seed s is
             then mapped to :func:`~khepera_gym.learning.rllib.multi_agent_world_seed` so that no two
             runners share worlds; None (direct use) seeds the world with s itself.

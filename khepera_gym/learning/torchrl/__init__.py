@@ -5,7 +5,7 @@ world i of one ``_core.Batch`` (built without autoreset). TorchRL drives it as a
 ``env.rollout(...)``, ``SyncDataCollector``, BenchMARL (see
 :mod:`khepera_gym.learning.torchrl.benchmarl`).
 Its task is one of the Rust core's (``khepera_gym.learning.torchrl.tasks()``: "nav", "multinav",
-...) or a khepera_gym Gymnasium id ("KheperaIV-Nav-v0").
+...) or a khepera_gym Gymnasium id ("KheperaIV-Nav-v3", "KheperaIV-Nav").
 
 TensorDict layout (N worlds; K agents in a group; D values of an agent's observation):
 

@@ -77,8 +77,8 @@ class KheperaTorchEnv(BatchFace, EnvBase):
     Args:
         task: A task of the Rust core (one agent, as "nav": flat keys; several, as "multinav":
             agent groups; the latest behaviour version, or ``version=0`` among the overrides) or a
-            khepera_gym Gymnasium id ("KheperaIV-Nav-v1"; "KheperaIV-Nav-v0" runs the v0
-            dynamics).
+            khepera_gym Gymnasium id ("KheperaIV-Nav"; an older version's id, as
+            "KheperaIV-Nav-v0" → v0, runs that version's dynamics).
         num_worlds: Number of worlds N (>= 1), the env's ``batch_size``.
         config: None (the task's defaults), a built-in scenario name, or a path to a TOML file.
         group_map: Multi-agent tasks only: None for the default groups, a dict group name →

@@ -53,8 +53,8 @@ def tasks() -> list[str]:
 
 def resolve_task(task: Any) -> str:
     """The core's task name of ``task``: a task name, a khepera_gym Gymnasium id with or
-    without its version ("KheperaIV-Nav-v0", "KheperaIV-Nav") or a PettingZoo module's name
-    ("multinav_v1").
+    without its version ("KheperaIV-Nav-v3", "KheperaIV-Nav") or a PettingZoo module's name
+    ("multinav_v3").
 
     Raises:
         ConfigError: ``task`` is none of these.
@@ -72,9 +72,9 @@ def resolve_task(task: Any) -> str:
 
 
 def resolve_version(task: str) -> int | None:
-    """The behaviour version a task argument asks for: a Gymnasium id's own ("KheperaIV-Nav-v0"
-    → 0, "KheperaIV-Nav" → the latest), a PettingZoo module's ("multinav_v1" → 1), None (the
-    latest) for a core task name."""
+    """The behaviour version a task argument asks for: a Gymnasium id's own
+    ("KheperaIV-Nav-v0" → 0, "KheperaIV-Nav" → the latest), a PettingZoo module's
+    ("multinav_v1" → 1), None (the latest) for a core task name."""
     return None if task in tasks() else task_and_version(task)[1]
 
 

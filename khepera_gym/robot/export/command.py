@@ -5,7 +5,7 @@ Examples::
 
     khepera-gym export runs/ppo_nav/model.zip                 # C, beside the model in export/
     khepera-gym export runs/ppo_nav/model.zip --format c onnx --out robot/
-    khepera-gym export checkpoint_dir --env KheperaIV-Nav-v0 --set ir_floor_value=110
+    khepera-gym export checkpoint_dir --env KheperaIV-Nav --set ir_floor_value=110
     khepera-gym export runs/ppo_nav/model.zip --check-arm     # the check on the robot's ARM too
 
 It prints the files written, the scenario constants given as ranges (their midpoint is baked
