@@ -59,6 +59,8 @@ fn read_ray_by_ray(ring: &Ring, reading: &mut IrReading) {
     }
 }
 
+// Only the x86-64 paths run the lanes; elsewhere the portable path casts ray by ray.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[inline(always)]
 fn read_ring_body(ring: &Ring, reading: &mut IrReading) {
     let model = ring.model;
@@ -146,6 +148,7 @@ fn read_ring_body(ring: &Ring, reading: &mut IrReading) {
 /// [`IrModel::mean_raw`] of the nearest hit at `distance` (the range or beyond: none), without
 /// its binary search: the curve's segment is found by counting the points at or below the
 /// distance, which is the same index on a sorted curve and has no branch.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 #[inline(always)]
 pub(super) fn mean_raw(model: &IrModel, distance: f32) -> f32 {
     let last = CURVE_MM.len() - 1;
