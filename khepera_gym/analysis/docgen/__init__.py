@@ -61,6 +61,9 @@ def write_all(docs_dir: str | Path) -> list[Path]:
     from khepera_gym.analysis.docgen.peers import PEERS_DIR, peers_fragment
 
     write("results-peers.md", peers_fragment(docs / "results" / PEERS_DIR) + "\n")
+    from khepera_gym.analysis.docgen.simd import SIMD_DIR, simd_fragment
+
+    write("results-simd.md", simd_fragment(docs / "results" / SIMD_DIR) + "\n")
     return written
 
 
