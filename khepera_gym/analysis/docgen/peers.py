@@ -40,7 +40,7 @@ _FLAG_NAMES = {
 }
 
 
-def _rate(value: float) -> str:
+def rate_cell(value: float) -> str:
     """Env-steps/s in a short cell: 1.05M, 45.3k."""
     if value >= 1e6:
         return f"{value / 1e6:.2f}M"
@@ -103,9 +103,9 @@ def peers_section(document: dict[str, Any]) -> str:
             _task(row),
             f"{row['num_envs']:,}",
             str(row["threads"]),
-            _rate(row["env_steps_per_second"]["median"]),
-            f"{_rate(row['env_steps_per_second']['min'])}–"
-            f"{_rate(row['env_steps_per_second']['max'])}",
+            rate_cell(row["env_steps_per_second"]["median"]),
+            f"{rate_cell(row['env_steps_per_second']['min'])}–"
+            f"{rate_cell(row['env_steps_per_second']['max'])}",
         ]
         for row in rows
     ]
@@ -156,4 +156,11 @@ def peers_fragment(folder: Path) -> str:
     )
 
 
-__all__ = ["PEERS_COMMAND", "PEERS_DIR", "peers_fragment", "peers_section", "vector_extensions"]
+__all__ = [
+    "PEERS_COMMAND",
+    "PEERS_DIR",
+    "peers_fragment",
+    "peers_section",
+    "rate_cell",
+    "vector_extensions",
+]

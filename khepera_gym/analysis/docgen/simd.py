@@ -17,22 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from khepera_gym.analysis.docgen.markdown import escape_cell, missing_results, table
-from khepera_gym.analysis.docgen.peers import vector_extensions
+from khepera_gym.analysis.docgen.peers import rate_cell, vector_extensions
 from khepera_gym.analysis.docgen.results import provenance_line
 
 #: The vector paths' folder under docs/results/.
 SIMD_DIR = "simd"
 #: The command that writes a file of that folder.
 SIMD_COMMAND = "python -m benchmarks.simd_paths --out docs/results/simd/simd_paths_DATE.json"
-
-
-def _rate(value: float) -> str:
-    """Steps/s in a short cell: 1.05M, 45.3k."""
-    if value >= 1e6:
-        return f"{value / 1e6:.2f}M"
-    if value >= 1e3:
-        return f"{value / 1e3:.1f}k"
-    return f"{value:.0f}"
 
 
 def simd_section(document: dict[str, Any]) -> str:
@@ -43,7 +34,7 @@ def simd_section(document: dict[str, Any]) -> str:
     rows = []
     for row in document["rows"]:
         cells = [escape_cell(row["configuration"])]
-        cells += [_rate(row["columns"][name]["median"]) for name in columns]
+        cells += [rate_cell(row["columns"][name]["median"]) for name in columns]
         for name in others:
             ratio = row["ratios"].get(name)
             cells.append(
