@@ -85,13 +85,13 @@ def main(argv: list[str] | None = None) -> int:
     paths = [name for name, have in _core.simd_paths() if have]
     base = {k: v for k, v in os.environ.items() if k not in ("KHEPERA_GYM_SIMD", "PYTHONPATH")}
     columns: dict[str, dict[str, str]] = {}
+    head = None
     if args.before is not None:
         before = args.before.resolve()
         head = subprocess.run(
             ["git", "-C", str(before), "rev-parse", "HEAD"], capture_output=True, text=True
         ).stdout.strip()
-        label = f"before ({head[:10] or '?'})"
-        columns[label] = {**base, "PYTHONPATH": str(before)}
+        columns["before"] = {**base, "PYTHONPATH": str(before)}
     here = str(Path(__file__).resolve().parents[1])
     for path in paths:
         columns[path] = {**base, "KHEPERA_GYM_SIMD": path, "PYTHONPATH": here}
@@ -117,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         "meta": provenance(),
         "columns": list(columns),
         "reference": first,
+        "before_commit": head,
         "settings": {
             "rounds": args.rounds,
             "duration": args.duration,

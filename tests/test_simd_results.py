@@ -39,9 +39,9 @@ def _document() -> dict:
 
 def test_a_path_shows_its_median_and_its_ratio_within_rounds() -> None:
     page = simd_section(_document())
-    assert "| configuration | portable | avx2 | × portable, avx2 |" in page
+    assert "| configuration | portable | × avx2 |" in page
     # The medians of the speeds are equal (1.50M) while the ratio taken round by round is not.
-    assert "| make_vec n=1024 t=2 | 1.50M | 1.50M | 1.05 (1.00–1.20) |" in page
+    assert "| make_vec n=1024 t=2 | 1.50M | 1.05 (1.00–1.20) |" in page
     assert "Vector extensions: AVX2, FMA." in page and "commit `aaaaaaaaaa`" in page
 
 

@@ -33,8 +33,7 @@ def simd_section(document: dict[str, Any]) -> str:
     others = [name for name in columns if name != reference]
     rows = []
     for row in document["rows"]:
-        cells = [escape_cell(row["configuration"])]
-        cells += [rate_cell(row["columns"][name]["median"]) for name in columns]
+        cells = [escape_cell(row["configuration"]), rate_cell(row["columns"][reference]["median"])]
         for name in others:
             ratio = row["ratios"].get(name)
             cells.append(
@@ -46,18 +45,20 @@ def simd_section(document: dict[str, Any]) -> str:
     settings = document["settings"]
     machine = (document.get("meta") or {}).get("machine") or {}
     flags = machine.get("cpu_flags") or {}
+    before = document.get("before_commit")
+    before_text = ""
+    if before:
+        before_text = f" `before` is the build at commit `{before[:10]}`, timed in the same rounds."
     return "\n\n".join(
         [
             provenance_line(document.get("meta")),
             f"Vector extensions: {vector_extensions(flags)}. {settings['rounds']} interleaved "
             f"rounds of `khepera-gym bench` ({settings['duration']:g} s a configuration, "
             f"{', '.join(map(str, settings['num_envs']))} worlds, "
-            f"{', '.join(map(str, settings['threads']))} threads): steps/s, the median over the "
-            f"rounds; × {reference}: the ratio within each round, median (range).",
-            table(
-                ["configuration", *columns, *[f"× {reference}, {name}" for name in others]],
-                rows,
-            ),
+            f"{', '.join(map(str, settings['threads']))} threads): {reference}'s steps/s (the "
+            f"median over the rounds), and each other column's ratio to it, taken within each "
+            f"round: the median (range).{before_text}",
+            table(["configuration", reference, *[f"× {name}" for name in others]], rows),
         ]
     )
 
