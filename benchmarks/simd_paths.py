@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import statistics
 import subprocess
 import sys
@@ -33,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from khepera_gym import _core
-from khepera_gym.tooling.provenance import provenance
+from khepera_gym.tooling.provenance import portable_command, provenance
 
 
 def bench(env: dict[str, str], args: argparse.Namespace) -> dict[str, float]:
@@ -82,6 +83,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--before", type=Path, default=None, help="another built source tree")
     parser.add_argument("--out", type=Path, required=True, help="the JSON file to write")
     args = parser.parse_args(argv)
+    # What a user types (as compare_peers records it), without this machine's paths.
+    command = "python -m benchmarks.simd_paths " + shlex.join(
+        sys.argv[1:] if argv is None else list(argv)
+    )
     paths = [name for name, have in _core.simd_paths() if have]
     base = {k: v for k, v in os.environ.items() if k not in ("KHEPERA_GYM_SIMD", "PYTHONPATH")}
     columns: dict[str, dict[str, str]] = {}
@@ -114,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
     document = {
         "simd_paths": 1,
-        "meta": provenance(),
+        "meta": provenance(portable_command(command, args.out.parent)),
         "columns": list(columns),
         "reference": first,
         "before_commit": head,

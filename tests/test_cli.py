@@ -13,9 +13,10 @@ from unittest import mock
 import numpy as np
 import pytest
 
-from khepera_gym import cli
+from khepera_gym import cli, registry
 from khepera_gym.analysis import record
 from khepera_gym.analysis.compare import run as compare_run
+from khepera_gym.registration import registered_ids
 
 #: A path whose folder cannot be created (/proc takes no new entries, even for root).
 UNWRITABLE = "/proc/khepera-gym-test/out"
@@ -89,16 +90,21 @@ def test_render_creates_the_output_folder_and_shows_progress(
     assert "render KheperaIV-Nav" in captured.err and "step" in captured.err  # tqdm's bar
 
 
+#: The tasks without a Gymnasium id (PettingZoo only), from the registries.
+AGENTS_ONLY = [t for t in registry.task_names() if t not in registered_ids()]
+
+
+@pytest.mark.parametrize("task", AGENTS_ONLY)
 def test_render_plays_a_multi_agent_task_with_every_robot_acting(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    task: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    # Multinav has no Gymnasium id: its PettingZoo module's world, each robot driven by the
-    # baseline on its own observation.
-    out = tmp_path / "multinav.gif"
-    argv = ["render", "--env", "multinav", "--policy", "braitenberg", "--steps", "3"]
+    # A task without a Gymnasium id: its PettingZoo module's world, each robot driven by the
+    # policy on its own observation.
+    out = tmp_path / f"{task}.gif"
+    argv = ["render", "--env", task, "--policy", "random", "--steps", "3"]
     assert cli.main([*argv, "--out", str(out), "--no-progress"]) == 0
     assert out.is_file() and out.stat().st_size > 0
-    assert "wrote 4 frames of multinav (braitenberg, seed 0)" in capsys.readouterr().out
+    assert f"wrote 4 frames of {task} (random, seed 0)" in capsys.readouterr().out
 
 
 def test_a_policy_on_every_agent_is_the_baseline_on_each_agents_block() -> None:
