@@ -225,21 +225,20 @@ def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
         return run(*args)
 
     monkeypatch.setattr(command, "run_one", interrupted_at_the_second)
+    argv = [
+        "benchmark",
+        "--tasks",
+        "nav",
+        "--learners",
+        "ppo",
+        "--seeds",
+        "3",
+        "--out",
+        str(tmp_path),
+    ]
     # Caught here too, so that a KeyboardInterrupt escaping fails this test, not the session.
     with pytest.raises((SystemExit, KeyboardInterrupt)) as caught:
-        cli.main(
-            [
-                "benchmark",
-                "--tasks",
-                "nav",
-                "--learners",
-                "ppo",
-                "--seeds",
-                "3",
-                "--out",
-                str(tmp_path),
-            ]
-        )
+        cli.main(argv)
     assert isinstance(caught.value, SystemExit), "Ctrl-C escaped as a KeyboardInterrupt"
     assert caught.value.code == command.INTERRUPTED == 130
     errors = capsys.readouterr().err
@@ -253,39 +252,13 @@ def test_ctrl_c_stops_with_one_line_saying_the_same_command_resumes(
     # With --no-progress, that line is all of stderr.
     asked.clear()
     with pytest.raises((SystemExit, KeyboardInterrupt)):
-        cli.main(
-            [
-                "benchmark",
-                "--tasks",
-                "nav",
-                "--learners",
-                "ppo",
-                "--seeds",
-                "3",
-                "--out",
-                str(tmp_path),
-                "--no-progress",
-            ]
-        )
+        cli.main([*argv, "--no-progress"])
     assert capsys.readouterr().err == last + "\n"
     # A run further on that was done before counts as done.
     asked.clear()
     monkeypatch.setattr(command, "finished", lambda *run: {} if run[3] == 2 else None)
     with pytest.raises((SystemExit, KeyboardInterrupt)):
-        cli.main(
-            [
-                "benchmark",
-                "--tasks",
-                "nav",
-                "--learners",
-                "ppo",
-                "--seeds",
-                "3",
-                "--out",
-                str(tmp_path),
-                "--no-progress",
-            ]
-        )
+        cli.main([*argv, "--no-progress"])
     assert "interrupted with 2 of 3 runs done" in capsys.readouterr().err
 
 

@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 from tqdm import tqdm
 
 from khepera_gym.analysis.compare import make_policy
@@ -179,18 +178,24 @@ def _agents_episode(
     renderer = Renderer(batch, "rgb_array", frame_size, zoom=zoom, center=center)
     total = int(batch.max_episode_steps)
     total = total if max_steps is None else min(total, max_steps)
-    observation = batch.reset(seed)
-    frames = [renderer.frame()]
-    label = f"render {task}_v{version}"
-    with tqdm(total=total, desc=label, unit="step", disable=not progress) as bar:
-        for _ in range(total):
-            observation, _, terminated, truncated = batch.step(
-                np.ascontiguousarray(act(observation), dtype=np.float32)
-            )
-            frames.append(renderer.frame())
+    frames = []
+    with tqdm(
+        total=total, desc=f"render {task}_v{version}", unit="step", disable=not progress
+    ) as bar:
+
+        def on_step(_step: int, _obs: Any, _rewards: Any, _ended: Any, _done: Any) -> None:
+            # Without autoreset the last step's frame shows the episode's end, not a new start.
             bar.update(1)
-            if terminated[0] or truncated[0]:
-                break
+            frames.append(renderer.frame())
+
+        run_episodes(
+            batch,
+            act,
+            seed,
+            on_reset=lambda _obs: frames.append(renderer.frame()),
+            on_step=on_step,
+            max_steps=max_steps,
+        )
     return frames
 
 
