@@ -388,7 +388,7 @@ def make_policy(
         ) from error
 
 
-class _BatchView:
+class BatchView:
     """What :func:`make_policy` reads of an env (its task, one agent's action space, its
     scenario and the agents' layouts), over a bare ``_core.Batch`` of any task."""
 
@@ -421,9 +421,17 @@ def make_agents_policy(
     Raises:
         ConfigError: As :func:`make_policy`.
     """
+    policy = make_policy(name, BatchView(batch), seed=seed, algo=algo)  # type: ignore[arg-type]
+    return on_every_agent(policy, batch)
+
+
+def on_every_agent(
+    policy: Callable[[Any], Any], batch: Any
+) -> Callable[[npt.NDArray[np.float32]], npt.NDArray[np.float32]]:
+    """``policy`` on the joint observation of ``batch``: whole, when it acts on it (Formation's
+    followers), else on each agent's block, its actions put side by side."""
     from khepera_gym.errors import ActionError
 
-    policy = make_policy(name, _BatchView(batch), seed=seed, algo=algo)  # type: ignore[arg-type]
     try:
         actions = policy(np.zeros((1, batch.obs_dim), dtype=np.float32))
     except (ActionError, ConfigError):
@@ -449,6 +457,7 @@ __all__ = [
     "SAMPLED_SUFFIX",
     "SB3_ALGORITHMS",
     "SB3_PREFIX",
+    "BatchView",
     "Policy",
     "RandomPolicy",
     "SB3Policy",
@@ -457,4 +466,5 @@ __all__ = [
     "load_sb3_policy",
     "make_agents_policy",
     "make_policy",
+    "on_every_agent",
 ]

@@ -28,8 +28,7 @@ from khepera_gym import _core, registry
 from khepera_gym.analysis.docgen.envs import ANIMATIONS, EnvPage, baselines, env_pages
 from khepera_gym.baselines import BaselinePolicy
 from khepera_gym.config import make_batch
-from khepera_gym.errors import ActionError
-from khepera_gym.observations import layout_dict
+from khepera_gym.learning.policies import BatchView, on_every_agent
 from khepera_gym.tooling.provenance import commit, provenance
 
 #: Side of an animation's frames (pixels).
@@ -54,40 +53,6 @@ def _label(page: EnvPage) -> str:
     return page.ids[-1] if page.ids else f"{page.modules[-1].name}.parallel_env()"
 
 
-def _joint_policy(
-    policy: Callable[[Any], Any], batch: _core.Batch
-) -> Callable[[npt.NDArray[np.float32]], npt.NDArray[np.float32]]:
-    """A policy of one agent's block applied to every agent of the joint observation."""
-    agents = batch.agents()
-    width = batch.agent_act_dim
-
-    def act(observation: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        actions = np.zeros((observation.shape[0], width * len(agents)), dtype=np.float32)
-        for index, (_, _, start, stop, _) in enumerate(agents):
-            columns = slice(width * index, width * (index + 1))
-            actions[:, columns] = policy(observation[:, start:stop])
-        return actions
-
-    return act
-
-
-class _BatchView:
-    """What a baseline's ``for_env`` reads of an env (its scenario and agents' layouts), over a
-    bare batch."""
-
-    def __init__(self, batch: _core.Batch) -> None:
-        self._batch = batch
-
-    def config_toml(self) -> str:
-        return self._batch.config_toml()
-
-    def agent_layouts(self) -> dict[str, dict[str, slice]]:
-        return {name: layout_dict(own) for name, _, _, _, own in self._batch.agents()}
-
-    def obs_layout(self) -> dict[str, slice]:
-        return next(iter(self.agent_layouts().values()))
-
-
 def _make_policy(
     cls: type[BaselinePolicy], batch: _core.Batch
 ) -> Callable[[npt.NDArray[np.float32]], npt.NDArray[np.float32]]:
@@ -95,12 +60,7 @@ def _make_policy(
     takes the formation's shape from it), on the joint observation when it reads all of it
     (Formation's followers), else on every agent's block (every agent of a default scenario has
     the first one's layout)."""
-    policy = cls.for_env(_BatchView(batch))
-    try:
-        policy(np.zeros((1, batch.obs_dim), dtype=np.float32))
-    except ActionError:
-        return _joint_policy(policy, batch)
-    return policy
+    return on_every_agent(cls.for_env(BatchView(batch)), batch)
 
 
 def episode(
