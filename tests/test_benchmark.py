@@ -428,16 +428,11 @@ def test_the_printed_command_asks_for_the_rows_work_again(task: str, learner: st
 def test_runs_of_another_recipe_in_the_folder_get_their_own_row(tmp_path: Path) -> None:
     out = tmp_path / "bench"
     task = _single_agent_task()
-    _run(["--tasks", task, "--learners", "ppo", "--out", str(out), *TINY])
+    ppo = ["--tasks", task, "--learners", "ppo", "--out", str(out), *TINY]
+    _run(ppo)
     _run(
         [
-            "--tasks",
-            task,
-            "--learners",
-            "ppo",
-            "--out",
-            str(out),
-            *TINY,
+            *ppo,
             "--seed-list",
             "1",
             "--hp",
@@ -459,13 +454,7 @@ def test_runs_of_another_recipe_in_the_folder_get_their_own_row(tmp_path: Path) 
     # Other held-out episodes, the same recipe: a row of its own too, labelled by them.
     _run(
         [
-            "--tasks",
-            task,
-            "--learners",
-            "ppo",
-            "--out",
-            str(out),
-            *TINY,
+            *ppo,
             "--seed-list",
             "2",
             "--episodes",
