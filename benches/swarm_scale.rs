@@ -3,10 +3,11 @@
 //! actions, in arenas scaled to keep multinav's density (4 robots in 2 m x 2 m), then the
 //! built-in `swarm` scene (1,000 robots in 20 m x 20 m, 2.5 times as dense). Worlds per batch:
 //! 1,024 robots' worth. `cargo bench --bench swarm_scale` prints figures and asserts nothing;
-//! `-- 1000` runs only that robot count; `SWARM_THREADS=1` sets the threads (default 2). Worlds
-//! of 100 robots or more run twice: `physics.split = "world"` (the default) and `"robot"`
-//! (rapier steps only the robots that can touch something); `SWARM_SPLIT=world` or `=robot`
-//! runs only one. `SWARM_STEPS=40` times exactly that many steps instead of 3 s (for counting
+//! `-- 1000` runs only that robot count; `SWARM_THREADS=1` sets the threads (default 2). Every
+//! size runs twice: `physics.split = "world"` (the default) and `"robot"` (rapier steps only the
+//! robots that can touch something), small worlds too, since a ratio between a swarm split one
+//! way and small worlds split the other means little; `SWARM_SPLIT=world` or `=robot` runs only
+//! one. `SWARM_STEPS=40` times exactly that many steps instead of 3 s (for counting
 //! instructions under `valgrind --tool=cachegrind`, whose figures do not swing with the load).
 
 use std::time::Instant;
@@ -34,11 +35,7 @@ fn main() {
         .into_iter()
         .chain([(1000, true)])
         .flat_map(|(robots, built_in)| {
-            let splits: &[&str] = if robots >= 100 {
-                &["world", "robot"]
-            } else {
-                &["world"]
-            };
+            let splits: &[&str] = &["world", "robot"];
             splits.iter().map(move |&split| (robots, built_in, split))
         });
     for (robots, built_in, split) in cases {
