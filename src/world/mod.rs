@@ -34,6 +34,7 @@ pub mod scenery;
 mod spacing;
 mod split;
 mod swarm;
+pub mod tyres;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -47,7 +48,8 @@ use crate::robot::{wrap_angle, Drive};
 use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario, SceneSolver, SlipSolver};
 use crate::sensors::{Readings, SenseContext, Suite};
 pub use motion::integrate_arc;
-use physics::{BodyState, Physics, PhysicsParams, TractionBody};
+use physics::{BodyState, Physics, PhysicsParams};
+use tyres::TractionBody;
 
 /// State of one robot.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]

@@ -8,7 +8,8 @@ use rapier2d::math::Vector;
 
 use rayon::prelude::*;
 
-use super::physics::{slip_freely, BodyState, Grip, TractionBody, GRAVITY};
+use super::physics::BodyState;
+use super::tyres::{slip_freely, Grip, TractionBody, GRAVITY};
 use super::{Robot, World, MIN_ROBOTS_PER_TASK};
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::DriveModel;
@@ -308,7 +309,7 @@ impl World {
     /// (`physics.slip_solver = "tyres"`): a robot that keeps rolling within its tyres' grip
     /// (`self.active`, set by the motors' pass) rolls on its exact arc; a slipping one is moved
     /// by its tyres' impulses, as rapier moves a body that touches nothing
-    /// (`physics::slip_freely`), without rapier's step.
+    /// (`tyres::slip_freely`), without rapier's step.
     fn slip_substep(&mut self, h: f32) {
         let grip = Grip {
             axle: self.drive.axle_length,

@@ -5,7 +5,7 @@
 //!
 //! Model, per robot and substep of `h` seconds (mass m, radius R, moment of inertia I = m R²/2,
 //! a uniform disc [E] as in `physics.rs`):
-//! 1. The tyres' impulses (`physics::tyre_impulses`), as before a rapier step.
+//! 1. The tyres' impulses (`tyres::tyre_impulses`), as before a rapier step.
 //! 2. One contact per shape within the disc's reach in the substep: the normal n points from the
 //!    shape's nearest point to the disc's centre, the gap d is the distance between shell and
 //!    shape (negative: overlap), and the contact point lies on the shell, at centre − R n.
@@ -34,7 +34,7 @@ use rapier2d::math::Vector;
 use rayon::prelude::*;
 
 use super::motion::{roll_arc, speed_bound, CONTACT_MARGIN};
-use super::physics::{tyre_impulses, Grip, TractionBody, GRAVITY};
+use super::tyres::{tyre_impulses, Grip, TractionBody, GRAVITY};
 use super::{Robot, World, MIN_ROBOTS_PER_TASK};
 use crate::geometry::scene::Scene;
 use crate::robot::wrap_angle;

@@ -19,7 +19,7 @@ use rapier2d::math::Vector;
 use rayon::prelude::*;
 
 use super::motion::{roll_left_out, speed_bound, CONTACT_MARGIN};
-use super::physics::GRAVITY;
+use super::tyres::GRAVITY;
 use super::{Robot, World, MIN_ROBOTS_PER_TASK};
 use crate::robot::Drive;
 
