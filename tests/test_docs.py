@@ -12,6 +12,7 @@ import re
 import shutil
 import warnings
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -454,6 +455,35 @@ def test_a_hostile_campaign_report_renders_with_its_counts_and_failures() -> Non
     text = hostile_fragment([(Path("h.json"), document)])
     assert "**10 cases, 1 failures**" in text and "`3:17` make: FAIL: TypeError" in text
     assert "| `make` | built 3, refused: ConfigError 5 | 8 |" in text
+
+
+def test_the_swarm_table_sets_each_robot_step_beside_small_worlds_on_as_many_threads() -> None:
+    from khepera_gym.analysis.docgen.results import swarm_fragment
+
+    def row(robots: int, split: str, threads: int, rate: float, **more: Any) -> dict[str, Any]:
+        worlds = max(1, 1024 // robots)
+        return (
+            {"robots": robots, "worlds": worlds, "split": split, "threads": threads}
+            | {
+                "world_steps_per_second": rate / robots,
+                "robot_steps_per_second": rate,
+                "real_time_factor": rate / robots / worlds * 0.05,
+            }
+            | more
+        )
+
+    meta = {"date": "2026-12-07T00:00:00+00:00", "command": "khepera-gym bench"}
+    swarm = [row(4, "world", 1, 2.0e6, version=3), row(4, "world", 2, 3.0e6, version=3)]
+    swarm += [row(1000, "robot", 1, 1.6e6, version=3), row(1000, "world", 2, 1.0e6, version=3)]
+    text = swarm_fragment([(Path("b.json"), {"meta": meta, "rows": [], "swarm": swarm})])
+    lines = [line for line in text.splitlines() if line.startswith("| 1,000 |")]
+    # A 1,000-robot row against the 4-robot worlds split by world on its thread count.
+    assert "| 1.25× |" in lines[0] and "| 3.00× |" in lines[1]
+    assert "Multinav v3." in text
+    # A file from before rows named their version timed multinav v1.
+    old = [{k: v for k, v in r.items() if k != "version"} for r in swarm]
+    text = swarm_fragment([(Path("b.json"), {"meta": meta, "rows": [], "swarm": old})])
+    assert "Multinav v1 (until 2026-12-07" in text
 
 
 # --- README -------------------------------------------------------------------------------------

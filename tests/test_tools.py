@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 from unittest import mock
 
 import gymnasium as gym
@@ -179,6 +180,29 @@ def test_bench_writes_its_rows_with_date_commit_machine_and_command(tmp_path: Pa
     assert [row["label"] for row in document["rows"]] == ["make_vec n=2"]
     assert document["rows"][0]["env_steps_per_second"] > 0
     assert document["swarm"] == [{"robots": 4}] and document["memory_per_world_bytes"] is None
+
+
+def test_the_swarm_rows_run_the_benchmarks_version_on_both_splits() -> None:
+    # Until 2026-12-07 the rows timed multinav v1 whatever --version said.
+    from khepera_gym.analysis import swarm_throughput
+
+    made: list[tuple[int | None, str]] = []
+    real = swarm_throughput.MultiAgentArrayEnv
+
+    def spy(task: str, num_envs: int, **kwargs: Any) -> Any:
+        made.append((kwargs["version"], kwargs["physics"]["split"]))
+        return real(task, num_envs, **kwargs)
+
+    with mock.patch.object(swarm_throughput, "MultiAgentArrayEnv", spy):
+        rows = swarm_throughput.swarm_rows((4,), (1,), 0.01, version=2)
+    # 4-robot worlds and the swarm scene, each split both ways.
+    assert made == [(2, "world"), (2, "robot")] * 2
+    assert [(r["robots"], r["split"], r["version"]) for r in rows] == [
+        (4, "world", 2),
+        (4, "robot", 2),
+        (1000, "world", 2),
+        (1000, "robot", 2),
+    ]
 
 
 def test_memory_per_world_is_measured_on_linux() -> None:

@@ -268,7 +268,9 @@ def run(
                 f"memory per world: {per_world / 1024:.1f} KiB "
                 f"(resident-set growth of a {_MEMORY_WORLDS}-world Nav batch)"
             )
-    swarm_table = swarm_rows(swarm, num_threads, duration) if swarm and version >= 1 else []
+    swarm_table = (
+        swarm_rows(swarm, num_threads, duration, version) if swarm and version >= 1 else []
+    )
     if json_path is not None:
         document = {
             "meta": provenance(),

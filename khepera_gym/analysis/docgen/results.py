@@ -378,13 +378,30 @@ def bench_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     return "\n\n".join(parts)
 
 
+#: The behaviour version of the swarm rows in results files written before rows named theirs:
+#: ``khepera-gym bench`` then timed ``multinav_v1`` whatever its ``--version``.
+SWARM_VERSION_BEFORE = 1
+
+
 def swarm_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
-    """The swarm rows of the benchmark runs: world- and robot-steps/s by robots per world."""
+    """The swarm rows of the benchmark runs: world- and robot-steps/s by robots per world, and
+    each row's cost of a robot-step against 4-robot worlds split by world on as many threads."""
     documents = [d for _, d in files if kind(d) == "bench" and d.get("swarm")]
     if not documents:
         return missing_results("khepera-gym bench --json bench.json")
     parts = []
     for document in documents:
+        swarm = document["swarm"]
+        small = {
+            row["threads"]: row["robot_steps_per_second"]
+            for row in swarm
+            if row["robots"] == 4 and row["split"] == "world" and not row.get("scene")
+        }
+
+        def cost(row: dict[str, Any], small: dict[int, float] = small) -> str:
+            reference = small.get(row["threads"])
+            return f"{reference / row['robot_steps_per_second']:.2f}×" if reference else "–"
+
         rows = [
             [
                 f"{row['robots']:,}" + (" (`swarm` scene)" if row.get("scene") else ""),
@@ -393,13 +410,23 @@ def swarm_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
                 str(row["threads"]),
                 f"{row['world_steps_per_second']:,.0f}",
                 f"{row['robot_steps_per_second']:,.0f}",
+                cost(row),
                 f"{row['real_time_factor']:.1f}",
             ]
-            for row in document["swarm"]
+            for row in swarm
         ]
         header = ["robots per world", "worlds", "split", "threads", "world-steps/s"]
-        header += ["robot-steps/s", "× real time"]
-        parts.append(provenance_line(document.get("meta")) + "\n\n" + table(header, rows))
+        header += ["robot-steps/s", "cost of a robot-step", "× real time"]
+        versions = sorted({row.get("version", SWARM_VERSION_BEFORE) for row in swarm})
+        named = ", ".join(f"v{v}" for v in versions)
+        note = f"Multinav {named}" + (
+            " (until 2026-12-07 the swarm rows ran version 1 whatever the bench's `--version`)."
+            if "version" not in swarm[0]
+            else "."
+        )
+        parts.append(
+            provenance_line(document.get("meta")) + " " + note + "\n\n" + table(header, rows)
+        )
     return "\n\n".join(parts)
 
 
