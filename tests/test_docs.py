@@ -338,7 +338,7 @@ def baselines_of(task: str) -> tuple[type, ...]:
 
 
 def test_results_pages_render_every_results_file_with_its_provenance(generated: Path) -> None:
-    from khepera_gym.analysis.docgen.results import as_typed, kind, load
+    from khepera_gym.analysis.docgen.results_files import as_typed, kind, load
 
     files = load(DOCS / "results")
     assert files, "docs/results/ holds no results file"
@@ -353,7 +353,8 @@ def test_results_pages_render_every_results_file_with_its_provenance(generated: 
 
 def test_a_learned_formation_file_renders_against_its_baseline(tmp_path: Path) -> None:
     from khepera_gym.analysis.compare.report import write_formation_learning
-    from khepera_gym.analysis.docgen.results import kind, learning_fragment, target_name
+    from khepera_gym.analysis.docgen.results import learning_fragment, target_name
+    from khepera_gym.analysis.docgen.results_files import kind
 
     rows = [
         {
@@ -443,7 +444,8 @@ def test_results_files_of_trained_models_and_stacked_runs_do_not_replace_others(
 
 
 def test_a_hostile_campaign_report_renders_with_its_counts_and_failures() -> None:
-    from khepera_gym.analysis.docgen.results import hostile_fragment, kind, target_name
+    from khepera_gym.analysis.docgen.results import hostile_fragment, target_name
+    from khepera_gym.analysis.docgen.results_files import kind
 
     meta = {"date": "2026-11-28T00:00:00+00:00", "command": "python tests/hostile_campaign.py"}
     by_kind = {"make": {"built": 3, "refused: ConfigError": 5}, "state": {"restored": 2}}
@@ -458,7 +460,7 @@ def test_a_hostile_campaign_report_renders_with_its_counts_and_failures() -> Non
 
 
 def test_the_swarm_table_sets_each_robot_step_beside_small_worlds_on_as_many_threads() -> None:
-    from khepera_gym.analysis.docgen.results import swarm_fragment
+    from khepera_gym.analysis.docgen.throughput import swarm_fragment
 
     def row(robots: int, split: str, threads: int, rate: float, **more: Any) -> dict[str, Any]:
         worlds = max(1, 1024 // robots)
@@ -610,7 +612,8 @@ def test_the_guide_names_every_extra_and_what_make_test_installs() -> None:
 def test_the_results_page_shows_commands_and_labels_as_a_user_types_them() -> None:
     # The results files record the machine's paths (/work/..., /tmp/...); the page shows the
     # commands relative to a checkout and each table's model files from their common folder.
-    from khepera_gym.analysis.docgen.results import as_typed, fragments, portable_labels
+    from khepera_gym.analysis.docgen.results import fragments, portable_labels
+    from khepera_gym.analysis.docgen.results_files import as_typed
 
     for name, text in fragments(ROOT / "docs" / "results").items():
         for machine in ("/work/", "/home/", "/tmp/", "khepera_gym/cli.py"):

@@ -207,7 +207,7 @@ def reliable_fragment(folder: Path, images: Path, image_prefix: str) -> str:
 def tune_fragment(folder: Path) -> str:
     """The recipe searches (``khepera-gym tune``'s files in ``folder``): what was searched, the
     best configuration against the shipped table, and every trial's last evaluation."""
-    from khepera_gym.analysis.docgen.results import provenance_line
+    from khepera_gym.analysis.docgen.results_files import provenance_line
     from khepera_gym.tooling.provenance import portable_command
 
     files = sorted(folder.glob("*.json")) if folder.is_dir() else []

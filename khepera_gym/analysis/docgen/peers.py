@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from khepera_gym.analysis.docgen.markdown import escape_cell, missing_results, table
-from khepera_gym.analysis.docgen.results import provenance_line
+from khepera_gym.analysis.docgen.results_files import provenance_line
 
 #: The peers' folder under docs/results/.
 PEERS_DIR = "peers"

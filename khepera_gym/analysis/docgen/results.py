@@ -2,9 +2,11 @@
 ``bench`` write (each with its ``meta``: date, commit, machine, command), kept in docs/results/,
 rendered into the results pages at docs build time.
 
-A file's kind is read from its content: a comparison (``summaries``), the consensus sweep
-(``rows`` of triggers), a training run (``algo`` and ``final``) or a benchmark (``rows`` of
-labels). The tables are the tools' own (a comparison's columns come from
+A file's kind is read from its content (:func:`khepera_gym.analysis.docgen.results_files.kind`):
+a comparison, the consensus sweep, a training run, a learned formation, a benchmark (its tables
+in :mod:`khepera_gym.analysis.docgen.throughput`) or a hostile-input campaign; this module
+renders each kind into its fragment and names the files it copies in (:func:`import_results`).
+The tables are the tools' own (a comparison's columns come from
 :func:`khepera_gym.analysis.compare.report.table_rows`), so a page shows what the tool printed. A
 comparison of fewer than :data:`FULL_EPISODES` episodes per policy is marked as a short run.
 """
@@ -24,88 +26,16 @@ from khepera_gym import registry
 from khepera_gym.analysis.compare.report import table_notes, table_rows
 from khepera_gym.analysis.compare.run import Comparison
 from khepera_gym.analysis.docgen.markdown import code, escape_cell, missing_results, table
+from khepera_gym.analysis.docgen.results_files import kind, load, provenance_line
+from khepera_gym.analysis.docgen.throughput import bench_fragment, swarm_fragment
 from khepera_gym.analysis.docgen.width import split_table
 from khepera_gym.errors import ConfigError
 from khepera_gym.learning.policies import SAMPLED_SUFFIX, SB3_PREFIX
 from khepera_gym.learning.recipes import load_hyperparams
-from khepera_gym.tooling.provenance import portable_command
 from khepera_gym.tooling.stats import Estimate
 
 #: Episodes per policy of a full comparison (the project's published tables).
 FULL_EPISODES = 200
-
-
-def load(results_dir: Path) -> list[tuple[Path, dict[str, Any]]]:
-    """Every results file of the folder, by name."""
-    if not results_dir.is_dir():
-        return []
-    return [
-        (path, json.loads(path.read_text(encoding="utf-8")))
-        for path in sorted(results_dir.glob("*.json"))
-    ]
-
-
-def kind(document: Any) -> str:
-    """``"compare"``, ``"consensus"``, ``"train"``, ``"learning"`` (a learned formation, from
-    ``examples/formation_shared_ppo.py --json``), ``"bench"``, ``"hostile"`` (a hostile-input
-    campaign, ``python tests/hostile_campaign.py --json``) or ``"unknown"``."""
-    if not isinstance(document, dict):
-        return "unknown"
-    if "summaries" in document:
-        return "compare"
-    if "algo" in document and "final" in document:
-        return "train"
-    if isinstance(document.get("formation_learning"), dict):
-        return "learning"
-    rows = document.get("rows")
-    if isinstance(rows, list) and rows and "trigger" in rows[0]:
-        return "consensus"
-    if isinstance(rows, list) and "swarm" in document:
-        return "bench"
-    if isinstance(document.get("by_kind"), dict) and "failures" in document:
-        return "hostile"
-    return "unknown"
-
-
-#: The package's command line run from a source tree (``python <tree>/khepera_gym/cli.py``, or
-#: ``python -m khepera_gym.cli``): a user types it ``khepera-gym``.
-_CLI = re.compile(r"^python3? (?:\S*/)?khepera_gym/cli\.py\b|^python3? -m khepera_gym\.cli\b")
-#: A script of the repository run by its absolute path: a user types it from the checkout.
-_SCRIPT = re.compile(r"^(python3?) \S*/((?:examples|tests)/\S+\.py)\b")
-#: The checkout the documentation is built from.
-_CHECKOUT = Path(__file__).resolve().parents[3]
-#: A module of the package run by its file's path: a user types ``python -m`` and its name.
-_MODULE = re.compile(r"^(python3?) \S*/khepera_gym/(\S+)\.py\b")
-
-
-def as_typed(command: str) -> str:
-    """A recorded command as a user types it in a checkout: ``khepera-gym train ...`` for the
-    package's command line however it was started, ``python examples/x.py ...`` for a script,
-    ``python -m khepera_gym.<module>`` for a module of the package; paths of the machine that
-    ran it are made relative to the checkout or cut to their names
-    (:func:`khepera_gym.tooling.provenance.portable_command`)."""
-    command = _CLI.sub("khepera-gym", command)
-    command = _SCRIPT.sub(r"\1 \2", command)
-    command = _MODULE.sub(lambda m: f"{m[1]} -m khepera_gym.{m[2].replace('/', '.')}", command)
-    return portable_command(command, _CHECKOUT / "docs")
-
-
-def provenance_line(meta: dict[str, Any] | None) -> str:
-    """Where a table's figures come from, in one sentence."""
-    if not meta:
-        return "*Provenance not recorded.*"
-    commit = meta.get("commit")
-    if commit:
-        where = f"commit `{commit['id'][:10]}`" + (" with local changes" if commit["dirty"] else "")
-    else:
-        where = f"khepera_gym {meta.get('khepera_gym', '?')}"
-    machine = meta.get("machine") or {}
-    load_average = machine.get("load_average")
-    load_text = f", load average {load_average[0]}" if load_average else ""
-    return (
-        f"Measured {meta.get('date', '?')[:10]} at {where} on {machine.get('cpu', '?')} "
-        f"({machine.get('cpus', '?')} CPUs{load_text}): {code(as_typed(meta.get('command', '?')))}."
-    )
 
 
 def _version(env_id: str) -> int:
@@ -341,95 +271,6 @@ def learning_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     return "\n\n".join(parts)
 
 
-def bench_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
-    """The benchmark runs: env-steps/s per configuration and thread count, memory per world."""
-    documents = [d for _, d in files if kind(d) == "bench"]
-    if not documents:
-        return missing_results("khepera-gym bench --json bench.json")
-    parts = []
-    for document in documents:
-        rows = [
-            [
-                escape_cell(row["label"]),
-                str(row["num_threads"] or "–"),
-                f"{row['env_steps_per_second']:,.0f}",
-                f"{1e6 * row['seconds'] / row['steps']:.1f}",
-            ]
-            for row in document["rows"]
-        ]
-        memory = document.get("memory_per_world_bytes")
-        if memory is None:
-            memory_text = ""
-        elif document.get("memory_process") == "fresh":
-            memory_text = f"\n\nMemory per Nav world: {memory / 1024:.1f} KiB."
-        else:
-            memory_text = (
-                "\n\nMemory per Nav world: not valid in this run (measured in the benchmark's "
-                "own process, where memory the earlier measurements freed was reused; "
-                "`khepera-gym bench` now measures it in a fresh process)."
-            )
-        parts.append(
-            f"Version {document['version']}, {document['duration']:g} s per configuration. "
-            + provenance_line(document.get("meta"))
-            + "\n\n"
-            + table(["configuration", "threads", "env-steps/s", "µs per step"], rows)
-            + memory_text
-        )
-    return "\n\n".join(parts)
-
-
-#: The behaviour version of the swarm rows in results files written before rows named theirs:
-#: ``khepera-gym bench`` then timed ``multinav_v1`` whatever its ``--version``.
-SWARM_VERSION_BEFORE = 1
-
-
-def swarm_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
-    """The swarm rows of the benchmark runs: world- and robot-steps/s by robots per world, and
-    each row's cost of a robot-step against 4-robot worlds split by world on as many threads."""
-    documents = [d for _, d in files if kind(d) == "bench" and d.get("swarm")]
-    if not documents:
-        return missing_results("khepera-gym bench --json bench.json")
-    parts = []
-    for document in documents:
-        swarm = document["swarm"]
-        small = {
-            row["threads"]: row["robot_steps_per_second"]
-            for row in swarm
-            if row["robots"] == 4 and row["split"] == "world" and not row.get("scene")
-        }
-
-        def cost(row: dict[str, Any], small: dict[int, float] = small) -> str:
-            reference = small.get(row["threads"])
-            return f"{reference / row['robot_steps_per_second']:.2f}×" if reference else "–"
-
-        rows = [
-            [
-                f"{row['robots']:,}" + (" (`swarm` scene)" if row.get("scene") else ""),
-                str(row["worlds"]),
-                row["split"],
-                str(row["threads"]),
-                f"{row['world_steps_per_second']:,.0f}",
-                f"{row['robot_steps_per_second']:,.0f}",
-                cost(row),
-                f"{row['real_time_factor']:.1f}",
-            ]
-            for row in swarm
-        ]
-        header = ["robots per world", "worlds", "split", "threads", "world-steps/s"]
-        header += ["robot-steps/s", "cost of a robot-step", "× real time"]
-        versions = sorted({row.get("version", SWARM_VERSION_BEFORE) for row in swarm})
-        named = ", ".join(f"v{v}" for v in versions)
-        note = f"Multinav {named}" + (
-            " (until 2026-12-07 the swarm rows ran version 1 whatever the bench's `--version`)."
-            if "version" not in swarm[0]
-            else "."
-        )
-        parts.append(
-            provenance_line(document.get("meta")) + " " + note + "\n\n" + table(header, rows)
-        )
-    return "\n\n".join(parts)
-
-
 def hostile_fragment(files: list[tuple[Path, dict[str, Any]]]) -> str:
     """The hostile-input campaigns: cases by kind and outcome, failures, per results file."""
     documents = [d for _, d in files if kind(d) == "hostile"]
@@ -598,7 +439,4 @@ __all__ = [
     "FULL_EPISODES",
     "fragments",
     "import_results",
-    "kind",
-    "load",
-    "provenance_line",
 ]

@@ -18,7 +18,7 @@ from typing import Any
 
 from khepera_gym.analysis.docgen.markdown import escape_cell, missing_results, table
 from khepera_gym.analysis.docgen.peers import rate_cell, vector_extensions
-from khepera_gym.analysis.docgen.results import provenance_line
+from khepera_gym.analysis.docgen.results_files import provenance_line
 
 #: The vector paths' folder under docs/results/.
 SIMD_DIR = "simd"
