@@ -42,31 +42,20 @@ def bench_swarm(
     ``split``: the ``physics.split`` key; ``version``: the behaviour version, the latest when
     None)."""
     worlds = max(1, 1024 // robots)
-    physics = {"physics": {"split": split}}
-    task = MultiNavParallelEnv.TASK
-    if scene:
-        env = MultiAgentArrayEnv(
-            task,
-            worlds,
-            version=version,
-            config="swarm",
-            num_threads=threads,
-            max_steps=100000,
-            **physics,
-        )
-    else:
-        side = 2.0 * (robots / 4.0) ** 0.5
-        env = MultiAgentArrayEnv(
-            task,
-            worlds,
-            version=version,
-            num_threads=threads,
-            n_robots=robots,
-            width=side,
-            height=side,
-            max_steps=100000,
-            **physics,
-        )
+    side = 2.0 * (robots / 4.0) ** 0.5
+    # The built-in scene, or multinav's density in an arena scaled to the robots.
+    world: dict[str, Any] = (
+        {"config": "swarm"} if scene else {"n_robots": robots, "width": side, "height": side}
+    )
+    env = MultiAgentArrayEnv(
+        MultiNavParallelEnv.TASK,
+        worlds,
+        version=version,
+        num_threads=threads,
+        max_steps=100000,
+        physics={"split": split},
+        **world,
+    )
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     actions = [rng.uniform(-1, 1, (worlds, robots, 2)).astype(np.float32) for _ in range(16)]
