@@ -26,13 +26,13 @@ import argparse
 import json
 import os
 import shlex
-import statistics
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
+from benchmarks.peers.compare_peers import spread
 from khepera_gym import _core
 from khepera_gym.tooling.provenance import portable_command, provenance
 
@@ -68,10 +68,6 @@ def bench(env: dict[str, str], args: argparse.Namespace) -> dict[str, float]:
         label = f"swarm {row['robots']} robots{scene} split={row['split']} t={row['threads']}"
         figures[label] = row["robot_steps_per_second"]
     return figures
-
-
-def _spread(values: list[float]) -> dict[str, float]:
-    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -111,11 +107,11 @@ def main(argv: list[str] | None = None) -> int:
         row: dict[str, Any] = {"configuration": label, "columns": {}, "ratios": {}}
         for name in columns:
             figures = [r[label] for r in rounds[name] if label in r]
-            row["columns"][name] = {"rounds": figures, **_spread(figures)}
+            row["columns"][name] = {"rounds": figures, **spread(figures)}
             if name != first and len(figures) == args.rounds:
                 pairs = zip(rounds[name], rounds[first], strict=True)
                 ratio = [r[label] / f[label] for r, f in pairs]
-                row["ratios"][name] = {"rounds": ratio, **_spread(ratio)}
+                row["ratios"][name] = {"rounds": ratio, **spread(ratio)}
         rows.append(row)
     document = {
         "simd_paths": 1,

@@ -264,7 +264,8 @@ def _measure_in_child(python: str, index: int, duration: float) -> dict[str, Any
     return json.loads(child.stdout.strip().splitlines()[-1])
 
 
-def _spread(values: Sequence[float]) -> dict[str, float]:
+def spread(values: Sequence[float]) -> dict[str, float]:
+    """The median and range of interleaved rounds' figures (every benchmark here reports them)."""
     return {"median": statistics.median(values), "min": min(values), "max": max(values)}
 
 
@@ -287,7 +288,7 @@ def ratios(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 for ours, theirs in zip(row["rounds"], reference["rounds"], strict=True)
             ]
             out.append(
-                {"row": row["key"], "over": reference["key"], "peer": peer, **_spread(per_round)}
+                {"row": row["key"], "over": reference["key"], "peer": peer, **spread(per_round)}
             )
     return out
 
@@ -355,7 +356,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 **asdict(run),
                 "key": run.key,
                 "rounds": figures,
-                "env_steps_per_second": _spread(figures),
+                "env_steps_per_second": spread(figures),
                 "samples": samples[run.key],
             }
         )
