@@ -247,3 +247,11 @@ fn test_a_batch_of_swarms_gives_the_same_results_on_one_thread_or_two() {
     // it: neither may change the results.
     same_on_one_thread_or_two("n_robots = 100\nwidth = 7.0\nheight = 7.0", 3);
 }
+
+#[test]
+fn test_a_batch_of_swarms_split_by_robot_gives_the_same_results_on_one_thread_or_two() {
+    // Three worlds on two threads: a world's helper thread may run another world's step while
+    // it waits for work (`team.rs`); neither may change the results.
+    let split = "\n[physics]\nsplit = \"robot\"";
+    same_on_one_thread_or_two(&format!("n_robots = 100\nwidth = 7.0\nheight = 7.0{split}"), 3);
+}

@@ -252,7 +252,7 @@ impl Env {
         }
         self.world.start_odometry(&self.cfg);
         self.task.reset(&self.world, &layout);
-        self.world.sense(true);
+        self.world.with_team(|world| world.sense(true));
         self.observe(obs);
         // Delays start full: the wheels keep still and the first observations repeat the
         // reset's until the real ones arrive.
@@ -306,8 +306,10 @@ impl Env {
             self.pending_actions.push_back(arrived);
         }
         self.task.before_step(&mut self.world);
-        self.world.advance();
-        self.world.sense(false);
+        self.world.with_team(|world| {
+            world.advance();
+            world.sense(false);
+        });
         self.world.update_odometry(&self.cfg);
         let success = self.task.judge(
             &self.world,

@@ -7,10 +7,10 @@
 //! Units: metres; world frame.
 
 use rapier2d::math::Vector;
-use rayon::prelude::*;
 
 use super::motion::{CONTACT_TOLERANCE, MIN_CELL};
-use super::{Robot, World, MIN_ROBOTS_PER_TASK};
+use super::team::CHUNK;
+use super::{Robot, World};
 use crate::geometry::grid::Grid;
 
 /// Farthest a robot may move from the centre the contact grid holds for it before the grid is
@@ -53,7 +53,10 @@ impl World {
         let radius = self.drive.radius;
         // A robot farther than this cannot be within the tolerance.
         let cutoff = 2.0 * radius + CONTACT_TOLERANCE + 0.001;
-        self.gather_positions();
+        if !split {
+            // Split by robot, the substep wrote each robot's centre as it moved it.
+            self.gather_positions();
+        }
         let swarm = self.robots.len() > self.grid_min_robots;
         let share = self.share_robots();
         let reach = if swarm {
@@ -102,11 +105,13 @@ impl World {
             }
         };
         if share {
-            self.robots
-                .par_iter_mut()
-                .enumerate()
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each(mark);
+            let chunks = self.robots.chunks_mut(CHUNK).enumerate().collect();
+            self.team
+                .each(chunks, |(k, robots): (usize, &mut [Robot])| {
+                    for (i, robot) in robots.iter_mut().enumerate() {
+                        mark((k * CHUNK + i, robot));
+                    }
+                });
         } else {
             self.robots.iter_mut().enumerate().for_each(mark);
         }

@@ -34,6 +34,7 @@ pub mod scenery;
 mod spacing;
 mod split;
 mod swarm;
+mod team;
 pub mod tyres;
 
 use rand::SeedableRng;
@@ -167,6 +168,9 @@ pub struct World {
     /// Robots rapier moved that ended a substep in contact (`physics.split = "robot"`).
     #[serde(skip)]
     touching: Vec<u32>,
+    /// The threads sharing a swarm's passes over one step (`team.rs`).
+    #[serde(skip)]
+    team: team::Team,
     /// Worlds of more robots than this find neighbours through the grid ([`GRID_MIN_ROBOTS`];
     /// tests set it to compare both ways).
     #[serde(skip, default = "grid_min_robots")]
@@ -182,10 +186,6 @@ fn grid_min_robots() -> usize {
 /// their sensors in parallel, each robot with its own random stream (`swarm.rs`). 32 was the
 /// largest world before swarms, so every earlier scenario keeps its random stream.
 pub const GRID_MIN_ROBOTS: usize = 32;
-
-/// Robots a thread takes at least at a time when a swarm's robots are shared among a batch's
-/// threads (smaller shares cost more to hand out than to read or check).
-const MIN_ROBOTS_PER_TASK: usize = 32;
 
 /// Rapier's contact prediction distance (m) for `cfg`: `physics.contact_prediction`, or when it
 /// is 0, 1.25 × the distance two robots at full speed close in one substep, at least rapier's
@@ -249,6 +249,7 @@ impl World {
             start: Vec::new(),
             missed: Vec::new(),
             touching: Vec::new(),
+            team: team::Team::default(),
             grid_min_robots: GRID_MIN_ROBOTS,
         }
     }
@@ -373,6 +374,17 @@ impl World {
     /// state.
     pub(super) fn share_robots(&self) -> bool {
         self.robots.len() > self.grid_min_robots && rayon::current_thread_index().is_some()
+    }
+
+    /// Runs `work` (a step's motion and sensing) on this world; a swarm inside a batch's pool
+    /// keeps the pool's other threads for its passes meanwhile (`team.rs`), instead of waking
+    /// them pass by pass. The results are the same either way.
+    pub fn with_team<R>(&mut self, work: impl FnOnce(&mut World) -> R) -> R {
+        if !self.share_robots() {
+            return work(self);
+        }
+        let team = self.team.share();
+        team.scope(|| work(self))
     }
 
     /// Reads every robot's sensors (with noise from the world's stream), robot after robot; a

@@ -6,11 +6,10 @@
 
 use rapier2d::math::Vector;
 
-use rayon::prelude::*;
-
 use super::physics::BodyState;
+use super::team::{Team, CHUNK};
 use super::tyres::{slip_freely, Grip, TractionBody, GRAVITY};
-use super::{Robot, World, MIN_ROBOTS_PER_TASK};
+use super::{Robot, World};
 use crate::robot::{wrap_angle, Drive};
 use crate::scenario::DriveModel;
 
@@ -186,10 +185,9 @@ impl World {
         };
         // Robot by robot, so a swarm shares it among the batch's threads.
         if self.share_robots() {
-            self.robots
-                .par_iter_mut()
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each(finish);
+            let chunks = self.robots.chunks_mut(CHUNK).collect();
+            self.team
+                .each(chunks, |r: &mut [Robot]| r.iter_mut().for_each(finish));
         } else {
             self.robots.iter_mut().for_each(finish);
         }
@@ -267,11 +265,12 @@ impl World {
                 *keeps = rolling && within_grip(drive, before, r.wheel_speeds, ratio, grip, h);
             };
             if share {
-                self.robots
-                    .par_iter_mut()
-                    .zip(keeps_rolling.par_iter_mut())
-                    .with_min_len(MIN_ROBOTS_PER_TASK)
-                    .for_each(pass);
+                let chunks = self.robots.chunks_mut(CHUNK);
+                let chunks = chunks.zip(keeps_rolling.chunks_mut(CHUNK)).collect();
+                self.team
+                    .each(chunks, |(r, k): (&mut [Robot], &mut [bool])| {
+                        r.iter_mut().zip(k.iter_mut()).for_each(pass);
+                    });
             } else {
                 self.robots
                     .iter_mut()
@@ -363,37 +362,53 @@ impl World {
 
     /// Hands the robots to rapier for one traction substep and marks their contacts. With
     /// `roll_others = Some(h)` (`physics.split = "robot"`) only the robots `self.active` marks
-    /// go to rapier, while the others roll on their arcs over `h` seconds: at the same time,
-    /// inside a batch's pool (neither depends on the other).
+    /// go to rapier, while the others roll on their arcs over `h` seconds: at the same time, on
+    /// a swarm's team (neither depends on the other); every robot's centre is then in
+    /// `self.positions`.
     pub(super) fn traction_substep(&mut self, roll_others: Option<f32>) {
         let only = roll_others.is_some();
+        let body = |r: &Robot| TractionBody {
+            position: r.position,
+            heading: r.heading,
+            velocity: r.velocity,
+            spin: r.spin,
+            wheels: r.wheel_speeds,
+        };
         self.traction.clear();
-        for r in &self.robots {
-            self.traction.push(TractionBody {
-                position: r.position,
-                heading: r.heading,
-                velocity: r.velocity,
-                spin: r.spin,
-                wheels: r.wheel_speeds,
-            });
+        if only {
+            // Only the robots rapier takes are read (a swarm's others are in the cache of the
+            // thread that rolls them); the other slots are never read.
+            let unread = TractionBody {
+                position: Vector::ZERO,
+                heading: 0.0,
+                velocity: Vector::ZERO,
+                spin: 0.0,
+                wheels: [0.0; 2],
+            };
+            self.traction.resize(self.robots.len(), unread);
+            for (i, r) in self.robots.iter().enumerate() {
+                if self.active[i] {
+                    self.traction[i] = body(r);
+                }
+            }
+        } else {
+            self.traction.extend(self.robots.iter().map(body));
         }
         let grip = Grip {
             axle: self.drive.axle_length,
             tyre_friction: self.tyre_friction,
         };
         let active = only.then_some(self.active.as_slice());
-        let parallel = self.share_robots();
+        let team = self.share_robots().then_some(&self.team);
+        // Split by robot, rapier takes few robots (those that can touch something): sharing
+        // them among the team costs more than reading them on this thread.
+        let bodies_team = team.filter(|_| !only);
         let (physics, traction) = (&mut self.physics, &mut self.traction);
-        let mut step = || physics.step_traction(traction, active, grip, parallel);
+        let mut step = || physics.step_traction(traction, active, grip, bodies_team);
         if let Some(h) = roll_others {
-            let (robots, drive) = (&mut self.robots, &self.drive);
-            let mut roll = || roll_left_out(robots, &self.active, drive, h, parallel);
-            if rayon::current_thread_index().is_some() {
-                rayon::join(step, roll);
-            } else {
-                step();
-                roll();
-            }
+            // The others roll on the team while this thread steps rapier.
+            let rolled = (&mut self.robots[..], &mut self.positions[..]);
+            roll_left_out(rolled, &self.active, &self.drive, h, team, step);
         } else {
             step();
         }
@@ -408,13 +423,30 @@ impl World {
             r.velocity = state.velocity;
             r.spin = state.spin;
         };
-        if parallel {
-            self.robots
-                .par_iter_mut()
-                .zip(self.traction.par_iter())
+        if only {
+            // Split by robot, only rapier's robots, whose centres the contact checks then read.
+            for (i, state) in self.traction.iter().enumerate() {
+                if self.active[i] {
+                    take((i, (&mut self.robots[i], state)));
+                    self.positions[i] = state.position;
+                }
+            }
+        } else if let Some(team) = bodies_team {
+            let chunks = self.robots.chunks_mut(CHUNK);
+            let chunks = chunks
+                .zip(self.traction.chunks(CHUNK))
                 .enumerate()
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each(take);
+                .collect();
+            team.each(
+                chunks,
+                |(k, (r, t)): (usize, (&mut [Robot], &[TractionBody]))| {
+                    let start = k * CHUNK;
+                    r.iter_mut()
+                        .zip(t)
+                        .enumerate()
+                        .for_each(|(i, pair)| take((start + i, pair)));
+                },
+            );
         } else {
             self.robots
                 .iter_mut()
@@ -429,30 +461,39 @@ impl World {
     }
 }
 
-/// Rolls every robot `active` does not mark on its exact arc over `h` seconds; with `parallel`
-/// (a swarm inside a batch's pool) robot by robot on the pool's threads, with the same results.
+/// Rolls every robot `active` does not mark on its exact arc over `h` seconds and writes its
+/// centre into `positions`, while this thread runs `beside`; with a `team` (a swarm inside a batch's pool) robot by robot on the
+/// team, with the same results.
 pub(super) fn roll_left_out(
-    robots: &mut [Robot],
+    (robots, positions): (&mut [Robot], &mut [Vector]),
     active: &[bool],
     drive: &Drive,
     h: f32,
-    parallel: bool,
+    team: Option<&Team>,
+    beside: impl FnOnce(),
 ) {
-    let roll = |(r, &a): (&mut Robot, &bool)| {
+    let roll = |((r, at), &a): ((&mut Robot, &mut Vector), &bool)| {
         if !a {
             let (v, w) = drive.twist(r.wheel_speeds);
             roll_arc(r, v, w, h);
             r.step_travel += v.abs() * h;
+            *at = r.position;
         }
     };
-    if parallel {
-        robots
-            .par_iter_mut()
-            .zip(active.par_iter())
-            .with_min_len(MIN_ROBOTS_PER_TASK)
-            .for_each(roll);
+    if let Some(team) = team {
+        let chunks = robots.chunks_mut(CHUNK).zip(positions.chunks_mut(CHUNK));
+        let chunks = chunks.zip(active.chunks(CHUNK)).collect();
+        let each = |_: &mut (), ((r, p), a): ((&mut [Robot], &mut [Vector]), &[bool])| {
+            r.iter_mut().zip(p.iter_mut()).zip(a).for_each(roll);
+        };
+        team.each_beside(chunks, || (), each, beside);
     } else {
-        robots.iter_mut().zip(active).for_each(roll);
+        beside();
+        robots
+            .iter_mut()
+            .zip(positions.iter_mut())
+            .zip(active)
+            .for_each(roll);
     }
 }
 

@@ -16,15 +16,14 @@
 
 use std::cell::RefCell;
 
+use super::team::{Team, CHUNK};
+use super::tyres::{tyre_impulses, Grip, TractionBody, GRAVITY};
+use crate::geometry::scene::{Geometry, Scene};
 use rapier2d::math::{Pose, Vector};
 use rapier2d::prelude::{
     ActiveHooks, ColliderBuilder, ColliderHandle, ContactModificationContext, PhysicsHooks,
     PhysicsPipeline, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
-use rayon::prelude::*;
-
-use super::tyres::{tyre_impulses, Grip, TractionBody, GRAVITY};
-use crate::geometry::scene::{Geometry, Scene};
 
 /// Rapier state of one world. It serialises whole (bodies, colliders, broad phase, contact
 /// manifolds with their warm-start impulses), so a restored world steps bit for bit as the
@@ -106,9 +105,6 @@ impl<'de> serde::Deserialize<'de> for Physics {
         })
     }
 }
-
-/// Fewest bodies a rayon task takes in `step_traction` (a swarm's, shared among threads).
-const PARALLEL_MIN_BODIES: usize = 32;
 
 thread_local! {
     /// Rapier's pipeline, one per thread for every world stepped on it. It is workspace only
@@ -376,15 +372,15 @@ impl Physics {
     /// (`physics.split = "robot"`) only the robots it marks take part: the others' bodies are
     /// disabled in rapier (no contacts, no integration, no broad-phase update) and their entries
     /// in `bodies` left as they are; the caller guarantees that none of them can touch anything
-    /// during the substep. `parallel`: compute the bodies' targets and read rapier's results
-    /// back on the current rayon pool's threads (a swarm inside a batch's pool; the results are
-    /// the same either way). Rapier's step itself runs on the calling thread.
-    pub fn step_traction(
+    /// during the substep. With a `team`, compute the bodies' targets and read rapier's results
+    /// back on it (a swarm inside a batch's pool; the results are the same either way).
+    /// Rapier's step itself runs on the calling thread.
+    pub(super) fn step_traction(
         &mut self,
         bodies: &mut [TractionBody],
         active: Option<&[bool]>,
         grip: Grip,
-        parallel: bool,
+        team: Option<&Team>,
     ) {
         let mass = self.params.mass;
         // A uniform disc [E]: the body's mass spread over the shell's footprint.
@@ -403,14 +399,19 @@ impl Physics {
             })
         };
         self.targets.clear();
-        if parallel {
-            let each = bodies
-                .par_iter()
-                .enumerate()
-                .with_min_len(PARALLEL_MIN_BODIES);
-            self.targets.par_extend(each.map(target));
+        self.targets.resize(bodies.len(), None);
+        if let Some(team) = team {
+            let chunks = self.targets.chunks_mut(CHUNK);
+            let chunks = chunks.zip(bodies.chunks(CHUNK)).enumerate().collect();
+            team.each(chunks, |(k, (out, each)): (usize, (&mut [_], &[_]))| {
+                for (i, (slot, state)) in out.iter_mut().zip(each).enumerate() {
+                    *slot = target((k * CHUNK + i, state));
+                }
+            });
         } else {
-            self.targets.extend(bodies.iter().enumerate().map(target));
+            for (i, (slot, state)) in self.targets.iter_mut().zip(bodies.iter()).enumerate() {
+                *slot = target((i, state));
+            }
         }
         let friction = (self.params.friction, self.params.robot_friction);
         let targets = std::mem::take(&mut self.targets);
@@ -460,13 +461,14 @@ impl Physics {
                 state.spin = body.angvel();
             }
         };
-        if parallel {
-            bodies
-                .par_iter_mut()
-                .zip(built.robots.par_iter())
-                .enumerate()
-                .with_min_len(PARALLEL_MIN_BODIES)
-                .for_each(read);
+        if let Some(team) = team {
+            let chunks = bodies.chunks_mut(CHUNK);
+            let chunks = chunks.zip(built.robots.chunks(CHUNK)).enumerate().collect();
+            team.each(chunks, |(k, (each, handles)): (usize, (&mut [_], &[_]))| {
+                for (i, pair) in each.iter_mut().zip(handles).enumerate() {
+                    read((k * CHUNK + i, pair));
+                }
+            });
         } else {
             bodies
                 .iter_mut()

@@ -31,11 +31,11 @@
 //! Units: metres, seconds, radians, kg; world frame, arena centred at the origin.
 
 use rapier2d::math::Vector;
-use rayon::prelude::*;
 
 use super::motion::{roll_arc, speed_bound, CONTACT_MARGIN};
+use super::team::CHUNK;
 use super::tyres::{tyre_impulses, Grip, TractionBody, GRAVITY};
-use super::{Robot, World, MIN_ROBOTS_PER_TASK};
+use super::{Robot, World};
 use crate::geometry::scene::Scene;
 use crate::robot::wrap_angle;
 
@@ -300,11 +300,11 @@ impl World {
             r.spin = body.spin;
         };
         if self.share_robots() {
-            self.robots
-                .par_iter_mut()
-                .zip(self.active.par_iter())
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each(each);
+            let chunks = self.robots.chunks_mut(CHUNK);
+            let chunks = chunks.zip(self.active.chunks(CHUNK)).collect();
+            self.team.each(chunks, |(r, a): (&mut [Robot], &[bool])| {
+                r.iter_mut().zip(a).for_each(each);
+            });
         } else {
             self.robots.iter_mut().zip(&self.active).for_each(each);
         }

@@ -16,18 +16,24 @@
 //! Units: metres, seconds, radians; world frame.
 
 use rapier2d::math::Vector;
-use rayon::prelude::*;
 
 use super::motion::{roll_left_out, speed_bound, CONTACT_MARGIN};
+use super::team::CHUNK;
 use super::tyres::GRAVITY;
-use super::{Robot, World, MIN_ROBOTS_PER_TASK};
+use super::{Robot, World};
 use crate::robot::Drive;
+
+/// A chunk of the robots and of their slots in the motors' pass of `split_substep`.
+type Chunk<'a> = (
+    ((&'a mut [Robot], &'a mut [bool]), &'a mut [f32]),
+    (&'a mut [Vector], &'a mut [Start]),
+);
 
 /// Tries of a substep with more robots taken in before every robot is.
 const MAX_RETRIES: usize = 3;
 
 /// A robot's state at the start of a substep.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Start {
     position: Vector,
     heading: f32,
@@ -69,39 +75,55 @@ impl World {
         let n = self.robots.len();
         self.active.resize(n, false);
         self.speeds.resize(n, 0.0);
-        // One pass over the robots: motors, grip, and the speed bound `mark_reachable` needs.
-        // Robot by robot, so a swarm shares it among the batch's threads.
+        self.positions.resize(n, Vector::ZERO);
+        self.start.resize(n, Start::default());
+        // One pass over the robots: motors, grip, the speed bound `mark_reachable` needs, each
+        // robot's centre for the contact checks and its state at the substep's start, to go
+        // back to should rapier push a robot into one left out. Robot by robot, so a swarm
+        // shares it among the batch's threads (which then read each robot once a pass, in the
+        // core whose cache holds it).
         let drive = &self.drive;
-        let pass = |((r, active), speed): ((&mut Robot, &mut bool), &mut f32)| {
+        let pass = |r: &mut Robot,
+                    (active, speed): (&mut bool, &mut f32),
+                    at: &mut Vector,
+                    start: &mut Start| {
             (r.wheel_setpoint, r.wheel_speeds) =
                 drive.motors(r.wheel_setpoint, r.wheel_speeds, r.wheel_command, h);
             r.wheel_travel[0] += (r.wheel_speeds[0] * h) as f64;
             r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
             *active = !grips(drive, r, ratio, grip, h);
             *speed = speed_bound(r, gain);
+            *at = r.position;
+            *start = Start::of(r);
         };
-        if self.share_robots() {
-            self.robots
-                .par_iter_mut()
-                .zip(self.active.par_iter_mut())
-                .zip(self.speeds.par_iter_mut())
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each(pass);
+        let each = |(((r, a), s), (p, st)): Chunk<'_>| {
+            for ((((r, a), s), p), st) in r.iter_mut().zip(a).zip(s).zip(p).zip(st) {
+                pass(r, (a, s), p, st);
+            }
+        };
+        let share = self.share_robots();
+        let size = if share { CHUNK } else { n.max(1) };
+        let robots = self
+            .robots
+            .chunks_mut(size)
+            .zip(self.active.chunks_mut(size));
+        let robots = robots.zip(self.speeds.chunks_mut(size));
+        let chunks = robots.zip(
+            self.positions
+                .chunks_mut(size)
+                .zip(self.start.chunks_mut(size)),
+        );
+        if share {
+            self.team.each(chunks.collect(), each);
         } else {
-            self.robots
-                .iter_mut()
-                .zip(self.active.iter_mut())
-                .zip(self.speeds.iter_mut())
-                .for_each(pass);
+            chunks.for_each(each);
         }
         self.mark_reachable(h);
-        // The substep's start, to go back to should rapier push a robot into one left out.
-        self.start.clear();
-        self.start.extend(self.robots.iter().map(Start::of));
         for round in 0.. {
             if !self.active.contains(&true) {
-                let parallel = self.share_robots();
-                roll_left_out(&mut self.robots, &self.active, &self.drive, h, parallel);
+                let team = self.share_robots().then_some(&self.team);
+                let rolled = (&mut self.robots[..], &mut self.positions[..]);
+                roll_left_out(rolled, &self.active, &self.drive, h, team, || ());
                 return;
             }
             self.traction_substep(Some(h));
@@ -135,7 +157,7 @@ impl World {
         }
         let swarm = self.robots.len() > self.grid_min_robots;
         let share = self.share_robots();
-        self.gather_positions();
+        // `self.positions` holds every robot's centre (the motors' pass wrote it).
         let drift = if swarm {
             self.refresh_contact_grid(cutoff)
         } else {
@@ -145,7 +167,7 @@ impl World {
         let (grid, speeds, scene) = (&self.contact_grid, &self.speeds, &self.scene);
         // Robot i can touch robot j when their gap is within both reaches (symmetric, so each
         // robot decides for itself).
-        let check = |(i, active): (usize, &mut bool)| {
+        let check = |i: usize, active: &mut bool| {
             if *active {
                 return;
             }
@@ -167,13 +189,17 @@ impl World {
             }
         };
         if share {
-            self.active
-                .par_iter_mut()
-                .enumerate()
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each(check);
+            let chunks = self.active.chunks_mut(CHUNK).enumerate().collect();
+            self.team.each(chunks, |(k, active): (usize, &mut [bool])| {
+                let start = k * CHUNK;
+                for (i, a) in active.iter_mut().enumerate() {
+                    check(start + i, a);
+                }
+            });
         } else {
-            self.active.iter_mut().enumerate().for_each(check);
+            for (i, a) in self.active.iter_mut().enumerate() {
+                check(i, a);
+            }
         }
     }
 }

@@ -10,9 +10,9 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier2d::math::Vector;
-use rayon::prelude::*;
 
-use super::{Robot, World, MIN_ROBOTS_PER_TASK};
+use super::team::CHUNK;
+use super::{Robot, World};
 use crate::sensors::{SenseContext, Suite};
 
 impl World {
@@ -87,11 +87,13 @@ impl World {
         };
         if rayon::current_thread_index().is_some() {
             // Inside a batch's pool: share the robots among its threads.
-            self.robots
-                .par_iter_mut()
-                .enumerate()
-                .with_min_len(MIN_ROBOTS_PER_TASK)
-                .for_each_init(scratch, read);
+            let chunks = self.robots.chunks_mut(CHUNK).enumerate().collect();
+            let each = |scratch: &mut Scratch, (k, robots): (usize, &mut [Robot])| {
+                for (i, robot) in robots.iter_mut().enumerate() {
+                    read(scratch, (k * CHUNK + i, robot));
+                }
+            };
+            self.team.each_beside(chunks, scratch, each, || ());
         } else {
             let mut one = scratch();
             self.robots
