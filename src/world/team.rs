@@ -35,7 +35,7 @@ use std::sync::{Arc, Mutex};
 
 /// Robots a chunk of a pass holds: the flags a pass writes (a byte a robot) then fill a cache
 /// line, so that two threads seldom write one line (with 32, every line was two chunks and the
-/// contact checks took 76 µs a step on two threads against 55 with 64 or 128); larger chunks
+/// contact checks took 76 µs a step on two threads against 55-58 with 64 or 128); larger chunks
 /// would share a few hundred robots unevenly.
 pub(super) const CHUNK: usize = 64;
 
