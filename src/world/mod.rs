@@ -383,8 +383,8 @@ impl World {
         if !self.share_robots() {
             return work(self);
         }
-        let team = self.team.share();
-        team.scope(|| work(self))
+        let (team, robots) = (self.team.share(), self.robots.len());
+        team.scope(robots, || work(self))
     }
 
     /// Reads every robot's sensors (with noise from the world's stream), robot after robot; a

@@ -24,7 +24,7 @@
 //! posted pass borrows the caller's stack, and a helper reaches it through a raw pointer. The
 //! caller withdraws the pointer and waits until no helper is inside the pass before the pass
 //! returns (or unwinds), so no helper can reach it afterwards: see [`Team::each_beside`] and
-//! [`Shared::help`]. The tests below run passes on 1 to 3 threads, with a panic in a helper's
+//! [`Shared::help`]. The tests below run passes on 1 to 8 threads, with a panic in a helper's
 //! part.
 
 use std::any::Any;
@@ -84,12 +84,10 @@ impl Shared {
     fn help(&self) {
         let mut idle = 0u32;
         while self.open.load(SeqCst) {
-            // Counted busy before looking, so that a caller which has withdrawn the job and
-            // then reads `busy` as 0 knows no helper saw it (both sequentially consistent).
-            self.busy.fetch_add(1, SeqCst);
+            // Waiting only reads `job` (no write to the line the caller posts on, whatever the
+            // number of helpers).
             let job = self.job.load(SeqCst);
             if job.is_null() {
-                self.busy.fetch_sub(1, SeqCst);
                 idle += 1;
                 if idle.is_multiple_of(SPINS_BETWEEN_YIELDS) {
                     rayon::yield_now();
@@ -98,9 +96,18 @@ impl Shared {
                 }
                 continue;
             }
+            // Counted busy, then the job looked at again: a caller that has withdrawn it and
+            // then reads `busy` as 0 knows that no helper will reach it (both sequentially
+            // consistent). A job posted anew at the same address is as live as the first.
+            self.busy.fetch_add(1, SeqCst);
+            if self.job.load(SeqCst) != job {
+                self.busy.fetch_sub(1, SeqCst);
+                continue;
+            }
             // SAFETY: `job` was posted by `Team::each_beside`, which withdraws it and waits for
             // `busy` to reach 0 before the job's stack frame ends; this helper counted itself
-            // busy before loading it, so the frame is live until the `fetch_sub` below.
+            // busy before finding it still posted, so the frame is live until the `fetch_sub`
+            // below.
             let posted = unsafe { &*job };
             if let Err(panic) = catch_unwind(AssertUnwindSafe(|| (posted.take_part)(true))) {
                 let mut first = posted.panic.lock().unwrap_or_else(|e| e.into_inner());
@@ -125,10 +132,12 @@ impl Team {
     }
 
     /// Runs `work` with the current rayon pool's other threads helping with the passes it
-    /// posts; without a pool (or with one thread) `work` just runs, and the passes run in
-    /// order on this thread.
-    pub(super) fn scope<R>(&self, work: impl FnOnce() -> R) -> R {
-        let helpers = rayon::current_num_threads().saturating_sub(1);
+    /// posts over `items` items (robots): at most one helper per two chunks of them, since a
+    /// helper without a chunk to claim only spins. Without a pool (or with one thread) `work`
+    /// just runs, and the passes run in order on this thread.
+    pub(super) fn scope<R>(&self, items: usize, work: impl FnOnce() -> R) -> R {
+        let most = (items.div_ceil(CHUNK) / 2).max(1);
+        let helpers = rayon::current_num_threads().saturating_sub(1).min(most);
         if rayon::current_thread_index().is_none() || helpers == 0 {
             return work();
         }
@@ -255,11 +264,11 @@ mod tests {
 
     #[test]
     fn every_item_runs_once_whoever_claims_it_and_a_pass_sees_the_last_ones_results() {
-        for threads in [1, 2, 3] {
+        for threads in [1, 2, 3, 8] {
             let team = Team::default();
             let mut values: Vec<u64> = (0..1000).collect();
             pool(threads).install(|| {
-                team.scope(|| {
+                team.scope(1000, || {
                     for round in 0..50u64 {
                         let items: Vec<&mut [u64]> = values.chunks_mut(CHUNK).collect();
                         team.each(items, |chunk| chunk.iter_mut().for_each(|v| *v += round));
@@ -278,7 +287,7 @@ mod tests {
         let mut beside_ran = false;
         let inits = AtomicUsize::new(0);
         pool(2).install(|| {
-            team.scope(|| {
+            team.scope(1000, || {
                 let items: Vec<&mut [u32]> = values.chunks_mut(CHUNK).collect();
                 team.each_beside(
                     items,
@@ -305,7 +314,7 @@ mod tests {
         let team = Team::default();
         let caught = pool(2).install(|| {
             catch_unwind(AssertUnwindSafe(|| {
-                team.scope(|| {
+                team.scope(1000, || {
                     team.each((0..64).collect(), |i: usize| assert!(i != 40, "item 40"));
                 })
             }))
@@ -313,7 +322,7 @@ mod tests {
         assert!(caught.is_err());
         let mut values = [1u8; 100];
         pool(2).install(|| {
-            team.scope(|| {
+            team.scope(1000, || {
                 let items: Vec<&mut [u8]> = values.chunks_mut(CHUNK).collect();
                 team.each(items, |chunk| chunk.iter_mut().for_each(|v| *v = 2));
             })
