@@ -105,13 +105,12 @@ impl World {
             }
         };
         if share {
-            let chunks = self.robots.chunks_mut(CHUNK).enumerate().collect();
-            self.team
-                .each(chunks, |(k, robots): (usize, &mut [Robot])| {
-                    for (i, robot) in robots.iter_mut().enumerate() {
-                        mark((k * CHUNK + i, robot));
-                    }
-                });
+            let chunks = self.robots.chunks_mut(CHUNK).collect();
+            self.team.each(chunks, |first, robots: &mut [Robot]| {
+                for (i, robot) in robots.iter_mut().enumerate() {
+                    mark((first + i, robot));
+                }
+            });
         } else {
             self.robots.iter_mut().enumerate().for_each(mark);
         }

@@ -187,7 +187,7 @@ impl World {
         if self.share_robots() {
             let chunks = self.robots.chunks_mut(CHUNK).collect();
             self.team
-                .each(chunks, |r: &mut [Robot]| r.iter_mut().for_each(finish));
+                .each(chunks, |_, r: &mut [Robot]| r.iter_mut().for_each(finish));
         } else {
             self.robots.iter_mut().for_each(finish);
         }
@@ -268,7 +268,7 @@ impl World {
                 let chunks = self.robots.chunks_mut(CHUNK);
                 let chunks = chunks.zip(keeps_rolling.chunks_mut(CHUNK)).collect();
                 self.team
-                    .each(chunks, |(r, k): (&mut [Robot], &mut [bool])| {
+                    .each(chunks, |_, (r, k): (&mut [Robot], &mut [bool])| {
                         r.iter_mut().zip(k.iter_mut()).for_each(pass);
                     });
             } else {
@@ -378,14 +378,8 @@ impl World {
         if only {
             // Only the robots rapier takes are read (a swarm's others are in the cache of the
             // thread that rolls them); the other slots are never read.
-            let unread = TractionBody {
-                position: Vector::ZERO,
-                heading: 0.0,
-                velocity: Vector::ZERO,
-                spin: 0.0,
-                wheels: [0.0; 2],
-            };
-            self.traction.resize(self.robots.len(), unread);
+            self.traction
+                .resize(self.robots.len(), TractionBody::default());
             for (i, r) in self.robots.iter().enumerate() {
                 if self.active[i] {
                     self.traction[i] = body(r);
@@ -433,20 +427,12 @@ impl World {
             }
         } else if let Some(team) = bodies_team {
             let chunks = self.robots.chunks_mut(CHUNK);
-            let chunks = chunks
-                .zip(self.traction.chunks(CHUNK))
-                .enumerate()
-                .collect();
-            team.each(
-                chunks,
-                |(k, (r, t)): (usize, (&mut [Robot], &[TractionBody]))| {
-                    let start = k * CHUNK;
-                    r.iter_mut()
-                        .zip(t)
-                        .enumerate()
-                        .for_each(|(i, pair)| take((start + i, pair)));
-                },
-            );
+            let chunks = chunks.zip(self.traction.chunks(CHUNK)).collect();
+            team.each(chunks, |first, (r, t): (&mut [Robot], &[TractionBody])| {
+                for (i, pair) in r.iter_mut().zip(t).enumerate() {
+                    take((first + i, pair));
+                }
+            });
         } else {
             self.robots
                 .iter_mut()
@@ -462,8 +448,8 @@ impl World {
 }
 
 /// Rolls every robot `active` does not mark on its exact arc over `h` seconds and writes its
-/// centre into `positions`, while this thread runs `beside`; with a `team` (a swarm inside a batch's pool) robot by robot on the
-/// team, with the same results.
+/// centre into `positions`, while this thread runs `beside`; with a `team` (a swarm inside a
+/// batch's pool) robot by robot on the team, with the same results.
 pub(super) fn roll_left_out(
     (robots, positions): (&mut [Robot], &mut [Vector]),
     active: &[bool],
@@ -483,7 +469,7 @@ pub(super) fn roll_left_out(
     if let Some(team) = team {
         let chunks = robots.chunks_mut(CHUNK).zip(positions.chunks_mut(CHUNK));
         let chunks = chunks.zip(active.chunks(CHUNK)).collect();
-        let each = |_: &mut (), ((r, p), a): ((&mut [Robot], &mut [Vector]), &[bool])| {
+        let each = |_: &mut (), _, ((r, p), a): ((&mut [Robot], &mut [Vector]), &[bool])| {
             r.iter_mut().zip(p.iter_mut()).zip(a).for_each(roll);
         };
         team.each_beside(chunks, || (), each, beside);

@@ -402,10 +402,10 @@ impl Physics {
         self.targets.resize(bodies.len(), None);
         if let Some(team) = team {
             let chunks = self.targets.chunks_mut(CHUNK);
-            let chunks = chunks.zip(bodies.chunks(CHUNK)).enumerate().collect();
-            team.each(chunks, |(k, (out, each)): (usize, (&mut [_], &[_]))| {
+            let chunks = chunks.zip(bodies.chunks(CHUNK)).collect();
+            team.each(chunks, |first, (out, each): (&mut [_], &[_])| {
                 for (i, (slot, state)) in out.iter_mut().zip(each).enumerate() {
-                    *slot = target((k * CHUNK + i, state));
+                    *slot = target((first + i, state));
                 }
             });
         } else {
@@ -463,10 +463,10 @@ impl Physics {
         };
         if let Some(team) = team {
             let chunks = bodies.chunks_mut(CHUNK);
-            let chunks = chunks.zip(built.robots.chunks(CHUNK)).enumerate().collect();
-            team.each(chunks, |(k, (each, handles)): (usize, (&mut [_], &[_]))| {
+            let chunks = chunks.zip(built.robots.chunks(CHUNK)).collect();
+            team.each(chunks, |first, (each, handles): (&mut [_], &[_])| {
                 for (i, pair) in each.iter_mut().zip(handles).enumerate() {
-                    read((k * CHUNK + i, pair));
+                    read((first + i, pair));
                 }
             });
         } else {

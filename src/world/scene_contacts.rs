@@ -302,9 +302,10 @@ impl World {
         if self.share_robots() {
             let chunks = self.robots.chunks_mut(CHUNK);
             let chunks = chunks.zip(self.active.chunks(CHUNK)).collect();
-            self.team.each(chunks, |(r, a): (&mut [Robot], &[bool])| {
-                r.iter_mut().zip(a).for_each(each);
-            });
+            self.team
+                .each(chunks, |_, (r, a): (&mut [Robot], &[bool])| {
+                    r.iter_mut().zip(a).for_each(each);
+                });
         } else {
             self.robots.iter_mut().zip(&self.active).for_each(each);
         }

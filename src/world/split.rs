@@ -114,7 +114,7 @@ impl World {
                 .zip(self.start.chunks_mut(size)),
         );
         if share {
-            self.team.each(chunks.collect(), each);
+            self.team.each(chunks.collect(), |_, chunk| each(chunk));
         } else {
             chunks.for_each(each);
         }
@@ -189,11 +189,10 @@ impl World {
             }
         };
         if share {
-            let chunks = self.active.chunks_mut(CHUNK).enumerate().collect();
-            self.team.each(chunks, |(k, active): (usize, &mut [bool])| {
-                let start = k * CHUNK;
+            let chunks = self.active.chunks_mut(CHUNK).collect();
+            self.team.each(chunks, |first, active: &mut [bool]| {
                 for (i, a) in active.iter_mut().enumerate() {
-                    check(start + i, a);
+                    check(first + i, a);
                 }
             });
         } else {

@@ -87,10 +87,10 @@ impl World {
         };
         if rayon::current_thread_index().is_some() {
             // Inside a batch's pool: share the robots among its threads.
-            let chunks = self.robots.chunks_mut(CHUNK).enumerate().collect();
-            let each = |scratch: &mut Scratch, (k, robots): (usize, &mut [Robot])| {
+            let chunks = self.robots.chunks_mut(CHUNK).collect();
+            let each = |scratch: &mut Scratch, first: usize, robots: &mut [Robot]| {
                 for (i, robot) in robots.iter_mut().enumerate() {
-                    read(scratch, (k * CHUNK + i, robot));
+                    read(scratch, (first + i, robot));
                 }
             };
             self.team.each_beside(chunks, scratch, each, || ());

@@ -156,27 +156,35 @@ impl Team {
     }
 
     /// Runs `f` on every item, items shared among the team (see [`Team::each_beside`]).
-    pub(super) fn each<T: Send>(&self, items: Vec<T>, f: impl Fn(T) + Sync) {
-        self.each_beside(items, || (), |_: &mut (), item| f(item), || ());
+    pub(super) fn each<T: Send>(&self, items: Vec<T>, f: impl Fn(usize, T) + Sync) {
+        self.each_beside(
+            items,
+            || (),
+            |_: &mut (), first, item| f(first, item),
+            || (),
+        );
     }
 
-    /// Posts `f` over `items` (chunks of robots) to the team, runs `beside` on this thread,
-    /// then claims items until none is left and waits for the helpers' last ones. Each member
-    /// makes its own scratch with `init` before its first item. Outside a scope the items run
-    /// in order after `beside`. A panic in any part is resumed here, after every helper has
-    /// left the pass.
+    /// Posts `f` over `items` to the team, runs `beside` on this thread, then claims items
+    /// until none is left and waits for the helpers' last ones. Item k is the k-th chunk of
+    /// [`CHUNK`] robots: `f` gets the index of its first robot with it. Each member makes its
+    /// own scratch with `init` before its first item. Outside a scope the items run in order
+    /// after `beside`. A panic in any part is resumed here, after every helper has left the
+    /// pass.
     pub(super) fn each_beside<T: Send, S>(
         &self,
         items: Vec<T>,
         init: impl Fn() -> S + Sync,
-        f: impl Fn(&mut S, T) + Sync,
+        f: impl Fn(&mut S, usize, T) + Sync,
         beside: impl FnOnce(),
     ) {
         let shared = &*self.shared;
         if !shared.open.load(SeqCst) {
             beside();
             let mut scratch = init();
-            items.into_iter().for_each(|item| f(&mut scratch, item));
+            for (k, item) in items.into_iter().enumerate() {
+                f(&mut scratch, k * CHUNK, item);
+            }
             return;
         }
         let slots: Vec<Mutex<Option<T>>> = items.into_iter().map(|t| Mutex::new(Some(t))).collect();
@@ -189,7 +197,7 @@ impl Team {
             while let Some(k) = ends.claim(from_back) {
                 let item = slots[k].lock().unwrap_or_else(|e| e.into_inner()).take();
                 if let Some(item) = item {
-                    f(scratch.get_or_insert_with(&init), item);
+                    f(scratch.get_or_insert_with(&init), k * CHUNK, item);
                 }
             }
         };
@@ -271,7 +279,7 @@ mod tests {
                 team.scope(1000, || {
                     for round in 0..50u64 {
                         let items: Vec<&mut [u64]> = values.chunks_mut(CHUNK).collect();
-                        team.each(items, |chunk| chunk.iter_mut().for_each(|v| *v += round));
+                        team.each(items, |_, chunk| chunk.iter_mut().for_each(|v| *v += round));
                     }
                 })
             });
@@ -295,7 +303,7 @@ mod tests {
                         inits.fetch_add(1, SeqCst);
                         7u32
                     },
-                    |seven, chunk| chunk.iter_mut().for_each(|v| *v = *seven),
+                    |seven, _, chunk| chunk.iter_mut().for_each(|v| *v = *seven),
                     || beside_ran = true,
                 );
             })
@@ -315,7 +323,7 @@ mod tests {
         let caught = pool(2).install(|| {
             catch_unwind(AssertUnwindSafe(|| {
                 team.scope(1000, || {
-                    team.each((0..64).collect(), |i: usize| assert!(i != 40, "item 40"));
+                    team.each((0..64).collect(), |_, i: usize| assert!(i != 40, "item 40"));
                 })
             }))
         });
@@ -324,7 +332,7 @@ mod tests {
         pool(2).install(|| {
             team.scope(1000, || {
                 let items: Vec<&mut [u8]> = values.chunks_mut(CHUNK).collect();
-                team.each(items, |chunk| chunk.iter_mut().for_each(|v| *v = 2));
+                team.each(items, |_, chunk| chunk.iter_mut().for_each(|v| *v = 2));
             })
         });
         assert!(values.iter().all(|&v| v == 2));

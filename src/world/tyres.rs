@@ -12,7 +12,7 @@ use rapier2d::math::Vector;
 pub const GRAVITY: f32 = 9.81;
 
 /// A robot as the traction substep sees it: its planar state and its wheels' speeds.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub struct TractionBody {
     /// Centre (m).
     pub position: Vector,
