@@ -255,3 +255,26 @@ fn test_a_batch_of_swarms_split_by_robot_gives_the_same_results_on_one_thread_or
     let split = "\n[physics]\nsplit = \"robot\"";
     same_on_one_thread_or_two(&format!("n_robots = 100\nwidth = 7.0\nheight = 7.0{split}"), 3);
 }
+
+#[test]
+fn test_a_swarm_in_a_pool_writes_the_observations_it_writes_alone() {
+    // Inside a batch's pool a swarm's team applies its agents' actions and writes their
+    // observations in blocks, each block on whichever thread claims it; a world stepped alone
+    // (no pool) goes agent after agent, with one observation writer. Both must give the same observation, value for value, at
+    // the reset and at every step. 100 robots: one block of 64 agents and a shorter one.
+    let overrides = "n_robots = 100\nwidth = 7.0\nheight = 7.0";
+    let mut pooled = batch(overrides, 1, 2);
+    let cfg = swarm_scenario(overrides).expect("scenario");
+    let (mut alone, reset_obs) = common::env(TaskKind::MultiNav, cfg, 9);
+    assert!(pooled.obs() == reset_obs.as_slice(), "the reset's observations differ");
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+    let mut obs = vec![0.0; alone.obs_dim()];
+    for step in 0..30 {
+        let action: Vec<f32> = (0..pooled.act_dim())
+            .map(|_| rng.random_range(-0.2..1.0))
+            .collect();
+        pooled.step(&action).expect("step");
+        alone.step(&action, &mut obs);
+        assert!(pooled.obs() == obs.as_slice(), "step {step}: the observations differ");
+    }
+}

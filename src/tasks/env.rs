@@ -25,7 +25,7 @@ use crate::obs::ObsWriter;
 use crate::robot::ActionType;
 use crate::scenario::Scenario;
 use crate::world::layout::Spawner;
-use crate::world::World;
+use crate::world::{Robot, World, ROBOT_CHUNK};
 
 /// Statistics of one episode of the world (all its agents together).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -122,6 +122,12 @@ pub struct Env {
     /// Action values per agent ([`action_width`]).
     action_width: usize,
     obs_dim: usize,
+    /// The length of every agent's observation, when they all have one length (a swarm then
+    /// writes them in parallel).
+    agent_width: Option<usize>,
+    /// Whether agent k drives robot k, for every agent and robot (a swarm then applies the
+    /// actions in parallel).
+    agents_are_robots: bool,
     /// Each agent's reward on the last step.
     pub agent_rewards: Vec<f32>,
     /// Each agent's termination on the last step (multinav: its robot arrived).
@@ -166,7 +172,16 @@ impl Env {
         let task = kind.new_state(&cfg)?;
         let agents = kind.agents(&cfg)?;
         let obs_dim = agents.iter().map(|a| a.layout.len()).sum();
+        let width = agents.first().map_or(0, |a| a.layout.len());
+        let agent_width = agents
+            .iter()
+            .all(|a| a.layout.len() == width)
+            .then_some(width)
+            .filter(|&w| w > 0);
         let agent_bodies: Vec<Body> = agents.iter().map(|a| a.body).collect();
+        let agents_are_robots = agent_bodies.len() == spawner.n_robots()
+            && (agent_bodies.iter().enumerate())
+                .all(|(k, b)| matches!(b, Body::Robot(i) if *i == k));
         let n_agents = agent_bodies.len();
         let action_width = action_width(&cfg);
         // A vehicle (DroneFollow's drone) has no LEDs to set.
@@ -191,6 +206,8 @@ impl Env {
             agent_bodies,
             action_width,
             obs_dim,
+            agent_width,
+            agents_are_robots,
             agent_rewards: vec![0.0; n_agents],
             agent_terminated: vec![false; n_agents],
             stats: EpisodeStats::default(),
@@ -252,8 +269,11 @@ impl Env {
         }
         self.world.start_odometry(&self.cfg);
         self.task.reset(&self.world, &layout);
-        self.world.with_team(|world| world.sense(true));
-        self.observe(obs);
+        // A swarm's team reads the sensors and writes the observations.
+        self.world.step_team().scope(|| {
+            self.world.sense(true);
+            self.observe(obs);
+        });
         // Delays start full: the wheels keep still and the first observations repeat the
         // reset's until the real ones arrive.
         self.pending_actions.clear();
@@ -294,6 +314,11 @@ impl Env {
     /// Applies `action` (normalised, [`action_width`] numbers per agent, already checked finite),
     /// advances one control step and writes the next observation.
     pub fn step(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
+        // A swarm's team stays for the whole step, the task's passes included.
+        self.world.step_team().scope(|| self.step_now(action, obs))
+    }
+
+    fn step_now(&mut self, action: &[f32], obs: &mut [f32]) -> StepOutcome {
         if self.cfg.task.action_delay == 0 {
             self.apply(action);
         } else {
@@ -306,10 +331,8 @@ impl Env {
             self.pending_actions.push_back(arrived);
         }
         self.task.before_step(&mut self.world);
-        self.world.with_team(|world| {
-            world.advance();
-            world.sense(false);
-        });
+        self.world.advance();
+        self.world.sense(false);
         self.world.update_odometry(&self.cfg);
         let success = self.task.judge(
             &self.world,
@@ -384,23 +407,37 @@ impl Env {
     /// ([`TaskState::act`]), LED colours. An empty `action` (none sent yet) stops the wheels and
     /// leaves the LEDs as they are.
     fn apply(&mut self, action: &[f32]) {
-        let width = self.action_width;
+        let team = self.world.step_team();
+        let (width, drive, action_type) = (self.action_width, &self.world.drive, self.action_type);
+        let set = |robot: &mut Robot, sent: Option<&[f32]>| {
+            let wheels = sent.map_or([0.0; WHEEL_ACTIONS], |a| [a[0], a[1]]);
+            robot.wheel_command = drive.wheel_command(wheels, action_type);
+            if let Some(&[_, _, r, g, b]) = sent {
+                robot.led = led_color([r, g, b]);
+            }
+        };
+        let robots = &mut self.world.robots;
+        if team.shares() && self.agents_are_robots && action.len() == robots.len() * width {
+            // A swarm whose agent k drives robot k: blocks of robots, shared among the team.
+            let blocks = robots.chunks_mut(ROBOT_CHUNK);
+            let blocks = blocks.zip(action.chunks(ROBOT_CHUNK * width)).collect();
+            team.each(blocks, |_, (robots, sent): (&mut [Robot], &[f32])| {
+                for (robot, sent) in robots.iter_mut().zip(sent.chunks(width)) {
+                    set(robot, Some(sent));
+                }
+            });
+            return;
+        }
         for (k, body) in self.agent_bodies.iter().enumerate() {
             let sent = action.get(k * width..(k + 1) * width);
-            let wheels = sent.map_or([0.0; WHEEL_ACTIONS], |a| [a[0], a[1]]);
-            let robot = match *body {
-                Body::Robot(i) => i,
+            match *body {
+                Body::Robot(i) => set(&mut robots[i], sent),
                 Body::Vehicle(v) => {
                     // Clipped to the action space like a robot's wheels (robot.rs): out-of-range
                     // values act as the nearest ones in [-1, 1].
+                    let wheels = sent.map_or([0.0; WHEEL_ACTIONS], |a| [a[0], a[1]]);
                     self.task.act(v, wheels.map(|a| a.clamp(-1.0, 1.0)));
-                    continue;
                 }
-            };
-            let body = &mut self.world.robots[robot];
-            body.wheel_command = self.world.drive.wheel_command(wheels, self.action_type);
-            if let Some(&[_, _, r, g, b]) = sent {
-                body.led = led_color([r, g, b]);
             }
         }
     }
@@ -408,14 +445,30 @@ impl Env {
     /// Writes the joint observation: agent after agent, its robot's observed sensor blocks
     /// (an agent driving a robot), then the task's blocks for it.
     fn observe(&self, obs: &mut [f32]) {
-        let mut out = ObsWriter::new(obs);
-        for (k, body) in self.agent_bodies.iter().enumerate() {
-            if let Body::Robot(i) = *body {
+        let agent = |k: usize, out: &mut ObsWriter| {
+            if let Body::Robot(i) = self.agent_bodies[k] {
                 self.world
                     .sensors
-                    .observe(&self.world.robots[i].readings, &mut out);
+                    .observe(&self.world.robots[i].readings, out);
             }
-            self.task.observe(&self.world, &self.cfg, k, &mut out);
+            self.task.observe(&self.world, &self.cfg, k, out);
+        };
+        let team = self.world.step_team();
+        if let Some(width) = self.agent_width.filter(|_| team.shares()) {
+            // A swarm: blocks of agents, each its own writer, shared among the team.
+            let blocks = obs.chunks_mut(ROBOT_CHUNK * width).collect();
+            team.each(blocks, |first, block: &mut [f32]| {
+                for (k, out) in block.chunks_mut(width).enumerate() {
+                    let mut out = ObsWriter::new(out);
+                    agent(first + k, &mut out);
+                    debug_assert_eq!(out.position(), width, "agent {} wrote", first + k);
+                }
+            });
+            return;
+        }
+        let mut out = ObsWriter::new(obs);
+        for k in 0..self.agent_bodies.len() {
+            agent(k, &mut out);
         }
         debug_assert_eq!(
             out.position(),

@@ -50,6 +50,8 @@ use crate::scenario::{DriveModel, Localization, MotionSplit, Scenario, SceneSolv
 use crate::sensors::{Readings, SenseContext, Suite};
 pub use motion::integrate_arc;
 use physics::{BodyState, Physics, PhysicsParams};
+pub use team::StepTeam;
+pub(crate) use team::CHUNK as ROBOT_CHUNK;
 use tyres::TractionBody;
 
 /// State of one robot.
@@ -376,15 +378,15 @@ impl World {
         self.robots.len() > self.grid_min_robots && rayon::current_thread_index().is_some()
     }
 
-    /// Runs `work` (a step's motion and sensing) on this world; a swarm inside a batch's pool
-    /// keeps the pool's other threads for its passes meanwhile (`team.rs`), instead of waking
-    /// them pass by pass. The results are the same either way.
-    pub fn with_team<R>(&mut self, work: impl FnOnce(&mut World) -> R) -> R {
-        if !self.share_robots() {
-            return work(self);
+    /// The team a step of this world runs in ([`StepTeam::scope`]): a swarm inside a batch's
+    /// pool keeps the pool's other threads for its passes meanwhile (`team.rs`), instead of
+    /// waking them pass by pass; any other world runs on its caller's thread alone. The
+    /// results are the same either way.
+    pub fn step_team(&self) -> StepTeam {
+        StepTeam {
+            team: self.share_robots().then(|| self.team.share()),
+            robots: self.robots.len(),
         }
-        let (team, robots) = (self.team.share(), self.robots.len());
-        team.scope(robots, || work(self))
     }
 
     /// Reads every robot's sensors (with noise from the world's stream), robot after robot; a

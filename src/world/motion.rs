@@ -114,11 +114,19 @@ impl World {
 
     /// Advances every robot by one control step toward its `wheel_command`.
     pub fn advance(&mut self) {
-        for r in &mut self.robots {
+        let begin = |r: &mut Robot| {
             r.step_travel = 0.0;
             r.in_contact = false;
             r.step_start_heading = r.heading;
             r.step_start_position = r.position;
+        };
+        // Robot by robot, so a swarm shares it among the batch's threads.
+        if self.share_robots() {
+            let chunks = self.robots.chunks_mut(CHUNK).collect();
+            self.team
+                .each(chunks, |_, r: &mut [Robot]| r.iter_mut().for_each(begin));
+        } else {
+            self.robots.iter_mut().for_each(begin);
         }
         match self.drive_model {
             DriveModel::Kinematic => self.advance_kinematic(),
@@ -374,10 +382,9 @@ impl World {
             spin: r.spin,
             wheels: r.wheel_speeds,
         };
-        self.traction.clear();
         if only {
             // Only the robots rapier takes are read (a swarm's others are in the cache of the
-            // thread that rolls them); the other slots are never read.
+            // thread that rolls them); the other slots are never read, and keep what they held.
             self.traction
                 .resize(self.robots.len(), TractionBody::default());
             for (i, r) in self.robots.iter().enumerate() {
@@ -386,6 +393,7 @@ impl World {
                 }
             }
         } else {
+            self.traction.clear();
             self.traction.extend(self.robots.iter().map(body));
         }
         let grip = Grip {

@@ -41,10 +41,13 @@ pub struct Physics {
     rapier: Rapier,
     /// What the world is built with, to build it (again, for a new scene).
     params: PhysicsParams,
-    /// Scratch of `step_traction`: each body's pose, velocity and yaw rate to hand to rapier
-    /// (None: left out of the substep).
-    targets: Vec<Option<(Pose, Vector, f32)>>,
+    /// Scratch of `step_traction`: the pose, velocity and yaw rate to hand to rapier of each
+    /// body taking part in the substep, in robot order.
+    targets: Vec<Target>,
 }
+
+/// A body's pose, velocity and yaw rate for rapier's next step.
+type Target = (Pose, Vector, f32);
 
 /// A world's rapier side: not built yet (the scene to build it for), or built.
 enum Rapier {
@@ -56,6 +59,25 @@ enum Rapier {
 struct Built {
     world: PhysicsWorld,
     robots: Vec<RigidBodyHandle>,
+    /// Whether each robot's body is enabled in rapier, as rapier holds it: a swarm split by
+    /// robot leaves most bodies disabled, and reading this costs a byte a robot where asking
+    /// rapier reads each body's large struct.
+    enabled: Vec<bool>,
+}
+
+impl Built {
+    /// `world` with the robots' `robots`, as saved.
+    fn of(world: PhysicsWorld, robots: Vec<RigidBodyHandle>) -> Self {
+        let enabled = robots
+            .iter()
+            .map(|h| world.bodies.get(*h).is_some_and(|b| b.is_enabled()))
+            .collect();
+        Self {
+            world,
+            robots,
+            enabled,
+        }
+    }
 }
 
 /// What a [`Physics`] saves (the fields it had when it was built with the world, in the same
@@ -96,10 +118,7 @@ impl<'de> serde::Deserialize<'de> for Physics {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let saved = Saved::deserialize(deserializer)?;
         Ok(Self {
-            rapier: Rapier::Built(Box::new(Built {
-                world: saved.world,
-                robots: saved.robots,
-            })),
+            rapier: Rapier::Built(Box::new(Built::of(saved.world, saved.robots))),
             params: saved.params,
             targets: Vec::new(),
         })
@@ -230,7 +249,7 @@ impl Built {
                 .restitution(0.0);
             world.colliders.insert(collider);
         }
-        Self { world, robots }
+        Self::of(world, robots)
     }
 }
 
@@ -391,52 +410,59 @@ impl Physics {
         // Each taking part: its pose, and its velocities after the tyres' impulses. Robot by
         // robot (a sine and cosine each), so a swarm shares it among the batch's threads; rapier
         // is then handed them one after another.
-        let target = |(i, state): (usize, &TractionBody)| {
-            takes_part(i).then(|| {
-                let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
-                let pose = Pose::new(state.position, state.heading);
-                (pose, state.velocity + dv, state.spin + dw)
-            })
+        let target = |state: &TractionBody| {
+            let (dv, dw) = tyre_impulses(state, grip.axle, mass, inertia, cap);
+            let pose = Pose::new(state.position, state.heading);
+            (pose, state.velocity + dv, state.spin + dw)
         };
         self.targets.clear();
-        self.targets.resize(bodies.len(), None);
-        if let Some(team) = team {
-            let chunks = self.targets.chunks_mut(CHUNK);
-            let chunks = chunks.zip(bodies.chunks(CHUNK)).collect();
-            team.each(chunks, |first, (out, each): (&mut [_], &[_])| {
-                for (i, (slot, state)) in out.iter_mut().zip(each).enumerate() {
-                    *slot = target((first + i, state));
-                }
-            });
-        } else {
-            for (i, (slot, state)) in self.targets.iter_mut().zip(bodies.iter()).enumerate() {
-                *slot = target((i, state));
+        match (active, team) {
+            (Some(active), _) => {
+                // Split by robot: the few robots rapier takes, in robot order.
+                let taking = bodies.iter().zip(active).filter(|(_, &a)| a);
+                self.targets.extend(taking.map(|(state, _)| target(state)));
             }
+            (None, Some(team)) => {
+                let unset = (Pose::new(Vector::ZERO, 0.0), Vector::ZERO, 0.0);
+                self.targets.resize(bodies.len(), unset);
+                let chunks = self.targets.chunks_mut(CHUNK);
+                let chunks = chunks.zip(bodies.chunks(CHUNK)).collect();
+                team.each(
+                    chunks,
+                    |_, (out, each): (&mut [Target], &[TractionBody])| {
+                        for (slot, state) in out.iter_mut().zip(each) {
+                            *slot = target(state);
+                        }
+                    },
+                );
+            }
+            (None, None) => self.targets.extend(bodies.iter().map(target)),
         }
         let friction = (self.params.friction, self.params.robot_friction);
         let targets = std::mem::take(&mut self.targets);
         let built = self.built();
-        for (target, handle) in targets.iter().zip(&built.robots) {
-            let Some((pose, velocity, spin)) = target else {
+        let mut next = targets.iter();
+        for (i, handle) in built.robots.iter().enumerate() {
+            if !takes_part(i) {
                 // A body already disabled is left untouched: `get_mut` would put it on rapier's
                 // list of modified bodies, which the step then walks for nothing (in a swarm
                 // split by robot, most of the bodies every substep).
-                let enabled = built
-                    .world
-                    .bodies
-                    .get(*handle)
-                    .is_some_and(|b| b.is_enabled());
-                if enabled {
+                if built.enabled[i] {
                     if let Some(body) = built.world.bodies.get_mut(*handle) {
                         body.set_enabled(false);
                     }
+                    built.enabled[i] = false;
                 }
+                continue;
+            }
+            let Some((pose, velocity, spin)) = next.next() else {
                 continue;
             };
             let Some(body) = built.world.bodies.get_mut(*handle) else {
                 continue;
             };
             body.set_enabled(true);
+            built.enabled[i] = true;
             body.set_position(*pose, true);
             body.set_linvel(*velocity, true);
             body.set_angvel(*spin, true);

@@ -8,10 +8,12 @@
 //! two threads and the world stepped only 1.12 times faster on two threads than on one
 //! (issue 54; `perf` put 14 % of the samples in the kernel's futex and scheduler).
 //!
-//! [`World::with_team`] instead takes the pool's other threads for the whole step: each runs
-//! [`Shared::help`], waiting for work without sleeping, while the calling thread steps the world
-//! and posts each pass to the team ([`Team::each`]) as chunks that any member claims, the caller
-//! included. A pass then costs a few atomic operations to share, not a wake-up.
+//! A swarm's step instead takes the pool's other threads for the whole step
+//! ([`World::step_team`](super::World::step_team), which `Env::step` and `Env::reset` run in):
+//! each runs [`Shared::help`], waiting for work without sleeping, while the calling thread steps
+//! the world and posts each pass to the team ([`Team::each`]) as chunks that any member claims,
+//! the caller included: the world's passes and the env's (the actions, the observations). A
+//! pass then costs a few atomic operations to share, not a wake-up.
 //!
 //! The caller never waits for a chunk nobody has claimed: it claims chunks itself until none
 //! is left, and waits only for those a helper is running. So a helper that never starts (its
@@ -37,7 +39,7 @@ use std::sync::{Arc, Mutex};
 /// line, so that two threads seldom write one line (with 32, every line was two chunks and the
 /// contact checks took 76 µs a step on two threads against 55-58 with 64 or 128); larger chunks
 /// would share a few hundred robots unevenly.
-pub(super) const CHUNK: usize = 64;
+pub(crate) const CHUNK: usize = 64;
 
 /// Spins of an idle helper between looks for the pool's other jobs.
 const SPINS_BETWEEN_YIELDS: u32 = 64;
@@ -134,14 +136,15 @@ impl Team {
     /// Runs `work` with the current rayon pool's other threads helping with the passes it
     /// posts over `items` items (robots): at most one helper per two chunks of them, since a
     /// helper without a chunk to claim only spins. Without a pool (or with one thread) `work`
-    /// just runs, and the passes run in order on this thread.
+    /// just runs, and the passes run in order on this thread; inside a scope of this team
+    /// already (whose helpers are there), too.
     pub(super) fn scope<R>(&self, items: usize, work: impl FnOnce() -> R) -> R {
         let most = (items.div_ceil(CHUNK) / 2).max(1);
         let helpers = rayon::current_num_threads().saturating_sub(1).min(most);
-        if rayon::current_thread_index().is_none() || helpers == 0 {
+        let shared = &self.shared;
+        if rayon::current_thread_index().is_none() || helpers == 0 || shared.open.load(SeqCst) {
             return work();
         }
-        let shared = &self.shared;
         shared.open.store(true, SeqCst);
         let done = rayon::in_place_scope(|s| {
             for _ in 0..helpers {
@@ -225,6 +228,45 @@ impl Team {
         let theirs = job.panic.lock().unwrap_or_else(|e| e.into_inner()).take();
         if let Some(panic) = theirs {
             resume_unwind(panic);
+        }
+    }
+}
+
+/// The team of one world's step ([`World::step_team`](super::World::step_team)).
+#[derive(Debug)]
+pub struct StepTeam {
+    pub(super) team: Option<Team>,
+    pub(super) robots: usize,
+}
+
+impl StepTeam {
+    /// Runs `work`, a step of the world (or its reset), with the team there for every pass
+    /// over its robots that the step posts, the task's as well as the world's.
+    pub fn scope<R>(&self, work: impl FnOnce() -> R) -> R {
+        match &self.team {
+            Some(team) => team.scope(self.robots, work),
+            None => work(),
+        }
+    }
+
+    /// Whether the world's robots are shared among a team (a swarm inside a batch's pool).
+    pub(crate) fn shares(&self) -> bool {
+        self.team.is_some()
+    }
+
+    /// Runs `f` on every item of `items`, chunk k of a pass over the world's robots (or its
+    /// agents, one a robot): [`CHUNK`] of them, `f` getting the index of the first. A swarm
+    /// shares them among its team (inside [`StepTeam::scope`]; see [`Team::each_beside`]);
+    /// another world runs them in order. `f` must depend only on its item and what it reads,
+    /// so that the results do not depend on who runs it.
+    pub(crate) fn each<T: Send>(&self, items: Vec<T>, f: impl Fn(usize, T) + Sync) {
+        match &self.team {
+            Some(team) => team.each(items, f),
+            None => {
+                for (k, item) in items.into_iter().enumerate() {
+                    f(k * CHUNK, item);
+                }
+            }
         }
     }
 }
