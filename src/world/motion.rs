@@ -120,14 +120,7 @@ impl World {
             r.step_start_heading = r.heading;
             r.step_start_position = r.position;
         };
-        // Robot by robot, so a swarm shares it among the batch's threads.
-        if self.share_robots() {
-            let chunks = self.robots.chunks_mut(CHUNK).collect();
-            self.team
-                .each(chunks, |_, r: &mut [Robot]| r.iter_mut().for_each(begin));
-        } else {
-            self.robots.iter_mut().for_each(begin);
-        }
+        self.each_robot(begin);
         match self.drive_model {
             DriveModel::Kinematic => self.advance_kinematic(),
             DriveModel::Traction => self.advance_traction(),
@@ -191,13 +184,18 @@ impl World {
                 r.step_velocity = velocity;
             }
         };
-        // Robot by robot, so a swarm shares it among the batch's threads.
+        self.each_robot(finish);
+    }
+
+    /// Runs `f` on every robot, robot by robot, so that a swarm shares the pass among the
+    /// batch's threads (`team.rs`); in order otherwise.
+    fn each_robot(&mut self, f: impl Fn(&mut Robot) + Sync) {
         if self.share_robots() {
             let chunks = self.robots.chunks_mut(CHUNK).collect();
             self.team
-                .each(chunks, |_, r: &mut [Robot]| r.iter_mut().for_each(finish));
+                .each(chunks, |_, r: &mut [Robot]| r.iter_mut().for_each(&f));
         } else {
-            self.robots.iter_mut().for_each(finish);
+            self.robots.iter_mut().for_each(f);
         }
     }
 
