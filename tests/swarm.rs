@@ -260,8 +260,9 @@ fn test_a_batch_of_swarms_split_by_robot_gives_the_same_results_on_one_thread_or
 fn test_a_swarm_in_a_pool_writes_the_observations_it_writes_alone() {
     // Inside a batch's pool a swarm's team applies its agents' actions and writes their
     // observations in blocks, each block on whichever thread claims it; a world stepped alone
-    // (no pool) goes agent after agent, with one observation writer. Both must give the same observation, value for value, at
-    // the reset and at every step. 100 robots: one block of 64 agents and a shorter one.
+    // (no pool) runs the blocks in order on its own thread. Both must give the same
+    // observation, value for value, at the reset and at every step. 100 robots: one block of
+    // 64 agents and a shorter one.
     let overrides = "n_robots = 100\nwidth = 7.0\nheight = 7.0";
     let mut pooled = batch(overrides, 1, 2);
     let cfg = swarm_scenario(overrides).expect("scenario");

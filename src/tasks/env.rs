@@ -122,11 +122,11 @@ pub struct Env {
     /// Action values per agent ([`action_width`]).
     action_width: usize,
     obs_dim: usize,
-    /// The length of every agent's observation, when they all have one length (a swarm then
-    /// writes them in parallel).
+    /// The length of every agent's observation, when they all have one length (then written in
+    /// blocks of agents, which a swarm's team shares).
     agent_width: Option<usize>,
-    /// Whether agent k drives robot k, for every agent and robot (a swarm then applies the
-    /// actions in parallel).
+    /// Whether agent k drives robot k, for every agent and robot (then the actions are applied
+    /// in blocks of robots, which a swarm's team shares).
     agents_are_robots: bool,
     /// Each agent's reward on the last step.
     pub agent_rewards: Vec<f32>,
@@ -417,10 +417,10 @@ impl Env {
             }
         };
         let robots = &mut self.world.robots;
-        if team.shares() && self.agents_are_robots && action.len() == robots.len() * width {
-            // A swarm whose agent k drives robot k: blocks of robots, shared among the team.
+        if self.agents_are_robots && action.len() == robots.len() * width {
+            // Agent k drives robot k: blocks of robots, which a swarm's team shares.
             let blocks = robots.chunks_mut(ROBOT_CHUNK);
-            let blocks = blocks.zip(action.chunks(ROBOT_CHUNK * width)).collect();
+            let blocks = blocks.zip(action.chunks(ROBOT_CHUNK * width));
             team.each(blocks, |_, (robots, sent): (&mut [Robot], &[f32])| {
                 for (robot, sent) in robots.iter_mut().zip(sent.chunks(width)) {
                     set(robot, Some(sent));
@@ -453,17 +453,18 @@ impl Env {
             }
             self.task.observe(&self.world, &self.cfg, k, out);
         };
-        let team = self.world.step_team();
-        if let Some(width) = self.agent_width.filter(|_| team.shares()) {
-            // A swarm: blocks of agents, each its own writer, shared among the team.
-            let blocks = obs.chunks_mut(ROBOT_CHUNK * width).collect();
-            team.each(blocks, |first, block: &mut [f32]| {
-                for (k, out) in block.chunks_mut(width).enumerate() {
-                    let mut out = ObsWriter::new(out);
-                    agent(first + k, &mut out);
-                    debug_assert_eq!(out.position(), width, "agent {} wrote", first + k);
-                }
-            });
+        if let Some(width) = self.agent_width {
+            // Blocks of agents, each agent with its own writer, which a swarm's team shares.
+            let blocks = obs.chunks_mut(ROBOT_CHUNK * width);
+            self.world
+                .step_team()
+                .each(blocks, |first, block: &mut [f32]| {
+                    for (k, out) in block.chunks_mut(width).enumerate() {
+                        let mut out = ObsWriter::new(out);
+                        agent(first + k, &mut out);
+                        debug_assert_eq!(out.position(), width, "agent {} wrote", first + k);
+                    }
+                });
             return;
         }
         let mut out = ObsWriter::new(obs);

@@ -62,7 +62,6 @@ impl World {
             self.gather_positions();
         }
         let swarm = self.robots.len() > self.grid_min_robots;
-        let share = self.share_robots();
         let reach = if swarm {
             cutoff + self.refresh_contact_grid(cutoff)
         } else {
@@ -108,16 +107,13 @@ impl World {
                 robot.in_contact = true;
             }
         };
-        if share {
-            let chunks = self.robots.chunks_mut(CHUNK).collect();
-            self.team.each(chunks, |first, robots: &mut [Robot]| {
-                for (i, robot) in robots.iter_mut().enumerate() {
-                    mark((first + i, robot));
-                }
-            });
-        } else {
-            self.robots.iter_mut().enumerate().for_each(mark);
-        }
+        // Robot by robot, so a swarm shares it among its team.
+        let chunks = self.robots.chunks_mut(CHUNK);
+        self.team.each(chunks, |first, robots: &mut [Robot]| {
+            for (i, robot) in robots.iter_mut().enumerate() {
+                mark((first + i, robot));
+            }
+        });
         false
     }
 }

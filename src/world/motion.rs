@@ -187,16 +187,12 @@ impl World {
         self.each_robot(finish);
     }
 
-    /// Runs `f` on every robot, robot by robot, so that a swarm shares the pass among the
-    /// batch's threads (`team.rs`); in order otherwise.
+    /// Runs `f` on every robot, robot by robot, so that a swarm shares the pass among its team
+    /// (`team.rs`); in order otherwise.
     fn each_robot(&mut self, f: impl Fn(&mut Robot) + Sync) {
-        if self.share_robots() {
-            let chunks = self.robots.chunks_mut(CHUNK).collect();
-            self.team
-                .each(chunks, |_, r: &mut [Robot]| r.iter_mut().for_each(&f));
-        } else {
-            self.robots.iter_mut().for_each(f);
-        }
+        let chunks = self.robots.chunks_mut(CHUNK);
+        self.team
+            .each(chunks, |_, r: &mut [Robot]| r.iter_mut().for_each(&f));
     }
 
     fn physics_substep(&mut self) {
@@ -256,11 +252,10 @@ impl World {
             // robot in `self.active` (what `slip_substep` reads), and for the whole world.
             let grip = self.tyre_friction * GRAVITY * h;
             let ratio = self.inertia_per_mass() / self.drive.axle_length;
-            let share = self.share_robots();
             let (drive, keeps_rolling) = (&self.drive, &mut self.active);
             keeps_rolling.clear();
             keeps_rolling.resize(self.robots.len(), false);
-            // Robot by robot, so a swarm shares it among the batch's threads.
+            // Robot by robot, so a swarm shares it among its team.
             let pass = |(r, keeps): (&mut Robot, &mut bool)| {
                 let rolling = is_rolling(drive, r);
                 let before = r.wheel_speeds;
@@ -270,19 +265,12 @@ impl World {
                 r.wheel_travel[1] += (r.wheel_speeds[1] * h) as f64;
                 *keeps = rolling && within_grip(drive, before, r.wheel_speeds, ratio, grip, h);
             };
-            if share {
-                let chunks = self.robots.chunks_mut(CHUNK);
-                let chunks = chunks.zip(keeps_rolling.chunks_mut(CHUNK)).collect();
-                self.team
-                    .each(chunks, |_, (r, k): (&mut [Robot], &mut [bool])| {
-                        r.iter_mut().zip(k.iter_mut()).for_each(pass);
-                    });
-            } else {
-                self.robots
-                    .iter_mut()
-                    .zip(keeps_rolling.iter_mut())
-                    .for_each(pass);
-            }
+            let chunks = self.robots.chunks_mut(CHUNK);
+            let chunks = chunks.zip(keeps_rolling.chunks_mut(CHUNK));
+            self.team
+                .each(chunks, |_, (r, k): (&mut [Robot], &mut [bool])| {
+                    r.iter_mut().zip(k.iter_mut()).for_each(pass);
+                });
             let rolls = keeps_rolling.iter().all(|&keeps| keeps);
             let reach = if far {
                 Reach::Nothing
@@ -399,12 +387,9 @@ impl World {
             tyre_friction: self.tyre_friction,
         };
         let active = only.then_some(self.active.as_slice());
-        let team = self.share_robots().then_some(&self.team);
-        // Split by robot, rapier takes few robots (those that can touch something): sharing
-        // them among the team costs more than reading them on this thread.
-        let bodies_team = team.filter(|_| !only);
+        let team = &self.team;
         let (physics, traction) = (&mut self.physics, &mut self.traction);
-        let mut step = || physics.step_traction(traction, active, grip, bodies_team);
+        let mut step = || physics.step_traction(traction, active, grip, team);
         if let Some(h) = roll_others {
             // The others roll on the team while this thread steps rapier.
             let rolled = (&mut self.robots[..], &mut self.positions[..]);
@@ -412,11 +397,7 @@ impl World {
         } else {
             step();
         }
-        // Robot by robot, so a swarm shares it among the batch's threads.
-        let take = |(i, (r, state)): (usize, (&mut Robot, &TractionBody))| {
-            if active.is_some_and(|a| !a[i]) {
-                return;
-            }
+        let take = |(r, state): (&mut Robot, &TractionBody)| {
             r.step_travel += (state.position - r.position).length();
             r.position = state.position;
             r.heading = wrap_angle(state.heading);
@@ -427,24 +408,20 @@ impl World {
             // Split by robot, only rapier's robots, whose centres the contact checks then read.
             for (i, state) in self.traction.iter().enumerate() {
                 if self.active[i] {
-                    take((i, (&mut self.robots[i], state)));
+                    take((&mut self.robots[i], state));
                     self.positions[i] = state.position;
                 }
             }
-        } else if let Some(team) = bodies_team {
-            let chunks = self.robots.chunks_mut(CHUNK);
-            let chunks = chunks.zip(self.traction.chunks(CHUNK)).collect();
-            team.each(chunks, |first, (r, t): (&mut [Robot], &[TractionBody])| {
-                for (i, pair) in r.iter_mut().zip(t).enumerate() {
-                    take((first + i, pair));
-                }
-            });
         } else {
-            self.robots
-                .iter_mut()
-                .zip(&self.traction)
-                .enumerate()
-                .for_each(take);
+            // Robot by robot, so a swarm shares it among its team.
+            let chunks = self
+                .robots
+                .chunks_mut(CHUNK)
+                .zip(self.traction.chunks(CHUNK));
+            self.team
+                .each(chunks, |_, (r, t): (&mut [Robot], &[TractionBody])| {
+                    r.iter_mut().zip(t).for_each(take);
+                });
         }
         // Split by robot, `split_substep` marks the contacts (and checks its bounds held).
         if !only {
@@ -454,14 +431,14 @@ impl World {
 }
 
 /// Rolls every robot `active` does not mark on its exact arc over `h` seconds and writes its
-/// centre into `positions`, while this thread runs `beside`; with a `team` (a swarm inside a
-/// batch's pool) robot by robot on the team, with the same results.
+/// centre into `positions`, while this thread runs `beside`; robot by robot, so that a swarm
+/// shares it among its `team`, with the same results.
 pub(super) fn roll_left_out(
     (robots, positions): (&mut [Robot], &mut [Vector]),
     active: &[bool],
     drive: &Drive,
     h: f32,
-    team: Option<&Team>,
+    team: &Team,
     beside: impl FnOnce(),
 ) {
     let roll = |((r, at), &a): ((&mut Robot, &mut Vector), &bool)| {
@@ -472,21 +449,12 @@ pub(super) fn roll_left_out(
             *at = r.position;
         }
     };
-    if let Some(team) = team {
-        let chunks = robots.chunks_mut(CHUNK).zip(positions.chunks_mut(CHUNK));
-        let chunks = chunks.zip(active.chunks(CHUNK)).collect();
-        let each = |_: &mut (), _, ((r, p), a): ((&mut [Robot], &mut [Vector]), &[bool])| {
-            r.iter_mut().zip(p.iter_mut()).zip(a).for_each(roll);
-        };
-        team.each_beside(chunks, || (), each, beside);
-    } else {
-        beside();
-        robots
-            .iter_mut()
-            .zip(positions.iter_mut())
-            .zip(active)
-            .for_each(roll);
-    }
+    let chunks = robots.chunks_mut(CHUNK).zip(positions.chunks_mut(CHUNK));
+    let chunks = chunks.zip(active.chunks(CHUNK));
+    let each = |_: &mut (), _, ((r, p), a): ((&mut [Robot], &mut [Vector]), &[bool])| {
+        r.iter_mut().zip(p.iter_mut()).zip(a).for_each(roll);
+    };
+    team.each_beside(chunks, || (), each, beside);
 }
 
 /// Whether a robot rolling on wheels at `before` (m/s) keeps rolling when they change to `after`

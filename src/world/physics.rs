@@ -16,14 +16,15 @@
 
 use std::cell::RefCell;
 
-use super::team::{Team, CHUNK};
-use super::tyres::{tyre_impulses, Grip, TractionBody, GRAVITY};
-use crate::geometry::scene::{Geometry, Scene};
 use rapier2d::math::{Pose, Vector};
 use rapier2d::prelude::{
     ActiveHooks, ColliderBuilder, ColliderHandle, ContactModificationContext, PhysicsHooks,
     PhysicsPipeline, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle,
 };
+
+use super::team::{Team, CHUNK};
+use super::tyres::{tyre_impulses, Grip, TractionBody, GRAVITY};
+use crate::geometry::scene::{Geometry, Scene};
 
 /// Rapier state of one world. It serialises whole (bodies, colliders, broad phase, contact
 /// manifolds with their warm-start impulses), so a restored world steps bit for bit as the
@@ -391,15 +392,16 @@ impl Physics {
     /// (`physics.split = "robot"`) only the robots it marks take part: the others' bodies are
     /// disabled in rapier (no contacts, no integration, no broad-phase update) and their entries
     /// in `bodies` left as they are; the caller guarantees that none of them can touch anything
-    /// during the substep. With a `team`, compute the bodies' targets and read rapier's results
-    /// back on it (a swarm inside a batch's pool; the results are the same either way).
-    /// Rapier's step itself runs on the calling thread.
+    /// during the substep, and their targets are computed and results read on this thread.
+    /// Otherwise the world's `team` computes every body's target and reads rapier's results back
+    /// (shared among a swarm's threads, in order in any other world; the same results either
+    /// way). Rapier's step itself runs on the calling thread.
     pub(super) fn step_traction(
         &mut self,
         bodies: &mut [TractionBody],
         active: Option<&[bool]>,
         grip: Grip,
-        team: Option<&Team>,
+        team: &Team,
     ) {
         let mass = self.params.mass;
         // A uniform disc [E]: the body's mass spread over the shell's footprint.
@@ -416,17 +418,17 @@ impl Physics {
             (pose, state.velocity + dv, state.spin + dw)
         };
         self.targets.clear();
-        match (active, team) {
-            (Some(active), _) => {
-                // Split by robot: the few robots rapier takes, in robot order.
+        match active {
+            Some(active) => {
+                // Split by robot: the few robots rapier takes, in robot order, on this thread
+                // (sharing them among the team would cost more than reading them).
                 let taking = bodies.iter().zip(active).filter(|(_, &a)| a);
                 self.targets.extend(taking.map(|(state, _)| target(state)));
             }
-            (None, Some(team)) => {
+            None => {
                 let unset = (Pose::new(Vector::ZERO, 0.0), Vector::ZERO, 0.0);
                 self.targets.resize(bodies.len(), unset);
-                let chunks = self.targets.chunks_mut(CHUNK);
-                let chunks = chunks.zip(bodies.chunks(CHUNK)).collect();
+                let chunks = self.targets.chunks_mut(CHUNK).zip(bodies.chunks(CHUNK));
                 team.each(
                     chunks,
                     |_, (out, each): (&mut [Target], &[TractionBody])| {
@@ -436,7 +438,6 @@ impl Physics {
                     },
                 );
             }
-            (None, None) => self.targets.extend(bodies.iter().map(target)),
         }
         let friction = (self.params.friction, self.params.robot_friction);
         let targets = std::mem::take(&mut self.targets);
@@ -475,10 +476,7 @@ impl Physics {
         // Reading the poses back (an atan2 each) only reads rapier's bodies: robot by robot, so
         // a swarm shares it among the batch's threads.
         let rapier_bodies = &built.world.bodies;
-        let read = |(i, (state, handle)): (usize, (&mut TractionBody, &RigidBodyHandle))| {
-            if !takes_part(i) {
-                return;
-            }
+        let read = |(state, handle): (&mut TractionBody, &RigidBodyHandle)| {
             if let Some(body) = rapier_bodies.get(*handle) {
                 let pose = body.position();
                 state.position = pose.translation;
@@ -487,20 +485,18 @@ impl Physics {
                 state.spin = body.angvel();
             }
         };
-        if let Some(team) = team {
-            let chunks = bodies.chunks_mut(CHUNK);
-            let chunks = chunks.zip(built.robots.chunks(CHUNK)).collect();
-            team.each(chunks, |first, (each, handles): (&mut [_], &[_])| {
-                for (i, pair) in each.iter_mut().zip(handles).enumerate() {
-                    read((first + i, pair));
-                }
-            });
-        } else {
-            bodies
-                .iter_mut()
-                .zip(&built.robots)
-                .enumerate()
-                .for_each(read);
+        match active {
+            // Split by robot: the robots rapier took, on this thread.
+            Some(active) => {
+                let pairs = bodies.iter_mut().zip(&built.robots).zip(active);
+                pairs.filter(|(_, &a)| a).for_each(|(pair, _)| read(pair));
+            }
+            None => {
+                let chunks = bodies.chunks_mut(CHUNK).zip(built.robots.chunks(CHUNK));
+                team.each(chunks, |_, (each, handles): (&mut [_], &[_])| {
+                    each.iter_mut().zip(handles).for_each(read);
+                });
+            }
         }
         // The scratch goes back, with its capacity.
         self.targets = targets;

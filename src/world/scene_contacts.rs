@@ -299,16 +299,11 @@ impl World {
             r.velocity = body.velocity;
             r.spin = body.spin;
         };
-        if self.share_robots() {
-            let chunks = self.robots.chunks_mut(CHUNK);
-            let chunks = chunks.zip(self.active.chunks(CHUNK)).collect();
-            self.team
-                .each(chunks, |_, (r, a): (&mut [Robot], &[bool])| {
-                    r.iter_mut().zip(a).for_each(each);
-                });
-        } else {
-            self.robots.iter_mut().zip(&self.active).for_each(each);
-        }
+        let chunks = self.robots.chunks_mut(CHUNK).zip(self.active.chunks(CHUNK));
+        self.team
+            .each(chunks, |_, (r, a): (&mut [Robot], &[bool])| {
+                r.iter_mut().zip(a).for_each(each);
+            });
         self.mark_contacts(false);
     }
 }

@@ -101,29 +101,21 @@ impl World {
                 pass(r, (a, s), p, st);
             }
         };
-        let share = self.share_robots();
-        let size = if share { CHUNK } else { n.max(1) };
         let robots = self
             .robots
-            .chunks_mut(size)
-            .zip(self.active.chunks_mut(size));
-        let robots = robots.zip(self.speeds.chunks_mut(size));
-        let chunks = robots.zip(
-            self.positions
-                .chunks_mut(size)
-                .zip(self.start.chunks_mut(size)),
-        );
-        if share {
-            self.team.each(chunks.collect(), |_, chunk| each(chunk));
-        } else {
-            chunks.for_each(each);
-        }
+            .chunks_mut(CHUNK)
+            .zip(self.active.chunks_mut(CHUNK));
+        let robots = robots.zip(self.speeds.chunks_mut(CHUNK));
+        let slots = self
+            .positions
+            .chunks_mut(CHUNK)
+            .zip(self.start.chunks_mut(CHUNK));
+        self.team.each(robots.zip(slots), |_, chunk| each(chunk));
         self.mark_reachable(h);
         for round in 0.. {
             if !self.active.contains(&true) {
-                let team = self.share_robots().then_some(&self.team);
                 let rolled = (&mut self.robots[..], &mut self.positions[..]);
-                roll_left_out(rolled, &self.active, &self.drive, h, team, || ());
+                roll_left_out(rolled, &self.active, &self.drive, h, &self.team, || ());
                 return;
             }
             self.traction_substep(Some(h));
@@ -156,7 +148,6 @@ impl World {
             return;
         }
         let swarm = self.robots.len() > self.grid_min_robots;
-        let share = self.share_robots();
         // `self.positions` holds every robot's centre (the motors' pass wrote it).
         let drift = if swarm {
             self.refresh_contact_grid(cutoff)
@@ -188,18 +179,13 @@ impl World {
                 *active = (0..positions.len()).any(touches);
             }
         };
-        if share {
-            let chunks = self.active.chunks_mut(CHUNK).collect();
-            self.team.each(chunks, |first, active: &mut [bool]| {
-                for (i, a) in active.iter_mut().enumerate() {
-                    check(first + i, a);
-                }
-            });
-        } else {
-            for (i, a) in self.active.iter_mut().enumerate() {
-                check(i, a);
+        // Robot by robot, so a swarm shares it among its team.
+        let chunks = self.active.chunks_mut(CHUNK);
+        self.team.each(chunks, |first, active: &mut [bool]| {
+            for (i, a) in active.iter_mut().enumerate() {
+                check(first + i, a);
             }
-        }
+        });
     }
 }
 

@@ -85,22 +85,14 @@ impl World {
             leds: Vec::new(),
             near: Vec::new(),
         };
-        if rayon::current_thread_index().is_some() {
-            // Inside a batch's pool: share the robots among its threads.
-            let chunks = self.robots.chunks_mut(CHUNK).collect();
-            let each = |scratch: &mut Scratch, first: usize, robots: &mut [Robot]| {
-                for (i, robot) in robots.iter_mut().enumerate() {
-                    read(scratch, (first + i, robot));
-                }
-            };
-            self.team.each_beside(chunks, scratch, each, || ());
-        } else {
-            let mut one = scratch();
-            self.robots
-                .iter_mut()
-                .enumerate()
-                .for_each(|item| read(&mut one, item));
-        }
+        // Robot by robot, so that inside a batch's pool the team shares them.
+        let each = |scratch: &mut Scratch, first: usize, robots: &mut [Robot]| {
+            for (i, robot) in robots.iter_mut().enumerate() {
+                read(scratch, (first + i, robot));
+            }
+        };
+        let chunks = self.robots.chunks_mut(CHUNK);
+        self.team.each_beside(chunks, scratch, each, || ());
     }
 }
 

@@ -159,7 +159,11 @@ impl Team {
     }
 
     /// Runs `f` on every item, items shared among the team (see [`Team::each_beside`]).
-    pub(super) fn each<T: Send>(&self, items: Vec<T>, f: impl Fn(usize, T) + Sync) {
+    pub(super) fn each<T: Send>(
+        &self,
+        items: impl IntoIterator<Item = T>,
+        f: impl Fn(usize, T) + Sync,
+    ) {
         self.each_beside(
             items,
             || (),
@@ -171,12 +175,13 @@ impl Team {
     /// Posts `f` over `items` to the team, runs `beside` on this thread, then claims items
     /// until none is left and waits for the helpers' last ones. Item k is the k-th chunk of
     /// [`CHUNK`] robots: `f` gets the index of its first robot with it. Each member makes its
-    /// own scratch with `init` before its first item. Outside a scope the items run in order
-    /// after `beside`. A panic in any part is resumed here, after every helper has left the
-    /// pass.
+    /// own scratch with `init` before its first item. Outside a scope (a world that does not
+    /// share its robots, or a pool of one thread) the items run in order after `beside`, on
+    /// this thread, without being gathered: so every pass is written once, for both. A panic
+    /// in any part is resumed here, after every helper has left the pass.
     pub(super) fn each_beside<T: Send, S>(
         &self,
-        items: Vec<T>,
+        items: impl IntoIterator<Item = T>,
         init: impl Fn() -> S + Sync,
         f: impl Fn(&mut S, usize, T) + Sync,
         beside: impl FnOnce(),
@@ -249,17 +254,16 @@ impl StepTeam {
         }
     }
 
-    /// Whether the world's robots are shared among a team (a swarm inside a batch's pool).
-    pub(crate) fn shares(&self) -> bool {
-        self.team.is_some()
-    }
-
     /// Runs `f` on every item of `items`, chunk k of a pass over the world's robots (or its
     /// agents, one a robot): [`CHUNK`] of them, `f` getting the index of the first. A swarm
     /// shares them among its team (inside [`StepTeam::scope`]; see [`Team::each_beside`]);
     /// another world runs them in order. `f` must depend only on its item and what it reads,
     /// so that the results do not depend on who runs it.
-    pub(crate) fn each<T: Send>(&self, items: Vec<T>, f: impl Fn(usize, T) + Sync) {
+    pub(crate) fn each<T: Send>(
+        &self,
+        items: impl IntoIterator<Item = T>,
+        f: impl Fn(usize, T) + Sync,
+    ) {
         match &self.team {
             Some(team) => team.each(items, f),
             None => {
@@ -365,7 +369,7 @@ mod tests {
         let caught = pool(2).install(|| {
             catch_unwind(AssertUnwindSafe(|| {
                 team.scope(1000, || {
-                    team.each((0..64).collect(), |_, i: usize| assert!(i != 40, "item 40"));
+                    team.each(0..64, |_, i: usize| assert!(i != 40, "item 40"));
                 })
             }))
         });
